@@ -1,0 +1,97 @@
+//! The command-line interface: argument parsing (clap derive) and dispatch to one file per
+//! subcommand. Thin on purpose: every command calls library code and only formats its results.
+//!
+//! `robopost IN.src -c CAL.json -o OUT.src` (no subcommand) is the main job; it is routed to
+//! the `compensate` subcommand before clap sees the arguments.
+
+use clap::{Parser, Subcommand};
+
+pub mod check;
+pub mod compensate;
+pub mod kin;
+
+/// Exit status per `../shared/CONTRACTS.md`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Exit {
+    /// The job ran and every input was accepted.
+    Success = 0,
+    /// The job ran but some input was rejected (one file of a batch, unreachable targets).
+    Rejected = 1,
+    /// Usage error or unreadable input; nothing was written.
+    Usage = 2,
+}
+
+#[derive(Parser, Debug)]
+#[command(name = "robopost", version, about = "Compensate KUKA KRL programs with a calibrated robot error model")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Compensate one program (the default: `robopost IN.src -c CAL.json -o OUT.src`).
+    Compensate(compensate::Args),
+    /// Parse (and with -c simulate) programs and report problems; writes nothing.
+    Check(check::Args),
+    /// Flange pose of axis angles, nominal or as the calibrated model predicts.
+    Fk(kin::FkArgs),
+    /// Axis angles of every IK branch of a flange pose, or the selected one.
+    Ik(kin::IkArgs),
+}
+
+const SUBCOMMANDS: &[&str] = &[
+    "compensate", "batch", "check", "simulate", "identify", "compare", "diagnose", "fk", "ik",
+    "help",
+];
+
+/// Inserts the implicit `compensate` subcommand when the first argument is not a subcommand.
+fn with_default_subcommand(mut args: Vec<String>) -> Vec<String> {
+    if let Some(first) = args.get(1) {
+        let is_flag = first.starts_with('-') && first != "-";
+        if !is_flag && !SUBCOMMANDS.contains(&first.as_str()) {
+            args.insert(1, "compensate".to_string());
+        }
+    }
+    args
+}
+
+/// Runs the CLI on the process arguments and returns the exit status.
+pub fn main() -> i32 {
+    let args = with_default_subcommand(std::env::args().collect());
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = if e.use_stderr() { Exit::Usage as i32 } else { 0 };
+            let _ = e.print();
+            return code;
+        }
+    };
+    let exit = match cli.command {
+        Command::Compensate(a) => compensate::run(a),
+        Command::Check(a) => check::run(a),
+        Command::Fk(a) => kin::run_fk(a),
+        Command::Ik(a) => kin::run_ik(a),
+    };
+    exit as i32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn v(s: &[&str]) -> Vec<String> {
+        s.iter().map(|x| x.to_string()).collect()
+    }
+
+    #[test]
+    fn main_job_needs_no_subcommand() {
+        assert_eq!(
+            with_default_subcommand(v(&["robopost", "in.src", "-c", "cal.json"])),
+            v(&["robopost", "compensate", "in.src", "-c", "cal.json"])
+        );
+        assert_eq!(with_default_subcommand(v(&["robopost", "-", "-c", "x"]))[1], "compensate");
+        assert_eq!(with_default_subcommand(v(&["robopost", "check", "a.src"]))[1], "check");
+        assert_eq!(with_default_subcommand(v(&["robopost", "--help"]))[1], "--help");
+    }
+}

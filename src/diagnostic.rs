@@ -1,0 +1,1 @@
+//! User-facing errors with file:line:col, the offending source line and a hint.

@@ -1,0 +1,1 @@
+//! KUKA KRL front end (filled in by the parser work).

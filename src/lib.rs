@@ -1,0 +1,14 @@
+//! robopost: an offline-programming post-processor that compensates KUKA KRL programs with an
+//! extended kinematic error model (axis average lines, bidirectional angular positioning
+//! deviation, axis-to-axis crosstalk and further physical effects).
+//!
+//! Data flows one way:
+//! `bytes → krl (lossless syntax) → motion (targets, joints, directions) → model (error effects)
+//! → compensate → krl edits → bytes`, and `csv → identify → model`, `model + csv → report`.
+//! `krl` knows nothing of kinematics; `kinematics` knows nothing of KRL.
+
+pub mod cli;
+pub mod diagnostic;
+pub mod kinematics;
+pub mod krl;
+pub mod model;

@@ -1,0 +1,116 @@
+//! The one trait every physical error effect implements, and the chain-error vector it writes.
+//!
+//! Chain errors are the common currency between effects and the error chain. For axis n
+//! (index n-1) the chain is, in the paper's frames (MODEL.md):
+//! `Trans(L_n + (dx, dy, dz)) · Rx(rx)·Ry(ry)·Rz(rz) · Rot_axis_n(sense_n·(A_n + dθ_n) + offset_n)`
+//! where `L_n` is the nominal link vector before axis n. The paper's 18 geometric parameters
+//! are exactly some of these slots (e.g. δx21 is axis 2's `dx`, α32 axis 3's `rx`, Δθ40 axis
+//! 4's `dθ` in model sign); angular deviations (maps, backlash, crosstalk, compliance) write
+//! `dθ`; tilt writes `rx/ry/rz`; drift writes link-length slots. The last three slots displace
+//! the measurement target vector (in the A6 frame of the paper).
+//!
+//! Units: slots are mm and radians; `dθ` is in KUKA sign (actual KUKA angle = command + dθ).
+
+use super::state::AxisState;
+use crate::kinematics::RobotDescription;
+
+/// Slots per axis: dx, dy, dz (mm), rx, ry, rz (rad), dθ (rad, KUKA sign).
+pub const JOINT_SLOTS: usize = 7;
+/// Six axes plus the three target-vector slots.
+pub const N_SLOTS: usize = 6 * JOINT_SLOTS + 3;
+
+/// One scalar slot of the chain-error vector.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Slot {
+    /// Displacement of axis `axis` (1..=6) along model x/y/z (0, 1, 2), mm.
+    Offset { axis: u8, coord: u8 },
+    /// Small rotation of axis `axis` about model x/y/z (0, 1, 2), rad.
+    Tilt { axis: u8, coord: u8 },
+    /// Angular positioning deviation of axis `axis`, rad, KUKA sign.
+    Angle { axis: u8 },
+    /// Displacement of the measurement target along A6-frame x/y/z, mm.
+    Target { coord: u8 },
+}
+
+impl Slot {
+    /// Index into [`ChainErrors::0`].
+    pub const fn index(self) -> usize {
+        match self {
+            Slot::Offset { axis, coord } => (axis as usize - 1) * JOINT_SLOTS + coord as usize,
+            Slot::Tilt { axis, coord } => (axis as usize - 1) * JOINT_SLOTS + 3 + coord as usize,
+            Slot::Angle { axis } => (axis as usize - 1) * JOINT_SLOTS + 6,
+            Slot::Target { coord } => 6 * JOINT_SLOTS + coord as usize,
+        }
+    }
+}
+
+/// The additive error contributions of all effects at one state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainErrors(pub [f64; N_SLOTS]);
+
+impl Default for ChainErrors {
+    fn default() -> Self {
+        ChainErrors([0.0; N_SLOTS])
+    }
+}
+
+impl ChainErrors {
+    pub fn add(&mut self, slot: Slot, value: f64) {
+        self.0[slot.index()] += value;
+    }
+    pub fn get(&self, slot: Slot) -> f64 {
+        self.0[slot.index()]
+    }
+}
+
+/// One model parameter as users see it (in reports, calibration files, standard errors).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Parameter {
+    /// e.g. `dx21`, `map:A2[-45.0]`, `backlash:A1[12.0]`.
+    pub name: String,
+    /// Unit of the stored value: "mm", "deg", "mm/h", "deg/Nm" ...
+    pub unit: &'static str,
+}
+
+/// One non-zero entry of an effect's Jacobian: d slot / d parameter `param` at a state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Partial {
+    pub param: usize,
+    pub slot: Slot,
+    pub value: f64,
+}
+
+/// Read-only data an effect may need besides the state (gravity data, payload).
+#[derive(Clone, Copy, Debug)]
+pub struct Context<'a> {
+    pub robot: &'a RobotDescription,
+    pub payload: &'a crate::kinematics::Payload,
+}
+
+/// A physical error effect of the contract table (`geometric`, `map:An`, `backlash:An`,
+/// `crosstalk:Am->An`, `compliance:An`, `tilt:An`, `drift`).
+pub trait Effect: Send + Sync + std::fmt::Debug {
+    /// The contract name, e.g. `map:A2` or `crosstalk:A3->A2`.
+    fn name(&self) -> String;
+    /// Names and units of the parameters, in the order of [`Effect::values`].
+    fn parameters(&self) -> Vec<Parameter>;
+    /// Current parameter values, in their stored units (see [`Parameter::unit`]).
+    fn values(&self) -> &[f64];
+    fn values_mut(&mut self) -> &mut [f64];
+    /// Adds this effect's contribution at `state` to `errors`.
+    fn add_to(&self, state: &AxisState, ctx: &Context, errors: &mut ChainErrors);
+    /// Pushes d(chain errors)/d(values) at `state` (stored units) as sparse entries.
+    fn jacobian(&self, state: &AxisState, ctx: &Context, out: &mut Vec<Partial>);
+    /// Whether `state` lies outside this effect's table range (the value was clamped to the
+    /// edge), so that reports can count such points.
+    fn clamped(&self, _state: &AxisState) -> bool {
+        false
+    }
+    fn clone_box(&self) -> Box<dyn Effect>;
+}
+
+impl Clone for Box<dyn Effect> {
+    fn clone(&self) -> Self {
+        self.clone_box()
+    }
+}
