@@ -11,4 +11,5 @@ pub mod cli;
 pub mod diagnostic;
 pub mod kinematics;
 pub mod krl;
+pub mod measure;
 pub mod model;

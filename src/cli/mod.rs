@@ -22,7 +22,11 @@ pub enum Exit {
 }
 
 #[derive(Parser, Debug)]
-#[command(name = "robopost", version, about = "Compensate KUKA KRL programs with a calibrated robot error model")]
+#[command(
+    name = "robopost",
+    version,
+    about = "Compensate KUKA KRL programs with a calibrated robot error model"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -41,7 +45,15 @@ pub enum Command {
 }
 
 const SUBCOMMANDS: &[&str] = &[
-    "compensate", "batch", "check", "simulate", "identify", "compare", "diagnose", "fk", "ik",
+    "compensate",
+    "batch",
+    "check",
+    "simulate",
+    "identify",
+    "compare",
+    "diagnose",
+    "fk",
+    "ik",
     "help",
 ];
 
@@ -62,7 +74,11 @@ pub fn main() -> i32 {
     let cli = match Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) => {
-            let code = if e.use_stderr() { Exit::Usage as i32 } else { 0 };
+            let code = if e.use_stderr() {
+                Exit::Usage as i32
+            } else {
+                0
+            };
             let _ = e.print();
             return code;
         }
@@ -90,8 +106,17 @@ mod tests {
             with_default_subcommand(v(&["robopost", "in.src", "-c", "cal.json"])),
             v(&["robopost", "compensate", "in.src", "-c", "cal.json"])
         );
-        assert_eq!(with_default_subcommand(v(&["robopost", "-", "-c", "x"]))[1], "compensate");
-        assert_eq!(with_default_subcommand(v(&["robopost", "check", "a.src"]))[1], "check");
-        assert_eq!(with_default_subcommand(v(&["robopost", "--help"]))[1], "--help");
+        assert_eq!(
+            with_default_subcommand(v(&["robopost", "-", "-c", "x"]))[1],
+            "compensate"
+        );
+        assert_eq!(
+            with_default_subcommand(v(&["robopost", "check", "a.src"]))[1],
+            "check"
+        );
+        assert_eq!(
+            with_default_subcommand(v(&["robopost", "--help"]))[1],
+            "--help"
+        );
     }
 }

@@ -49,7 +49,10 @@ pub struct Payload {
 
 impl Default for Payload {
     fn default() -> Self {
-        Payload { mass_kg: 0.0, cog_mm: [0.0; 3] }
+        Payload {
+            mass_kg: 0.0,
+            cog_mm: [0.0; 3],
+        }
     }
 }
 
@@ -77,7 +80,14 @@ impl RobotDescription {
     /// gravity torques are of the right size; they only scale the compliance effect.
     pub const fn kr30ha() -> Self {
         RobotDescription {
-            links: Links { l1x: 350.0, l1z: 815.0, l2: 850.0, l3z: 145.0, l4x: 820.0, l5x: 170.0 },
+            links: Links {
+                l1x: 350.0,
+                l1z: 815.0,
+                l2: 850.0,
+                l3z: 145.0,
+                l4x: 820.0,
+                l5x: 170.0,
+            },
             limits_deg: [
                 [-185.0, 185.0],
                 [-135.0, 35.0],

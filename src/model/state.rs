@@ -54,6 +54,10 @@ pub struct AxisState {
 
 impl AxisState {
     pub fn new(axes_deg: [f64; 6]) -> Self {
-        AxisState { axes_deg, directions: [Direction::Unknown; 6], time_s: 0.0 }
+        AxisState {
+            axes_deg,
+            directions: [Direction::Unknown; 6],
+            time_s: 0.0,
+        }
     }
 }

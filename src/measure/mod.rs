@@ -1,0 +1,45 @@
+//! Laser-tracker measurements: the measurement CSV of `../shared/CONTRACTS.md` read into
+//! [`Stop`]s (command axis angles, inferred rotation directions, time, measured position) and
+//! written back. Rotation directions are inferred here once, so that identification, diagnosis
+//! and the virtual robot all agree on which backlash branch an axis sat on.
+
+mod csv_file;
+mod directions;
+
+pub use csv_file::{parse_csv, read_csv, write_csv, MeasureError};
+pub use directions::infer_directions;
+
+use crate::model::AxisState;
+use nalgebra::Vector3;
+
+/// One robot stop: a row of the measurement CSV.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stop {
+    /// Label of the test or path the row belongs to.
+    pub test: String,
+    /// Command angles, rotation directions and time at this stop.
+    pub state: AxisState,
+    /// Measured target position (mm); `None` on an approach row that was not measured.
+    pub measured_mm: Option<Vector3<f64>>,
+    /// 1-based line of the row in its file (0 when not read from a file).
+    pub line: usize,
+}
+
+/// The rows of one measurement file, in the order the robot visited them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Measurements {
+    /// Where the rows came from (file name, or `-` for stdin).
+    pub source: String,
+    pub stops: Vec<Stop>,
+    /// Columns that were present but are not part of the contract (ignored).
+    pub ignored_columns: Vec<String>,
+}
+
+impl Measurements {
+    /// The measured rows only.
+    pub fn measured(&self) -> impl Iterator<Item = (&Stop, Vector3<f64>)> {
+        self.stops
+            .iter()
+            .filter_map(|s| s.measured_mm.map(|p| (s, p)))
+    }
+}
