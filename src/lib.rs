@@ -13,3 +13,4 @@ pub mod kinematics;
 pub mod krl;
 pub mod measure;
 pub mod model;
+pub mod stats;
