@@ -13,4 +13,5 @@ pub mod kinematics;
 pub mod krl;
 pub mod measure;
 pub mod model;
+pub mod simulate;
 pub mod stats;

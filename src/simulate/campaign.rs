@@ -1,0 +1,309 @@
+//! Measurement campaigns (the paper's section 2.3): each axis indexed over a grid of command
+//! angles in both directions while the others stay at reference angles, with unmeasured
+//! approach moves that put the axis on the wanted backlash branch before each sweep, and
+//! repeats of a test at several angles of another axis to expose crosstalk.
+
+use serde::{Deserialize, Serialize};
+
+/// Repeat a test at several angles of another axis (crosstalk: A2 tested at A3 = 58°, 105°, 153°).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Repeat {
+    /// The other axis (1..=6).
+    pub axis: u8,
+    pub angles_deg: Vec<f64>,
+}
+
+/// One indexing test: axis `axis` swept from `from_deg` to `to_deg` and back.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IndexingTest {
+    /// The indexed axis (1..=6).
+    pub axis: u8,
+    pub from_deg: f64,
+    pub to_deg: f64,
+    #[serde(default = "default_pitch")]
+    pub pitch_deg: f64,
+    /// Angles of all six axes during the test (the indexed one is overridden).
+    pub reference_deg: [f64; 6],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub repeat: Option<Repeat>,
+    /// Over-travel of the unmeasured approach move before each sweep, degrees.
+    #[serde(default = "default_approach")]
+    pub approach_deg: f64,
+}
+
+fn default_pitch() -> f64 {
+    1.0
+}
+fn default_approach() -> f64 {
+    2.0
+}
+
+/// A whole campaign and the pace of the robot.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Campaign {
+    pub tests: Vec<IndexingTest>,
+    /// Dwell per stop (settling + tracker measurement), seconds: the paper measured 186 points
+    /// in about 10 minutes, i.e. about 3.2 s per stop.
+    #[serde(default = "default_dwell")]
+    pub dwell_s: f64,
+    /// Axis speed for travel time between stops, degrees per second.
+    #[serde(default = "default_speed")]
+    pub axis_speed_deg_s: f64,
+}
+
+fn default_dwell() -> f64 {
+    3.2
+}
+fn default_speed() -> f64 {
+    30.0
+}
+
+/// One planned stop of a campaign, in the order the robot visits them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlannedStop {
+    /// Test label, e.g. `A2@A3=58`.
+    pub test: String,
+    pub axes_deg: [f64; 6],
+    /// False on approach moves (visited, not measured).
+    pub measured: bool,
+    /// Seconds since the start of the campaign.
+    pub time_s: f64,
+}
+
+/// Error in a campaign description.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CampaignError {
+    #[error("tests[{test}].{key}: expected {expected}, found {found}")]
+    Invalid {
+        test: usize,
+        key: &'static str,
+        expected: &'static str,
+        found: String,
+    },
+}
+
+impl Campaign {
+    /// The paper's campaign on a KR 30 HA: every axis at 1°, both directions; A2 repeated at
+    /// A3 = 58°, 105°, 153° and A3 at A2 = −112°, −65°, −19° (Figs. 5 and 7); about 3,000
+    /// measured points.
+    pub fn paper() -> Campaign {
+        let reference = [0.0, -60.0, 100.0, 0.0, 45.0, 0.0];
+        let test = |axis: u8, from: f64, to: f64, repeat: Option<Repeat>| IndexingTest {
+            axis,
+            from_deg: from,
+            to_deg: to,
+            pitch_deg: 1.0,
+            reference_deg: reference,
+            repeat,
+            approach_deg: 2.0,
+        };
+        Campaign {
+            tests: vec![
+                test(1, -60.0, 60.0, None),
+                test(
+                    2,
+                    -112.0,
+                    -19.0,
+                    Some(Repeat {
+                        axis: 3,
+                        angles_deg: vec![58.0, 105.0, 153.0],
+                    }),
+                ),
+                test(
+                    3,
+                    20.0,
+                    150.0,
+                    Some(Repeat {
+                        axis: 2,
+                        angles_deg: vec![-112.0, -65.0, -19.0],
+                    }),
+                ),
+                test(4, -90.0, 90.0, None),
+                test(5, -90.0, 90.0, None),
+                test(6, -180.0, 180.0, None),
+            ],
+            dwell_s: default_dwell(),
+            axis_speed_deg_s: default_speed(),
+        }
+    }
+
+    /// Checks axes, ranges and pitches.
+    pub fn validate(&self) -> Result<(), CampaignError> {
+        for (i, t) in self.tests.iter().enumerate() {
+            let bad = |key, expected, found: String| {
+                Err(CampaignError::Invalid {
+                    test: i,
+                    key,
+                    expected,
+                    found,
+                })
+            };
+            if !(1..=6).contains(&t.axis) {
+                return bad("axis", "an axis number 1..6", t.axis.to_string());
+            }
+            if !(t.pitch_deg.is_finite() && t.pitch_deg > 0.0) {
+                return bad("pitch_deg", "a positive number", t.pitch_deg.to_string());
+            }
+            if !(t.from_deg.is_finite() && t.to_deg.is_finite() && t.from_deg < t.to_deg) {
+                return bad(
+                    "to_deg",
+                    "a number greater than from_deg",
+                    t.to_deg.to_string(),
+                );
+            }
+            if !(t.approach_deg.is_finite() && t.approach_deg >= 0.0) {
+                return bad(
+                    "approach_deg",
+                    "a non-negative number",
+                    t.approach_deg.to_string(),
+                );
+            }
+            if let Some(r) = &t.repeat {
+                if !(1..=6).contains(&r.axis) || r.axis == t.axis {
+                    return bad(
+                        "repeat.axis",
+                        "another axis number 1..6",
+                        r.axis.to_string(),
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The stops in visiting order, with approach moves and time stamps.
+    pub fn plan(&self) -> Result<Vec<PlannedStop>, CampaignError> {
+        self.validate()?;
+        let mut stops: Vec<PlannedStop> = Vec::new();
+        let mut clock = 0.0;
+        let mut push =
+            |test: &str, axes: [f64; 6], measured: bool, stops: &mut Vec<PlannedStop>| {
+                if let Some(prev) = stops.last() {
+                    let travel = (0..6)
+                        .map(|k| (axes[k] - prev.axes_deg[k]).abs())
+                        .fold(0.0, f64::max);
+                    clock += self.dwell_s + travel / self.axis_speed_deg_s;
+                }
+                stops.push(PlannedStop {
+                    test: test.to_string(),
+                    axes_deg: axes,
+                    measured,
+                    time_s: clock,
+                });
+            };
+        for t in &self.tests {
+            let n = t.axis as usize - 1;
+            let others: Vec<(String, [f64; 6])> = match &t.repeat {
+                None => vec![(format!("A{}", t.axis), t.reference_deg)],
+                Some(r) => r
+                    .angles_deg
+                    .iter()
+                    .map(|&a| {
+                        let mut reference = t.reference_deg;
+                        reference[r.axis as usize - 1] = a;
+                        (format!("A{}@A{}={}", t.axis, r.axis, a), reference)
+                    })
+                    .collect(),
+            };
+            let steps = ((t.to_deg - t.from_deg) / t.pitch_deg + 1e-9).floor() as usize;
+            let grid: Vec<f64> = (0..=steps)
+                .map(|i| t.from_deg + i as f64 * t.pitch_deg)
+                .collect();
+            for (label, reference) in others {
+                let at = |angle: f64| {
+                    let mut axes = reference;
+                    axes[n] = angle;
+                    axes
+                };
+                // Approach from below so the first measured stop is already on the + branch.
+                push(&label, at(t.from_deg - t.approach_deg), false, &mut stops);
+                for &a in &grid {
+                    push(&label, at(a), true, &mut stops);
+                }
+                let last = *grid.last().unwrap_or(&t.to_deg);
+                push(&label, at(last + t.approach_deg), false, &mut stops);
+                for &a in grid.iter().rev() {
+                    push(&label, at(a), true, &mut stops);
+                }
+            }
+        }
+        Ok(stops)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::infer_directions;
+    use crate::model::{AxisState, Direction};
+
+    #[test]
+    fn paper_campaign_has_about_three_thousand_points_within_limits() {
+        let stops = Campaign::paper().plan().unwrap();
+        let measured = stops.iter().filter(|s| s.measured).count();
+        // 121·2 + 94·2·3 + 131·2·3 + 181·2 + 181·2 + 361·2 = 3038
+        assert_eq!(measured, 3038);
+        let robot = crate::kinematics::RobotDescription::kr30ha();
+        assert!(stops.iter().all(|s| robot.within_limits(&s.axes_deg)));
+        // ~3.2 s per stop: the paper's 186 A2 points took about 10 minutes.
+        let a2: Vec<_> = stops.iter().filter(|s| s.test == "A2@A3=58").collect();
+        let minutes = (a2.last().unwrap().time_s - a2[0].time_s) / 60.0;
+        assert!((9.0..12.0).contains(&minutes), "{minutes} min");
+    }
+
+    #[test]
+    fn sweeps_are_bidirectional_and_approach_sets_the_branch() {
+        let c = Campaign {
+            tests: vec![IndexingTest {
+                axis: 2,
+                from_deg: -10.0,
+                to_deg: -8.0,
+                pitch_deg: 1.0,
+                reference_deg: [0.0, 0.0, 90.0, 0.0, 0.0, 0.0],
+                repeat: None,
+                approach_deg: 2.0,
+            }],
+            dwell_s: 1.0,
+            axis_speed_deg_s: 1.0,
+        };
+        let stops = c.plan().unwrap();
+        let a2: Vec<f64> = stops.iter().map(|s| s.axes_deg[1]).collect();
+        assert_eq!(a2, vec![-12.0, -10.0, -9.0, -8.0, -6.0, -8.0, -9.0, -10.0]);
+        let measured: Vec<bool> = stops.iter().map(|s| s.measured).collect();
+        assert_eq!(
+            measured,
+            vec![false, true, true, true, false, true, true, true]
+        );
+        let mut states: Vec<AxisState> = stops.iter().map(|s| AxisState::new(s.axes_deg)).collect();
+        infer_directions(&mut states, &[]);
+        let d: Vec<Direction> = states.iter().map(|s| s.directions[1]).collect();
+        use Direction::*;
+        assert_eq!(d[1..4], [Positive, Positive, Positive]);
+        assert_eq!(d[5..8], [Negative, Negative, Negative]);
+        // time: dwell 1 s + travel |Δ| / 1 °/s between consecutive stops
+        assert_eq!(stops[1].time_s, 1.0 + 2.0);
+    }
+
+    #[test]
+    fn bad_campaigns_name_the_key() {
+        let mut c = Campaign::paper();
+        c.tests[1].pitch_deg = 0.0;
+        assert_eq!(
+            c.plan().unwrap_err().to_string(),
+            "tests[1].pitch_deg: expected a positive number, found 0"
+        );
+        let mut c = Campaign::paper();
+        c.tests[0].repeat = Some(Repeat {
+            axis: 1,
+            angles_deg: vec![],
+        });
+        assert!(c
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .starts_with("tests[0].repeat.axis"));
+    }
+}

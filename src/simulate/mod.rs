@@ -1,0 +1,5 @@
+//! The virtual robot: a truth model, a simulated laser tracker and the measurement campaigns
+//! of the paper's section 2.3, so that identification, compensation and diagnosis can be
+//! proven on data whose truth is known.
+
+pub mod campaign;
