@@ -9,6 +9,7 @@
 
 pub mod cli;
 pub mod diagnostic;
+pub mod identify;
 pub mod kinematics;
 pub mod krl;
 pub mod measure;
