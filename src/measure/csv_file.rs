@@ -235,8 +235,8 @@ pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError>
             if let Some(c) = *c {
                 dirs[k] = match number(c, DIRS[k])? {
                     None => None,
-                    Some(v) if v == 1.0 => Some(Direction::Positive),
-                    Some(v) if v == -1.0 => Some(Direction::Negative),
+                    Some(1.0) => Some(Direction::Positive),
+                    Some(-1.0) => Some(Direction::Negative),
                     Some(v) => {
                         return Err(error(
                             line,
