@@ -9,7 +9,9 @@ use robopost::kinematics::{Payload, RobotDescription};
 use robopost::model::{expand_list, AxisState, Direction, GridOptions, Model};
 
 fn shipped(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("calibrations").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("calibrations")
+        .join(name)
 }
 
 #[test]
@@ -32,20 +34,36 @@ fn nominal_calibration_predicts_the_nominal_home_pose() {
     let cal = calibration::load(&shipped("kr30ha-nominal.json")).expect("shipped file loads");
     assert_eq!(cal.robot_name, "KR 30 HA");
     assert_eq!(cal.model_ref().robot, RobotDescription::kr30ha());
-    let p = cal.model().flange_pose(&AxisState::new([0.0, -90.0, 90.0, 0.0, 0.0, 0.0])).translation.vector;
+    let p = cal
+        .model()
+        .flange_pose(&AxisState::new([0.0, -90.0, 90.0, 0.0, 0.0, 0.0]))
+        .translation
+        .vector;
     assert!((p - Vector3::new(1340.0, 0.0, 1810.0)).norm() < 1e-9);
 }
 
 fn full_model() -> Model {
-    let payload = Payload { mass_kg: 12.0, cog_mm: [0.0, 0.0, 80.0] };
-    let mut model = Model::new(RobotDescription::kr30ha(), payload, Vector3::new(1.0, 2.0, 150.0));
+    let payload = Payload {
+        mass_kg: 12.0,
+        cog_mm: [0.0, 0.0, 80.0],
+    };
+    let mut model = Model::new(
+        RobotDescription::kr30ha(),
+        payload,
+        Vector3::new(1.0, 2.0, 150.0),
+    );
     let list = "geometric,map:A1..A6,backlash:A1..A6,crosstalk:A3->A2,compliance:A2,tilt:A5,drift";
-    let options = GridOptions { other_grid_deg: Some(vec![58.0, 105.0, 153.0]), ..Default::default() };
+    let options = GridOptions {
+        other_grid_deg: Some(vec![58.0, 105.0, 153.0]),
+        ..Default::default()
+    };
     for name in expand_list(list).unwrap() {
         model.push_named(&name, &options).unwrap();
     }
     // Values that are not round in binary, so that a lossy number format would show.
-    let values: Vec<f64> = (0..model.n_parameters()).map(|i| ((i as f64) * 0.731).sin() * 0.0123).collect();
+    let values: Vec<f64> = (0..model.n_parameters())
+        .map(|i| ((i as f64) * 0.731).sin() * 0.0123)
+        .collect();
     model.set_values(&values);
     model
 }
@@ -54,7 +72,14 @@ fn full_model() -> Model {
 fn save_then_load_gives_the_same_calibration() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cal.json");
-    let frame = MeasurementFrame::Tracker(KukaFrame { x: 3000.0, y: -20.5, z: 12.25, a: 179.5, b: 0.1, c: -0.2 });
+    let frame = MeasurementFrame::Tracker(KukaFrame {
+        x: 3000.0,
+        y: -20.5,
+        z: 12.25,
+        a: 179.5,
+        b: 0.1,
+        c: -0.2,
+    });
     let provenance = Provenance {
         sources: vec!["a2.csv".into()],
         date: Some("2026-03-01".into()),
@@ -66,11 +91,17 @@ fn save_then_load_gives_the_same_calibration() {
     let back = calibration::load(&path).unwrap();
     assert_eq!(back.to_file(), cal.to_file());
     assert_eq!(back.model().values(), cal.model().values());
-    assert_eq!(back.model().parameter_names(), cal.model().parameter_names());
+    assert_eq!(
+        back.model().parameter_names(),
+        cal.model().parameter_names()
+    );
     let mut state = AxisState::new([10.0, -70.0, 100.0, 20.0, 30.0, -40.0]);
     state.directions = [Direction::Positive; 6];
     state.time_s = 1800.0;
-    assert_eq!(back.model().target_position(&state), cal.model().target_position(&state));
+    assert_eq!(
+        back.model().target_position(&state),
+        cal.model().target_position(&state)
+    );
     // Only the final file is left behind.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
@@ -92,17 +123,58 @@ fn with_effects(effects: &str) -> String {
 #[test]
 fn bad_files_name_key_expected_and_found() {
     let cases = [
-        ("syntax", "{\n  \"format\": \"robopost-calibration/1\",\n  \"robot\": {,\n}".to_string()),
-        ("format_version", with_effects("[]").replace("robopost-calibration/1", "robopost-calibration/2")),
-        ("grid_not_increasing", with_effects(r#"[{"name": "map:A2", "table": {"grid_deg": [0, 1, 1, 2], "values_deg": [0, 0, 0, 0]}}]"#)),
-        ("table_length", with_effects(r#"[{"name": "backlash:A1", "table": {"grid_deg": [0, 1, 2], "values_deg": [0, 0]}}]"#)),
-        ("axis_out_of_range", with_effects(r#"[{"name": "map:A7", "table": {"grid_deg": [0], "values_deg": [0]}}]"#)),
-        ("crosstalk_same_axis", with_effects(r#"[{"name": "crosstalk:A2->A2", "table": {"grid_deg": [0], "other_grid_deg": [0], "values_deg": [0]}}]"#)),
-        ("duplicate_effect", with_effects(r#"[{"name": "map:A2", "table": {"grid_deg": [0], "values_deg": [0]}}, {"name": "geometric"}, {"name": "MAP:a2", "table": {"grid_deg": [0], "values_deg": [0]}}]"#)),
-        ("unknown_effect", with_effects(r#"[{"name": "gravity:A2"}]"#)),
-        ("unknown_parameter", with_effects(r#"[{"name": "geometric", "parameters": {"dx12": 0.1}}]"#)),
-        ("non_finite", with_effects(r#"[{"name": "geometric", "parameters": {"dx21": 1e999}}]"#)),
-        ("unknown_key", with_effects(r#"[{"name": "geometric", "values": {}}]"#)),
+        (
+            "syntax",
+            "{\n  \"format\": \"robopost-calibration/1\",\n  \"robot\": {,\n}".to_string(),
+        ),
+        (
+            "format_version",
+            with_effects("[]").replace("robopost-calibration/1", "robopost-calibration/2"),
+        ),
+        (
+            "grid_not_increasing",
+            with_effects(
+                r#"[{"name": "map:A2", "table": {"grid_deg": [0, 1, 1, 2], "values_deg": [0, 0, 0, 0]}}]"#,
+            ),
+        ),
+        (
+            "table_length",
+            with_effects(
+                r#"[{"name": "backlash:A1", "table": {"grid_deg": [0, 1, 2], "values_deg": [0, 0]}}]"#,
+            ),
+        ),
+        (
+            "axis_out_of_range",
+            with_effects(r#"[{"name": "map:A7", "table": {"grid_deg": [0], "values_deg": [0]}}]"#),
+        ),
+        (
+            "crosstalk_same_axis",
+            with_effects(
+                r#"[{"name": "crosstalk:A2->A2", "table": {"grid_deg": [0], "other_grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
+        ),
+        (
+            "duplicate_effect",
+            with_effects(
+                r#"[{"name": "map:A2", "table": {"grid_deg": [0], "values_deg": [0]}}, {"name": "geometric"}, {"name": "MAP:a2", "table": {"grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
+        ),
+        (
+            "unknown_effect",
+            with_effects(r#"[{"name": "gravity:A2"}]"#),
+        ),
+        (
+            "unknown_parameter",
+            with_effects(r#"[{"name": "geometric", "parameters": {"dx12": 0.1}}]"#),
+        ),
+        (
+            "non_finite",
+            with_effects(r#"[{"name": "geometric", "parameters": {"dx21": 1e999}}]"#),
+        ),
+        (
+            "unknown_key",
+            with_effects(r#"[{"name": "geometric", "values": {}}]"#),
+        ),
     ];
     for (kind, text) in cases {
         insta::assert_snapshot!(kind, error_of(&text));
@@ -116,7 +188,20 @@ fn non_finite_values_are_refused_when_saving() {
     values[3] = f64::NAN;
     model.set_values(&values);
     let cal = Calibration::from_model("x", model, MeasurementFrame::Base, Provenance::default());
-    let err = cal.save_atomic(Path::new("/nonexistent-dir/cal.json")).unwrap_err();
-    let CalError::Invalid { key, expected, found, .. } = err else { panic!("not a validation error: {err}") };
-    assert_eq!((key.as_str(), expected.as_str(), found.as_str()), ("effects[0].parameters.dz32", "a finite number", "NaN"));
+    let err = cal
+        .save_atomic(Path::new("/nonexistent-dir/cal.json"))
+        .unwrap_err();
+    let CalError::Invalid {
+        key,
+        expected,
+        found,
+        ..
+    } = err
+    else {
+        panic!("not a validation error: {err}")
+    };
+    assert_eq!(
+        (key.as_str(), expected.as_str(), found.as_str()),
+        ("effects[0].parameters.dz32", "a finite number", "NaN")
+    );
 }

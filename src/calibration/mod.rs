@@ -69,8 +69,18 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    pub fn from_model(robot_name: &str, model: Model, frame: MeasurementFrame, provenance: Provenance) -> Self {
-        Calibration { robot_name: robot_name.to_string(), frame, provenance, model }
+    pub fn from_model(
+        robot_name: &str,
+        model: Model,
+        frame: MeasurementFrame,
+        provenance: Provenance,
+    ) -> Self {
+        Calibration {
+            robot_name: robot_name.to_string(),
+            frame,
+            provenance,
+            model,
+        }
     }
 
     /// The error model (a copy; identification changes its own).
@@ -87,7 +97,10 @@ impl Calibration {
         let m = &self.model;
         CalibrationFile {
             format: FORMAT.to_string(),
-            robot: RobotRecord { name: self.robot_name.clone(), description: m.robot },
+            robot: RobotRecord {
+                name: self.robot_name.clone(),
+                description: m.robot,
+            },
             payload: (m.payload != Payload::default()).then_some(m.payload),
             target_mm: Some(m.target_mm.into()),
             frame: Some(self.frame),
@@ -119,8 +132,14 @@ impl Calibration {
     /// Writes the file atomically: a temporary file beside `path`, then a rename.
     pub fn save_atomic(&self, path: &Path) -> Result<(), CalError> {
         let json = self.to_json(path)?;
-        let io = |source| CalError::Io { path: path.to_path_buf(), source };
-        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let io = |source| CalError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
         std::io::Write::write_all(&mut tmp, json.as_bytes()).map_err(io)?;
         tmp.persist(path).map_err(|e| io(e.error))?;
@@ -130,7 +149,10 @@ impl Calibration {
 
 /// Reads and validates a calibration file.
 pub fn load(path: &Path) -> Result<Calibration, CalError> {
-    let text = std::fs::read_to_string(path).map_err(|source| CalError::Io { path: path.to_path_buf(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| CalError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     parse(&text, path)
 }
 
@@ -151,14 +173,26 @@ pub fn parse(text: &str, path: &Path) -> Result<Calibration, CalError> {
 /// The JSON Schema of the format, as shipped in `calibrations/calibration.schema.json`.
 pub fn json_schema() -> String {
     let schema = schemars::schema_for!(CalibrationFile);
-    serde_json::to_string_pretty(&schema).map(|s| s + "\n").unwrap_or_default()
+    serde_json::to_string_pretty(&schema)
+        .map(|s| s + "\n")
+        .unwrap_or_default()
 }
 
 fn check_format(found: Option<&serde_json::Value>, path: &Path) -> Result<(), CalError> {
     match found {
         Some(serde_json::Value::String(s)) if s == FORMAT => Ok(()),
-        Some(v) => Err(CalError::invalid(path, "format", format!("\"{FORMAT}\""), v.to_string())),
-        None => Err(CalError::invalid(path, "format", format!("\"{FORMAT}\""), "nothing")),
+        Some(v) => Err(CalError::invalid(
+            path,
+            "format",
+            format!("\"{FORMAT}\""),
+            v.to_string(),
+        )),
+        None => Err(CalError::invalid(
+            path,
+            "format",
+            format!("\"{FORMAT}\""),
+            "nothing",
+        )),
     }
 }
 
@@ -166,14 +200,26 @@ fn finite(value: f64, key: impl FnOnce() -> String, path: &Path) -> Result<(), C
     if value.is_finite() {
         Ok(())
     } else {
-        Err(CalError::invalid(path, key(), "a finite number", value.to_string()))
+        Err(CalError::invalid(
+            path,
+            key(),
+            "a finite number",
+            value.to_string(),
+        ))
     }
 }
 
 fn validate_robot(robot: &RobotDescription, path: &Path) -> Result<(), CalError> {
     let key = "robot.description";
     let l = &robot.links;
-    for (name, v) in [("l1x", l.l1x), ("l1z", l.l1z), ("l2", l.l2), ("l3z", l.l3z), ("l4x", l.l4x), ("l5x", l.l5x)] {
+    for (name, v) in [
+        ("l1x", l.l1x),
+        ("l1z", l.l1z),
+        ("l2", l.l2),
+        ("l3z", l.l3z),
+        ("l4x", l.l4x),
+        ("l5x", l.l5x),
+    ] {
         finite(v, || format!("{key}.links.{name}"), path)?;
     }
     for (n, [lo, hi]) in robot.limits_deg.iter().enumerate() {
@@ -181,20 +227,42 @@ fn validate_robot(robot: &RobotDescription, path: &Path) -> Result<(), CalError>
         finite(*hi, || format!("{key}.limits_deg[{n}][1]"), path)?;
         if lo >= hi {
             let found = format!("[{lo}, {hi}]");
-            return Err(CalError::invalid(path, format!("{key}.limits_deg[{n}]"), "[min, max] with min < max", found));
+            return Err(CalError::invalid(
+                path,
+                format!("{key}.limits_deg[{n}]"),
+                "[min, max] with min < max",
+                found,
+            ));
         }
     }
     for (n, s) in robot.senses.iter().enumerate() {
         if s.abs() != 1.0 {
-            return Err(CalError::invalid(path, format!("{key}.senses[{n}]"), "1 or -1", s.to_string()));
+            return Err(CalError::invalid(
+                path,
+                format!("{key}.senses[{n}]"),
+                "1 or -1",
+                s.to_string(),
+            ));
         }
-        finite(robot.offsets_deg[n], || format!("{key}.offsets_deg[{n}]"), path)?;
+        finite(
+            robot.offsets_deg[n],
+            || format!("{key}.offsets_deg[{n}]"),
+            path,
+        )?;
     }
     if let Some(g) = &robot.gravity {
         for k in 0..6 {
-            finite(g.link_mass_kg[k], || format!("{key}.gravity.link_mass_kg[{k}]"), path)?;
+            finite(
+                g.link_mass_kg[k],
+                || format!("{key}.gravity.link_mass_kg[{k}]"),
+                path,
+            )?;
             for c in 0..3 {
-                finite(g.link_cog_mm[k][c], || format!("{key}.gravity.link_cog_mm[{k}][{c}]"), path)?;
+                finite(
+                    g.link_cog_mm[k][c],
+                    || format!("{key}.gravity.link_cog_mm[{k}][{c}]"),
+                    path,
+                )?;
             }
         }
     }
@@ -216,7 +284,14 @@ fn validate(file: &CalibrationFile, path: &Path) -> Result<Model, CalError> {
         finite(*v, || format!("target_mm[{c}]"), path)?;
     }
     if let Some(MeasurementFrame::Tracker(f)) = &file.frame {
-        for (name, v) in [("x", f.x), ("y", f.y), ("z", f.z), ("a", f.a), ("b", f.b), ("c", f.c)] {
+        for (name, v) in [
+            ("x", f.x),
+            ("y", f.y),
+            ("z", f.z),
+            ("a", f.a),
+            ("b", f.b),
+            ("c", f.c),
+        ] {
             finite(v, || format!("frame.tracker.{name}"), path)?;
         }
     }
@@ -224,12 +299,18 @@ fn validate(file: &CalibrationFile, path: &Path) -> Result<Model, CalError> {
     let mut seen: Vec<(String, usize)> = Vec::new();
     for (i, record) in file.effects.iter().enumerate() {
         let at = |key: &str| format!("effects[{i}].{key}");
-        let name = EffectName::parse(&record.name)
-            .map_err(|e| CalError::invalid(path, at("name"), e.expected, format!("\"{}\"", e.found)))?;
+        let name = EffectName::parse(&record.name).map_err(|e| {
+            CalError::invalid(path, at("name"), e.expected, format!("\"{}\"", e.found))
+        })?;
         let canonical = name.to_string();
         if let Some((_, first)) = seen.iter().find(|(n, _)| *n == canonical) {
             let found = format!("\"{}\" again (first at effects[{first}])", record.name);
-            return Err(CalError::invalid(path, at("name"), "each effect at most once", found));
+            return Err(CalError::invalid(
+                path,
+                at("name"),
+                "each effect at most once",
+                found,
+            ));
         }
         seen.push((canonical, i));
         let effect = name

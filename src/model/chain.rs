@@ -40,22 +40,116 @@ pub fn flange_to_a6(v_flange: &Vector3<f64>) -> Vector3<f64> {
     a6_to_flange() * v_flange
 }
 
-/// Rotation by `angle` (rad) about model axis `coord`.
-fn rot(coord: usize, angle: f64) -> Matrix3<f64> {
-    let (s, c) = angle.sin_cos();
-    match coord {
-        0 => Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c),
-        1 => Matrix3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c),
-        _ => Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0),
+/// `sin_cos` with a Taylor series for the small angles of tilt slots: below 1e-3 rad the
+/// dropped terms (x⁷/5040, x⁸/40320) are under 1e-24, far below an f64 ulp of the result,
+/// and the polynomial costs a fraction of the library call.
+fn sin_cos(x: f64) -> (f64, f64) {
+    if x.abs() < 1e-3 {
+        let x2 = x * x;
+        (
+            x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0)),
+            1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0)),
+        )
+    } else {
+        x.sin_cos()
     }
 }
 
-/// Multiplies by a small-rotation slot, skipping the trigonometry when it is zero (most
-/// slots are, and `sin_cos` dominates the cost of a prediction).
+/// `r ← r · Rot_coord(angle)`: post-multiplying by an elementary rotation only mixes the two
+/// columns perpendicular to `coord` (12 products instead of a 27-product matrix product).
+fn rotate(r: &mut Matrix3<f64>, coord: usize, angle: f64) {
+    let (s, c) = sin_cos(angle);
+    // Columns (i, j) such that Rot_coord maps e_i → c·e_i + s·e_j.
+    let (i, j) = match coord {
+        0 => (1, 2),
+        1 => (2, 0),
+        _ => (0, 1),
+    };
+    let (ci, cj) = (r.column(i).into_owned(), r.column(j).into_owned());
+    r.set_column(i, &(ci * c + cj * s));
+    r.set_column(j, &(cj * c - ci * s));
+}
+
+/// Multiplies by a small-rotation slot, skipping the work when it is zero (most slots are).
 fn rotate_by(r: &mut Matrix3<f64>, coord: usize, angle: f64) {
     if angle != 0.0 {
-        *r *= rot(coord, angle);
+        rotate(r, coord, angle);
     }
+}
+
+/// What [`walk`] reports about axis n on its way (for the Jacobian's bookkeeping).
+enum Step<'a> {
+    /// The frame the link vector is given in (R_{n−1}).
+    Link(&'a Matrix3<f64>),
+    /// The axis's centre of rotation.
+    Origin(&'a Vector3<f64>),
+    /// The frame just before the tilt slot `coord` is applied.
+    Tilt(usize, &'a Matrix3<f64>),
+    /// The world direction of a positive KUKA rotation.
+    Joint(&'a Vector3<f64>),
+}
+
+/// Runs the chain and returns the A6 frame (rotation, origin); `visit` sees every
+/// intermediate frame. The prediction path passes a no-op and the stores compile away.
+#[inline(always)]
+fn walk(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+    mut visit: impl FnMut(usize, Step),
+) -> (Matrix3<f64>, Vector3<f64>) {
+    let links = link_vectors(robot);
+    let e = &errors.0;
+    let mut r = Matrix3::identity();
+    let mut p = Vector3::zeros();
+    for n in 0..6 {
+        let s = &e[n * JOINT_SLOTS..(n + 1) * JOINT_SLOTS];
+        visit(n, Step::Link(&r));
+        p += r * (links[n] + Vector3::new(s[0], s[1], s[2]));
+        visit(n, Step::Origin(&p));
+        for (coord, &angle) in s[3..6].iter().enumerate() {
+            visit(n, Step::Tilt(coord, &r));
+            rotate_by(&mut r, coord, angle);
+        }
+        let axis = AXIS_COORD[n];
+        let sense = robot.senses[n];
+        visit(n, Step::Joint(&(sense * r.column(axis))));
+        let theta = sense * (axes_deg[n].to_radians() + s[6]) + robot.offsets_deg[n].to_radians();
+        rotate(&mut r, axis, theta);
+    }
+    (r, p)
+}
+
+/// The A6 frame (rotation, origin) only: the fast path of a prediction.
+pub fn a6_frame(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    walk(robot, axes_deg, errors, |_, _| {})
+}
+
+/// The KUKA flange frame in the base frame, fast path.
+pub fn flange_pose(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+) -> Isometry3<f64> {
+    let (r, p) = a6_frame(robot, axes_deg, errors);
+    let rotation = UnitQuaternion::from_matrix(&(r * a6_to_flange()));
+    Isometry3::from_parts(Translation3::from(p), rotation)
+}
+
+/// The target position (`target_a6` plus the target slots, carried by the A6 frame), fast path.
+pub fn target_position(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+    target_a6: &Vector3<f64>,
+) -> Vector3<f64> {
+    let (r, p) = a6_frame(robot, axes_deg, errors);
+    let t = &errors.0[6 * JOINT_SLOTS..];
+    p + r * (target_a6 + Vector3::new(t[0], t[1], t[2]))
 }
 
 /// The evaluated chain at one state: the A6 frame and, per axis, the motions of its slots.
@@ -76,8 +170,6 @@ pub struct ChainFrames {
 impl ChainFrames {
     /// Evaluates the chain at command angles `axes_deg` (KUKA, degrees) with `errors`.
     pub fn new(robot: &RobotDescription, axes_deg: &[f64; 6], errors: &ChainErrors) -> Self {
-        let links = link_vectors(robot);
-        let e = &errors.0;
         let mut frames = ChainFrames {
             link_frame: [Matrix3::identity(); 6],
             origin: [Vector3::zeros(); 6],
@@ -86,24 +178,12 @@ impl ChainFrames {
             a6_rotation: Matrix3::identity(),
             a6_origin: Vector3::zeros(),
         };
-        let mut r = Matrix3::identity();
-        let mut p = Vector3::zeros();
-        for n in 0..6 {
-            let s = &e[n * JOINT_SLOTS..(n + 1) * JOINT_SLOTS];
-            frames.link_frame[n] = r;
-            p += r * (links[n] + Vector3::new(s[0], s[1], s[2]));
-            frames.origin[n] = p;
-            for (coord, &angle) in s[3..6].iter().enumerate() {
-                frames.tilt_axis[n][coord] = r.column(coord).into_owned();
-                rotate_by(&mut r, coord, angle);
-            }
-            let axis = AXIS_COORD[n];
-            let sense = robot.senses[n];
-            frames.joint_axis[n] = sense * r.column(axis);
-            let theta =
-                sense * (axes_deg[n].to_radians() + s[6]) + robot.offsets_deg[n].to_radians();
-            r *= rot(axis, theta);
-        }
+        let (r, p) = walk(robot, axes_deg, errors, |n, step| match step {
+            Step::Link(r) => frames.link_frame[n] = *r,
+            Step::Origin(p) => frames.origin[n] = *p,
+            Step::Tilt(coord, r) => frames.tilt_axis[n][coord] = r.column(coord).into_owned(),
+            Step::Joint(axis) => frames.joint_axis[n] = *axis,
+        });
         frames.a6_rotation = r;
         frames.a6_origin = p;
         frames

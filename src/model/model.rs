@@ -6,7 +6,7 @@
 
 use nalgebra::{Isometry3, Vector3, Vector6};
 
-use super::chain::{flange_to_a6, ChainFrames};
+use super::chain::{self, flange_to_a6, ChainFrames};
 use super::effect::{ChainErrors, Context, Parameter, Partial};
 use super::effects::{GridOptions, ModelEffect};
 use super::registry::EffectName;
@@ -92,13 +92,17 @@ impl Model {
 
     /// The KUKA flange frame the robot actually reaches at `state`, in the base frame.
     pub fn flange_pose(&self, state: &AxisState) -> Isometry3<f64> {
-        self.frames(state).0.flange_pose()
+        chain::flange_pose(&self.robot, &state.axes_deg, &self.chain_errors(state))
     }
 
     /// Where the measurement target actually is at `state`, base frame, mm.
     pub fn target_position(&self, state: &AxisState) -> Vector3<f64> {
-        let (frames, errors) = self.frames(state);
-        frames.target_position(&self.target_a6(), &errors)
+        chain::target_position(
+            &self.robot,
+            &state.axes_deg,
+            &self.chain_errors(state),
+            &self.target_a6(),
+        )
     }
 
     /// Whether any table effect held `state` at its edge.

@@ -38,11 +38,15 @@ pub struct Kind {
     /// The physical effect, as in the contract table.
     pub meaning: &'static str,
     /// A zero effect for identification.
-    pub create: fn(Axes, &GridOptions, &RobotDescription) -> Result<Box<dyn ModelEffect>, String>,
+    pub create: CreateFn,
     /// The effect described by a calibration record.
-    pub decode:
-        fn(Axes, &EffectRecord, &RobotDescription) -> Result<Box<dyn ModelEffect>, RecordError>,
+    pub decode: DecodeFn,
 }
+
+pub type CreateFn =
+    fn(Axes, &GridOptions, &RobotDescription) -> Result<Box<dyn ModelEffect>, String>;
+pub type DecodeFn =
+    fn(Axes, &EffectRecord, &RobotDescription) -> Result<Box<dyn ModelEffect>, RecordError>;
 
 fn one(axes: Axes) -> u8 {
     match axes {

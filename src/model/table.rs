@@ -9,7 +9,7 @@
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grid {
     points: Vec<f64>,
-    /// `(first point, pitch)` when the points are equally spaced.
+    /// `(first point, 1 / pitch)` when the points are equally spaced.
     uniform: Option<(f64, f64)>,
 }
 
@@ -121,7 +121,7 @@ impl Grid {
             };
         }
         let lo = match self.uniform {
-            Some((start, pitch)) => (((x - start) / pitch) as usize).min(n - 2),
+            Some((start, per_pitch)) => (((x - start) * per_pitch) as usize).min(n - 2),
             // First point greater than x, minus one: x lies in [p[lo], p[lo+1]).
             None => self.points.partition_point(|&p| p <= x) - 1,
         };
@@ -147,7 +147,7 @@ fn uniform_spacing(points: &[f64]) -> Option<(f64, f64)> {
         .iter()
         .enumerate()
         .all(|(i, &p)| (p - (points[0] + i as f64 * pitch)).abs() <= tolerance)
-        .then_some((points[0], pitch))
+        .then_some((points[0], 1.0 / pitch))
 }
 
 /// A 1-D table: one value per grid point, linearly interpolated.
