@@ -9,8 +9,19 @@
 //! turns chain errors into a predicted pose. Identification, compensation and diagnosis use
 //! only the trait, so a new effect is one new file plus one registration line.
 
+pub mod chain;
 pub mod effect;
+pub mod effects;
+#[allow(clippy::module_inception)]
+pub mod model;
+pub mod record;
+pub mod registry;
 pub mod state;
+pub mod table;
 
 pub use effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot, JOINT_SLOTS, N_SLOTS};
+pub use effects::{GridOptions, ModelEffect};
+pub use model::{JacobianScratch, Model};
+pub use record::{EffectRecord, RecordError, TableRecord};
+pub use registry::{expand_list, EffectName, NameError};
 pub use state::{AxisState, Direction};

@@ -1,0 +1,67 @@
+//! Full-model prediction cost: the paper's model (geometric, six maps and six backlash tables
+//! at 1° pitch, crosstalk A3->A2) predicting the target position at varied states.
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use nalgebra::Vector3;
+use robopost::kinematics::{Payload, RobotDescription};
+use robopost::model::{expand_list, AxisState, Direction, GridOptions, Model};
+
+fn paper_model() -> Model {
+    let mut model = Model::new(
+        RobotDescription::kr30ha(),
+        Payload::default(),
+        Vector3::new(0.0, 0.0, 150.0),
+    );
+    for name in expand_list("geometric,map:A1..A6,backlash:A1..A6,crosstalk:A3->A2").expect("names")
+    {
+        model
+            .push_named(&name, &GridOptions::default())
+            .expect("effect");
+    }
+    let values: Vec<f64> = (0..model.n_parameters())
+        .map(|i| (i as f64 * 0.37).sin() * 0.01)
+        .collect();
+    model.set_values(&values);
+    model
+}
+
+fn states() -> Vec<AxisState> {
+    (0..256)
+        .map(|i| {
+            let t = i as f64;
+            let mut s = AxisState::new([
+                (t * 1.3) % 300.0 - 150.0,
+                -120.0 + (t * 0.7) % 140.0,
+                -100.0 + (t * 0.9) % 240.0,
+                (t * 2.1) % 600.0 - 300.0,
+                (t * 0.8) % 200.0 - 100.0,
+                (t * 2.7) % 600.0 - 300.0,
+            ]);
+            s.directions = [if i % 2 == 0 {
+                Direction::Positive
+            } else {
+                Direction::Negative
+            }; 6];
+            s
+        })
+        .collect()
+}
+
+fn prediction(c: &mut Criterion) {
+    let model = paper_model();
+    let states = states();
+    let mut i = 0;
+    c.bench_function("target_position (paper model)", |b| {
+        b.iter(|| {
+            i = (i + 1) % states.len();
+            black_box(model.target_position(black_box(&states[i])))
+        })
+    });
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().measurement_time(std::time::Duration::from_secs(3)).warm_up_time(std::time::Duration::from_secs(1));
+    targets = prediction
+}
+criterion_main!(benches);

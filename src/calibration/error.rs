@@ -1,0 +1,78 @@
+//! What can go wrong with a calibration file, as values whose messages name the file and
+//! either the line and column (JSON syntax and types) or the JSON path with the expected and
+//! the found value (everything checked after parsing).
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum CalError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// Not JSON, or JSON that does not fit the format's types; `excerpt` is the offending
+    /// source line with a caret under the column.
+    #[error("{}:{line}:{column}: {message}\n{excerpt}", path.display())]
+    Syntax {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+        excerpt: String,
+    },
+    /// Well-formed JSON with a bad value at `key` (a JSON path such as `effects[2].table`).
+    #[error("{}: {key}: expected {expected}, found {found}", path.display())]
+    Invalid {
+        path: PathBuf,
+        key: String,
+        expected: String,
+        found: String,
+    },
+}
+
+impl CalError {
+    pub(crate) fn invalid(
+        path: &std::path::Path,
+        key: impl Into<String>,
+        expected: impl Into<String>,
+        found: impl Into<String>,
+    ) -> CalError {
+        CalError::Invalid {
+            path: path.to_path_buf(),
+            key: key.into(),
+            expected: expected.into(),
+            found: found.into(),
+        }
+    }
+
+    /// A serde_json error at its line and column of `text`.
+    pub(crate) fn syntax(path: &std::path::Path, text: &str, e: &serde_json::Error) -> CalError {
+        let (line, column) = (e.line(), e.column());
+        let source_line = text.lines().nth(line.saturating_sub(1)).unwrap_or("");
+        let excerpt = format!(
+            "{line:>4} | {source_line}\n     | {}^",
+            " ".repeat(column.saturating_sub(1))
+        );
+        // serde_json appends " at line L column C"; the location is already in front.
+        let message = e.to_string();
+        let message = message
+            .split(" at line ")
+            .next()
+            .unwrap_or(&message)
+            .to_string();
+        // JSON has no NaN/Infinity; the only way to write a non-finite number is overflow.
+        let message = if message == "number out of range" {
+            "expected a finite number, found one outside the f64 range".to_string()
+        } else {
+            message
+        };
+        CalError::Syntax {
+            path: path.to_path_buf(),
+            line,
+            column,
+            message,
+            excerpt,
+        }
+    }
+}

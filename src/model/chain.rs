@@ -1,0 +1,308 @@
+//! The paper's error chain, equation (2) as written out in MODEL.md: for each axis n
+//! `Trans(L_n + (dx,dy,dz)) · Rx(rx)·Ry(ry)·Rz(rz) · Rot_axis_n(θ_n)` with
+//! `θ_n = sense_n·(A_n + dθ_n) + offset_n`, in frames that coincide with the base frame at
+//! HOME; the KUKA flange frame is the A6 frame `· Ry(90°)` and the measured target is
+//! `A6 frame · (6p + target slots)` (equation 1). Besides the pose, [`ChainFrames`] keeps
+//! the world axis and centre of every small motion a chain slot stands for, which gives the
+//! analytic Jacobian of the target and the flange with respect to every slot: a translation
+//! `t` moves every later point by `t`, a rotation about axis `ω` through `o` moves `p` by
+//! `ω × (p − o)` and the orientation by the rotation vector `ω`.
+
+use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+use super::effect::{ChainErrors, Slot, JOINT_SLOTS, N_SLOTS};
+use crate::kinematics::RobotDescription;
+
+/// Model rotation axis of A1..A6 (0 = x, 1 = y, 2 = z): z, y, y, x, y, x (MODEL.md).
+pub const AXIS_COORD: [usize; 6] = [2, 1, 1, 0, 1, 0];
+
+/// Nominal link vector `L_n` before axis n, in the frame of axis n−1 (mm).
+pub fn link_vectors(robot: &RobotDescription) -> [Vector3<f64>; 6] {
+    let l = &robot.links;
+    [
+        Vector3::zeros(),
+        Vector3::new(l.l1x, 0.0, l.l1z),
+        Vector3::new(0.0, 0.0, l.l2),
+        Vector3::new(0.0, 0.0, l.l3z),
+        Vector3::new(l.l4x, 0.0, 0.0),
+        Vector3::new(l.l5x, 0.0, 0.0),
+    ]
+}
+
+/// Rotation from the A6 frame to the KUKA flange frame: Ry(+90°), so that the flange Z is the
+/// A6 x axis (pointing +X at HOME) and the flange X points down at HOME.
+pub fn a6_to_flange() -> Matrix3<f64> {
+    Matrix3::new(0.0, 0.0, 1.0, 0.0, 1.0, 0.0, -1.0, 0.0, 0.0)
+}
+
+/// A vector given in the KUKA flange frame, expressed in the A6 frame.
+pub fn flange_to_a6(v_flange: &Vector3<f64>) -> Vector3<f64> {
+    a6_to_flange() * v_flange
+}
+
+/// `sin_cos` with a Taylor series for the small angles of tilt slots: below 1e-3 rad the
+/// dropped terms (x⁷/5040, x⁸/40320) are under 1e-24, far below an f64 ulp of the result,
+/// and the polynomial costs a fraction of the library call.
+fn sin_cos(x: f64) -> (f64, f64) {
+    if x.abs() < 1e-3 {
+        let x2 = x * x;
+        (
+            x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0)),
+            1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0)),
+        )
+    } else {
+        x.sin_cos()
+    }
+}
+
+/// `r ← r · Rot_coord(angle)`: post-multiplying by an elementary rotation only mixes the two
+/// columns perpendicular to `coord` (12 products instead of a 27-product matrix product).
+fn rotate(r: &mut Matrix3<f64>, coord: usize, angle: f64) {
+    let (s, c) = sin_cos(angle);
+    // Columns (i, j) such that Rot_coord maps e_i → c·e_i + s·e_j.
+    let (i, j) = match coord {
+        0 => (1, 2),
+        1 => (2, 0),
+        _ => (0, 1),
+    };
+    let (ci, cj) = (r.column(i).into_owned(), r.column(j).into_owned());
+    r.set_column(i, &(ci * c + cj * s));
+    r.set_column(j, &(cj * c - ci * s));
+}
+
+/// Multiplies by a small-rotation slot, skipping the work when it is zero (most slots are).
+fn rotate_by(r: &mut Matrix3<f64>, coord: usize, angle: f64) {
+    if angle != 0.0 {
+        rotate(r, coord, angle);
+    }
+}
+
+/// What [`walk`] reports about axis n on its way (for the Jacobian's bookkeeping).
+enum Step<'a> {
+    /// The frame the link vector is given in (R_{n−1}).
+    Link(&'a Matrix3<f64>),
+    /// The axis's centre of rotation.
+    Origin(&'a Vector3<f64>),
+    /// The frame just before the tilt slot `coord` is applied.
+    Tilt(usize, &'a Matrix3<f64>),
+    /// The world direction of a positive KUKA rotation.
+    Joint(&'a Vector3<f64>),
+}
+
+/// Runs the chain and returns the A6 frame (rotation, origin); `visit` sees every
+/// intermediate frame. The prediction path passes a no-op and the stores compile away.
+#[inline(always)]
+fn walk(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+    mut visit: impl FnMut(usize, Step),
+) -> (Matrix3<f64>, Vector3<f64>) {
+    let links = link_vectors(robot);
+    let e = &errors.0;
+    let mut r = Matrix3::identity();
+    let mut p = Vector3::zeros();
+    for n in 0..6 {
+        let s = &e[n * JOINT_SLOTS..(n + 1) * JOINT_SLOTS];
+        visit(n, Step::Link(&r));
+        p += r * (links[n] + Vector3::new(s[0], s[1], s[2]));
+        visit(n, Step::Origin(&p));
+        for (coord, &angle) in s[3..6].iter().enumerate() {
+            visit(n, Step::Tilt(coord, &r));
+            rotate_by(&mut r, coord, angle);
+        }
+        let axis = AXIS_COORD[n];
+        let sense = robot.senses[n];
+        visit(n, Step::Joint(&(sense * r.column(axis))));
+        let theta = sense * (axes_deg[n].to_radians() + s[6]) + robot.offsets_deg[n].to_radians();
+        rotate(&mut r, axis, theta);
+    }
+    (r, p)
+}
+
+/// The A6 frame (rotation, origin) only: the fast path of a prediction.
+pub fn a6_frame(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    walk(robot, axes_deg, errors, |_, _| {})
+}
+
+/// The KUKA flange frame in the base frame, fast path.
+pub fn flange_pose(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+) -> Isometry3<f64> {
+    let (r, p) = a6_frame(robot, axes_deg, errors);
+    let rotation = UnitQuaternion::from_matrix(&(r * a6_to_flange()));
+    Isometry3::from_parts(Translation3::from(p), rotation)
+}
+
+/// The target position (`target_a6` plus the target slots, carried by the A6 frame), fast path.
+pub fn target_position(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    errors: &ChainErrors,
+    target_a6: &Vector3<f64>,
+) -> Vector3<f64> {
+    let (r, p) = a6_frame(robot, axes_deg, errors);
+    let t = &errors.0[6 * JOINT_SLOTS..];
+    p + r * (target_a6 + Vector3::new(t[0], t[1], t[2]))
+}
+
+/// The evaluated chain at one state: the A6 frame and, per axis, the motions of its slots.
+#[derive(Clone, Copy, Debug)]
+pub struct ChainFrames {
+    /// Rotation of the frame in which axis n's link vector and offsets are given (R_{n−1}).
+    link_frame: [Matrix3<f64>; 6],
+    /// Axis n's centre of rotation in the base frame (mm).
+    origin: [Vector3<f64>; 6],
+    /// World axes of the rx, ry, rz slots of axis n (each rotation follows the previous one).
+    tilt_axis: [[Vector3<f64>; 3]; 6],
+    /// World axis of a positive KUKA `dθ_n` (the model axis times the sense).
+    joint_axis: [Vector3<f64>; 6],
+    a6_rotation: Matrix3<f64>,
+    a6_origin: Vector3<f64>,
+}
+
+impl ChainFrames {
+    /// Evaluates the chain at command angles `axes_deg` (KUKA, degrees) with `errors`.
+    pub fn new(robot: &RobotDescription, axes_deg: &[f64; 6], errors: &ChainErrors) -> Self {
+        let mut frames = ChainFrames {
+            link_frame: [Matrix3::identity(); 6],
+            origin: [Vector3::zeros(); 6],
+            tilt_axis: [[Vector3::zeros(); 3]; 6],
+            joint_axis: [Vector3::zeros(); 6],
+            a6_rotation: Matrix3::identity(),
+            a6_origin: Vector3::zeros(),
+        };
+        let (r, p) = walk(robot, axes_deg, errors, |n, step| match step {
+            Step::Link(r) => frames.link_frame[n] = *r,
+            Step::Origin(p) => frames.origin[n] = *p,
+            Step::Tilt(coord, r) => frames.tilt_axis[n][coord] = r.column(coord).into_owned(),
+            Step::Joint(axis) => frames.joint_axis[n] = *axis,
+        });
+        frames.a6_rotation = r;
+        frames.a6_origin = p;
+        frames
+    }
+
+    /// Rotation of the body moved by axis n (1..=6): its frame after the joint rotation.
+    pub fn body_rotation(&self, axis: usize) -> Matrix3<f64> {
+        if axis < 6 {
+            self.link_frame[axis]
+        } else {
+            self.a6_rotation
+        }
+    }
+
+    /// Axis n's (1..=6) centre of rotation in the base frame, mm.
+    pub fn axis_origin(&self, axis: usize) -> Vector3<f64> {
+        self.origin[axis - 1]
+    }
+
+    /// The world direction of a positive KUKA rotation of axis n (1..=6).
+    pub fn joint_axis(&self, axis: usize) -> Vector3<f64> {
+        self.joint_axis[axis - 1]
+    }
+
+    /// The KUKA flange frame in the base frame.
+    pub fn flange_pose(&self) -> Isometry3<f64> {
+        let r = self.a6_rotation * a6_to_flange();
+        let rotation = UnitQuaternion::from_matrix(&r);
+        Isometry3::from_parts(Translation3::from(self.a6_origin), rotation)
+    }
+
+    /// The flange rotation as a matrix (cheaper than the quaternion of [`Self::flange_pose`]).
+    pub fn flange_rotation(&self) -> Matrix3<f64> {
+        self.a6_rotation * a6_to_flange()
+    }
+
+    pub fn flange_position(&self) -> Vector3<f64> {
+        self.a6_origin
+    }
+
+    /// The world position of `target_a6` (A6 frame, mm) plus the target slots of `errors`.
+    pub fn target_position(&self, target_a6: &Vector3<f64>, errors: &ChainErrors) -> Vector3<f64> {
+        let t = &errors.0[6 * JOINT_SLOTS..];
+        self.a6_origin + self.a6_rotation * (target_a6 + Vector3::new(t[0], t[1], t[2]))
+    }
+
+    /// World motion of a slot: `(translation, rotation axis, centre)`; a pure translation has a
+    /// zero axis.
+    fn slot_motion(&self, slot: Slot) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+        let zero = Vector3::zeros();
+        match slot {
+            Slot::Offset { axis, coord } => {
+                let n = axis as usize - 1;
+                (
+                    self.link_frame[n].column(coord as usize).into_owned(),
+                    zero,
+                    zero,
+                )
+            }
+            Slot::Tilt { axis, coord } => {
+                let n = axis as usize - 1;
+                (zero, self.tilt_axis[n][coord as usize], self.origin[n])
+            }
+            Slot::Angle { axis } => {
+                let n = axis as usize - 1;
+                (zero, self.joint_axis[n], self.origin[n])
+            }
+            Slot::Target { coord } => (
+                self.a6_rotation.column(coord as usize).into_owned(),
+                zero,
+                zero,
+            ),
+        }
+    }
+
+    /// d(point)/d(slot) for a point `p` carried by the A6 frame (the target, the flange).
+    pub fn point_partial(&self, slot: Slot, p: &Vector3<f64>) -> Vector3<f64> {
+        let (t, w, o) = self.slot_motion(slot);
+        t + w.cross(&(p - o))
+    }
+
+    /// d(target position)/d(slot) for every slot, indexed by [`Slot::index`].
+    pub fn target_jacobian(&self, target_world: &Vector3<f64>) -> [Vector3<f64>; N_SLOTS] {
+        std::array::from_fn(|i| self.point_partial(slot_of_index(i), target_world))
+    }
+
+    /// d(flange pose)/d(slot) for every slot: the flange origin's motion (mm per unit) stacked
+    /// on the small rotation vector of its orientation in the base frame (rad per unit). The
+    /// target slots do not move the flange.
+    pub fn flange_jacobian(&self) -> [Vector6<f64>; N_SLOTS] {
+        std::array::from_fn(|i| {
+            let slot = slot_of_index(i);
+            if matches!(slot, Slot::Target { .. }) {
+                return Vector6::zeros();
+            }
+            let (t, w, o) = self.slot_motion(slot);
+            let dp = t + w.cross(&(self.a6_origin - o));
+            Vector6::new(dp.x, dp.y, dp.z, w.x, w.y, w.z)
+        })
+    }
+}
+
+/// The slot stored at `index` of [`ChainErrors`] (inverse of [`Slot::index`]).
+pub fn slot_of_index(index: usize) -> Slot {
+    if index >= 6 * JOINT_SLOTS {
+        return Slot::Target {
+            coord: (index - 6 * JOINT_SLOTS) as u8,
+        };
+    }
+    let axis = (index / JOINT_SLOTS + 1) as u8;
+    match index % JOINT_SLOTS {
+        k @ 0..=2 => Slot::Offset {
+            axis,
+            coord: k as u8,
+        },
+        k @ 3..=5 => Slot::Tilt {
+            axis,
+            coord: (k - 3) as u8,
+        },
+        _ => Slot::Angle { axis },
+    }
+}

@@ -1,0 +1,59 @@
+//! `map:An` — the direction-independent angular positioning deviation of axis n as a function
+//! of its own command angle (the paper's section 2.2, the mean of its two branches):
+//! `dθ_n += map(A_n)`, linear interpolation, degrees in KUKA sign.
+
+use super::axis_table::AxisTable;
+use super::{GridOptions, ToRecord};
+use crate::kinematics::RobotDescription;
+use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial};
+use crate::model::record::{EffectRecord, RecordError};
+use crate::model::AxisState;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct AngleMap(pub AxisTable);
+
+impl AngleMap {
+    pub fn zeros(
+        axis: u8,
+        options: &GridOptions,
+        robot: &RobotDescription,
+    ) -> Result<Self, String> {
+        AxisTable::zeros(axis, options, robot).map(AngleMap)
+    }
+    pub fn from_record(axis: u8, rec: &EffectRecord) -> Result<Self, RecordError> {
+        AxisTable::from_record(axis, rec).map(AngleMap)
+    }
+}
+
+impl Effect for AngleMap {
+    fn name(&self) -> String {
+        format!("map:A{}", self.0.axis)
+    }
+    fn parameters(&self) -> Vec<Parameter> {
+        self.0.parameters(&self.name())
+    }
+    fn values(&self) -> &[f64] {
+        &self.0.table.values
+    }
+    fn values_mut(&mut self) -> &mut [f64] {
+        &mut self.0.table.values
+    }
+    fn add_to(&self, state: &AxisState, _ctx: &Context, errors: &mut ChainErrors) {
+        self.0.add_to(state, 1.0, errors);
+    }
+    fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
+        self.0.jacobian(state, 1.0, out);
+    }
+    fn clamped(&self, state: &AxisState) -> bool {
+        self.0.clamped(state)
+    }
+    fn clone_box(&self) -> Box<dyn Effect> {
+        Box::new(self.clone())
+    }
+}
+
+impl ToRecord for AngleMap {
+    fn record(&self) -> EffectRecord {
+        self.0.record(self.name())
+    }
+}

@@ -1,0 +1,229 @@
+//! The calibrated robot as one object: robot description, payload, measurement target and the
+//! list of effects. It sums the effects' chain errors, runs the error chain to predict the
+//! flange pose and target position, exposes all effect parameters as one flat vector (for
+//! Levenberg–Marquardt identification) and composes the chain's slot Jacobian with the
+//! effects' sparse Jacobians (chain rule: d p/d value = Σ_slots d p/d slot · d slot/d value).
+
+use nalgebra::{Isometry3, Vector3, Vector6};
+
+use super::chain::{self, flange_to_a6, ChainFrames};
+use super::effect::{ChainErrors, Context, Parameter, Partial};
+use super::effects::{GridOptions, ModelEffect};
+use super::registry::EffectName;
+use super::AxisState;
+use crate::kinematics::{Payload, RobotDescription};
+
+/// A robot with its error effects. `Send + Sync`: share one across rayon workers.
+#[derive(Clone, Debug)]
+pub struct Model {
+    pub robot: RobotDescription,
+    pub payload: Payload,
+    /// The measurement target (retroreflector) in the KUKA flange frame, mm.
+    pub target_mm: Vector3<f64>,
+    effects: Vec<Box<dyn ModelEffect>>,
+    /// Start of each effect's parameters in the flat vector, plus the total at the end.
+    starts: Vec<usize>,
+}
+
+impl Model {
+    /// A model without effects: the nominal robot.
+    pub fn new(robot: RobotDescription, payload: Payload, target_mm: Vector3<f64>) -> Model {
+        Model {
+            robot,
+            payload,
+            target_mm,
+            effects: Vec::new(),
+            starts: vec![0],
+        }
+    }
+
+    /// Appends an effect; its parameters go to the end of the flat vector.
+    pub fn push(&mut self, effect: Box<dyn ModelEffect>) {
+        let end = self.n_parameters() + effect.values().len();
+        self.effects.push(effect);
+        self.starts.push(end);
+    }
+
+    /// Appends a zero effect of `name` for identification.
+    pub fn push_named(&mut self, name: &EffectName, options: &GridOptions) -> Result<(), String> {
+        let effect = name.create(options, &self.robot)?;
+        self.push(effect);
+        Ok(())
+    }
+
+    pub fn effects(&self) -> &[Box<dyn ModelEffect>] {
+        &self.effects
+    }
+
+    /// Index in the flat vector of effect `i`'s first parameter.
+    pub fn effect_start(&self, i: usize) -> usize {
+        self.starts[i]
+    }
+
+    pub fn context(&self) -> Context<'_> {
+        Context {
+            robot: &self.robot,
+            payload: &self.payload,
+        }
+    }
+
+    /// The target vector in the paper's A6 frame.
+    pub fn target_a6(&self) -> Vector3<f64> {
+        flange_to_a6(&self.target_mm)
+    }
+
+    pub fn chain_errors(&self, state: &AxisState) -> ChainErrors {
+        let ctx = self.context();
+        let mut errors = ChainErrors::default();
+        for effect in &self.effects {
+            effect.add_to(state, &ctx, &mut errors);
+        }
+        errors
+    }
+
+    /// The evaluated chain, for callers that need several outputs of one state.
+    pub fn frames(&self, state: &AxisState) -> (ChainFrames, ChainErrors) {
+        let errors = self.chain_errors(state);
+        (
+            ChainFrames::new(&self.robot, &state.axes_deg, &errors),
+            errors,
+        )
+    }
+
+    /// The KUKA flange frame the robot actually reaches at `state`, in the base frame.
+    pub fn flange_pose(&self, state: &AxisState) -> Isometry3<f64> {
+        chain::flange_pose(&self.robot, &state.axes_deg, &self.chain_errors(state))
+    }
+
+    /// Where the measurement target actually is at `state`, base frame, mm.
+    pub fn target_position(&self, state: &AxisState) -> Vector3<f64> {
+        chain::target_position(
+            &self.robot,
+            &state.axes_deg,
+            &self.chain_errors(state),
+            &self.target_a6(),
+        )
+    }
+
+    /// Whether any table effect held `state` at its edge.
+    pub fn clamped(&self, state: &AxisState) -> bool {
+        self.effects.iter().any(|e| e.clamped(state))
+    }
+
+    pub fn n_parameters(&self) -> usize {
+        self.starts[self.starts.len() - 1]
+    }
+
+    /// Every parameter with its qualified name (`dx21`, `map:A2[-45]`, …), flat order.
+    pub fn parameters(&self) -> Vec<Parameter> {
+        self.effects.iter().flat_map(|e| e.parameters()).collect()
+    }
+
+    pub fn parameter_names(&self) -> Vec<String> {
+        self.parameters().into_iter().map(|p| p.name).collect()
+    }
+
+    pub fn values(&self) -> Vec<f64> {
+        self.effects
+            .iter()
+            .flat_map(|e| e.values().iter().copied())
+            .collect()
+    }
+
+    /// Sets every parameter from the flat vector.
+    ///
+    /// # Panics
+    /// When `values.len() != self.n_parameters()`: a programming error, never user input.
+    pub fn set_values(&mut self, values: &[f64]) {
+        assert_eq!(
+            values.len(),
+            self.n_parameters(),
+            "flat parameter vector of the wrong length"
+        );
+        for (i, effect) in self.effects.iter_mut().enumerate() {
+            effect
+                .values_mut()
+                .copy_from_slice(&values[self.starts[i]..self.starts[i + 1]]);
+        }
+    }
+
+    /// Every effect's sparse Jacobian at `state`, with flat parameter indices.
+    fn partials(&self, state: &AxisState, scratch: &mut Vec<Partial>, out: &mut Vec<Partial>) {
+        let ctx = self.context();
+        out.clear();
+        for (i, effect) in self.effects.iter().enumerate() {
+            scratch.clear();
+            effect.jacobian(state, &ctx, scratch);
+            out.extend(scratch.iter().map(|p| Partial {
+                param: p.param + self.starts[i],
+                ..*p
+            }));
+        }
+    }
+
+    /// The target position and its derivative with respect to each parameter that moves it
+    /// (flat index, mm per stored unit), sorted by index.
+    pub fn target_jacobian(&self, state: &AxisState) -> (Vector3<f64>, Vec<(usize, Vector3<f64>)>) {
+        let mut out = Vec::new();
+        let p = self.target_jacobian_into(state, &mut JacobianScratch::default(), &mut out);
+        (p, out)
+    }
+
+    /// [`Self::target_jacobian`] reusing buffers (no allocation once they have grown).
+    pub fn target_jacobian_into(
+        &self,
+        state: &AxisState,
+        scratch: &mut JacobianScratch,
+        out: &mut Vec<(usize, Vector3<f64>)>,
+    ) -> Vector3<f64> {
+        let (frames, errors) = self.frames(state);
+        let p = frames.target_position(&self.target_a6(), &errors);
+        let slots = frames.target_jacobian(&p);
+        self.partials(state, &mut scratch.effect, &mut scratch.all);
+        compose(&scratch.all, &slots, out);
+        p
+    }
+
+    /// The flange pose and its derivative with respect to each parameter: position (mm) on
+    /// top of the small rotation vector in the base frame (rad), per stored unit.
+    pub fn flange_jacobian(
+        &self,
+        state: &AxisState,
+    ) -> (Isometry3<f64>, Vec<(usize, Vector6<f64>)>) {
+        let (frames, _) = self.frames(state);
+        let slots = frames.flange_jacobian();
+        let mut scratch = JacobianScratch::default();
+        self.partials(state, &mut scratch.effect, &mut scratch.all);
+        let mut out = Vec::new();
+        compose(&scratch.all, &slots, &mut out);
+        (frames.flange_pose(), out)
+    }
+}
+
+/// Reusable buffers of [`Model::target_jacobian_into`].
+#[derive(Clone, Debug, Default)]
+pub struct JacobianScratch {
+    effect: Vec<Partial>,
+    all: Vec<Partial>,
+}
+
+/// Chain rule over slots, summing entries of the same parameter.
+fn compose<V>(partials: &[Partial], slots: &[V], out: &mut Vec<(usize, V)>)
+where
+    V: Copy + std::ops::Mul<f64, Output = V> + std::ops::AddAssign,
+{
+    out.clear();
+    out.extend(
+        partials
+            .iter()
+            .map(|p| (p.param, slots[p.slot.index()] * p.value)),
+    );
+    out.sort_by_key(|&(i, _)| i);
+    out.dedup_by(|later, kept| {
+        let same = later.0 == kept.0;
+        if same {
+            kept.1 += later.1;
+        }
+        same
+    });
+}

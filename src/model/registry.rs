@@ -1,0 +1,289 @@
+//! The one place that knows every effect by name: parsing a contract name (`geometric`,
+//! `map:A2`, `crosstalk:A3->A2`, case-insensitive) into its kind and axes, expanding
+//! `A1..A6` in lists, and building an effect either at zero for identification or from its
+//! calibration record. Adding an effect is one file in `effects/` plus one line in [`KINDS`].
+
+use std::fmt;
+
+use super::effects::{
+    backlash::Backlash, compliance::Compliance, crosstalk::Crosstalk, drift::Drift,
+    geometric::Geometric, map::AngleMap, tilt::Tilt, GridOptions, ModelEffect,
+};
+use super::record::{EffectRecord, RecordError};
+use crate::kinematics::RobotDescription;
+
+/// Which axes a kind of effect is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Arity {
+    /// `geometric`, `drift`.
+    Robot,
+    /// `map:An`.
+    Axis,
+    /// `crosstalk:Am->An`.
+    Pair,
+}
+
+/// The axes of one effect name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Axes {
+    None,
+    One(u8),
+    Pair { from: u8, to: u8 },
+}
+
+/// A kind of effect: how its name is spelled and how to build one.
+pub struct Kind {
+    pub prefix: &'static str,
+    pub arity: Arity,
+    /// The physical effect, as in the contract table.
+    pub meaning: &'static str,
+    /// A zero effect for identification.
+    pub create: CreateFn,
+    /// The effect described by a calibration record.
+    pub decode: DecodeFn,
+}
+
+pub type CreateFn =
+    fn(Axes, &GridOptions, &RobotDescription) -> Result<Box<dyn ModelEffect>, String>;
+pub type DecodeFn =
+    fn(Axes, &EffectRecord, &RobotDescription) -> Result<Box<dyn ModelEffect>, RecordError>;
+
+fn one(axes: Axes) -> u8 {
+    match axes {
+        Axes::One(n) => n,
+        _ => 0,
+    }
+}
+fn pair(axes: Axes) -> (u8, u8) {
+    match axes {
+        Axes::Pair { from, to } => (from, to),
+        _ => (0, 0),
+    }
+}
+fn boxed<E: ModelEffect + 'static, Er>(r: Result<E, Er>) -> Result<Box<dyn ModelEffect>, Er> {
+    r.map(|e| Box::new(e) as Box<dyn ModelEffect>)
+}
+
+/// Every effect kind, in the contract table's order.
+pub static KINDS: &[Kind] = &[
+    Kind {
+        prefix: "geometric",
+        arity: Arity::Robot,
+        meaning: "position/orientation errors of the axis average lines and the target vector",
+        create: |_, _, _| boxed(Ok::<_, String>(Geometric::default())),
+        decode: |_, r, _| boxed(Geometric::from_record(r)),
+    },
+    Kind {
+        prefix: "map",
+        arity: Arity::Axis,
+        meaning: "angular positioning deviation of an axis over its own angle",
+        create: |a, o, r| boxed(AngleMap::zeros(one(a), o, r)),
+        decode: |a, rec, _| boxed(AngleMap::from_record(one(a), rec)),
+    },
+    Kind {
+        prefix: "backlash",
+        arity: Arity::Axis,
+        meaning: "dependence of that deviation on the rotation direction",
+        create: |a, o, r| boxed(Backlash::zeros(one(a), o, r)),
+        decode: |a, rec, _| boxed(Backlash::from_record(one(a), rec)),
+    },
+    Kind {
+        prefix: "crosstalk",
+        arity: Arity::Pair,
+        meaning: "deviation of an axis depending on the angle of another",
+        create: |a, o, r| {
+            let (m, n) = pair(a);
+            boxed(Crosstalk::zeros(m, n, o, r))
+        },
+        decode: |a, rec, _| {
+            let (m, n) = pair(a);
+            boxed(Crosstalk::from_record(m, n, rec))
+        },
+    },
+    Kind {
+        prefix: "compliance",
+        arity: Arity::Axis,
+        meaning: "elastic deflection proportional to the gravity torque",
+        create: |a, _, r| boxed(Compliance::zeros(one(a), r)),
+        decode: |a, rec, r| boxed(Compliance::from_record(one(a), rec, r)),
+    },
+    Kind {
+        prefix: "tilt",
+        arity: Arity::Axis,
+        meaning: "tilt error motion of an axis over its own angle",
+        create: |a, _, _| boxed(Ok::<_, String>(Tilt::zeros(one(a)))),
+        decode: |a, rec, _| boxed(Tilt::from_record(one(a), rec)),
+    },
+    Kind {
+        prefix: "drift",
+        arity: Arity::Robot,
+        meaning: "geometry change linear in time",
+        create: |_, _, _| boxed(Ok::<_, String>(Drift::default())),
+        decode: |_, r, _| boxed(Drift::from_record(r)),
+    },
+];
+
+/// A parsed effect name.
+#[derive(Clone, Copy)]
+pub struct EffectName {
+    pub kind: &'static Kind,
+    pub axes: Axes,
+}
+
+impl PartialEq for EffectName {
+    fn eq(&self, other: &Self) -> bool {
+        self.kind.prefix == other.kind.prefix && self.axes == other.axes
+    }
+}
+
+impl fmt::Debug for EffectName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "EffectName({self})")
+    }
+}
+
+/// The canonical spelling: `geometric`, `map:A2`, `crosstalk:A3->A2`.
+impl fmt::Display for EffectName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.axes {
+            Axes::None => write!(f, "{}", self.kind.prefix),
+            Axes::One(n) => write!(f, "{}:A{n}", self.kind.prefix),
+            Axes::Pair { from, to } => write!(f, "{}:A{from}->A{to}", self.kind.prefix),
+        }
+    }
+}
+
+/// A name that is not an effect: what was expected and what was found.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("expected {expected}, found `{found}`")]
+pub struct NameError {
+    pub expected: String,
+    pub found: String,
+}
+
+fn name_error(expected: impl Into<String>, found: &str) -> NameError {
+    NameError {
+        expected: expected.into(),
+        found: found.to_string(),
+    }
+}
+
+const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, tilt:An, drift)";
+
+/// `a3` / `A3` → 3, checking the range 1..=6.
+fn parse_axis(text: &str, whole: &str) -> Result<u8, NameError> {
+    let digits = text
+        .trim()
+        .strip_prefix(['a', 'A'])
+        .ok_or_else(|| name_error("an axis A1..A6", whole))?;
+    match digits.parse::<u32>() {
+        Ok(n @ 1..=6) => Ok(n as u8),
+        Ok(n) => Err(name_error(
+            "an axis number in 1..6",
+            &format!("{whole} (axis {n})"),
+        )),
+        Err(_) => Err(name_error("an axis A1..A6", whole)),
+    }
+}
+
+impl EffectName {
+    /// Parses a contract name, case-insensitively.
+    pub fn parse(text: &str) -> Result<EffectName, NameError> {
+        let trimmed = text.trim();
+        let (prefix, rest) = match trimmed.split_once(':') {
+            Some((p, r)) => (p.trim(), Some(r.trim())),
+            None => (trimmed, None),
+        };
+        let kind = KINDS
+            .iter()
+            .find(|k| k.prefix.eq_ignore_ascii_case(prefix))
+            .ok_or_else(|| name_error(KNOWN, trimmed))?;
+        let axes = match (kind.arity, rest) {
+            (Arity::Robot, None) => Axes::None,
+            (Arity::Robot, Some(_)) => {
+                return Err(name_error(
+                    format!("`{}` without axes", kind.prefix),
+                    trimmed,
+                ))
+            }
+            (Arity::Axis, Some(r)) => Axes::One(parse_axis(r, trimmed)?),
+            (Arity::Pair, Some(r)) => {
+                let (m, n) = r
+                    .split_once("->")
+                    .ok_or_else(|| name_error("crosstalk:Am->An", trimmed))?;
+                let (from, to) = (parse_axis(m, trimmed)?, parse_axis(n, trimmed)?);
+                if from == to {
+                    return Err(name_error(
+                        "two different axes (crosstalk:Am->An, m ≠ n)",
+                        trimmed,
+                    ));
+                }
+                Axes::Pair { from, to }
+            }
+            (Arity::Axis, None) => return Err(name_error(format!("{}:An", kind.prefix), trimmed)),
+            (Arity::Pair, None) => return Err(name_error("crosstalk:Am->An", trimmed)),
+        };
+        Ok(EffectName { kind, axes })
+    }
+
+    /// A zero effect of this name for identification.
+    pub fn create(
+        &self,
+        options: &GridOptions,
+        robot: &RobotDescription,
+    ) -> Result<Box<dyn ModelEffect>, String> {
+        (self.kind.create)(self.axes, options, robot)
+    }
+
+    /// The effect a calibration record describes (its name already parsed into `self`).
+    pub fn decode(
+        &self,
+        record: &EffectRecord,
+        robot: &RobotDescription,
+    ) -> Result<Box<dyn ModelEffect>, RecordError> {
+        (self.kind.decode)(self.axes, record, robot)
+    }
+}
+
+/// Splits a comma-separated list and expands `Ai..Aj` inside each name (`map:A1..A6` → six
+/// names, `crosstalk:A1..A3->A6` → three), returning canonical names in order.
+pub fn expand_list(list: &str) -> Result<Vec<EffectName>, NameError> {
+    let mut names = Vec::new();
+    for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        match expand_range(item)? {
+            Some(expanded) => {
+                for name in expanded {
+                    names.push(EffectName::parse(&name)?);
+                }
+            }
+            None => names.push(EffectName::parse(item)?),
+        }
+    }
+    Ok(names)
+}
+
+/// `…Ai..Aj…` → the names with `Ak` for k = i..=j; `None` when there is no range.
+fn expand_range(item: &str) -> Result<Option<Vec<String>>, NameError> {
+    let Some(dots) = item.find("..") else {
+        return Ok(None);
+    };
+    let (before, after) = (&item[..dots], &item[dots + 2..]);
+    // The range's ends are `A<digit>` right before and right after the dots.
+    let start = before
+        .len()
+        .checked_sub(2)
+        .filter(|&s| before.is_char_boundary(s));
+    let (Some(start), true) = (start, after.len() >= 2 && after.is_char_boundary(2)) else {
+        return Err(name_error("a range A<i>..A<j>", item));
+    };
+    let lo = parse_axis(&before[start..], item)?;
+    let hi = parse_axis(&after[..2], item)?;
+    if lo > hi {
+        return Err(name_error("an increasing range A<i>..A<j>", item));
+    }
+    Ok(Some(
+        (lo..=hi)
+            .map(|k| format!("{}A{k}{}", &before[..start], &after[2..]))
+            .collect(),
+    ))
+}

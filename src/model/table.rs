@@ -1,0 +1,210 @@
+//! Lookup tables of the error model: 1-D linear interpolation over an increasing grid (the
+//! paper's section 2.2, "linearly interpolating Δθ_n,map") and 2-D bilinear interpolation (its
+//! section 2.4, crosstalk). Outside the grid the value is held at the edge and the lookup says
+//! so. Lookups return the interpolation weights, which are also the Jacobian of the value with
+//! respect to the table entries. Uniform grids (the common case) find their cell in O(1),
+//! others by binary search.
+
+/// A strictly increasing grid of abscissae (degrees in this crate).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    points: Vec<f64>,
+    /// `(first point, 1 / pitch)` when the points are equally spaced.
+    uniform: Option<(f64, f64)>,
+}
+
+/// Where an abscissa falls on a grid: `value = (1 − w)·v[lo] + w·v[hi]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cell {
+    pub lo: usize,
+    pub hi: usize,
+    /// Weight of `hi`, in [0, 1].
+    pub w: f64,
+    /// The abscissa lay outside the grid and was held at the edge.
+    pub clamped: bool,
+}
+
+/// Why a list of numbers is not a grid.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum GridError {
+    #[error("a grid needs at least one point")]
+    Empty,
+    #[error("grid point {index} is {found}, not finite")]
+    NotFinite { index: usize, found: f64 },
+    #[error("grid point {index} is {found}, not greater than the previous point {previous}")]
+    NotIncreasing {
+        index: usize,
+        previous: f64,
+        found: f64,
+    },
+}
+
+impl Grid {
+    /// Checks the points (finite, strictly increasing) and detects equal spacing.
+    pub fn new(points: Vec<f64>) -> Result<Grid, GridError> {
+        if points.is_empty() {
+            return Err(GridError::Empty);
+        }
+        for (index, &found) in points.iter().enumerate() {
+            if !found.is_finite() {
+                return Err(GridError::NotFinite { index, found });
+            }
+            if index > 0 && found <= points[index - 1] {
+                return Err(GridError::NotIncreasing {
+                    index,
+                    previous: points[index - 1],
+                    found,
+                });
+            }
+        }
+        let uniform = uniform_spacing(&points);
+        Ok(Grid { points, uniform })
+    }
+
+    /// `lo, lo + pitch, …` up to the first point ≥ `hi` (so the range is covered and the
+    /// spacing stays uniform even when the pitch does not divide the range).
+    pub fn from_range(lo: f64, hi: f64, pitch: f64) -> Result<Grid, GridError> {
+        if !(pitch > 0.0 && pitch.is_finite() && lo.is_finite() && hi.is_finite()) {
+            return Err(GridError::NotFinite {
+                index: 0,
+                found: pitch,
+            });
+        }
+        // The small tolerance keeps a pitch that divides the range from adding a spare point.
+        let cells = ((hi - lo) / pitch - 1e-9).ceil().max(0.0) as usize;
+        Grid::new((0..=cells).map(|i| lo + i as f64 * pitch).collect())
+    }
+
+    pub fn points(&self) -> &[f64] {
+        &self.points
+    }
+
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Whether `x` lies outside `[first, last]`.
+    pub fn outside(&self, x: f64) -> bool {
+        x < self.points[0] || x > self.points[self.points.len() - 1]
+    }
+
+    /// The cell holding `x` and the linear weight inside it.
+    pub fn locate(&self, x: f64) -> Cell {
+        let n = self.points.len();
+        let (first, last) = (self.points[0], self.points[n - 1]);
+        if n == 1 {
+            return Cell {
+                lo: 0,
+                hi: 0,
+                w: 0.0,
+                clamped: x != first,
+            };
+        }
+        if x <= first {
+            return Cell {
+                lo: 0,
+                hi: 1,
+                w: 0.0,
+                clamped: x < first,
+            };
+        }
+        if x >= last {
+            return Cell {
+                lo: n - 2,
+                hi: n - 1,
+                w: 1.0,
+                clamped: x > last,
+            };
+        }
+        let lo = match self.uniform {
+            Some((start, per_pitch)) => (((x - start) * per_pitch) as usize).min(n - 2),
+            // First point greater than x, minus one: x lies in [p[lo], p[lo+1]).
+            None => self.points.partition_point(|&p| p <= x) - 1,
+        };
+        let (a, b) = (self.points[lo], self.points[lo + 1]);
+        Cell {
+            lo,
+            hi: lo + 1,
+            w: ((x - a) / (b - a)).clamp(0.0, 1.0),
+            clamped: false,
+        }
+    }
+}
+
+/// Equal spacing to a relative 1e-9 of the pitch (grids written as decimals in JSON are not
+/// bit-exactly uniform, and the cell index is only a starting guess bounded to the grid).
+fn uniform_spacing(points: &[f64]) -> Option<(f64, f64)> {
+    if points.len() < 2 {
+        return None;
+    }
+    let pitch = (points[points.len() - 1] - points[0]) / (points.len() - 1) as f64;
+    let tolerance = 1e-9 * pitch;
+    points
+        .iter()
+        .enumerate()
+        .all(|(i, &p)| (p - (points[0] + i as f64 * pitch)).abs() <= tolerance)
+        .then_some((points[0], 1.0 / pitch))
+}
+
+/// A 1-D table: one value per grid point, linearly interpolated.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table1 {
+    pub grid: Grid,
+    pub values: Vec<f64>,
+}
+
+impl Table1 {
+    /// A table of zeros over `grid`.
+    pub fn zeros(grid: Grid) -> Table1 {
+        let values = vec![0.0; grid.len()];
+        Table1 { grid, values }
+    }
+
+    /// The interpolated value at `x` and where it came from.
+    pub fn eval(&self, x: f64) -> (f64, Cell) {
+        let cell = self.grid.locate(x);
+        let value = (1.0 - cell.w) * self.values[cell.lo] + cell.w * self.values[cell.hi];
+        (value, cell)
+    }
+}
+
+/// A 2-D table over `rows × columns`, stored row-major: `values[i·columns + j]` belongs to
+/// `(rows[i], columns[j])`; bilinear interpolation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table2 {
+    pub rows: Grid,
+    pub columns: Grid,
+    pub values: Vec<f64>,
+}
+
+/// The four corners of a bilinear lookup: `(index into values, weight)`.
+pub type Corners = [(usize, f64); 4];
+
+impl Table2 {
+    pub fn zeros(rows: Grid, columns: Grid) -> Table2 {
+        let values = vec![0.0; rows.len() * columns.len()];
+        Table2 {
+            rows,
+            columns,
+            values,
+        }
+    }
+
+    /// The bilinear value at `(r, c)`, its four weighted corners, and whether it was clamped.
+    pub fn eval(&self, r: f64, c: f64) -> (f64, Corners, bool) {
+        let (cr, cc) = (self.rows.locate(r), self.columns.locate(c));
+        let width = self.columns.len();
+        let corners = [
+            (cr.lo * width + cc.lo, (1.0 - cr.w) * (1.0 - cc.w)),
+            (cr.lo * width + cc.hi, (1.0 - cr.w) * cc.w),
+            (cr.hi * width + cc.lo, cr.w * (1.0 - cc.w)),
+            (cr.hi * width + cc.hi, cr.w * cc.w),
+        ];
+        let value = corners.iter().map(|&(i, w)| w * self.values[i]).sum();
+        (value, corners, cr.clamped || cc.clamped)
+    }
+}

@@ -1,0 +1,207 @@
+//! The calibration file: the shipped files, round trip, the schema, and one snapshot per kind
+//! of bad file (each read and checked to name the key, the expected and the found value).
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use robopost::calibration::{self, CalError, Calibration, KukaFrame, MeasurementFrame, Provenance};
+use robopost::kinematics::{Payload, RobotDescription};
+use robopost::model::{expand_list, AxisState, Direction, GridOptions, Model};
+
+fn shipped(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("calibrations")
+        .join(name)
+}
+
+#[test]
+fn shipped_schema_is_the_generated_one() {
+    let path = shipped("calibration.schema.json");
+    let generated = calibration::json_schema();
+    if std::env::var_os("UPDATE_SCHEMA").is_some() {
+        std::fs::write(&path, &generated).expect("write schema");
+    }
+    let on_disk = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        on_disk == generated,
+        "calibrations/calibration.schema.json is out of date; regenerate it with \
+         `UPDATE_SCHEMA=1 cargo test --test calibration_file shipped_schema` and commit it"
+    );
+}
+
+#[test]
+fn nominal_calibration_predicts_the_nominal_home_pose() {
+    let cal = calibration::load(&shipped("kr30ha-nominal.json")).expect("shipped file loads");
+    assert_eq!(cal.robot_name, "KR 30 HA");
+    assert_eq!(cal.model_ref().robot, RobotDescription::kr30ha());
+    let p = cal
+        .model()
+        .flange_pose(&AxisState::new([0.0, -90.0, 90.0, 0.0, 0.0, 0.0]))
+        .translation
+        .vector;
+    assert!((p - Vector3::new(1340.0, 0.0, 1810.0)).norm() < 1e-9);
+}
+
+fn full_model() -> Model {
+    let payload = Payload {
+        mass_kg: 12.0,
+        cog_mm: [0.0, 0.0, 80.0],
+    };
+    let mut model = Model::new(
+        RobotDescription::kr30ha(),
+        payload,
+        Vector3::new(1.0, 2.0, 150.0),
+    );
+    let list = "geometric,map:A1..A6,backlash:A1..A6,crosstalk:A3->A2,compliance:A2,tilt:A5,drift";
+    let options = GridOptions {
+        other_grid_deg: Some(vec![58.0, 105.0, 153.0]),
+        ..Default::default()
+    };
+    for name in expand_list(list).unwrap() {
+        model.push_named(&name, &options).unwrap();
+    }
+    // Values that are not round in binary, so that a lossy number format would show.
+    let values: Vec<f64> = (0..model.n_parameters())
+        .map(|i| ((i as f64) * 0.731).sin() * 0.0123)
+        .collect();
+    model.set_values(&values);
+    model
+}
+
+#[test]
+fn save_then_load_gives_the_same_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cal.json");
+    let frame = MeasurementFrame::Tracker(KukaFrame {
+        x: 3000.0,
+        y: -20.5,
+        z: 12.25,
+        a: 179.5,
+        b: 0.1,
+        c: -0.2,
+    });
+    let provenance = Provenance {
+        sources: vec!["a2.csv".into()],
+        date: Some("2026-03-01".into()),
+        fit: [("rms_um".to_string(), 21.4)].into_iter().collect(),
+        notes: Some("round trip".into()),
+    };
+    let cal = Calibration::from_model("KR 30 HA #1", full_model(), frame, provenance);
+    cal.save_atomic(&path).unwrap();
+    let back = calibration::load(&path).unwrap();
+    assert_eq!(back.to_file(), cal.to_file());
+    assert_eq!(back.model().values(), cal.model().values());
+    assert_eq!(
+        back.model().parameter_names(),
+        cal.model().parameter_names()
+    );
+    let mut state = AxisState::new([10.0, -70.0, 100.0, 20.0, 30.0, -40.0]);
+    state.directions = [Direction::Positive; 6];
+    state.time_s = 1800.0;
+    assert_eq!(
+        back.model().target_position(&state),
+        cal.model().target_position(&state)
+    );
+    // Only the final file is left behind.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+/// The error for `text`, rendered with a fixed file name.
+fn error_of(text: &str) -> String {
+    match calibration::parse(text, Path::new("cal.json")) {
+        Ok(_) => "no error".to_string(),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// The nominal file with `effects` replaced.
+fn with_effects(effects: &str) -> String {
+    let nominal = std::fs::read_to_string(shipped("kr30ha-nominal.json")).unwrap();
+    nominal.replace("\"effects\": []", &format!("\"effects\": {effects}"))
+}
+
+#[test]
+fn bad_files_name_key_expected_and_found() {
+    let cases = [
+        (
+            "syntax",
+            "{\n  \"format\": \"robopost-calibration/1\",\n  \"robot\": {,\n}".to_string(),
+        ),
+        (
+            "format_version",
+            with_effects("[]").replace("robopost-calibration/1", "robopost-calibration/2"),
+        ),
+        (
+            "grid_not_increasing",
+            with_effects(
+                r#"[{"name": "map:A2", "table": {"grid_deg": [0, 1, 1, 2], "values_deg": [0, 0, 0, 0]}}]"#,
+            ),
+        ),
+        (
+            "table_length",
+            with_effects(
+                r#"[{"name": "backlash:A1", "table": {"grid_deg": [0, 1, 2], "values_deg": [0, 0]}}]"#,
+            ),
+        ),
+        (
+            "axis_out_of_range",
+            with_effects(r#"[{"name": "map:A7", "table": {"grid_deg": [0], "values_deg": [0]}}]"#),
+        ),
+        (
+            "crosstalk_same_axis",
+            with_effects(
+                r#"[{"name": "crosstalk:A2->A2", "table": {"grid_deg": [0], "other_grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
+        ),
+        (
+            "duplicate_effect",
+            with_effects(
+                r#"[{"name": "map:A2", "table": {"grid_deg": [0], "values_deg": [0]}}, {"name": "geometric"}, {"name": "MAP:a2", "table": {"grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
+        ),
+        (
+            "unknown_effect",
+            with_effects(r#"[{"name": "gravity:A2"}]"#),
+        ),
+        (
+            "unknown_parameter",
+            with_effects(r#"[{"name": "geometric", "parameters": {"dx12": 0.1}}]"#),
+        ),
+        (
+            "non_finite",
+            with_effects(r#"[{"name": "geometric", "parameters": {"dx21": 1e999}}]"#),
+        ),
+        (
+            "unknown_key",
+            with_effects(r#"[{"name": "geometric", "values": {}}]"#),
+        ),
+    ];
+    for (kind, text) in cases {
+        insta::assert_snapshot!(kind, error_of(&text));
+    }
+}
+
+#[test]
+fn non_finite_values_are_refused_when_saving() {
+    let mut model = full_model();
+    let mut values = model.values();
+    values[3] = f64::NAN;
+    model.set_values(&values);
+    let cal = Calibration::from_model("x", model, MeasurementFrame::Base, Provenance::default());
+    let err = cal
+        .save_atomic(Path::new("/nonexistent-dir/cal.json"))
+        .unwrap_err();
+    let CalError::Invalid {
+        key,
+        expected,
+        found,
+        ..
+    } = err
+    else {
+        panic!("not a validation error: {err}")
+    };
+    assert_eq!(
+        (key.as_str(), expected.as_str(), found.as_str()),
+        ("effects[0].parameters.dz32", "a finite number", "NaN")
+    );
+}

@@ -1,0 +1,192 @@
+//! Analytic Jacobians against central finite differences: every effect's sparse Jacobian
+//! against `add_to`, and the Model's target and flange Jacobians against `target_position`
+//! and `flange_pose`, with random parameter values at random states (both directions and
+//! unknown).
+
+use nalgebra::Vector3;
+use robopost::kinematics::{Payload, RobotDescription};
+use robopost::model::{
+    expand_list, AxisState, ChainErrors, Direction, GridOptions, Model, N_SLOTS,
+};
+
+/// A small deterministic generator (the tests must not depend on a seed-less RNG).
+struct Lcg(u64);
+impl Lcg {
+    fn unit(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+}
+
+fn random_state(rng: &mut Lcg, robot: &RobotDescription) -> AxisState {
+    let mut state = AxisState::new(std::array::from_fn(|n| {
+        let [lo, hi] = robot.limits_deg[n];
+        rng.range(lo, hi)
+    }));
+    for d in state.directions.iter_mut() {
+        *d = [Direction::Negative, Direction::Unknown, Direction::Positive]
+            [(rng.unit() * 3.0) as usize % 3];
+    }
+    state.time_s = rng.range(0.0, 7200.0);
+    state
+}
+
+/// Every kind of effect, with coarse grids so the test stays fast.
+fn full_model(rng: &mut Lcg) -> Model {
+    let robot = RobotDescription::kr30ha();
+    let payload = Payload {
+        mass_kg: 12.0,
+        cog_mm: [10.0, -5.0, 80.0],
+    };
+    let mut model = Model::new(robot, payload, Vector3::new(20.0, 30.0, 150.0));
+    let list = "geometric,map:A1..A6,backlash:A1..A6,crosstalk:A3->A2,crosstalk:A2->A3,compliance:A2..A3,tilt:A1..A6,drift";
+    let options = GridOptions {
+        pitch_deg: Some(10.0),
+        ..GridOptions::default()
+    };
+    for name in expand_list(list).expect("valid list") {
+        model.push_named(&name, &options).expect("constructible");
+    }
+    let values: Vec<f64> = (0..model.n_parameters())
+        .map(|_| rng.range(-0.05, 0.05))
+        .collect();
+    model.set_values(&values);
+    model
+}
+
+#[test]
+fn every_effect_jacobian_matches_finite_differences_of_add_to() {
+    let mut rng = Lcg(7);
+    let mut model = full_model(&mut rng);
+    let robot = model.robot;
+    let h = 1e-4;
+    for _ in 0..20 {
+        let state = random_state(&mut rng, &robot);
+        for e in 0..model.effects().len() {
+            let start = model.effect_start(e);
+            let ctx_model = model.clone();
+            let ctx = ctx_model.context();
+            let mut partials = Vec::new();
+            model.effects()[e].jacobian(&state, &ctx, &mut partials);
+            let mut analytic = vec![[0.0; N_SLOTS]; model.effects()[e].values().len()];
+            for p in &partials {
+                analytic[p.param][p.slot.index()] += p.value;
+            }
+            for (k, analytic_k) in analytic.iter().enumerate() {
+                let base = model.values();
+                let errors_at = |model: &mut Model, delta: f64| {
+                    let mut v = base.clone();
+                    v[start + k] += delta;
+                    model.set_values(&v);
+                    let mut errors = ChainErrors::default();
+                    model.effects()[e].add_to(&state, &ctx, &mut errors);
+                    errors
+                };
+                let plus = errors_at(&mut model, h);
+                let minus = errors_at(&mut model, -h);
+                model.set_values(&base);
+                for (s, &analytic_ks) in analytic_k.iter().enumerate() {
+                    let numeric = (plus.0[s] - minus.0[s]) / (2.0 * h);
+                    assert!(
+                        (numeric - analytic_ks).abs() < 1e-9 * (1.0 + numeric.abs()),
+                        "{} param {k} slot {s}: {numeric} vs {}",
+                        model.effects()[e].name(),
+                        analytic_ks
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn model_target_jacobian_matches_finite_differences() {
+    let mut rng = Lcg(11);
+    let mut model = full_model(&mut rng);
+    let robot = model.robot;
+    let base = model.values();
+    let h = 1e-5;
+    let mut checked_nonzero = 0;
+    for _ in 0..8 {
+        let state = random_state(&mut rng, &robot);
+        let (p, sparse) = model.target_jacobian(&state);
+        assert!((p - model.target_position(&state)).norm() < 1e-12);
+        let mut dense = vec![Vector3::zeros(); model.n_parameters()];
+        for (i, d) in sparse {
+            dense[i] += d;
+        }
+        for (i, analytic) in dense.iter().enumerate() {
+            let mut v = base.clone();
+            v[i] = base[i] + h;
+            model.set_values(&v);
+            let plus = model.target_position(&state);
+            v[i] = base[i] - h;
+            model.set_values(&v);
+            let minus = model.target_position(&state);
+            model.set_values(&base);
+            let numeric = (plus - minus) / (2.0 * h);
+            // Second-order FD error: h² times the chain's curvature (≤ 1e-6 mm here).
+            assert!(
+                (numeric - analytic).norm() < 1e-6 * (1.0 + numeric.norm()),
+                "param {i}: {numeric} vs {analytic}"
+            );
+            if numeric.norm() > 1e-6 {
+                checked_nonzero += 1;
+            }
+        }
+    }
+    assert!(
+        checked_nonzero > 100,
+        "the comparison exercised few parameters: {checked_nonzero}"
+    );
+}
+
+#[test]
+fn model_flange_jacobian_matches_finite_differences() {
+    let mut rng = Lcg(13);
+    let mut model = full_model(&mut rng);
+    let robot = model.robot;
+    let base = model.values();
+    let h = 1e-5;
+    for _ in 0..5 {
+        let state = random_state(&mut rng, &robot);
+        let (pose, sparse) = model.flange_jacobian(&state);
+        assert!(
+            (pose.translation.vector - model.flange_pose(&state).translation.vector).norm() < 1e-12
+        );
+        let mut dense = vec![nalgebra::Vector6::zeros(); model.n_parameters()];
+        for (i, d) in sparse {
+            dense[i] += d;
+        }
+        for (i, analytic) in dense.iter().enumerate() {
+            let mut v = base.clone();
+            v[i] = base[i] + h;
+            model.set_values(&v);
+            let plus = model.flange_pose(&state);
+            v[i] = base[i] - h;
+            model.set_values(&v);
+            let minus = model.flange_pose(&state);
+            model.set_values(&base);
+            let dp = (plus.translation.vector - minus.translation.vector) / (2.0 * h);
+            // R+ = exp(ω·2h)·R−, so the rotation vector of R+·R−ᵀ over 2h is ω.
+            let dw: Vector3<f64> =
+                (plus.rotation * minus.rotation.inverse()).scaled_axis() / (2.0 * h);
+            let dp_a = analytic.fixed_rows::<3>(0).into_owned();
+            let dw_a = analytic.fixed_rows::<3>(3).into_owned();
+            assert!(
+                (dp - dp_a).norm() < 1e-6 * (1.0 + dp.norm()),
+                "param {i}: {dp} vs {dp_a}"
+            );
+            assert!(
+                (dw - dw_a).norm() < 1e-9 * (1.0 + dw.norm()),
+                "param {i}: {dw} vs {dw_a}"
+            );
+        }
+    }
+}
