@@ -8,7 +8,9 @@ use clap::{Parser, Subcommand};
 
 pub mod check;
 pub mod compensate;
+pub mod identify;
 pub mod kin;
+pub mod simulate;
 
 /// Exit status per `../shared/CONTRACTS.md`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -42,6 +44,10 @@ pub enum Command {
     Fk(kin::FkArgs),
     /// Axis angles of every IK branch of a flange pose, or the selected one.
     Ik(kin::IkArgs),
+    /// The virtual robot: measurement campaigns and pose lists on a truth model.
+    Simulate(simulate::Args),
+    /// Identify a calibration from laser-tracker measurements.
+    Identify(identify::Args),
 }
 
 const SUBCOMMANDS: &[&str] = &[
@@ -88,6 +94,8 @@ pub fn main() -> i32 {
         Command::Check(a) => check::run(a),
         Command::Fk(a) => kin::run_fk(a),
         Command::Ik(a) => kin::run_ik(a),
+        Command::Simulate(a) => simulate::run(a),
+        Command::Identify(a) => identify::run(a),
     };
     exit as i32
 }
