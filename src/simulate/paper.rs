@@ -2,7 +2,7 @@
 //! reports (section 3 and Figs. 4, 5, 7) — axis average lines off by tenths of a millimetre
 //! and hundredths of a degree, angular positioning deviations periodic with the gear pitch
 //! with amplitudes of a few thousandths of a degree, backlash of a few thousandths, and the
-//! A3 → A2 crosstalk of Fig. 5 (A2's deviation shifting by several thousandths of a degree
+//! A3 → A2 crosstalk of Fig. 5 (A2's deviation shifting by about two hundredths of a degree
 //! between A3 = 58° and 153°). Written in closed form (no random numbers) so the truth is the
 //! same on every machine; `hidden` adds effects outside the paper's model (compliance of A2
 //! and A3 under gravity, tilt of A1) for diagnosis to find.
@@ -74,10 +74,10 @@ pub fn backlash_deg(n: usize, a: f64) -> f64 {
 }
 
 /// The A3 → A2 crosstalk (degrees) at (A2, A3): the load on A2's gears changes with the
-/// forearm's angle; zero at A3 = 105°, about ±0.005° at 58° and 153° (Fig. 5).
+/// forearm's angle; zero at A3 = 105°, about ±0.012° at 58° and 153° (Fig. 5).
 pub fn crosstalk_deg(a2: f64, a3: f64) -> f64 {
     let x = (a3 - 105.0) / 48.0;
-    (0.005 * x + 0.0015 * x * x) * (1.0 + 0.3 * (a2 + 60.0).to_radians().sin())
+    (0.012 * x + 0.003 * x * x) * (1.0 + 0.5 * (a2 + 60.0).to_radians().sin())
 }
 
 fn table_grid(lo: f64, hi: f64, pitch: f64) -> Vec<f64> {
