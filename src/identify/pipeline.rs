@@ -3,12 +3,10 @@
 //! registration, run the direct method when the data hold indexing tests and the model is
 //! fresh, refine globally, and wrap the result as a calibration with its provenance.
 
-use std::sync::Arc;
-
 use nalgebra::{Point3, Vector3};
 
 use super::direct::{direct_method, DirectResult};
-use super::refine::{refine, Fit, IdentifyError, Progress, RefineOptions};
+use super::refine::{refine, Fit, IdentifyError, ProgressFn, RefineOptions};
 use super::register::rigid_fit;
 use super::setup::{add_effects, GridChoice};
 use crate::calibration::{Calibration, KukaFrame, MeasurementFrame, Provenance};
@@ -43,7 +41,7 @@ pub struct Request {
     pub robot_name: Option<String>,
     /// Measurement files, for the provenance.
     pub sources: Vec<String>,
-    pub progress: Option<Arc<dyn Fn(&Progress) + Send + Sync>>,
+    pub progress: Option<ProgressFn>,
 }
 
 /// The outcome: the new calibration, the fit, and what the direct method found.

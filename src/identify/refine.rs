@@ -49,6 +49,9 @@ pub enum Free {
     Mask(Vec<bool>),
 }
 
+/// A progress callback (called after every iteration).
+pub type ProgressFn = Arc<dyn Fn(&Progress) + Send + Sync>;
+
 /// Progress of the iteration, for a progress bar.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Progress {
@@ -79,7 +82,7 @@ pub struct RefineOptions {
     pub vif_limit: f64,
     /// Compute per-parameter standard errors (the inverse of the normal matrix).
     pub standard_errors: bool,
-    pub progress: Option<Arc<dyn Fn(&Progress) + Send + Sync>>,
+    pub progress: Option<ProgressFn>,
 }
 
 impl Default for RefineOptions {
@@ -581,7 +584,8 @@ pub fn refine(
         }
         // Columns of the inverse in blocks, the blocks in parallel.
         const CHUNK: usize = 128;
-        let blocks: Vec<(Vec<(usize, f64)>, Vec<(usize, Vec<f64>)>)> = (0..n_cols)
+        type Block = (Vec<(usize, f64)>, Vec<(usize, Vec<f64>)>);
+        let blocks: Vec<Block> = (0..n_cols)
             .step_by(CHUNK)
             .collect::<Vec<_>>()
             .into_par_iter()
@@ -914,9 +918,7 @@ impl Problem<'_> {
         let frame_start = self.flat_of.len();
         for (p, r) in self.points.iter().zip(residuals) {
             model.target_jacobian_into(&p.state, &mut scratch, &mut partials);
-            for k in 0..3 {
-                row[k].clear();
-            }
+            row.iter_mut().for_each(Vec::clear);
             for (i, d) in &partials {
                 if let Some(c) = self.col_of[*i] {
                     for k in 0..3 {
