@@ -12,7 +12,7 @@ use robopost::identify::pipeline::{identify, Effects, Request};
 use robopost::identify::{circle::fit_circle, direct, refine, setup, Free, RefineOptions, Status};
 use robopost::kinematics::{Payload, RobotDescription};
 use robopost::measure::{read_csv, Stop};
-use robopost::model::{expand_list, AxisState, Model};
+use robopost::model::{expand_list, Model};
 use robopost::simulate::{paper, Campaign, PlannedStop, TrackerNoise, VirtualRobot};
 use robopost::stats::{error_stats, ErrorStats};
 
@@ -493,8 +493,6 @@ fn identified_model_predicts_the_validation_paths_to_the_noise_floor() {
         with.z_2sigma_um < without.z_2sigma_um,
         "{with:?} vs {without:?}"
     );
-    // The validation measurement knows nothing of the model: points never seen by the fit.
-    let _ = AxisState::default();
 }
 
 fn full_model(r: &robopost::identify::pipeline::Identified) -> &Model {
@@ -611,7 +609,6 @@ fn adding_an_effect_to_a_calibration_reidentifies() {
         before.fit.stats.rms_um,
         after.fit.stats.rms_um
     );
-    let _ = Point3::<f64>::origin();
 }
 
 #[test]
@@ -659,4 +656,58 @@ fn direct_method_reads_axis_lines_and_backlash_off_the_circles() {
     )
     .unwrap();
     assert!(fit.stats.rms_um < 0.01, "{:?}", fit.stats);
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+    use robopost::identify::register::rigid_fit;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Points on any circle (any centre, orientation, radius, arc of 20°..360°) give that
+        /// circle back.
+        #[test]
+        fn circle_fit_is_exact_on_exact_points(
+            cx in -2000.0..2000.0f64, cy in -2000.0..2000.0f64, cz in 0.0..2000.0f64,
+            theta in 0.0..3.14f64, phi in -3.14..3.14f64,
+            radius in 30.0..2000.0f64, start in -3.14..3.14f64, arc in 0.35..6.28f64,
+        ) {
+            let centre = Vector3::new(cx, cy, cz);
+            let normal = Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+            let helper = if normal.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+            let u = normal.cross(&helper).normalize();
+            let v = normal.cross(&u);
+            let points: Vec<Vector3<f64>> = (0..25)
+                .map(|k| {
+                    let a = start + arc * k as f64 / 24.0;
+                    centre + (u * a.cos() + v * a.sin()) * radius
+                })
+                .collect();
+            let c = fit_circle(&points).unwrap();
+            prop_assert!((c.centre - centre).norm() < 1e-6 * radius.max(1.0));
+            prop_assert!((c.radius - radius).abs() < 1e-6 * radius.max(1.0));
+            prop_assert!(c.normal.dot(&normal).abs() > 1.0 - 1e-9);
+        }
+
+        /// The rigid registration inverts any rigid transform of a non-degenerate point set.
+        #[test]
+        fn rigid_fit_inverts_a_transform(
+            t in prop::array::uniform3(-5000.0..5000.0f64),
+            r in prop::array::uniform3(-3.0..3.0f64),
+        ) {
+            let truth = Isometry3::new(Vector3::from(t), Vector3::from(r));
+            let from: Vec<Vector3<f64>> = (0..12)
+                .map(|i| {
+                    let s = i as f64;
+                    Vector3::new((1.3 * s).sin() * 800.0, (0.7 * s).cos() * 600.0, s * 50.0)
+                })
+                .collect();
+            let to: Vec<Vector3<f64>> = from.iter().map(|p| (truth * Point3::from(*p)).coords).collect();
+            let fit = rigid_fit(&from, &to).unwrap();
+            prop_assert!((fit.translation.vector - truth.translation.vector).norm() < 1e-6);
+            prop_assert!(fit.rotation.angle_to(&truth.rotation) < 1e-9);
+        }
+    }
 }
