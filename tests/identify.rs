@@ -662,6 +662,7 @@ mod properties {
     use super::*;
     use proptest::prelude::*;
     use robopost::identify::register::rigid_fit;
+    use std::f64::consts::{PI, TAU};
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
@@ -671,8 +672,8 @@ mod properties {
         #[test]
         fn circle_fit_is_exact_on_exact_points(
             cx in -2000.0..2000.0f64, cy in -2000.0..2000.0f64, cz in 0.0..2000.0f64,
-            theta in 0.0..3.14f64, phi in -3.14..3.14f64,
-            radius in 30.0..2000.0f64, start in -3.14..3.14f64, arc in 0.35..6.28f64,
+            theta in 0.0..PI, phi in -PI..PI,
+            radius in 30.0..2000.0f64, start in -PI..PI, arc in 0.35..TAU,
         ) {
             let centre = Vector3::new(cx, cy, cz);
             let normal = Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
