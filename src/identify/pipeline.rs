@@ -54,14 +54,6 @@ pub struct Identified {
     pub effects: Vec<String>,
 }
 
-/// Why a request cannot be carried out (before any fitting).
-pub fn effects_error(message: String) -> IdentifyError {
-    IdentifyError::UnknownEffect {
-        name: message,
-        available: "the effects of the contract table".into(),
-    }
-}
-
 /// Runs the identification (see the module documentation).
 pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, IdentifyError> {
     if !stops.iter().any(|s| s.measured_mm.is_some()) {
@@ -97,10 +89,10 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
                 }
             }
             model = kept;
-            add_effects(&mut model, &names, stops, &request.grid).map_err(effects_error)?;
+            add_effects(&mut model, &names, stops, &request.grid).map_err(IdentifyError::Setup)?;
         }
         Effects::Add(names) => {
-            add_effects(&mut model, &names, stops, &request.grid).map_err(effects_error)?;
+            add_effects(&mut model, &names, stops, &request.grid).map_err(IdentifyError::Setup)?;
         }
     }
     let effects: Vec<String> = model.effects().iter().map(|e| e.name()).collect();

@@ -133,6 +133,8 @@ pub enum IdentifyError {
     UnknownEffect { name: String, available: String },
     #[error("cannot start the tracker-frame registration: the measured points are collinear or fewer than three")]
     FrameStart,
+    #[error("cannot set up the effect: {0}")]
+    Setup(String),
     #[error("least squares failed: {0}")]
     Lsq(#[from] LsqError),
 }
@@ -140,7 +142,8 @@ pub enum IdentifyError {
 /// Something the user should know about the fit.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Warning {
-    /// No measured stop depends on this effect: it was held at its current values.
+    /// No measured stop depends on this effect (or this scalar parameter of an effect): it
+    /// was held at its current values.
     Unobserved { effect: String },
     /// These parameters are not determined by the data (VIF above the limit); they were held
     /// near their starting values. `correlated_with` are the parameters they trade off
@@ -227,8 +230,8 @@ pub struct Fit {
 }
 
 impl Fit {
-    /// Identified parameters by standard error relative to nothing: the `n` largest standard
-    /// errors per unit (names, value, unit), for reports.
+    /// The `n` identified parameters with the largest standard errors (name, standard error,
+    /// unit), for reports; mixed units, so most useful within one effect.
     pub fn largest_standard_errors(&self, n: usize) -> Vec<(String, f64, &'static str)> {
         let mut v: Vec<(String, f64, &'static str)> = self
             .standard_errors
@@ -423,9 +426,13 @@ pub fn refine(
                 }
             }
             None => {
-                for i in range {
+                let names = effect.parameters();
+                for (local, i) in range.enumerate() {
                     if free[i] && !observed(i) {
                         free[i] = false;
+                        warnings.push(Warning::Unobserved {
+                            effect: names[local].name.clone(),
+                        });
                     }
                 }
             }
