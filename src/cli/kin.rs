@@ -231,7 +231,7 @@ fn all_rows(robot: &RobotDescription, flange: &Isometry3<f64>) -> Result<Vec<Row
             let near = Select::StatusNearest { s, near: [0.0; 6] };
             if let Ok(solution) = inverse(robot, flange, near) {
                 let at = rows.partition_point(|r| r.solution.s < s);
-                let why = format!("{kind}, {distance_deg_or_mm:.1e} {}", kind.unit());
+                let why = format!("{kind}, {} {} from it", fixed(distance_deg_or_mm, 4), kind.unit());
                 rows.insert(
                     at,
                     Row {
@@ -271,7 +271,7 @@ fn selected_row(
                     distance_deg_or_mm,
                 });
             }
-            let why = format!("{kind}, {distance_deg_or_mm:.1e} {}", kind.unit());
+            let why = format!("{kind}, {} {} from it", fixed(distance_deg_or_mm, 4), kind.unit());
             Ok(Row {
                 solution,
                 singular: Some(why),
