@@ -111,6 +111,15 @@ impl<'h> Target<'h> {
     fn shoulder_singular(&self) -> bool {
         self.radius < SHOULDER_SINGULAR_MM
     }
+
+    /// A1 of the front or back shoulder (known before the shoulder is solved).
+    pub fn a1(&self, back: bool) -> f64 {
+        if back {
+            wrap_deg(self.a1_front + 180.0)
+        } else {
+            self.a1_front
+        }
+    }
 }
 
 /// One shoulder (front or back) that reaches the wrist point.
@@ -143,11 +152,7 @@ pub(crate) fn shoulder(t: &Target, back: bool) -> Result<Shoulder, OutOfReach> {
     let g = &t.g;
     let sigma = if back { -1.0 } else { 1.0 };
     let (c1, s1, x) = (sigma * t.c1, sigma * t.s1, sigma * t.x_front);
-    let a1 = if back {
-        wrap_deg(t.a1_front + 180.0)
-    } else {
-        t.a1_front
-    };
+    let a1 = t.a1(back);
     let (dx, dz) = (x - g.l1x, t.wrist.z - g.l1z);
     let dn = norm2(dx, dz);
     let (sum, diff) = (g.l2 + g.k, (g.l2 - g.k).abs());
@@ -184,6 +189,19 @@ pub(crate) fn shoulder(t: &Target, back: bool) -> Result<Shoulder, OutOfReach> {
     })
 }
 
+/// The elbow angle e of the elbow branch `up` (S bit 1 is A3 ≥ A3(stretched), i.e.
+/// sense3·e ≥ 0), with its sine.
+#[inline]
+fn elbow(t: &Target, sh: &Shoulder, up: bool) -> (f64, f64) {
+    let sign = if up { t.g.senses[2] } else { -t.g.senses[2] };
+    (sign * sh.e_abs, sign * sh.sin_abs)
+}
+
+/// A3 of an elbow branch (known before the arm is solved).
+pub(crate) fn a3(t: &Target, sh: &Shoulder, up: bool) -> f64 {
+    wrap_deg(t.g.kuka(2, elbow(t, sh, up).0 - t.psi))
+}
+
 /// One arm branch: A1..A3 and the wrist rotation M = Rx(θ4)·Ry(θ5)·Rx(θ6) left to solve.
 pub(crate) struct Arm {
     /// S bits 0 and 1 of this branch.
@@ -198,14 +216,12 @@ pub(crate) struct Arm {
 pub(crate) fn arm(t: &Target, sh: &Shoulder, up: bool) -> Arm {
     let g = &t.g;
     let (l2, k) = (g.l2, g.k);
-    // S bit 1 is A3 ≥ A3(stretched), i.e. sense3·e ≥ 0.
-    let sign = if up { g.senses[2] } else { -g.senses[2] };
-    let (e, sin_e, cos_e) = (sign * sh.e_abs, sign * sh.sin_abs, sh.cos_e);
+    let (e, sin_e) = elbow(t, sh, up);
+    let cos_e = sh.cos_e;
     let (dx, dz) = (sh.dx, sh.dz);
     // θ2 = arg(D·conj(l2 + K·e^{ie})), D = dz + i·dx.
     let (qr, qi) = (l2 + k * cos_e, k * sin_e);
     let t2 = (dx * qr - dz * qi).atan2(dz * qr + dx * qi);
-    let t3 = e - t.psi;
     // e^{i(θ2+θ3)} = D·(l2·e^{ie} + K)·(l3z − i·l4x) / (K·|D|²).
     let (ar, ai) = (l2 * cos_e + k, l2 * sin_e);
     let (br, bi) = (dz * ar - dx * ai, dz * ai + dx * ar);
@@ -233,7 +249,7 @@ pub(crate) fn arm(t: &Target, sh: &Shoulder, up: bool) -> Arm {
     };
     Arm {
         bits: u8::from(sh.back) | u8::from(up) << 1,
-        axes: [sh.a1, wrap_deg(g.kuka(1, t2)), wrap_deg(g.kuka(2, t3))],
+        axes: [sh.a1, wrap_deg(g.kuka(1, t2)), wrap_deg(g.kuka(2, e - t.psi))],
         m,
         singular,
     }

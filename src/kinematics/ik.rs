@@ -18,10 +18,12 @@ pub use super::branches::{
 };
 pub use super::turns::LIMIT_TOLERANCE_DEG;
 
-use super::branches::{arm, join, shoulder, wrist, Arm, OutOfReach, Shoulder, Target};
+use super::branches::{a3, arm, join, shoulder, wrist, OutOfReach, Shoulder, Target};
 use super::fk::{Singularity, SingularityKind};
 use super::robot::RobotDescription;
-use super::turns::{each_variant, first_outside, nearest_all, turn, with_turn};
+use super::turns::{
+    each_variant, first_outside, nearest as nearest_variant, nearest_all, turn, with_turn,
+};
 
 /// One IK solution: the axis angles (KUKA degrees) and its status and turn.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -312,77 +314,98 @@ pub fn inverse(
     }
 }
 
-/// The solution nearest `near` over all configurations. Arm branches are solved first; a
-/// wrist (three `atan2`) is solved only while its arm's A1..A3 distance alone can still beat
-/// the best total — usually for one arm branch of four.
+/// Squared distance of the variant of axis `i` at `a` nearest `near[i]`; infinite when no
+/// variant is within limits.
+fn axis_distance(robot: &RobotDescription, i: usize, a: f64, near: &[f64; 6]) -> f64 {
+    nearest_variant(robot, i, a, near[i]).map_or(f64::INFINITY, |v| (v - near[i]) * (v - near[i]))
+}
+
+/// The solution nearest `near` over all configurations, best first with lower bounds: A1 of
+/// both shoulders and A3 of both elbows are known before any per-arm `atan2`, and a partial
+/// sum of squared axis differences bounds the total. A shoulder, an arm or a wrist is solved
+/// only while its bound can still beat the best total, so a path point usually costs what
+/// one configuration costs.
 fn nearest(
     robot: &RobotDescription,
     target: &Target,
     near: &[f64; 6],
 ) -> Result<IkSolution, IkError> {
-    let mut arms = [None::<(f64, Arm)>, None, None, None];
-    let mut reach = [None::<OutOfReach>; 2];
-    for back in [false, true] {
+    let mut best: Option<(f64, IkSolution)> = None;
+    let beaten = |best: &Option<(f64, IkSolution)>, bound: f64| {
+        bound.is_infinite() || best.as_ref().is_some_and(|(d, _)| *d <= bound)
+    };
+    let mut shoulders = [false, true].map(|back| (axis_distance(robot, 0, target.a1(back), near), back));
+    if shoulders[1].0 < shoulders[0].0 {
+        shoulders.swap(0, 1);
+    }
+    let mut failures: Vec<Config> = Vec::new();
+    for (d1, back) in shoulders {
+        if beaten(&best, d1) {
+            continue;
+        }
         let sh: Shoulder = match shoulder(target, back) {
             Ok(sh) => sh,
             Err(e) => {
-                reach[usize::from(back)] = Some(e);
+                failures.push(Config::Unreachable(e));
                 continue;
             }
         };
-        for up in [false, true] {
-            let arm = arm(target, &sh, up);
-            // Distance of the nearest A1..A3 variants; infinite when one is out of limits.
-            let partial = (0..3)
-                .map(|i| {
-                    super::turns::nearest(robot, i, arm.axes[i], near[i])
-                        .map_or(f64::INFINITY, |v| (v - near[i]) * (v - near[i]))
-                })
-                .sum::<f64>();
-            let bits = arm.bits as usize;
-            arms[bits] = Some((partial, arm));
+        let mut elbows = [false, true].map(|up| (d1 + axis_distance(robot, 2, a3(target, &sh, up), near), up));
+        if elbows[1].0 < elbows[0].0 {
+            elbows.swap(0, 1);
         }
-    }
-    let key = |a: &Option<(f64, Arm)>| a.as_ref().map_or(f64::INFINITY, |(d, _)| *d);
-    arms.sort_by(|a, b| key(a).total_cmp(&key(b)));
-    let mut best: Option<(f64, IkSolution)> = None;
-    for (partial, arm) in arms.iter().flatten() {
-        if best.as_ref().is_some_and(|(d, _)| *d <= *partial) || partial.is_infinite() {
-            break;
-        }
-        let w = wrist(target, arm);
-        for (bit2, half) in [(0u8, &w.positive), (4, &w.negative)] {
-            let Some(axes_deg) = nearest_all(robot, &join(&arm.axes, half), near) else {
+        for (d13, up) in elbows {
+            if beaten(&best, d13) {
                 continue;
-            };
-            let d = squared_distance(&axes_deg, near);
-            if best.as_ref().map_or(true, |(b, _)| d < *b) {
-                let sol = IkSolution {
-                    axes_deg,
-                    s: arm.bits | bit2,
-                    t: turn(&axes_deg),
+            }
+            let arm = arm(target, &sh, up);
+            if beaten(&best, d13 + axis_distance(robot, 1, arm.axes[1], near)) {
+                continue;
+            }
+            let w = wrist(target, &arm);
+            for (bit2, half) in [(0u8, &w.positive), (4, &w.negative)] {
+                let axes = join(&arm.axes, half);
+                let Some(axes_deg) = nearest_all(robot, &axes, near) else {
+                    failures.push(Config::Solved {
+                        axes,
+                        singular: None,
+                    });
+                    continue;
                 };
-                best = Some((d, sol));
+                let d = squared_distance(&axes_deg, near);
+                if best.as_ref().map_or(true, |(b, _)| d < *b) {
+                    let sol = IkSolution {
+                        axes_deg,
+                        s: arm.bits | bit2,
+                        t: turn(&axes_deg),
+                    };
+                    best = Some((d, sol));
+                }
             }
         }
     }
-    if let Some((_, sol)) = best {
-        return Ok(sol);
+    match best {
+        Some((_, sol)) => Ok(sol),
+        // Nothing within limits (singularities are resolved here). Branches skipped for an
+        // infinite bound have an axis out of limits: solve them all to say which.
+        None => {
+            for back in [false, true] {
+                if let Ok(sh) = shoulder(target, back) {
+                    for up in [false, true] {
+                        let arm = arm(target, &sh, up);
+                        let w = wrist(target, &arm);
+                        for half in [w.positive, w.negative] {
+                            failures.push(Config::Solved {
+                                axes: join(&arm.axes, &half),
+                                singular: None,
+                            });
+                        }
+                    }
+                }
+            }
+            Err(failure(robot, &failures))
+        }
     }
-    // Nothing within limits: report why, singularities being resolved here.
-    let configs: Vec<Config> = arms
-        .iter()
-        .flatten()
-        .flat_map(|(_, arm)| {
-            let w = wrist(target, arm);
-            [w.positive, w.negative].map(|half| Config::Solved {
-                axes: join(&arm.axes, &half),
-                singular: None,
-            })
-        })
-        .chain(reach.into_iter().flatten().map(Config::Unreachable))
-        .collect();
-    Err(failure(robot, &configs))
 }
 
 /// The error for a configuration that is not available: unreachable as a whole, or the list

@@ -95,6 +95,7 @@ pub(crate) fn nearest(robot: &RobotDescription, i: usize, a: f64, target: f64) -
 }
 
 /// Per axis the variant nearest `target`; `None` if an axis has none within limits.
+#[inline]
 pub(crate) fn nearest_all(
     robot: &RobotDescription,
     axes: &[f64; 6],
