@@ -23,27 +23,22 @@ pub(crate) struct Variants {
 impl Variants {
     pub fn of(robot: &RobotDescription, i: usize, a: f64) -> Variants {
         let (lo, hi) = limits(robot, i);
-        let none = Variants { first: a, len: 0 };
-        if !a.is_finite() {
-            return none;
+        let q = (a - lo) / 360.0;
+        if !(q.abs() < 1e6) {
+            return Variants { first: a, len: 0 };
         }
-        // The lowest value ≥ lo (few steps: `a` is within a turn or two of the limits).
-        let mut v = a;
-        if (v - lo).abs() > 1e4 {
-            v = lo + (v - lo).rem_euclid(360.0);
+        // The lowest value ≥ lo is a − 360°·⌊q⌋; floor by a truncating cast (no libm call).
+        let mut k = q as i64;
+        if (k as f64) > q {
+            k -= 1;
         }
-        while v - 360.0 >= lo {
-            v -= 360.0;
+        let first = a - 360.0 * k as f64;
+        if first > hi {
+            return Variants { first, len: 0 };
         }
-        while v < lo {
-            v += 360.0;
-        }
-        if v > hi {
-            return none;
-        }
-        // Joint ranges are a few turns at most; the cast truncates the count of further turns.
-        let len = 1 + (((hi - v) / 360.0) as usize).min(64);
-        Variants { first: v, len }
+        // Joint ranges are a few turns at most; the cast truncates toward zero (≥ 0 here).
+        let len = 1 + (((hi - first) / 360.0) as usize).min(64);
+        Variants { first, len }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -133,27 +128,42 @@ pub(crate) fn with_turn(robot: &RobotDescription, axes: &[f64; 6], t: u8) -> Opt
     Some(out)
 }
 
-/// Calls `f` with every combination of the axes' variants, in increasing T: A6 (T bit 5)
-/// varies slowest, A1 fastest, and each axis runs from its largest value down, so
-/// non-negative (bit 0) before negative (bit 1). Nothing when an axis has no variant.
-pub(crate) fn each_variant(robot: &RobotDescription, axes: &[f64; 6], mut f: impl FnMut([f64; 6])) {
-    let v: [Variants; 6] = std::array::from_fn(|i| Variants::of(robot, i, axes[i]));
-    if v.iter().any(Variants::is_empty) {
-        return;
+/// Calls `f` with every combination of the axes' variants and its turn bits, in increasing
+/// T: A6 (T bit 5) varies slowest, A1 fastest, and each axis runs from its largest value
+/// down, so non-negative (bit 0) before negative (bit 1). Nothing when an axis has no variant.
+pub(crate) fn each_variant(
+    robot: &RobotDescription,
+    axes: &[f64; 6],
+    mut f: impl FnMut([f64; 6], u8),
+) {
+    let mut v = [Variants { first: 0.0, len: 0 }; 6];
+    for i in 0..6 {
+        v[i] = Variants::of(robot, i, axes[i]);
+        if v[i].is_empty() {
+            return;
+        }
     }
-    let mut index = [0usize; 6];
-    loop {
-        f(std::array::from_fn(|i| v[i].get(v[i].len - 1 - index[i])));
-        let mut i = 0;
-        loop {
-            index[i] += 1;
-            if index[i] < v[i].len {
-                break;
-            }
-            index[i] = 0;
-            i += 1;
-            if i == 6 {
-                return;
+    // (value, its turn bit) of axis i, j-th from the top.
+    let at = |i: usize, j: usize| {
+        let a = v[i].get(v[i].len - 1 - j);
+        (a, u8::from(a < 0.0) << i)
+    };
+    for j5 in 0..v[5].len {
+        let (a5, t5) = at(5, j5);
+        for j4 in 0..v[4].len {
+            let (a4, t4) = at(4, j4);
+            for j3 in 0..v[3].len {
+                let (a3, t3) = at(3, j3);
+                for j2 in 0..v[2].len {
+                    let (a2, t2) = at(2, j2);
+                    for j1 in 0..v[1].len {
+                        let (a1, t1) = at(1, j1);
+                        for j0 in 0..v[0].len {
+                            let (a0, t0) = at(0, j0);
+                            f([a0, a1, a2, a3, a4, a5], t0 | t1 | t2 | t3 | t4 | t5);
+                        }
+                    }
+                }
             }
         }
     }
@@ -189,7 +199,10 @@ mod tests {
         assert_eq!(nearest(&robot, 1, 170.0, 0.0), None);
         assert_eq!(with_turn(&robot, &[0.0, 0.0, 0.0, 100.0, 0.0, 0.0], 0b1000).map(|a| a[3]), Some(-260.0));
         let mut ts = Vec::new();
-        each_variant(&robot, &[179.0, -30.0, 20.0, 100.0, 40.0, -10.0], |a| ts.push(turn(&a)));
+        each_variant(&robot, &[179.0, -30.0, 20.0, 100.0, 40.0, -10.0], |a, t| {
+            assert_eq!(t, turn(&a));
+            ts.push(t)
+        });
         assert_eq!(ts.len(), 8);
         assert!(ts.windows(2).all(|w| w[0] <= w[1]), "{ts:?}");
     }
