@@ -191,7 +191,9 @@ fn bad_files_name_key_expected_and_found() {
         ),
         (
             "table_on_a_scalar_effect",
-            with_effects(r#"[{"name": "geometric", "table": {"grid_deg": [0], "values_deg": [0]}}]"#),
+            with_effects(
+                r#"[{"name": "geometric", "table": {"grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
         ),
         (
             "empty_grid",

@@ -4,14 +4,18 @@
 //! that carry S/T and the external axes beside the six robot axes.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// Below this `cos B` the orientation is taken as B = ±90° exactly, where only A − C (B = +90°)
 /// or A + C (B = −90°) is defined; MODEL.md's convention then puts everything in A (C = 0).
 /// 1e-10 rad of B is far below any printed KRL digit and below 1e-6 mm over 10 m.
 const GIMBAL_COS_B: f64 = 1e-10;
 
-/// A KUKA FRAME (or the geometric part of a POS/E6POS): mm and degrees.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// A KUKA FRAME (or the geometric part of a POS/E6POS): X, Y, Z in mm and A, B, C in
+/// degrees, R = Rz(A)·Ry(B)·Rx(C).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct Pose {
     pub x: f64,
     pub y: f64,
@@ -183,9 +187,21 @@ mod tests {
     fn elementary_rotations_by_hand() {
         // A = 90°: x → y. B = 90°: x → −z. C = 90°: y → z.
         let close = |m: Matrix3<f64>, v: Vector3<f64>, w: Vector3<f64>| (m * v - w).norm() < 1e-15;
-        assert!(close(abc_to_matrix(90.0, 0.0, 0.0), Vector3::x(), Vector3::y()));
-        assert!(close(abc_to_matrix(0.0, 90.0, 0.0), Vector3::x(), -Vector3::z()));
-        assert!(close(abc_to_matrix(0.0, 0.0, 90.0), Vector3::y(), Vector3::z()));
+        assert!(close(
+            abc_to_matrix(90.0, 0.0, 0.0),
+            Vector3::x(),
+            Vector3::y()
+        ));
+        assert!(close(
+            abc_to_matrix(0.0, 90.0, 0.0),
+            Vector3::x(),
+            -Vector3::z()
+        ));
+        assert!(close(
+            abc_to_matrix(0.0, 0.0, 90.0),
+            Vector3::y(),
+            Vector3::z()
+        ));
     }
 
     #[test]
@@ -193,10 +209,16 @@ mod tests {
         // Rz(30)·Ry(90)·Rx(10) = Rz(20)·Ry(90).
         let r = abc_to_matrix(30.0, 90.0, 10.0);
         let [a, b, c] = matrix_to_abc(&r);
-        assert!((a - 20.0).abs() < 1e-9 && b == 90.0 && c == 0.0, "{a} {b} {c}");
+        assert!(
+            (a - 20.0).abs() < 1e-9 && b == 90.0 && c == 0.0,
+            "{a} {b} {c}"
+        );
         // Rz(30)·Ry(−90)·Rx(10) = Rz(40)·Ry(−90).
         let [a, b, c] = matrix_to_abc(&abc_to_matrix(30.0, -90.0, 10.0));
-        assert!((a - 40.0).abs() < 1e-9 && b == -90.0 && c == 0.0, "{a} {b} {c}");
+        assert!(
+            (a - 40.0).abs() < 1e-9 && b == -90.0 && c == 0.0,
+            "{a} {b} {c}"
+        );
     }
 
     #[test]

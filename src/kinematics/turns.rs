@@ -24,7 +24,8 @@ impl Variants {
     pub fn of(robot: &RobotDescription, i: usize, a: f64) -> Variants {
         let (lo, hi) = limits(robot, i);
         let q = (a - lo) / 360.0;
-        if !(q.abs() < 1e6) {
+        // Also refuses NaN and infinities.
+        if q.is_nan() || q.abs() >= 1e6 {
             return Variants { first: a, len: 0 };
         }
         // The lowest value ≥ lo is a − 360°·⌊q⌋; floor by a truncating cast (no libm call).
@@ -143,27 +144,21 @@ pub(crate) fn each_variant(
             return;
         }
     }
-    // (value, its turn bit) of axis i, j-th from the top.
-    let at = |i: usize, j: usize| {
-        let a = v[i].get(v[i].len - 1 - j);
-        (a, u8::from(a < 0.0) << i)
-    };
-    for j5 in 0..v[5].len {
-        let (a5, t5) = at(5, j5);
-        for j4 in 0..v[4].len {
-            let (a4, t4) = at(4, j4);
-            for j3 in 0..v[3].len {
-                let (a3, t3) = at(3, j3);
-                for j2 in 0..v[2].len {
-                    let (a2, t2) = at(2, j2);
-                    for j1 in 0..v[1].len {
-                        let (a1, t1) = at(1, j1);
-                        for j0 in 0..v[0].len {
-                            let (a0, t0) = at(0, j0);
-                            f([a0, a1, a2, a3, a4, a5], t0 | t1 | t2 | t3 | t4 | t5);
-                        }
-                    }
-                }
+    let mut index = [0usize; 6];
+    loop {
+        let a: [f64; 6] = std::array::from_fn(|i| v[i].get(v[i].len - 1 - index[i]));
+        f(a, turn(&a));
+        // Next combination, A1 fastest.
+        let mut i = 0;
+        loop {
+            index[i] += 1;
+            if index[i] < v[i].len {
+                break;
+            }
+            index[i] = 0;
+            i += 1;
+            if i == 6 {
+                return;
             }
         }
     }
@@ -177,7 +172,10 @@ pub(crate) fn first_outside(robot: &RobotDescription, axes: &[f64; 6]) -> Option
         }
         let [lo, hi] = robot.limits_deg[i];
         let mid = 0.5 * (lo + hi);
-        Some((i as u8 + 1, axes[i] + 360.0 * ((mid - axes[i]) / 360.0).round()))
+        Some((
+            i as u8 + 1,
+            axes[i] + 360.0 * ((mid - axes[i]) / 360.0).round(),
+        ))
     })
 }
 
@@ -194,10 +192,17 @@ mod tests {
         // A2 within −135..35: 170 has none.
         assert!(Variants::of(&robot, 1, 170.0).is_empty());
         assert_eq!(nearest(&robot, 3, 100.0, -200.0), Some(-260.0));
-        assert_eq!(nearest(&robot, 3, 100.0, 500.0), Some(100.0), "460 is beyond 350");
+        assert_eq!(
+            nearest(&robot, 3, 100.0, 500.0),
+            Some(100.0),
+            "460 is beyond 350"
+        );
         assert_eq!(nearest(&robot, 0, 179.0, -170.0), Some(-181.0));
         assert_eq!(nearest(&robot, 1, 170.0, 0.0), None);
-        assert_eq!(with_turn(&robot, &[0.0, 0.0, 0.0, 100.0, 0.0, 0.0], 0b1000).map(|a| a[3]), Some(-260.0));
+        assert_eq!(
+            with_turn(&robot, &[0.0, 0.0, 0.0, 100.0, 0.0, 0.0], 0b1000).map(|a| a[3]),
+            Some(-260.0)
+        );
         let mut ts = Vec::new();
         each_variant(&robot, &[179.0, -30.0, 20.0, 100.0, 40.0, -10.0], |a, t| {
             assert_eq!(t, turn(&a));

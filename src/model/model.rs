@@ -112,10 +112,7 @@ impl Model {
 
     /// Indices (into [`Self::effects`]) of the table effects that held `state` at a table
     /// edge, so that a report can count the points outside each table's range.
-    pub fn clamped_effects<'a>(
-        &'a self,
-        state: &'a AxisState,
-    ) -> impl Iterator<Item = usize> + 'a {
+    pub fn clamped_effects<'a>(&'a self, state: &'a AxisState) -> impl Iterator<Item = usize> + 'a {
         self.effects
             .iter()
             .enumerate()
