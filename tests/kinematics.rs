@@ -123,6 +123,10 @@ fn close_axes(a: &[f64; 6], b: &[f64; 6], tol: f64) -> bool {
     a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
 }
 
+fn assert_close_axes(a: &[f64; 6], b: &[f64; 6], tol: f64) {
+    assert!(close_axes(a, b, tol), "{a:?} vs {b:?}");
+}
+
 /// Axis sets within the KR 30 HA's limits.
 fn axes_in_limits() -> impl Strategy<Value = [f64; 6]> {
     let l = robot().limits_deg;
@@ -315,12 +319,7 @@ mod inverse_kinematics {
         for w in path.windows(2) {
             let flange = forward(&r, &w[1]);
             let sol = inverse(&r, &flange, Select::Nearest(w[0])).unwrap();
-            assert!(
-                close_axes(&sol.axes_deg, &w[1], 1e-8),
-                "{:?} vs {:?}",
-                sol.axes_deg,
-                w[1]
-            );
+            assert_close_axes(&sol.axes_deg, &w[1], 1e-8);
             let kept = inverse(&r, &flange, Select::StatusNearest { s, near: w[0] }).unwrap();
             assert_eq!(kept.axes_deg, sol.axes_deg);
             let by_status = inverse(&r, &flange, Select::Status { s, t: None }).unwrap();
@@ -344,12 +343,7 @@ mod inverse_kinematics {
         for w in path.windows(2) {
             let flange = forward(&r, &w[1]);
             let sol = inverse(&r, &flange, Select::Nearest(w[0])).unwrap();
-            assert!(
-                close_axes(&sol.axes_deg, &w[1], 1e-8),
-                "{:?} vs {:?}",
-                sol.axes_deg,
-                w[1]
-            );
+            assert_close_axes(&sol.axes_deg, &w[1], 1e-8);
             let kept = inverse(&r, &flange, Select::StatusNearest { s: s0, near: w[0] }).unwrap();
             assert!(gap(&forward(&r, &kept.axes_deg), &flange).0 < 1e-8);
             assert_eq!(kept.s, s0);
