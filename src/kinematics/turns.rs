@@ -7,6 +7,11 @@ use super::robot::RobotDescription;
 /// Angles this far (deg) outside a joint limit are taken as on it (rounding).
 pub const LIMIT_TOLERANCE_DEG: f64 = 1e-9;
 
+/// Turns per degree. Counting turns by this product instead of a division (whose latency
+/// dominated the enumeration of variants) is off by an ulp at most, far inside the limit
+/// tolerance, so a limit never falls on a rounding edge.
+const PER_TURN: f64 = 1.0 / 360.0;
+
 fn limits(robot: &RobotDescription, i: usize) -> (f64, f64) {
     let [lo, hi] = robot.limits_deg[i];
     (lo - LIMIT_TOLERANCE_DEG, hi + LIMIT_TOLERANCE_DEG)
@@ -23,7 +28,7 @@ pub(crate) struct Variants {
 impl Variants {
     pub fn of(robot: &RobotDescription, i: usize, a: f64) -> Variants {
         let (lo, hi) = limits(robot, i);
-        let q = (a - lo) / 360.0;
+        let q = (a - lo) * PER_TURN;
         // Also refuses NaN and infinities.
         if q.is_nan() || q.abs() >= 1e6 {
             return Variants { first: a, len: 0 };
@@ -38,7 +43,8 @@ impl Variants {
             return Variants { first, len: 0 };
         }
         // Joint ranges are a few turns at most; the cast truncates toward zero (≥ 0 here).
-        let len = 1 + (((hi - first) / 360.0) as usize).min(64);
+        // Through i64: a float → unsigned cast is a branchy instruction sequence on x86-64.
+        let len = 1 + (((hi - first) * PER_TURN) as i64).clamp(0, 64) as usize;
         Variants { first, len }
     }
 
@@ -49,7 +55,8 @@ impl Variants {
     /// The `j`-th value, ascending.
     #[inline]
     pub fn get(&self, j: usize) -> f64 {
-        self.first + 360.0 * j as f64
+        // j ≤ 64: through u32, whose conversion to f64 is one instruction (usize's is not).
+        self.first + 360.0 * f64::from(j as u32)
     }
 
     pub fn values(&self) -> impl Iterator<Item = f64> + '_ {
@@ -69,7 +76,7 @@ pub(crate) fn turn(axes: &[f64; 6]) -> u8 {
 pub(crate) fn nearest(robot: &RobotDescription, i: usize, a: f64, target: f64) -> Option<f64> {
     let (lo, hi) = limits(robot, i);
     // Round (target − a)/360 half away from zero with a truncating cast (no libm call).
-    let q = (target - a) / 360.0;
+    let q = (target - a) * PER_TURN;
     if q.abs() < 1e6 {
         let v = a + 360.0 * ((q + 0.5f64.copysign(q)) as i64) as f64;
         if v >= lo && v <= hi {
