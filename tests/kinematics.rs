@@ -483,6 +483,17 @@ mod inverse_kinematics {
     }
 
     #[test]
+    fn non_finite_poses_are_errors_not_panics() {
+        let r = robot();
+        for bad in [f64::NAN, f64::INFINITY, 1e300] {
+            let flange = Pose::from_array([bad, 0.0, 1000.0, 0.0, 90.0, 0.0]).to_isometry();
+            assert!(inverse_all(&r, &flange).is_err());
+            assert!(inverse(&r, &flange, Select::Nearest([0.0; 6])).is_err());
+            assert!(inverse(&r, &flange, Select::Status { s: 2, t: None }).is_err());
+        }
+    }
+
+    #[test]
     fn a_turn_that_does_not_exist() {
         let r = robot();
         let flange = forward(&r, &[30.0, -60.0, 100.0, 20.0, 40.0, -50.0]);
