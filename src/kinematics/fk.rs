@@ -203,7 +203,7 @@ pub struct SingularityThresholds {
 impl Default for SingularityThresholds {
     /// 1° of A5: an orientation change δ there turns A4 and A6 by about δ/sin(A5) ≈ 57·δ.
     /// 1° of elbow: the reach changes only as 1 − cos(e) there, so a radial move of δ needs
-    /// an elbow move of about δ/(l2·K/|D|·sin e), some 30 times more than at 45°. 10 mm of
+    /// an elbow move of about δ/(l2·K/|D|·sin e), some 40 times more than at 45°. 10 mm of
     /// wrist point radius: a 0.1 mm lateral move already turns A1 by 0.6°.
     fn default() -> Self {
         SingularityThresholds {
