@@ -343,6 +343,9 @@ fn binary<'a>(cx: Cx<'a>, d: u32, i: &'a [u8], min_bp: u8) -> PResult<'a, Expr> 
         return too_deep(i);
     }
     let (mut i, mut lhs) = unary(cx, d, i)?;
+    // Each operator nests the tree one level deeper (left-associative chains too), and
+    // dropping or walking a tree is recursive: bound the depth, not only the parentheses.
+    let mut depth = d;
     loop {
         let (j, _) = ws(i)?;
         let Ok((k, (op, op_text))) = binary_op(j) else {
@@ -351,6 +354,10 @@ fn binary<'a>(cx: Cx<'a>, d: u32, i: &'a [u8], min_bp: u8) -> PResult<'a, Expr> 
         let bp = op.precedence();
         if bp < min_bp {
             break;
+        }
+        depth += 1;
+        if depth > MAX_DEPTH {
+            return too_deep(j);
         }
         let (k, _) = ws(k)?;
         let (k, rhs) = match binary(cx, d + 1, k, bp + 1) {
@@ -885,5 +892,9 @@ mod tests {
         assert!(expr(Cx::new(&s, &nodes), 0, &s).is_err());
         let s = [b'{'; 10_000];
         assert!(expr(Cx::new(&s, &nodes), 0, &s).is_err());
+        let s = b"a+".repeat(50_000);
+        assert!(expr(Cx::new(&s, &nodes), 0, &s).is_err());
+        let s = b"a+".repeat(30);
+        assert!(expr(Cx::new(&s[..59], &nodes), 0, &s[..59]).is_ok());
     }
 }

@@ -310,7 +310,7 @@ pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Lin
         cx.nodes.borrow_mut().reset(mark);
     }
     match result {
-        Ok((rest, l)) if rest.is_empty() => Ok(l),
+        Ok((b"", l)) => Ok(l),
         Ok((rest, _)) => {
             if committed {
                 Err(Some(PErr {
