@@ -1,0 +1,139 @@
+//! The physical layout of a line: indentation, code, trailing blanks, `;` comment, line ending.
+//! KRL is line-oriented (one statement per line), so the parser first cuts the file into
+//! lines here and hands only the code of each to the statement grammar; everything else is
+//! trivia. A `;` inside a string literal (`"a; b"`) does not start a comment. A UTF-8 byte
+//! order mark at the start of the file is trivia too.
+
+use super::lex::is_blank;
+
+/// Byte offsets of one line's parts (absolute offsets into the file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct RawLine {
+    /// Start of the code (after indentation); equals `code_end` when there is no code.
+    pub code_start: usize,
+    /// End of the code (trailing blanks excluded).
+    pub code_end: usize,
+    /// The `;` comment without trailing blanks/CR, if any.
+    pub comment: Option<(usize, usize)>,
+    /// Offset of the `\n`, or the file length for a last line without one.
+    pub newline: usize,
+    /// Start of the next line.
+    pub next: usize,
+}
+
+const BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// Non-zero when some byte of `x` equals `b` (the classic SWAR zero-byte test on `x ^ b…b`;
+/// exact: no false positives for the "has a zero byte" form used here).
+fn has_byte(x: u64, b: u8) -> u64 {
+    const LO: u64 = 0x0101_0101_0101_0101;
+    const HI: u64 = 0x8080_8080_8080_8080;
+    let y = x ^ (LO * u64::from(b));
+    y.wrapping_sub(LO) & !y & HI
+}
+
+/// Cuts the line starting at `start`.
+pub(crate) fn split_line(src: &[u8], start: usize) -> RawLine {
+    let mut p = start;
+    if start == 0 && src.starts_with(BOM) {
+        p = BOM.len();
+    }
+    while p < src.len() && is_blank(src[p]) {
+        p += 1;
+    }
+    let code_start = p;
+    let mut in_string = false;
+    let mut comment_at = None;
+    // Skip eight bytes at a time while none of them is `\n`, `;` or `"`.
+    while p + 8 <= src.len() {
+        let chunk = u64::from_le_bytes(src[p..p + 8].try_into().expect("eight bytes"));
+        if has_byte(chunk, b'\n') | has_byte(chunk, b';') | has_byte(chunk, b'"') != 0 {
+            break;
+        }
+        p += 8;
+    }
+    while p < src.len() {
+        match src[p] {
+            b'\n' => break,
+            b'"' => in_string = !in_string,
+            b';' if !in_string => {
+                comment_at = Some(p);
+                break;
+            }
+            _ => {}
+        }
+        p += 1;
+    }
+    let newline = match comment_at {
+        Some(c) => src[c..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(src.len(), |n| c + n),
+        None => p,
+    };
+    let code_limit = comment_at.unwrap_or(newline);
+    let mut code_end = code_limit;
+    while code_end > code_start && is_blank(src[code_end - 1]) {
+        code_end -= 1;
+    }
+    let comment = comment_at.map(|c| {
+        let mut e = newline;
+        while e > c && is_blank(src[e - 1]) {
+            e -= 1;
+        }
+        (c, e)
+    });
+    RawLine {
+        code_start,
+        code_end,
+        comment,
+        newline,
+        next: (newline + 1).min(src.len()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parts_of_a_line() {
+        let src = b"  LIN P1 ; go \r\nEND";
+        let l = split_line(src, 0);
+        assert_eq!(&src[l.code_start..l.code_end], b"LIN P1");
+        let (c0, c1) = l.comment.unwrap();
+        assert_eq!(&src[c0..c1], b"; go");
+        assert_eq!((l.newline, l.next), (15, 16));
+        let l = split_line(src, 16);
+        assert_eq!(&src[l.code_start..l.code_end], b"END");
+        assert_eq!((l.newline, l.next), (19, 19));
+    }
+
+    #[test]
+    fn byte_search_matches_a_plain_scan() {
+        for b in 0..=255u8 {
+            for pos in 0..8 {
+                let mut x = [0x41u8; 8];
+                x[pos] = b;
+                let found = has_byte(u64::from_le_bytes(x), b'"') != 0;
+                assert_eq!(found, x.contains(&b'"'));
+            }
+        }
+        let long = b"LIN {X 1.000,Y 2.000,Z 3.000,A 0.000,B 90.000,C 0.000} C_DIS ; here\r\nEND";
+        let l = split_line(long, 0);
+        assert_eq!(&long[l.code_start..l.code_end], &long[..60]);
+        assert_eq!(l.comment.map(|(a, b)| &long[a..b]), Some(&b"; here"[..]));
+    }
+
+    #[test]
+    fn semicolon_in_string_is_code() {
+        let src = b"MSG = \"a; b\" ; real comment\n";
+        let l = split_line(src, 0);
+        assert_eq!(&src[l.code_start..l.code_end], b"MSG = \"a; b\"");
+        let src = b"\xEF\xBB\xBF\t;FOLD x\r\n";
+        let l = split_line(src, 0);
+        assert_eq!(l.code_start, l.code_end);
+        let (c0, c1) = l.comment.unwrap();
+        assert_eq!(&src[c0..c1], b";FOLD x");
+    }
+}
