@@ -6,7 +6,9 @@
 //! malformed means error, because position data would otherwise go unseen.
 
 use super::expr::{expr, Expr};
-use super::lex::{expecting, fail, ident, is_ident_char, keyword, punct, sep, ws, Cx, PResult};
+use super::lex::{
+    expecting, fail, ident, is_ident_char, keyword, next_item, punct, sep, ws, Cx, PResult,
+};
 use super::span::Span;
 
 /// The type of a declaration.
@@ -233,11 +235,9 @@ fn decl_vars<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Vec<DeclVar>> {
     let (mut j, first) = decl_var(cx, j)?;
     let mut vars = vec![first];
     loop {
-        let (k, _) = ws(j)?;
-        let Ok((k, _)) = punct(b',')(k) else {
+        let Some(k) = next_item(j) else {
             return Ok((j, vars));
         };
-        let (k, _) = ws(k)?;
         // After a comma the next name is certain: a failure is the user's error.
         let (k, v) = expecting!("expected a variable name after `,`", HELP_DECL, |x| {
             decl_var(cx, x)
@@ -342,10 +342,9 @@ pub(crate) fn struc<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Struc> {
             last.1.push(v);
             j = k3;
         }
-        let (k, _) = ws(j)?;
-        match punct(b',')(k) {
-            Ok((k, _)) => j = ws(k)?.0,
-            Err(_) => break,
+        match next_item(j) {
+            Some(k) => j = k,
+            None => break,
         }
     }
     Ok((
@@ -370,10 +369,9 @@ pub(crate) fn enum_decl<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, EnumDecl> {
         let (k, v) = ident(j)?;
         values.push(cx.span_of(v));
         j = k;
-        let (k, _) = ws(j)?;
-        match punct(b',')(k) {
-            Ok((k, _)) => j = ws(k)?.0,
-            Err(_) => break,
+        match next_item(j) {
+            Some(k) => j = k,
+            None => break,
         }
     }
     Ok((

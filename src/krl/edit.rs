@@ -128,7 +128,7 @@ mod tests {
         assert_eq!(e.apply(src).unwrap(), b"LIN {X 1.25,Y 2.5,Z 0.0}");
         assert_eq!(apply(src, &e).unwrap(), b"LIN {X 1.25,Y 2.5,Z 0.0}");
         assert_eq!(
-            apply(src, e.as_slice().to_vec()).unwrap(),
+            apply(src, e.as_slice()).unwrap(),
             b"LIN {X 1.25,Y 2.5,Z 0.0}"
         );
     }

@@ -172,6 +172,14 @@ pub(crate) fn ws(i: &[u8]) -> PResult<'_, &[u8]> {
     Ok((&i[n..], &i[..n]))
 }
 
+/// After optional blanks, a `,` and optional blanks: the input after them, or `None` when no
+/// comma comes next (the separator of every list in the grammar).
+pub(crate) fn next_item(i: &[u8]) -> Option<&[u8]> {
+    let skip = |s: &[u8]| s.iter().take_while(|&&b| is_blank(b)).count();
+    let j = &i[skip(i)..];
+    (j.first() == Some(&b',')).then(|| &j[1 + skip(&j[1..])..])
+}
+
 /// At least one blank, or the end of the code, or a punctuation byte (keywords end there).
 pub(crate) fn sep(i: &[u8]) -> PResult<'_, &[u8]> {
     match i.first() {

@@ -6,7 +6,7 @@
 //! silently skipped, because a missed target would be left uncompensated.
 
 use super::expr::{expr, path, Expr};
-use super::lex::{expecting, fail, ident, keyword, punct, sep, ws, Cx, PResult};
+use super::lex::{expecting, fail, ident, keyword, next_item, punct, sep, ws, Cx, PResult};
 use super::span::Span;
 
 /// Which motion instruction.
@@ -376,10 +376,9 @@ pub(crate) fn with_clause<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Vec<WithIt
             with_item(cx, x)
         })(j)?;
         items.push(item);
-        let (k2, _) = ws(k)?;
-        match punct(b',')(k2) {
-            Ok((k3, _)) => j = ws(k3)?.0,
-            Err(_) => return Ok((k, items)),
+        match next_item(k) {
+            Some(k3) => j = k3,
+            None => return Ok((k, items)),
         }
     }
 }

@@ -11,7 +11,8 @@ use super::decl::{
 use super::expr::{call, expr, path, Call, Expr};
 use super::fold::FoldId;
 use super::lex::{
-    backtrack, fail, first_word, ident, is_ident_char, keyword, punct, sep, ws, Cx, PErr, PResult,
+    backtrack, fail, first_word, ident, is_ident_char, keyword, next_item, punct, sep, ws, Cx,
+    PErr, PResult,
 };
 use super::motion::{motion, with_clause, MotionKind, WithItem};
 use super::nodes::MotionId;
@@ -594,10 +595,9 @@ fn case_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
         let (k, _) = ws(j)?;
         let (k, v) = expr(cx, 0, k)?;
         values.push(v);
-        let (k, _) = ws(k)?;
-        match punct(b',')(k) {
-            Ok((k, _)) => j = k,
-            Err(_) => return Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values)))),
+        match next_item(k) {
+            Some(k) => j = k,
+            None => return Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values)))),
         }
     }
 }

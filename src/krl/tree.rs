@@ -106,29 +106,13 @@ pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
             nodes: Nodes::default(),
         };
     }
-    let built = build(&src, kind);
-    SourceFile {
-        src,
-        kind,
-        body: built.body,
-        trailing: built.trailing,
-        folds: built.folds,
-        problems: built.problems,
-        lines: built.lines,
-        nodes: built.nodes,
-    }
+    let mut file = build(&src, kind);
+    file.src = src;
+    file
 }
 
-struct Built {
-    body: Vec<Stmt>,
-    trailing: Span,
-    folds: Vec<Fold>,
-    problems: Vec<Problem>,
-    lines: LineIndex,
-    nodes: Nodes,
-}
-
-fn build(src: &[u8], kind: FileKind) -> Built {
+/// Parses `src` into a file whose `src` field is left empty (the caller moves the bytes in).
+fn build(src: &[u8], kind: FileKind) -> SourceFile {
     let nodes = RefCell::new(Nodes::default());
     let cx = Cx::new(src, &nodes);
     let mut b = Builder::default();
@@ -185,7 +169,9 @@ fn build(src: &[u8], kind: FileKind) -> Built {
     problems.sort_by_key(|p| (p.span.start, p.severity));
     let mut nodes = nodes.into_inner();
     nodes.finish();
-    Built {
+    SourceFile {
+        src: Vec::new(),
+        kind,
         body,
         trailing: Span::new(pending, src.len()),
         folds,
@@ -245,13 +231,11 @@ impl Builder {
                     self.close_all();
                 }
                 if self.stack.len() >= MAX_BLOCK_DEPTH {
-                    self.problems.push(Problem::warning(
-                        head,
-                        "blocks nested too deeply; this line is kept but not followed",
+                    self.stray(
+                        "blocks nested too deeply; this line is kept but not followed".into(),
                         "split the routine",
-                    ));
-                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                    self.body().push(s);
+                        simple(StmtKind::Opaque, leading, head, line, fold),
+                    );
                     return;
                 }
                 let mut s = simple(kind, leading, head, line, fold);
@@ -273,26 +257,20 @@ impl Builder {
                             body: Vec::new(),
                         });
                     }
-                    _ => {
-                        self.problems.push(Problem::warning(
-                            head,
-                            format!("this line belongs inside {} … {}", bk.opener(), bk.closer()),
-                            "check the block structure around this line",
-                        ));
-                        let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                        self.body().push(s);
-                    }
+                    _ => self.stray(
+                        format!("this line belongs inside {} … {}", bk.opener(), bk.closer()),
+                        "check the block structure around this line",
+                        simple(StmtKind::Opaque, leading, head, line, fold),
+                    ),
                 }
             }
             Line::Close(bk, until) => {
                 let Some(at) = self.stack.iter().rposition(|f| f.kind == bk) else {
-                    self.problems.push(Problem::warning(
-                        head,
+                    self.stray(
                         format!("`{}` without an open `{}`", bk.closer(), bk.opener()),
                         "remove it or add the line that opens the block",
-                    ));
-                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                    self.body().push(s);
+                        simple(StmtKind::Opaque, leading, head, line, fold),
+                    );
                     return;
                 };
                 while self.stack.len() > at + 1 {
@@ -312,6 +290,12 @@ impl Builder {
                 self.body().push(f.stmt);
             }
         }
+    }
+
+    /// A line kept as opaque with a warning about the block structure.
+    fn stray(&mut self, message: String, help: &'static str, s: Stmt) {
+        self.problems.push(Problem::warning(s.head, message, help));
+        self.body().push(s);
     }
 
     /// Closes the innermost block without its closer (a warning says so).
