@@ -9,11 +9,13 @@
 
 pub mod calibration;
 pub mod cli;
+pub mod compare;
 pub mod diagnostic;
 pub mod identify;
 pub mod kinematics;
 pub mod krl;
 pub mod measure;
 pub mod model;
+pub mod report;
 pub mod simulate;
 pub mod stats;

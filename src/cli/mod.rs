@@ -7,6 +7,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod check;
+pub mod compare;
 pub mod compensate;
 pub mod kin;
 
@@ -42,6 +43,8 @@ pub enum Command {
     Fk(kin::FkArgs),
     /// Axis angles of every IK branch of a flange pose, or the selected one.
     Ik(kin::IkArgs),
+    /// Compare a calibration's model with measurements: Table 1 statistics, HTML report.
+    Compare(compare::Args),
 }
 
 const SUBCOMMANDS: &[&str] = &[
@@ -88,6 +91,7 @@ pub fn main() -> i32 {
         Command::Check(a) => check::run(a),
         Command::Fk(a) => kin::run_fk(a),
         Command::Ik(a) => kin::run_ik(a),
+        Command::Compare(a) => compare::run(a),
     };
     exit as i32
 }
