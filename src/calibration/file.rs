@@ -66,6 +66,37 @@ pub struct KukaFrame {
     pub c: f64,
 }
 
+impl KukaFrame {
+    /// The frame as a rigid transform, R = Rz(A)·Ry(B)·Rx(C) (KUKA's ZYX Euler angles).
+    // TODO(integrator): delegate to `kinematics::Pose::to_isometry` once the kinematics
+    // branch has landed (same convention).
+    pub fn to_isometry(&self) -> nalgebra::Isometry3<f64> {
+        let rotation = nalgebra::UnitQuaternion::from_euler_angles(
+            self.c.to_radians(),
+            self.b.to_radians(),
+            self.a.to_radians(),
+        );
+        nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(self.x, self.y, self.z),
+            rotation,
+        )
+    }
+
+    /// The inverse of [`Self::to_isometry`].
+    pub fn from_isometry(iso: &nalgebra::Isometry3<f64>) -> KukaFrame {
+        let (c, b, a) = iso.rotation.euler_angles();
+        let t = iso.translation.vector;
+        KukaFrame {
+            x: t.x,
+            y: t.y,
+            z: t.z,
+            a: a.to_degrees(),
+            b: b.to_degrees(),
+            c: c.to_degrees(),
+        }
+    }
+}
+
 /// Where a calibration came from. Every field is optional.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]

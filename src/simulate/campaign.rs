@@ -55,10 +55,10 @@ pub struct Campaign {
 }
 
 fn default_dwell() -> f64 {
-    3.2
+    DEFAULT_DWELL_S
 }
 fn default_speed() -> f64 {
-    30.0
+    DEFAULT_AXIS_SPEED_DEG_S
 }
 
 /// One planned stop of a campaign, in the order the robot visits them.
@@ -177,23 +177,7 @@ impl Campaign {
     /// The stops in visiting order, with approach moves and time stamps.
     pub fn plan(&self) -> Result<Vec<PlannedStop>, CampaignError> {
         self.validate()?;
-        let mut stops: Vec<PlannedStop> = Vec::new();
-        let mut clock = 0.0;
-        let mut push =
-            |test: &str, axes: [f64; 6], measured: bool, stops: &mut Vec<PlannedStop>| {
-                if let Some(prev) = stops.last() {
-                    let travel = (0..6)
-                        .map(|k| (axes[k] - prev.axes_deg[k]).abs())
-                        .fold(0.0, f64::max);
-                    clock += self.dwell_s + travel / self.axis_speed_deg_s;
-                }
-                stops.push(PlannedStop {
-                    test: test.to_string(),
-                    axes_deg: axes,
-                    measured,
-                    time_s: clock,
-                });
-            };
+        let mut visits: Vec<(String, [f64; 6], bool)> = Vec::new();
         for t in &self.tests {
             let n = t.axis as usize - 1;
             let others: Vec<(String, [f64; 6])> = match &t.repeat {
@@ -213,26 +197,58 @@ impl Campaign {
                 .map(|i| t.from_deg + i as f64 * t.pitch_deg)
                 .collect();
             for (label, reference) in others {
-                let at = |angle: f64| {
+                let mut push = |angle: f64, measured: bool| {
                     let mut axes = reference;
                     axes[n] = angle;
-                    axes
+                    visits.push((label.clone(), axes, measured));
                 };
                 // Approach from below so the first measured stop is already on the + branch.
-                push(&label, at(t.from_deg - t.approach_deg), false, &mut stops);
+                push(t.from_deg - t.approach_deg, false);
                 for &a in &grid {
-                    push(&label, at(a), true, &mut stops);
+                    push(a, true);
                 }
                 let last = *grid.last().unwrap_or(&t.to_deg);
-                push(&label, at(last + t.approach_deg), false, &mut stops);
+                push(last + t.approach_deg, false);
                 for &a in grid.iter().rev() {
-                    push(&label, at(a), true, &mut stops);
+                    push(a, true);
                 }
             }
         }
-        Ok(stops)
+        Ok(paced(visits, self.dwell_s, self.axis_speed_deg_s))
     }
 }
+
+/// Time-stamps a sequence of visits `(test, axes, measured)`: between consecutive stops the
+/// clock advances by the dwell (settling and tracker measurement) plus the travel time of the
+/// axis that moves farthest at `axis_speed_deg_s` (axes move synchronously, as PTP motion).
+pub fn paced(
+    visits: impl IntoIterator<Item = (String, [f64; 6], bool)>,
+    dwell_s: f64,
+    axis_speed_deg_s: f64,
+) -> Vec<PlannedStop> {
+    let mut stops: Vec<PlannedStop> = Vec::new();
+    let mut clock = 0.0;
+    for (test, axes_deg, measured) in visits {
+        if let Some(prev) = stops.last() {
+            let travel = (0..6)
+                .map(|k| (axes_deg[k] - prev.axes_deg[k]).abs())
+                .fold(0.0, f64::max);
+            clock += dwell_s + travel / axis_speed_deg_s;
+        }
+        stops.push(PlannedStop {
+            test,
+            axes_deg,
+            measured,
+            time_s: clock,
+        });
+    }
+    stops
+}
+
+/// The default pace of a robot stop: dwell per stop, seconds (see [`Campaign::dwell_s`]).
+pub const DEFAULT_DWELL_S: f64 = 3.2;
+/// The default axis speed between stops, degrees per second.
+pub const DEFAULT_AXIS_SPEED_DEG_S: f64 = 30.0;
 
 #[cfg(test)]
 mod tests {

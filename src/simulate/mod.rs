@@ -3,3 +3,10 @@
 //! proven on data whose truth is known.
 
 pub mod campaign;
+pub mod poses;
+pub mod truth;
+pub mod virtual_robot;
+
+pub use campaign::{paced, Campaign, PlannedStop};
+pub use truth::{TrackerNoise, TruthFile};
+pub use virtual_robot::{SimulateError, VirtualRobot};
