@@ -10,6 +10,7 @@
 pub mod calibration;
 pub mod cli;
 pub mod compare;
+pub mod diagnose;
 pub mod diagnostic;
 pub mod identify;
 pub mod kinematics;

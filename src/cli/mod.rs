@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 pub mod check;
 pub mod compare;
+pub mod diagnose;
 pub mod compensate;
 pub mod kin;
 
@@ -45,6 +46,8 @@ pub enum Command {
     Ik(kin::IkArgs),
     /// Compare a calibration's model with measurements: Table 1 statistics, HTML report.
     Compare(compare::Args),
+    /// Which effect of the contract table the calibration is missing, with the evidence.
+    Diagnose(diagnose::Args),
 }
 
 const SUBCOMMANDS: &[&str] = &[
@@ -92,6 +95,7 @@ pub fn main() -> i32 {
         Command::Fk(a) => kin::run_fk(a),
         Command::Ik(a) => kin::run_ik(a),
         Command::Compare(a) => compare::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
     };
     exit as i32
 }

@@ -11,10 +11,10 @@ pub mod drivers;
 pub mod summary;
 pub mod table;
 
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::calibration::{Calibration, KukaFrame, MeasurementFrame};
+use crate::calibration::{Calibration, MeasurementFrame};
 use crate::measure::Measurements;
 use crate::model::{AxisState, Model};
 
@@ -53,19 +53,11 @@ impl Row {
     }
 }
 
-/// The tracker → base transform of a KUKA frame: `R = Rz(A)·Ry(B)·Rx(C)` (MODEL.md).
-pub fn frame_isometry(f: &KukaFrame) -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::new(f.x, f.y, f.z),
-        UnitQuaternion::from_euler_angles(f.c.to_radians(), f.b.to_radians(), f.a.to_radians()),
-    )
-}
-
 /// A measured position in the base frame, given the frame the calibration says it is in.
 pub fn to_base(frame: &MeasurementFrame, measured: &Vector3<f64>) -> Vector3<f64> {
     match frame {
         MeasurementFrame::Base => *measured,
-        MeasurementFrame::Tracker(f) => (frame_isometry(f) * Point3::from(*measured)).coords,
+        MeasurementFrame::Tracker(f) => (f.to_isometry() * Point3::from(*measured)).coords,
     }
 }
 

@@ -1,0 +1,247 @@
+//! Diagnosis: which physical effect is the model missing? From the current calibration's
+//! residuals it estimates the noise floor ([`noise`]), tries every effect of the contract
+//! table the calibration lacks ([`candidates`]) by fitting it alone on top of the current
+//! model and scoring it on held-out points ([`crossval`], candidates in parallel), ranks them
+//! by how much of the residual they explain, and words the evidence from the data
+//! ([`evidence`]) with the command that adds the effect. A finding must be significant on the
+//! held-out points; when none is, the residual is at what the data can tell apart from noise
+//! and the verdict says that nothing significant is missing.
+
+pub mod candidates;
+pub mod crossval;
+pub mod evidence;
+pub mod noise;
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::calibration::Calibration;
+use crate::compare::{self, Row};
+use crate::measure::{Measurements, Stop};
+use crate::model::EffectName;
+
+pub use crossval::Evaluation;
+pub use noise::{NoiseFloor, NoiseSource};
+
+/// Choices of a diagnosis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DiagnoseOptions {
+    /// Folds of the cross-validation.
+    pub folds: usize,
+    /// Effects to try; `None`: every effect of the table the calibration lacks.
+    pub only: Option<Vec<EffectName>>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            folds: 4,
+            only: None,
+        }
+    }
+}
+
+/// A finding must remove at least this fraction of the held-out residual sum of squares …
+pub const MIN_EXPLAINED: f64 = 0.05;
+/// … with a paired t statistic of the per-point gains at least this large (a real effect on
+/// a campaign gives tens; noise stays near zero) …
+pub const MIN_T: f64 = 4.0;
+/// … and lower the RMS by at least this much, µm.
+pub const MIN_RMS_GAIN_UM: f64 = 0.5;
+/// Two findings whose corrections agree this closely (cosine) explain the same residual.
+pub const SAME_RESIDUAL: f64 = 0.9;
+/// A residual within this factor of the noise floor is "at the noise floor".
+pub const AT_FLOOR: f64 = 1.25;
+
+/// One evaluated effect (CONTRACTS.md keys first).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Finding {
+    pub effect: String,
+    /// Fraction of the held-out residual sum of squares it removes (0..1; negative: worse).
+    pub explained: f64,
+    /// RMS 3-D residual of the held-out predictions with it, µm.
+    pub rms_after_um: f64,
+    pub evidence: String,
+    /// The `identify` option that adds it.
+    pub add: String,
+    pub significant: bool,
+    pub t_statistic: f64,
+    pub parameters: usize,
+    /// Effects that explain the same residual on these data (physically indistinguishable
+    /// here); either may be the cause.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub indistinguishable_from: Vec<String>,
+    /// Why it could not be evaluated (then it is not significant).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub not_evaluated: Option<String>,
+}
+
+/// The result of [`diagnose`] (`diagnose --json`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Diagnosis {
+    /// RMS 3-D residual of the current model, µm.
+    pub rms_um: f64,
+    /// The noise floor as an RMS 3-D residual, µm.
+    pub noise_um: f64,
+    pub noise_source: NoiseSource,
+    pub points: usize,
+    /// Significant findings, best first; empty at the noise floor.
+    pub candidates: Vec<Finding>,
+    /// Every effect evaluated, best first.
+    pub considered: Vec<Finding>,
+    pub verdict: String,
+}
+
+/// Why a diagnosis could not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DiagnoseError {
+    #[error("the measurement files hold no measured row")]
+    NoMeasurements,
+}
+
+/// The `--effects` value that adds `name` (quoted: `>` is a shell redirection).
+pub fn add_option(name: &str) -> String {
+    format!("--effects '+{name}'")
+}
+
+/// Diagnoses `cal` against `data`.
+pub fn diagnose(
+    cal: &Calibration,
+    data: &[Measurements],
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, DiagnoseError> {
+    let rows = compare::compare(cal, data);
+    if rows.is_empty() {
+        return Err(DiagnoseError::NoMeasurements);
+    }
+    let model = cal.model_ref();
+    let floor = noise::estimate(&rows, &cal.frame);
+    let before: Vec<_> = rows.iter().map(Row::residual).collect();
+    let rms = crossval::rms_um(&before);
+    // The measured points in the base frame, as identification takes them.
+    let stops: Vec<Stop> = rows
+        .iter()
+        .map(|r| Stop {
+            test: r.test.clone(),
+            state: r.state,
+            measured_mm: Some(r.measured),
+            line: r.line,
+        })
+        .collect();
+    let names = options
+        .only
+        .clone()
+        .unwrap_or_else(|| candidates::missing(model));
+    let mut evaluations: Vec<Evaluation> = names
+        .par_iter()
+        .map(|name| crossval::evaluate(model, &stops, &before, name, options.folds))
+        .collect();
+    evaluations.sort_by(|a, b| b.explained.total_cmp(&a.explained));
+
+    let significant = |e: &Evaluation| {
+        e.not_evaluated.is_none()
+            && e.explained >= MIN_EXPLAINED
+            && e.t >= MIN_T
+            && rms - e.rms_after_um >= MIN_RMS_GAIN_UM
+    };
+    let considered: Vec<Finding> = evaluations
+        .iter()
+        .map(|e| {
+            let same: Vec<String> = evaluations
+                .iter()
+                .filter(|o| o.name != e.name && significant(o) && significant(e))
+                .filter(|o| crossval::similarity(&e.correction, &o.correction) >= SAME_RESIDUAL)
+                .map(|o| o.name.to_string())
+                .collect();
+            finding(e, significant(e), same, model, &rows, rms)
+        })
+        .collect();
+    let candidates: Vec<Finding> = considered.iter().filter(|f| f.significant).cloned().collect();
+    let verdict = verdict(rms, &floor, &candidates);
+    Ok(Diagnosis {
+        rms_um: rms,
+        noise_um: floor.rms_um,
+        noise_source: floor.source,
+        points: rows.len(),
+        candidates,
+        considered,
+        verdict,
+    })
+}
+
+fn finding(
+    e: &Evaluation,
+    significant: bool,
+    same: Vec<String>,
+    model: &crate::model::Model,
+    rows: &[Row],
+    rms: f64,
+) -> Finding {
+    let name = e.name.to_string();
+    let evidence = match &e.not_evaluated {
+        Some(why) => format!("not evaluated: {why}"),
+        None => {
+            let mut s = evidence::describe(&e.name, model, rows);
+            s += &format!(
+                "; fitted without the points it is scored on, it explains {:.0}% of their \
+                 residual ({rms:.1} → {:.1} µm RMS)",
+                100.0 * e.explained.max(0.0),
+                e.rms_after_um
+            );
+            if !same.is_empty() {
+                s += &format!(
+                    "; indistinguishable on these data from {}",
+                    same.join(", ")
+                );
+            }
+            s
+        }
+    };
+    Finding {
+        add: add_option(&name),
+        effect: name,
+        explained: e.explained,
+        rms_after_um: e.rms_after_um,
+        evidence,
+        significant,
+        t_statistic: e.t,
+        parameters: e.parameters,
+        indistinguishable_from: same,
+        not_evaluated: e.not_evaluated.clone(),
+    }
+}
+
+fn verdict(rms: f64, floor: &NoiseFloor, candidates: &[Finding]) -> String {
+    let at = format!(
+        "{rms:.1} µm RMS against a noise floor of {:.1} µm ({})",
+        floor.rms_um,
+        floor.source.describe()
+    );
+    match candidates.first() {
+        None if rms <= AT_FLOOR * floor.rms_um => format!(
+            "Nothing significant is missing: the residual is at the noise floor ({at})."
+        ),
+        None => format!(
+            "No effect of the table explains the residual significantly ({at}); look at the \
+             report (`robopost compare --report`) for outliers or a set-up problem."
+        ),
+        Some(best) => {
+            let mut s = format!(
+                "Missing: {} — it explains {:.0}% of the residual ({rms:.1} → {:.1} µm RMS; \
+                 noise floor {:.1} µm). Add it with `robopost identify -c CAL.json MEAS.csv {} -o NEW.json`.",
+                best.effect,
+                100.0 * best.explained,
+                best.rms_after_um,
+                floor.rms_um,
+                best.add
+            );
+            if !best.indistinguishable_from.is_empty() {
+                s += &format!(
+                    " On these data it cannot be told apart from {}: either may be the physical cause.",
+                    best.indistinguishable_from.join(", ")
+                );
+            }
+            s
+        }
+    }
+}
