@@ -122,6 +122,19 @@ impl SparseLsq {
 }
 
 impl LsqSolution {
+    /// Columns `columns` of (AᵀA)⁻¹ at once (n × k, one column per entry): a multi-column
+    /// solve with the factor, much cheaper per column than [`Self::inverse_normal_column`].
+    pub fn inverse_normal_columns(&self, columns: &[usize]) -> Mat<f64> {
+        let mut e = Mat::<f64>::zeros(self.n, columns.len());
+        for (k, &i) in columns.iter().enumerate() {
+            if i < self.n {
+                e[(i, k)] = 1.0;
+            }
+        }
+        self.llt.solve_in_place(e.as_mut());
+        e
+    }
+
     /// Column `i` of (AᵀA)⁻¹: multiplied by σ² it is the covariance of parameter `i` with all
     /// others (σ² = rss / (rows − parameters) for unit-weight measurement rows).
     pub fn inverse_normal_column(&self, i: usize) -> Vec<f64> {

@@ -3,3 +3,8 @@
 //! requested effect).
 
 pub mod lsq;
+pub mod refine;
+pub mod register;
+pub mod setup;
+
+pub use refine::{refine, Fit, Free, IdentifyError, Progress, RefineOptions, Status, Warning};

@@ -3,6 +3,7 @@
 //! proven on data whose truth is known.
 
 pub mod campaign;
+pub mod paper;
 pub mod poses;
 pub mod truth;
 pub mod virtual_robot;
