@@ -8,8 +8,8 @@ use clap::{Parser, Subcommand};
 
 pub mod check;
 pub mod compare;
-pub mod diagnose;
 pub mod compensate;
+pub mod diagnose;
 pub mod kin;
 
 /// Exit status per `../shared/CONTRACTS.md`.

@@ -49,7 +49,11 @@ mod tests {
         assert_eq!(all.len(), 1 + 6 + 6 + 30 + 6 + 6 + 1);
         assert_eq!(all[0].to_string(), "geometric");
         assert!(all.iter().any(|n| n.to_string() == "crosstalk:A2->A3"));
-        let mut m = Model::new(RobotDescription::kr30ha(), Payload::default(), Vector3::zeros());
+        let mut m = Model::new(
+            RobotDescription::kr30ha(),
+            Payload::default(),
+            Vector3::zeros(),
+        );
         for n in expand_list("geometric,map:A1..A6,backlash:A1..A6,crosstalk:A3->A2").unwrap() {
             m.push_named(&n, &GridOptions::default()).unwrap();
         }

@@ -37,7 +37,7 @@ pub struct Evaluation {
 }
 
 /// Iterations of each fit: the candidate enters linearly to first order, so a few suffice.
-const MAX_ITERATIONS: usize = 6;
+const MAX_ITERATIONS: usize = 3;
 
 /// Evaluates `name` on top of `base`. `stops` are the measured points in the base frame (one
 /// per point, in order) and `before` the current residuals (measured − predicted, mm).
@@ -76,7 +76,11 @@ pub fn evaluate(
             .iter()
             .enumerate()
             .map(|(i, s)| Stop {
-                measured_mm: if i % folds == fold { None } else { s.measured_mm },
+                measured_mm: if i % folds == fold {
+                    None
+                } else {
+                    s.measured_mm
+                },
                 ..s.clone()
             })
             .collect();
@@ -98,7 +102,9 @@ pub fn evaluate(
             }
         }
         for i in (fold..stops.len()).step_by(folds) {
-            let Some(measured) = stops[i].measured_mm else { continue };
+            let Some(measured) = stops[i].measured_mm else {
+                continue;
+            };
             after[i] = measured - model.target_position(&stops[i].state);
             result.correction[i] = before[i] - after[i];
         }

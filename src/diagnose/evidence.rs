@@ -40,7 +40,16 @@ pub fn line(points: &[(f64, f64)]) -> Option<(f64, f64)> {
     let sxx: f64 = points.iter().map(|p| (p.0 - mx).powi(2)).sum();
     let syy: f64 = points.iter().map(|p| (p.1 - my).powi(2)).sum();
     let sxy: f64 = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    (sxx > 1e-12).then(|| (sxy / sxx, if syy > 0.0 { sxy / (sxx * syy).sqrt() } else { 0.0 }))
+    (sxx > 1e-12).then(|| {
+        (
+            sxy / sxx,
+            if syy > 0.0 {
+                sxy / (sxx * syy).sqrt()
+            } else {
+                0.0
+            },
+        )
+    })
 }
 
 /// Means of `y` per whole degree of `x`.
@@ -51,7 +60,9 @@ fn binned(points: impl Iterator<Item = (f64, f64)>) -> HashMap<i64, f64> {
         e.0 += y;
         e.1 += 1;
     }
-    sums.into_iter().map(|(k, (s, n))| (k, s / n as f64)).collect()
+    sums.into_iter()
+        .map(|(k, (s, n))| (k, s / n as f64))
+        .collect()
 }
 
 fn peak_to_peak(values: impl Iterator<Item = f64>) -> f64 {
@@ -118,7 +129,9 @@ fn by_direction(
 ) -> [Vec<(f64, f64)>; 2] {
     let mut out = [Vec::new(), Vec::new()];
     for r in rows {
-        let Some(u) = along(model, r, n) else { continue };
+        let Some(u) = along(model, r, n) else {
+            continue;
+        };
         match r.state.directions[n as usize - 1] {
             Direction::Positive => out[0].push((x(r), u)),
             Direction::Negative => out[1].push((x(r), u)),
@@ -131,7 +144,10 @@ fn by_direction(
 fn map(model: &Model, rows: &[Row], n: u8) -> String {
     let rows = sweeping(rows, n);
     let a = |r: &Row| r.state.axes_deg[n as usize - 1];
-    let all = binned(rows.iter().filter_map(|r| along(model, r, n).map(|u| (a(r), u))));
+    let all = binned(
+        rows.iter()
+            .filter_map(|r| along(model, r, n).map(|u| (a(r), u))),
+    );
     let ptp = peak_to_peak(all.values().copied());
     let [plus, minus] = by_direction(model, &rows, n, a);
     let (p, m) = (binned(plus.into_iter()), binned(minus.into_iter()));
@@ -142,7 +158,11 @@ fn map(model: &Model, rows: &[Row], n: u8) -> String {
     let same = line(&common).is_some_and(|(_, r)| r > 0.5);
     format!(
         "A{n} residual along its motion varies with the A{n} angle by {ptp:.0} µm peak to peak{}",
-        if same { ", the same in both directions" } else { "" }
+        if same {
+            ", the same in both directions"
+        } else {
+            ""
+        }
     )
 }
 
@@ -232,23 +252,33 @@ fn tilt(model: &Model, rows: &[Row], n: u8) -> String {
     format!("the residual across the A{n} motion changes with the A{n} angle by {ptp:.0} µm peak to peak")
 }
 
+/// The residual's trend over time within each test (each test's own mean removed, so that
+/// what the tables absorbed test by test does not count), pooled over the tests.
 fn drift(rows: &[Row]) -> String {
-    let slopes: Vec<f64> = (0..3)
-        .map(|c| {
-            let points: Vec<(f64, f64)> = rows
-                .iter()
-                .map(|r| (r.state.time_s / 3600.0, r.residual()[c] * 1000.0))
-                .collect();
-            line(&points).map_or(0.0, |(b, _)| b)
-        })
-        .collect();
-    let rate = Vector3::new(slopes[0], slopes[1], slopes[2]);
-    if rate.norm() == 0.0 {
+    let mut by_test: HashMap<&str, Vec<&Row>> = HashMap::new();
+    for r in rows {
+        by_test.entry(r.test.as_str()).or_default().push(r);
+    }
+    let (mut sxy, mut sxx) = (Vector3::zeros(), 0.0);
+    for test in by_test.values() {
+        let n = test.len() as f64;
+        let t_mean = test.iter().map(|r| r.state.time_s).sum::<f64>() / n / 3600.0;
+        let r_mean = test.iter().map(|r| r.residual()).sum::<Vector3<f64>>() / n * 1000.0;
+        for r in test {
+            let dt = r.state.time_s / 3600.0 - t_mean;
+            sxy += (r.residual() * 1000.0 - r_mean) * dt;
+            sxx += dt * dt;
+        }
+    }
+    if sxx <= 0.0 {
         return "the measurements carry no time (column t)".into();
     }
-    let main = (0..3).max_by(|&a, &b| rate[a].abs().total_cmp(&rate[b].abs())).unwrap_or(2);
+    let rate: Vector3<f64> = sxy / sxx;
+    let main = (0..3)
+        .max_by(|&a, &b| rate[a].abs().total_cmp(&rate[b].abs()))
+        .unwrap_or(2);
     format!(
-        "the residual changes with time: {:.0} µm per hour, mostly in {}",
+        "within each test the residual moves with time: {:.0} µm per hour, mostly in {}",
         rate.norm(),
         ["X", "Y", "Z"][main]
     )

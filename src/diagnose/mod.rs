@@ -11,6 +11,7 @@ pub mod candidates;
 pub mod crossval;
 pub mod evidence;
 pub mod noise;
+pub mod twins;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -42,14 +43,16 @@ impl Default for DiagnoseOptions {
 }
 
 /// A finding must remove at least this fraction of the held-out residual sum of squares …
-pub const MIN_EXPLAINED: f64 = 0.05;
-/// … with a paired t statistic of the per-point gains at least this large (a real effect on
-/// a campaign gives tens; noise stays near zero) …
-pub const MIN_T: f64 = 4.0;
+pub const MIN_EXPLAINED: f64 = 0.01;
+/// … with a paired t statistic of the per-point gains at least this large (a missing effect
+/// on a campaign gives 7 to 20; on data without one every candidate stays under 1) …
+pub const MIN_T: f64 = 5.0;
 /// … and lower the RMS by at least this much, µm.
-pub const MIN_RMS_GAIN_UM: f64 = 0.5;
+pub const MIN_RMS_GAIN_UM: f64 = 0.1;
 /// Two findings whose corrections agree this closely (cosine) explain the same residual.
 pub const SAME_RESIDUAL: f64 = 0.9;
+/// Least t statistic of a candidate worth re-identifying as a possible twin of the best.
+pub const TWIN_MIN_T: f64 = 2.0;
 /// A residual within this factor of the noise floor is "at the noise floor".
 pub const AT_FLOOR: f64 = 1.25;
 
@@ -144,19 +147,57 @@ pub fn diagnose(
             && e.t >= MIN_T
             && rms - e.rms_after_um >= MIN_RMS_GAIN_UM
     };
+    // Twins of the best significant candidate: significant candidates that correct the
+    // points the same way, and candidates through the same angle with some signal (t ≥ 2,
+    // or the axis's compliance) that explain as much once the model is re-identified around
+    // them.
+    let best = evaluations.iter().find(|e| significant(e));
+    let twins_of_best: Vec<String> = match best {
+        None => Vec::new(),
+        Some(b) => {
+            let similar = evaluations.iter().filter(|o| {
+                o.name != b.name
+                    && significant(o)
+                    && crossval::similarity(&b.correction, &o.correction) >= SAME_RESIDUAL
+            });
+            // Gravity is the usual physical cause of a crosstalk (the paper, section 3.2):
+            // the compliance of the affected axis is always tried.
+            let gravity = |o: &Evaluation| {
+                o.name.kind.prefix == "compliance"
+                    && twins::angle_axis(&o.name) == twins::angle_axis(&b.name)
+            };
+            let plausible: Vec<EffectName> = evaluations
+                .iter()
+                .filter(|o| o.not_evaluated.is_none() && (o.t >= TWIN_MIN_T || gravity(o)))
+                .map(|o| o.name)
+                .collect();
+            let mut names: Vec<String> = similar.map(|o| o.name.to_string()).collect();
+            for t in twins::twins(model, &stops, &b.name, &plausible) {
+                if !names.contains(&t) {
+                    names.push(t);
+                }
+            }
+            names
+        }
+    };
     let considered: Vec<Finding> = evaluations
         .iter()
         .map(|e| {
-            let same: Vec<String> = evaluations
-                .iter()
-                .filter(|o| o.name != e.name && significant(o) && significant(e))
-                .filter(|o| crossval::similarity(&e.correction, &o.correction) >= SAME_RESIDUAL)
-                .map(|o| o.name.to_string())
-                .collect();
+            let same = if best.is_some_and(|b| b.name == e.name) {
+                twins_of_best.clone()
+            } else if twins_of_best.contains(&e.name.to_string()) {
+                best.map(|b| vec![b.name.to_string()]).unwrap_or_default()
+            } else {
+                Vec::new()
+            };
             finding(e, significant(e), same, model, &rows, rms)
         })
         .collect();
-    let candidates: Vec<Finding> = considered.iter().filter(|f| f.significant).cloned().collect();
+    let candidates: Vec<Finding> = considered
+        .iter()
+        .filter(|f| f.significant)
+        .cloned()
+        .collect();
     let verdict = verdict(rms, &floor, &candidates);
     Ok(Diagnosis {
         rms_um: rms,
@@ -189,10 +230,7 @@ fn finding(
                 e.rms_after_um
             );
             if !same.is_empty() {
-                s += &format!(
-                    "; indistinguishable on these data from {}",
-                    same.join(", ")
-                );
+                s += &format!("; indistinguishable on these data from {}", same.join(", "));
             }
             s
         }
@@ -218,9 +256,9 @@ fn verdict(rms: f64, floor: &NoiseFloor, candidates: &[Finding]) -> String {
         floor.source.describe()
     );
     match candidates.first() {
-        None if rms <= AT_FLOOR * floor.rms_um => format!(
-            "Nothing significant is missing: the residual is at the noise floor ({at})."
-        ),
+        None if rms <= AT_FLOOR * floor.rms_um => {
+            format!("Nothing significant is missing: the residual is at the noise floor ({at}).")
+        }
         None => format!(
             "No effect of the table explains the residual significantly ({at}); look at the \
              report (`robopost compare --report`) for outliers or a set-up problem."

@@ -2,7 +2,8 @@
 //! tracker itself is not exact. Estimated from repeated points when the data has enough of
 //! them (the same command angles and rotation directions, measured within a few minutes so
 //! that thermal drift does not count as noise), otherwise from the tracker's specification
-//! (Leica AT960: MPE ±(15 µm + 6 µm/m), typical error about half of it, per coordinate).
+//! (Leica AT960: MPE ±(15 µm + 6 µm/m) of a measured point, `U_xyz`; the typical 3-D error is
+//! about half of it).
 //!
 //! Bidirectional points are not used: on indexing data a map and a backlash table fit every
 //! forward/backward pair exactly along the motion, so their residuals understate the noise,
@@ -36,7 +37,10 @@ pub enum NoiseSource {
     /// The scatter of repeated points (degrees of freedom of the pooled estimate).
     Repeats { dof: usize },
     /// The tracker specification at the mean distance of the points from the tracker.
-    TrackerSpec { mean_distance_m: f64, station_assumed: bool },
+    TrackerSpec {
+        mean_distance_m: f64,
+        station_assumed: bool,
+    },
 }
 
 impl NoiseSource {
@@ -83,14 +87,15 @@ pub fn estimate(rows: &[Row], frame: &MeasurementFrame) -> NoiseFloor {
     from_spec(rows, &station, station_assumed)
 }
 
-/// Spec noise: per coordinate σ = half the MPE at each point's distance, 3-D RMS = √(3·mean σ²).
+/// Spec noise: the typical 3-D error, half the MPE at each point's distance from the
+/// tracker, as an RMS over the points.
 pub fn from_spec(rows: &[Row], station: &Vector3<f64>, station_assumed: bool) -> NoiseFloor {
     let n = rows.len().max(1) as f64;
     let (mut var, mut dist) = (0.0, 0.0);
     for r in rows {
         let d_m = (r.measured - station).norm() / 1000.0;
-        let sigma = TYPICAL_FRACTION * (MPE_UM + MPE_UM_PER_M * d_m);
-        var += 3.0 * sigma * sigma;
+        let typical = TYPICAL_FRACTION * (MPE_UM + MPE_UM_PER_M * d_m);
+        var += typical * typical;
         dist += d_m;
     }
     NoiseFloor {
@@ -157,11 +162,22 @@ mod tests {
 
     #[test]
     fn spec_floor_by_hand() {
-        // One point 2 m from the tracker: σ = ½(15 + 12) = 13.5 µm per coordinate,
-        // 3-D RMS = 13.5·√3.
-        let r = row([0.0; 6], 0.0, Vector3::new(1000.0, 0.0, 800.0));
-        let f = from_spec(&[r], &Vector3::new(3000.0, 0.0, 800.0), true);
-        assert!((f.rms_um - 13.5 * 3f64.sqrt()).abs() < 1e-9);
+        // Points 2 m and 1 m from the tracker: typical errors ½(15 + 12) = 13.5 µm and
+        // ½(15 + 6) = 10.5 µm; RMS √((13.5² + 10.5²)/2).
+        let station = Vector3::new(3000.0, 0.0, 800.0);
+        let rows = [
+            row([0.0; 6], 0.0, Vector3::new(1000.0, 0.0, 800.0)),
+            row([0.0; 6], 0.0, Vector3::new(3000.0, 0.0, 1800.0)),
+        ];
+        let f = from_spec(&rows, &station, true);
+        assert!((f.rms_um - ((13.5f64.powi(2) + 10.5f64.powi(2)) / 2.0).sqrt()).abs() < 1e-9);
+        assert_eq!(
+            f.source,
+            NoiseSource::TrackerSpec {
+                mean_distance_m: 1.5,
+                station_assumed: true
+            }
+        );
     }
 
     #[test]
@@ -172,9 +188,17 @@ mod tests {
         for k in 0..12 {
             let axes = [k as f64, 0.0, 0.0, 0.0, 0.0, 0.0];
             rows.push(row(axes, 10.0 * k as f64, Vector3::new(1.0, 2.0, 3.0)));
-            rows.push(row(axes, 10.0 * k as f64 + 5.0, Vector3::new(1.02, 2.0, 3.0)));
+            rows.push(row(
+                axes,
+                10.0 * k as f64 + 5.0,
+                Vector3::new(1.02, 2.0, 3.0),
+            ));
             // A third visit an hour later (drift) is not a repeat of the first two.
-            rows.push(row(axes, 3600.0 + 10.0 * k as f64, Vector3::new(1.5, 2.0, 3.0)));
+            rows.push(row(
+                axes,
+                3600.0 + 10.0 * k as f64,
+                Vector3::new(1.5, 2.0, 3.0),
+            ));
         }
         let (rms, dof) = from_repeats(&rows).unwrap();
         assert_eq!(dof, 12);
