@@ -10,7 +10,9 @@ pub mod check;
 pub mod compare;
 pub mod compensate;
 pub mod diagnose;
+pub mod identify;
 pub mod kin;
+pub mod simulate;
 
 /// Exit status per `../shared/CONTRACTS.md`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,6 +50,10 @@ pub enum Command {
     Compare(compare::Args),
     /// Which effect of the contract table the calibration is missing, with the evidence.
     Diagnose(diagnose::Args),
+    /// The virtual robot: measurement campaigns and pose lists on a truth model.
+    Simulate(simulate::Args),
+    /// Identify a calibration from laser-tracker measurements.
+    Identify(identify::Args),
 }
 
 const SUBCOMMANDS: &[&str] = &[
@@ -96,6 +102,8 @@ pub fn main() -> i32 {
         Command::Ik(a) => kin::run_ik(a),
         Command::Compare(a) => compare::run(a),
         Command::Diagnose(a) => diagnose::run(a),
+        Command::Simulate(a) => simulate::run(a),
+        Command::Identify(a) => identify::run(a),
     };
     exit as i32
 }

@@ -2,7 +2,10 @@
 //! section 2.3 direct method, then a global sparse least-squares refinement over every
 //! requested effect).
 
+pub mod circle;
+pub mod direct;
 pub mod lsq;
+pub mod pipeline;
 pub mod refine;
 pub mod register;
 pub mod setup;

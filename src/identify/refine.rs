@@ -439,11 +439,12 @@ pub fn refine(
     let n_model_cols = flat_of.len();
     let n_cols = n_model_cols + if options.tracker_frame { 6 } else { 0 };
     let rows = 3 * points.len();
-    if rows < n_cols {
+    let n_data_cols = n_cols - flat_of.iter().filter(|&&i| smoothed[i]).count();
+    if rows < n_data_cols {
         return Err(IdentifyError::TooFewPoints {
             points: points.len(),
             rows,
-            parameters: n_cols,
+            parameters: n_data_cols,
         });
     }
     let mut col_scale: Vec<f64> = flat_of.iter().map(|&i| scale[i]).collect();

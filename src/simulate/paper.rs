@@ -2,7 +2,7 @@
 //! reports (section 3 and Figs. 4, 5, 7) — axis average lines off by tenths of a millimetre
 //! and hundredths of a degree, angular positioning deviations periodic with the gear pitch
 //! with amplitudes of a few thousandths of a degree, backlash of a few thousandths, and the
-//! A3 → A2 crosstalk of Fig. 5 (A2's deviation shifting by several thousandths of a degree
+//! A3 → A2 crosstalk of Fig. 5 (A2's deviation shifting by about two hundredths of a degree
 //! between A3 = 58° and 153°). Written in closed form (no random numbers) so the truth is the
 //! same on every machine; `hidden` adds effects outside the paper's model (compliance of A2
 //! and A3 under gravity, tilt of A1) for diagnosis to find.
@@ -18,32 +18,32 @@ use crate::model::effects::{crosstalk::Crosstalk, geometric::Geometric, tilt::Ti
 use crate::model::{EffectName, GridOptions, Model};
 
 /// The retroreflector of the virtual campaign, KUKA flange frame (mm): off the A6 axis so
-/// that A6's angle moves it.
-pub const TARGET_MM: [f64; 3] = [45.0, 30.0, 120.0];
+/// that A6's angle moves it (144 mm from the A6 axis).
+pub const TARGET_MM: [f64; 3] = [-120.0, -80.0, 180.0];
 
 /// The geometric errors (paper order and units: mm, degrees).
 const GEOMETRIC: [(&str, f64); 21] = [
-    ("dx21", 0.21),
-    ("a21", 0.006),
-    ("dth20", 0.011),
-    ("dz32", -0.18),
-    ("a32", -0.005),
-    ("g32", 0.004),
-    ("dth30", -0.009),
-    ("dz43", 0.12),
-    ("dy43", -0.15),
-    ("g43", 0.007),
-    ("dth40", 0.014),
-    ("dx54", 0.16),
-    ("dz54", -0.09),
-    ("g54", -0.008),
-    ("dth50", 0.012),
-    ("dz65", 0.05),
-    ("dy65", -0.07),
-    ("g65", 0.009),
-    ("p6x", 0.08),
-    ("p6y", -0.05),
-    ("p6z", 0.06),
+    ("dx21", 0.063),
+    ("a21", 0.0018),
+    ("dth20", 0.0033),
+    ("dz32", -0.054),
+    ("a32", -0.0015),
+    ("g32", 0.0012),
+    ("dth30", -0.0027),
+    ("dz43", 0.036),
+    ("dy43", -0.045),
+    ("g43", 0.0021),
+    ("dth40", 0.0042),
+    ("dx54", 0.048),
+    ("dz54", -0.027),
+    ("g54", -0.0024),
+    ("dth50", 0.0036),
+    ("dz65", 0.015),
+    ("dy65", -0.021),
+    ("g65", 0.0027),
+    ("p6x", 0.024),
+    ("p6y", -0.015),
+    ("p6z", 0.018),
 ];
 
 /// Gear pitch (degrees of axis rotation per period) and amplitudes (degrees) per axis:
@@ -74,10 +74,10 @@ pub fn backlash_deg(n: usize, a: f64) -> f64 {
 }
 
 /// The A3 → A2 crosstalk (degrees) at (A2, A3): the load on A2's gears changes with the
-/// forearm's angle; zero at A3 = 105°, about ±0.005° at 58° and 153° (Fig. 5).
+/// forearm's angle; zero at A3 = 105°, about ±0.012° at 58° and 153° (Fig. 5).
 pub fn crosstalk_deg(a2: f64, a3: f64) -> f64 {
     let x = (a3 - 105.0) / 48.0;
-    (0.005 * x + 0.0015 * x * x) * (1.0 + 0.3 * (a2 + 60.0).to_radians().sin())
+    (0.012 * x + 0.003 * x * x) * (1.0 + 0.5 * (a2 + 60.0).to_radians().sin())
 }
 
 fn table_grid(lo: f64, hi: f64, pitch: f64) -> Vec<f64> {
@@ -123,9 +123,9 @@ pub fn truth_model(hidden: bool) -> Model {
     let [lo2, hi2] = robot.limits_deg[1];
     let [lo3, hi3] = robot.limits_deg[2];
     let options = GridOptions {
-        pitch_deg: Some(1.0),
+        pitch_deg: Some(2.0),
         range_deg: Some([lo2, hi2]),
-        other_grid_deg: Some(table_grid(lo3, hi3, 2.0)),
+        other_grid_deg: Some(table_grid(lo3, hi3, 5.0)),
         ..GridOptions::default()
     };
     let mut crosstalk = Crosstalk::zeros(3, 2, &options, &robot).expect("crosstalk grid");

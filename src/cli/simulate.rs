@@ -1,0 +1,223 @@
+//! `robopost simulate`: the virtual robot on the command line — write the built-in truth,
+//! run a measurement campaign or a list of poses on a truth file and write the measurement
+//! CSV. Thin: everything is in `crate::simulate`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use super::Exit;
+use crate::calibration::{KukaFrame, MeasurementFrame};
+use crate::measure::write_csv;
+use crate::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
+use crate::simulate::{paper, poses, virtual_robot, Campaign, PlannedStop, VirtualRobot};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    pub what: What,
+}
+
+#[derive(clap::Subcommand, Debug)]
+pub enum What {
+    /// Run an indexing campaign (the paper's by default) on the virtual robot.
+    Campaign {
+        /// Truth file (robopost-truth/1).
+        #[arg(long)]
+        truth: PathBuf,
+        /// Campaign description (JSON); the paper's campaign when absent.
+        #[arg(long)]
+        campaign: Option<PathBuf>,
+        /// Seed of the tracker noise (overrides the truth file's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Measurement CSV to write, `-` for stdout.
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+    },
+    /// Visit a list of axis sets (CSV: test, a1..a6[, measured]) and measure them.
+    Poses {
+        #[arg(long)]
+        truth: PathBuf,
+        /// The poses, in visiting order.
+        poses: PathBuf,
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Dwell per stop, seconds.
+        #[arg(long, default_value_t = DEFAULT_DWELL_S)]
+        dwell: f64,
+        /// Axis speed between stops, degrees per second.
+        #[arg(long, default_value_t = DEFAULT_AXIS_SPEED_DEG_S)]
+        speed: f64,
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+    },
+    /// Run a KRL program on the virtual robot (needs the motion simulator; not yet built).
+    Program {
+        #[arg(long)]
+        truth: PathBuf,
+        program: PathBuf,
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+    },
+    /// Write the built-in virtual KR 30 HA truth file.
+    Truth {
+        /// Add effects outside the paper's model (compliance of A2/A3, tilt of A1).
+        #[arg(long)]
+        hidden: bool,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Report positions in a tracker frame with this pose in the base frame
+        /// (`X,Y,Z,A,B,C`, mm and degrees, KUKA convention).
+        #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+        tracker: Option<Vec<f64>>,
+        #[arg(short = 'o', long = "out")]
+        out: PathBuf,
+    },
+}
+
+pub fn run(args: Args) -> Exit {
+    match args.what {
+        What::Campaign {
+            truth,
+            campaign,
+            seed,
+            out,
+        } => {
+            let plan = match campaign {
+                None => Campaign::paper().plan(),
+                Some(path) => match read_campaign(&path) {
+                    Ok(c) => c.plan(),
+                    Err(e) => return usage(&e),
+                },
+            };
+            match plan {
+                Ok(stops) => measure_and_write(&truth, seed, &stops, &out),
+                Err(e) => usage(&format!("campaign: {e}")),
+            }
+        }
+        What::Poses {
+            truth,
+            poses: file,
+            seed,
+            dwell,
+            speed,
+            out,
+        } => {
+            if !(dwell >= 0.0 && speed > 0.0) {
+                return usage("--dwell must be ≥ 0 and --speed > 0");
+            }
+            match poses::read_poses(&file, dwell, speed) {
+                Ok(stops) => measure_and_write(&truth, seed, &stops, &out),
+                Err(e) => {
+                    eprint!("{}", e.render());
+                    Exit::Usage
+                }
+            }
+        }
+        What::Program { .. } => usage(virtual_robot::PROGRAM_RUNS_PENDING),
+        What::Truth {
+            hidden,
+            seed,
+            tracker,
+            out,
+        } => {
+            let mut file = paper::truth_file(hidden, seed);
+            match tracker.as_deref() {
+                None => {}
+                Some(&[x, y, z, a, b, c]) if [x, y, z, a, b, c].iter().all(|v| v.is_finite()) => {
+                    file.model.frame =
+                        Some(MeasurementFrame::Tracker(KukaFrame { x, y, z, a, b, c }));
+                }
+                Some(_) => return usage("--tracker takes X,Y,Z,A,B,C (mm, degrees)"),
+            }
+            finish(write_output(&out, file.to_json().as_bytes()), &out)
+        }
+    }
+}
+
+fn usage(message: &str) -> Exit {
+    eprintln!("robopost simulate: {message}");
+    Exit::Usage
+}
+
+fn read_campaign(path: &Path) -> Result<Campaign, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let campaign: Campaign = serde_json::from_str(&text).map_err(|e| {
+        let line = text.lines().nth(e.line().saturating_sub(1)).unwrap_or("");
+        format!(
+            "{}:{}:{}: {e}\n{:>4} | {line}\n     | {}^",
+            path.display(),
+            e.line(),
+            e.column(),
+            e.line(),
+            " ".repeat(e.column().saturating_sub(1))
+        )
+    })?;
+    campaign
+        .validate()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(campaign)
+}
+
+fn measure_and_write(truth: &Path, seed: Option<u64>, stops: &[PlannedStop], out: &Path) -> Exit {
+    let robot = match VirtualRobot::load(truth) {
+        Ok(r) => r,
+        Err(e) => return usage(&e.to_string()),
+    };
+    let robot = match seed {
+        Some(s) => robot.with_seed(s),
+        None => robot,
+    };
+    let measured = match robot.measure(stops) {
+        Ok(m) => m,
+        Err(e) => return usage(&e.to_string()),
+    };
+    let mut bytes = Vec::new();
+    if let Err(e) = write_csv(&mut bytes, &measured) {
+        return usage(&e.to_string());
+    }
+    let exit = finish(write_output(out, &bytes), out);
+    if exit == Exit::Success {
+        let points = measured.iter().filter(|s| s.measured_mm.is_some()).count();
+        let last = measured.last().map_or(0.0, |s| s.state.time_s);
+        eprintln!(
+            "robopost simulate: {} stops ({points} measured, {:.0} min of robot time) → {}",
+            measured.len(),
+            last / 60.0,
+            out.display()
+        );
+    }
+    exit
+}
+
+fn finish(result: std::io::Result<()>, out: &Path) -> Exit {
+    match result {
+        Ok(()) => Exit::Success,
+        Err(e) => usage(&format!("cannot write {}: {e}", out.display())),
+    }
+}
+
+/// Writes `bytes` to `path` atomically (a temporary file beside it, then a rename), or to
+/// stdout for `-`.
+pub(crate) fn write_output(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    if path.as_os_str() == "-" {
+        let mut stdout = std::io::stdout().lock();
+        stdout.write_all(bytes)?;
+        return stdout.flush();
+    }
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+    tmp.write_all(bytes)?;
+    // A temporary file is private (0600); the output is an ordinary file.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
+    }
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}
