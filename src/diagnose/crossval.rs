@@ -47,6 +47,7 @@ pub fn evaluate(
     before: &[Vector3<f64>],
     name: &EffectName,
     folds: usize,
+    grid: &GridChoice,
 ) -> Evaluation {
     let folds = folds.max(2);
     let mut result = Evaluation {
@@ -59,7 +60,7 @@ pub fn evaluate(
         not_evaluated: None,
     };
     let mut with = base.clone();
-    if let Err(e) = add_effects(&mut with, &[*name], stops, &GridChoice::default()) {
+    if let Err(e) = add_effects(&mut with, &[*name], stops, grid) {
         result.not_evaluated = Some(e);
         return result;
     }

@@ -18,8 +18,9 @@ use serde::Serialize;
 
 use crate::calibration::Calibration;
 use crate::compare::{self, Row};
+use crate::identify::setup::GridChoice;
 use crate::measure::{Measurements, Stop};
-use crate::model::EffectName;
+use crate::model::{EffectName, Model};
 
 pub use crossval::Evaluation;
 pub use noise::{NoiseFloor, NoiseSource};
@@ -53,8 +54,9 @@ pub const MIN_RMS_GAIN_UM: f64 = 0.1;
 pub const SAME_RESIDUAL: f64 = 0.9;
 /// Least t statistic of a candidate worth re-identifying as a possible twin of the best.
 pub const TWIN_MIN_T: f64 = 2.0;
-/// A residual within this factor of the noise floor is "at the noise floor".
-pub const AT_FLOOR: f64 = 1.25;
+/// A residual within this factor of the noise floor is "at the noise floor" (the tracker's
+/// specification is a rough guide to one set-up's noise, good to some tens of percent).
+pub const AT_FLOOR: f64 = 1.5;
 
 /// One evaluated effect (CONTRACTS.md keys first).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -131,13 +133,14 @@ pub fn diagnose(
             line: r.line,
         })
         .collect();
+    let grid = grid_choice(model);
     let names = options
         .only
         .clone()
         .unwrap_or_else(|| candidates::missing(model));
     let mut evaluations: Vec<Evaluation> = names
         .par_iter()
-        .map(|name| crossval::evaluate(model, &stops, &before, name, options.folds))
+        .map(|name| crossval::evaluate(model, &stops, &before, name, options.folds, &grid))
         .collect();
     evaluations.sort_by(|a, b| b.explained.total_cmp(&a.explained));
 
@@ -148,9 +151,8 @@ pub fn diagnose(
             && rms - e.rms_after_um >= MIN_RMS_GAIN_UM
     };
     // Twins of the best significant candidate: significant candidates that correct the
-    // points the same way, and candidates through the same angle with some signal (t ≥ 2,
-    // or the axis's compliance) that explain as much once the model is re-identified around
-    // them.
+    // points the same way, and candidates with some signal (t ≥ 2) or that gravity makes look
+    // alike, that explain as much once the model is re-identified around them.
     let best = evaluations.iter().find(|e| significant(e));
     let twins_of_best: Vec<String> = match best {
         None => Vec::new(),
@@ -160,19 +162,16 @@ pub fn diagnose(
                     && significant(o)
                     && crossval::similarity(&b.correction, &o.correction) >= SAME_RESIDUAL
             });
-            // Gravity is the usual physical cause of a crosstalk (the paper, section 3.2):
-            // the compliance of the affected axis is always tried.
-            let gravity = |o: &Evaluation| {
-                o.name.kind.prefix == "compliance"
-                    && twins::angle_axis(&o.name) == twins::angle_axis(&b.name)
-            };
+            let partners = twins::gravity_partners(&b.name);
             let plausible: Vec<EffectName> = evaluations
                 .iter()
-                .filter(|o| o.not_evaluated.is_none() && (o.t >= TWIN_MIN_T || gravity(o)))
+                .filter(|o| {
+                    o.not_evaluated.is_none() && (o.t >= TWIN_MIN_T || partners.contains(&o.name))
+                })
                 .map(|o| o.name)
                 .collect();
             let mut names: Vec<String> = similar.map(|o| o.name.to_string()).collect();
-            for t in twins::twins(model, &stops, &b.name, &plausible) {
+            for t in twins::twins(model, &stops, &b.name, &plausible, &grid) {
                 if !names.contains(&t) {
                     names.push(t);
                 }
@@ -210,11 +209,32 @@ pub fn diagnose(
     })
 }
 
+/// Grids of candidate tables: the pitch of the calibration's own map and backlash tables
+/// (the pitch its campaign was measured at), else the defaults.
+pub fn grid_choice(model: &Model) -> GridChoice {
+    let pitch = model
+        .effects()
+        .iter()
+        .filter(|e| {
+            let name = e.name();
+            name.starts_with("map:") || name.starts_with("backlash:")
+        })
+        .find_map(|e| {
+            let points = e.record().table?.grid_deg;
+            (points.len() >= 2)
+                .then(|| (points[points.len() - 1] - points[0]) / (points.len() - 1) as f64)
+        });
+    GridChoice {
+        map_pitch_deg: pitch.unwrap_or(GridChoice::default().map_pitch_deg),
+        ..GridChoice::default()
+    }
+}
+
 fn finding(
     e: &Evaluation,
     significant: bool,
     same: Vec<String>,
-    model: &crate::model::Model,
+    model: &Model,
     rows: &[Row],
     rms: f64,
 ) -> Finding {
@@ -256,12 +276,14 @@ fn verdict(rms: f64, floor: &NoiseFloor, candidates: &[Finding]) -> String {
         floor.source.describe()
     );
     match candidates.first() {
-        None if rms <= AT_FLOOR * floor.rms_um => {
-            format!("Nothing significant is missing: the residual is at the noise floor ({at}).")
-        }
+        None if rms <= AT_FLOOR * floor.rms_um => format!(
+            "Nothing significant is missing: no effect of the table explains any of the \
+             residual on held-out points, and the residual is at the noise floor ({at})."
+        ),
         None => format!(
-            "No effect of the table explains the residual significantly ({at}); look at the \
-             report (`robopost compare --report`) for outliers or a set-up problem."
+            "Nothing the table offers is missing: no effect of it explains the residual on \
+             held-out points, yet the residual is well above the noise floor ({at}); look at \
+             the report (`robopost compare --report`) for outliers or a set-up problem."
         ),
         Some(best) => {
             let mut s = format!(
@@ -274,9 +296,11 @@ fn verdict(rms: f64, floor: &NoiseFloor, candidates: &[Finding]) -> String {
                 best.add
             );
             if !best.indistinguishable_from.is_empty() {
-                s += &format!(
-                    " On these data it cannot be told apart from {}: either may be the physical cause.",
-                    best.indistinguishable_from.join(", ")
+                s +=
+                    &format!(
+                    " On these data it cannot be told apart from {}: {} may be the physical cause.",
+                    best.indistinguishable_from.join(" or "),
+                    if best.indistinguishable_from.len() > 1 { "any of them" } else { "either" }
                 );
             }
             s
