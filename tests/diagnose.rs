@@ -178,7 +178,7 @@ fn hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
     base_effects: &str,
     hidden: &str,
     min_fall: f64,
-) {
+) -> (Calibration, Vec<Stop>, Diagnosis) {
     let (data, validation) = measure(&truth);
     let old = calibrate(&truth, base_effects, &data);
     let complete = calibrate(&truth, &format!("{base_effects},{hidden}"), &data);
@@ -231,6 +231,7 @@ fn hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
          (from {before:.1}): it should close at least 70% of that gap",
         top.effect
     );
+    (old, data, d)
 }
 
 #[test]
@@ -326,7 +327,7 @@ fn compliance_of_a3_under_30_kg() {
 #[test]
 fn tilt_of_a1_of_four_thousandths_of_a_degree() {
     // The A1 axis wobbles by 0.004° about X and Y, once per turn.
-    hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
+    let (old, data, library) = hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
         with_effect(
             paper_truth(),
             "tilt:A1",
@@ -336,6 +337,48 @@ fn tilt_of_a1_of_four_thousandths_of_a_degree() {
         "tilt:A1",
         0.6,
     );
+    // The command line prints the same diagnosis with the keys of CONTRACTS.md.
+    let dir = tempfile::tempdir().unwrap();
+    let (cal, csv) = (dir.path().join("cal.json"), dir.path().join("data.csv"));
+    old.save_atomic(&cal).unwrap();
+    measure::write_csv(std::fs::File::create(&csv).unwrap(), &data).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_robopost"))
+        .args(["diagnose", "--json", "-c"])
+        .arg(&cal)
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["rms_um", "noise_um"] {
+        assert!(v[key].is_number(), "{key} missing");
+    }
+    assert!(v["verdict"].is_string());
+    let (candidates, considered) = (
+        v["candidates"].as_array().unwrap(),
+        v["considered"].as_array().unwrap(),
+    );
+    assert_eq!(considered.len(), 42);
+    assert!(!candidates.is_empty() && candidates.len() <= considered.len());
+    for c in candidates.iter().chain(considered) {
+        assert!(c["effect"].is_string() && c["evidence"].is_string());
+        assert!(c["explained"].as_f64().unwrap() <= 1.0 && c["rms_after_um"].is_number());
+    }
+    // Best first, and the file's rounding (0.1 µm) does not change the finding.
+    let explained: Vec<f64> = candidates
+        .iter()
+        .map(|c| c["explained"].as_f64().unwrap())
+        .collect();
+    assert!(explained.windows(2).all(|w| w[0] >= w[1]));
+    assert_eq!(
+        candidates[0]["effect"],
+        library.candidates[0].effect.as_str()
+    );
+    assert!((v["rms_um"].as_f64().unwrap() - library.rms_um).abs() < 0.1);
 }
 
 #[test]

@@ -52,8 +52,9 @@ pub const MIN_T: f64 = 5.0;
 pub const MIN_RMS_GAIN_UM: f64 = 0.1;
 /// Two findings whose corrections agree this closely (cosine) explain the same residual.
 pub const SAME_RESIDUAL: f64 = 0.9;
-/// Least t statistic of a candidate worth re-identifying as a possible twin of the best.
-pub const TWIN_MIN_T: f64 = 2.0;
+/// Most candidates re-identified as possible twins of the best (the significant ones and the
+/// gravity partners, strongest first): each is a full identification.
+pub const MAX_TWIN_FITS: usize = 4;
 /// A residual within this factor of the noise floor is "at the noise floor" (the tracker's
 /// specification is a rough guide to one set-up's noise, good to some tens of percent).
 pub const AT_FLOOR: f64 = 1.5;
@@ -151,8 +152,8 @@ pub fn diagnose(
             && rms - e.rms_after_um >= MIN_RMS_GAIN_UM
     };
     // Twins of the best significant candidate: significant candidates that correct the
-    // points the same way, and candidates with some signal (t ≥ 2) or that gravity makes look
-    // alike, that explain as much once the model is re-identified around them.
+    // points the same way, and significant candidates or those gravity makes look alike that
+    // explain as much once the model is re-identified around them.
     let best = evaluations.iter().find(|e| significant(e));
     let twins_of_best: Vec<String> = match best {
         None => Vec::new(),
@@ -163,13 +164,15 @@ pub fn diagnose(
                     && crossval::similarity(&b.correction, &o.correction) >= SAME_RESIDUAL
             });
             let partners = twins::gravity_partners(&b.name);
-            let plausible: Vec<EffectName> = evaluations
+            let mut plausible: Vec<&Evaluation> = evaluations
                 .iter()
                 .filter(|o| {
-                    o.not_evaluated.is_none() && (o.t >= TWIN_MIN_T || partners.contains(&o.name))
+                    o.not_evaluated.is_none() && (significant(o) || partners.contains(&o.name))
                 })
-                .map(|o| o.name)
                 .collect();
+            plausible.sort_by(|x, y| y.t.total_cmp(&x.t));
+            plausible.truncate(MAX_TWIN_FITS);
+            let plausible: Vec<EffectName> = plausible.iter().map(|o| o.name).collect();
             let mut names: Vec<String> = similar.map(|o| o.name.to_string()).collect();
             for t in twins::twins(model, &stops, &b.name, &plausible, &grid) {
                 if !names.contains(&t) {
