@@ -94,12 +94,14 @@ fn text(d: &Diagnosis, args: &Args) -> String {
             f.add
         );
     }
-    let shown = 5.min(d.considered.len());
+    if d.candidates.len() > 1 {
+        out += "   (Add the first finding and diagnose again: the smaller ones often explain part of the same residual.)\n";
+    }
     let rest: Vec<String> = d
         .considered
         .iter()
-        .filter(|f| !f.significant)
-        .take(shown)
+        .filter(|f| !f.significant && f.not_evaluated.is_none())
+        .take(5)
         .map(|f| format!("{} {:+.0}%", f.effect, 100.0 * f.explained))
         .collect();
     if !rest.is_empty() {
@@ -107,6 +109,18 @@ fn text(d: &Diagnosis, args: &Args) -> String {
             "\nNot significant (best of {} tried): {}\n",
             d.considered.len(),
             rest.join(", ")
+        );
+    }
+    let unobserved: Vec<&str> = d
+        .considered
+        .iter()
+        .filter(|f| f.not_evaluated.is_some())
+        .map(|f| f.effect.as_str())
+        .collect();
+    if !unobserved.is_empty() {
+        out += &format!(
+            "Not observable in these measurements: {}\n",
+            unobserved.join(", ")
         );
     }
     out += &format!("\n{}\n", d.verdict);

@@ -52,7 +52,10 @@ pub const MIN_T: f64 = 5.0;
 pub const MIN_RMS_GAIN_UM: f64 = 0.1;
 /// Two findings whose corrections agree this closely (cosine) explain the same residual.
 pub const SAME_RESIDUAL: f64 = 0.9;
-/// Most candidates re-identified as possible twins of the best (the significant ones and the
+/// A significant candidate scoring at least this share of the best's `explained` on top of
+/// the held model may be its twin once both are re-identified.
+pub const TWIN_CLOSE: f64 = 0.5;
+/// Most candidates re-identified as possible twins of the best (the close ones and the
 /// gravity partners, strongest first): each is a full identification.
 pub const MAX_TWIN_FITS: usize = 4;
 /// A residual within this factor of the noise floor is "at the noise floor" (the tracker's
@@ -152,7 +155,7 @@ pub fn diagnose(
             && rms - e.rms_after_um >= MIN_RMS_GAIN_UM
     };
     // Twins of the best significant candidate: significant candidates that correct the
-    // points the same way, and significant candidates or those gravity makes look alike that
+    // points the same way, and candidates close to it or that gravity makes look alike that
     // explain as much once the model is re-identified around them.
     let best = evaluations.iter().find(|e| significant(e));
     let twins_of_best: Vec<String> = match best {
@@ -167,7 +170,8 @@ pub fn diagnose(
             let mut plausible: Vec<&Evaluation> = evaluations
                 .iter()
                 .filter(|o| {
-                    o.not_evaluated.is_none() && (significant(o) || partners.contains(&o.name))
+                    let close = significant(o) && o.explained >= TWIN_CLOSE * b.explained;
+                    o.not_evaluated.is_none() && (close || partners.contains(&o.name))
                 })
                 .collect();
             plausible.sort_by(|x, y| y.t.total_cmp(&x.t));
