@@ -201,7 +201,7 @@ fn hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
         // The output says so, in the evidence and in the verdict.
         assert!(top
             .evidence
-            .contains(&format!("indistinguishable on these data from")));
+            .contains("indistinguishable on these data from"));
         assert!(top.evidence.contains(hidden) && d.verdict.contains(hidden));
     }
     assert!(d.verdict.starts_with(&format!("Missing: {}", top.effect)));

@@ -51,3 +51,47 @@ impl Summary {
         Summary::of(rows, Row::measured_error)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::compare::table;
+    use crate::model::AxisState;
+    use proptest::prelude::*;
+
+    fn row(test: u8, e: (f64, f64, f64)) -> Row {
+        let nominal = Vector3::new(1000.0, 0.0, 1000.0);
+        Row {
+            test: format!("T{test}"),
+            source: "s".into(),
+            line: 0,
+            state: AxisState::default(),
+            measured: nominal + Vector3::new(e.0, e.1, e.2),
+            predicted: nominal,
+            nominal,
+        }
+    }
+
+    proptest! {
+        /// Every row counts once in its test and once overall; a test's statistics are those
+        /// of its rows alone; the table has one line per test and model plus `all`.
+        #[test]
+        fn per_test_statistics_partition_the_rows(
+            rows in prop::collection::vec((0u8..4, (-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64)), 1..60)
+        ) {
+            let rows: Vec<Row> = rows.into_iter().map(|(t, e)| row(t, e)).collect();
+            let s = Summary::residuals(&rows);
+            prop_assert_eq!(s.all.points, rows.len());
+            prop_assert_eq!(s.tests.values().map(|t| t.points).sum::<usize>(), rows.len());
+            for (name, stats) in &s.tests {
+                let own: Vec<Vector3<f64>> =
+                    rows.iter().filter(|r| &r.test == name).map(Row::residual).collect();
+                prop_assert_eq!(*stats, error_stats(&own));
+            }
+            let lines = table::lines(&[("a", &s), ("b", &s)]);
+            prop_assert_eq!(lines.len(), 2 * (s.order.len() + 1));
+            // The same statistics twice: no change from the line above.
+            prop_assert!(lines.iter().skip(1).step_by(2).all(|l| l.rms_change.map_or(true, |c| c == 0.0)));
+        }
+    }
+}

@@ -89,7 +89,7 @@ fn step(range: f64) -> f64 {
 
 /// Rows of the tests that sweep axis n alone (indexing tests of n), or every row when the
 /// data have none.
-fn sweeping<'a>(rows: &'a [Row], axis: u8) -> Vec<&'a Row> {
+fn sweeping(rows: &[Row], axis: u8) -> Vec<&Row> {
     let mut by_test: HashMap<&str, Vec<&Row>> = HashMap::new();
     for r in rows {
         by_test.entry(r.test.as_str()).or_default().push(r);
@@ -287,6 +287,65 @@ fn drift(rows: &[Row]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kinematics::{Payload, RobotDescription};
+    use crate::model::AxisState;
+
+    /// A2 swept at A3 = 58°, 105° and 153°, both directions, with a residual along A2's motion
+    /// of 0.82 µm per degree of A3 above 105° (plus a tilt-free, direction-free rest).
+    fn a3_to_a2_rows(model: &Model) -> Vec<Row> {
+        let mut rows = Vec::new();
+        for a3 in [58.0, 105.0, 153.0] {
+            for (dir, sweep) in [
+                (Direction::Positive, [-100.0, -80.0, -60.0, -40.0]),
+                (Direction::Negative, [-40.0, -60.0, -80.0, -100.0]),
+            ] {
+                for a2 in sweep {
+                    let mut state = AxisState::new([0.0, a2, a3, 0.0, 45.0, 0.0]);
+                    state.directions = [dir; 6];
+                    let p = model.target_position(&state);
+                    let (frames, _) = model.frames(&state);
+                    let u = frames
+                        .point_partial(Slot::Angle { axis: 2 }, &p)
+                        .normalize();
+                    rows.push(Row {
+                        test: format!("A2@A3={a3}"),
+                        source: "s".into(),
+                        line: 0,
+                        state,
+                        measured: p + u * (0.82e-3 * (a3 - 105.0)),
+                        predicted: p,
+                        nominal: p,
+                    });
+                }
+            }
+        }
+        rows
+    }
+
+    #[test]
+    fn crosstalk_evidence_reads_the_slope_per_round_step_in_both_directions() {
+        let model = Model::new(
+            RobotDescription::kr30ha(),
+            Payload::default(),
+            Vector3::zeros(),
+        );
+        let rows = a3_to_a2_rows(&model);
+        // 0.82 µm/° × 50° = 41 µm per 50° (A3 spans 95°, half of it rounds to 50°).
+        assert_eq!(
+            crosstalk(&model, &rows, 3, 2),
+            "A2 residual grows with the A3 angle: 41 µm per 50°, in both directions"
+        );
+        // Nothing depends on A2 itself: averaged over the three A3 angles every A2 angle has
+        // the same residual, so a map of A2 has nothing to explain.
+        assert!(
+            map(&model, &rows, 2)
+                .starts_with("A2 residual along its motion varies with the A2 angle by 0 µm"),
+            "{}",
+            map(&model, &rows, 2)
+        );
+        // No direction dependence.
+        assert!(backlash(&model, &rows, 2).contains("by 0 µm"));
+    }
 
     #[test]
     fn line_and_step_by_hand() {

@@ -33,9 +33,9 @@ fn anchor(test: &str) -> String {
 }
 
 fn figure_html(out: &mut String, f: &Figure) {
-    let _ = write!(
+    let _ = writeln!(
         out,
-        "<figure>{}<figcaption><b>{}</b>. {}</figcaption></figure>\n",
+        "<figure>{}<figcaption><b>{}</b>. {}</figcaption></figure>",
         f.svg,
         escape(&f.title),
         escape(&f.caption)
@@ -159,11 +159,11 @@ fn statistics(out: &mut String, input: &ReportInput) {
             Some(_) => "rise",
             None => "",
         };
-        let _ = write!(
+        let _ = writeln!(
             out,
             "<tr{}><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{:.1}</td>\
              <td>{:.1}</td><td>{:.1}</td><td>{:.1}</td><td>{:.1}</td><td>{:.1}</td>\
-             <td>{:.1}</td><td class=\"{class}\">{}</td></tr>\n",
+             <td>{:.1}</td><td class=\"{class}\">{}</td></tr>",
             if l.test.is_empty() {
                 ""
             } else {
@@ -223,9 +223,9 @@ fn worst(out: &mut String, input: &ReportInput, order: &[String]) {
         for a in r.state.axes_deg {
             let _ = write!(out, "<td>{a:.1}</td>");
         }
-        let _ = write!(
+        let _ = writeln!(
             out,
-            "<td>{:.1}</td><td>{:.1}</td><td>{:.1}</td><td>{:.1}</td></tr>\n",
+            "<td>{:.1}</td><td>{:.1}</td><td>{:.1}</td><td>{:.1}</td></tr>",
             e.x,
             e.y,
             e.z,
@@ -233,4 +233,21 @@ fn worst(out: &mut String, input: &ReportInput, order: &[String]) {
         );
     }
     out.push_str("</table>\n");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Text from the data (test labels, file names) can never open a tag or an attribute.
+        #[test]
+        fn escaped_text_has_no_markup(text in ".*") {
+            let e = escape(&text);
+            prop_assert!(!e.contains('<') && !e.contains('>') && !e.contains('"'));
+            let back = e.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", "\"").replace("&amp;", "&");
+            prop_assert_eq!(back, text);
+        }
+    }
 }
