@@ -17,15 +17,14 @@ use robopost::simulate::paper::TARGET_MM;
 
 /// The validation paths: (label, commanded TCP positions in mm).
 fn paths() -> Vec<(String, Vec<Vector3<f64>>)> {
-    let (x0, x1, y0, y1) = (1000.0, 1400.0, -1000.0, 1000.0);
+    let (x0, x1, y0, y1): (f64, f64, f64, f64) = (1000.0, 1400.0, -1000.0, 1000.0);
     let mut out = Vec::new();
     for (k, z) in [500.0, 1000.0, 1500.0].into_iter().enumerate() {
         let corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)];
         let mut points = Vec::new();
         for w in corners.windows(2) {
             let ((xa, ya), (xb, yb)) = (w[0], w[1]);
-            let steps =
-                ((xb - xa as f64).abs().max((yb - ya as f64).abs()) / 100.0).round() as usize;
+            let steps = ((xb - xa).abs().max((yb - ya).abs()) / 100.0).round() as usize;
             for i in 0..steps {
                 let t = i as f64 / steps as f64;
                 points.push(Vector3::new(xa + (xb - xa) * t, ya + (yb - ya) * t, z));

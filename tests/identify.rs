@@ -12,7 +12,7 @@ use robopost::identify::pipeline::{identify, Effects, Request};
 use robopost::identify::{circle::fit_circle, direct, refine, setup, Free, RefineOptions, Status};
 use robopost::kinematics::{Payload, RobotDescription};
 use robopost::measure::{read_csv, Stop};
-use robopost::model::{expand_list, AxisState, Model};
+use robopost::model::{expand_list, Model};
 use robopost::simulate::{paper, Campaign, PlannedStop, TrackerNoise, VirtualRobot};
 use robopost::stats::{error_stats, ErrorStats};
 
@@ -123,6 +123,12 @@ fn assert_calibrated(z: &[(String, f64)], what: &str) {
         .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
         .unwrap();
     let rms = (z.iter().map(|(_, v)| v * v).sum::<f64>() / z.len() as f64).sqrt();
+    println!(
+        "{what}: {} parameters, RMS z {rms:.2}, worst {} at {:.2} standard errors",
+        z.len(),
+        worst.0,
+        worst.1
+    );
     // For ~2,000 normal z-scores the largest is about 3.5; 5.5 leaves room, a bias would not.
     assert!(
         worst.1.abs() < 5.5,
@@ -257,7 +263,15 @@ fn tracker_frame_registration_is_recovered() {
             "axis {k}: z {zt:.1} {zr:.1}"
         );
     }
-    // And in plain numbers: the set-up frame to a few µm and a few µrad.
+    println!(
+        "tracker frame vs gauge truth: Δt {:.4} mm, Δω {:.2e}° (σ {:.4} mm, {:.1e}°)",
+        d.translation.vector.norm(),
+        dr.norm().to_degrees(),
+        se[0].max(se[1]).max(se[2]),
+        se[3].max(se[4]).max(se[5])
+    );
+    // And in plain numbers: the set-up frame to well under a millimetre and 1e-4 rad (the
+    // rest is the A1 mastering offset, which the frame absorbs).
     assert!((found.translation.vector - frame.translation.vector).norm() < 0.5);
     assert!(found.rotation.angle_to(&frame.rotation) < 1e-4);
     assert_calibrated(&z_scores(&model, &truth, &fit), "with tracker frame");
@@ -479,8 +493,6 @@ fn identified_model_predicts_the_validation_paths_to_the_noise_floor() {
         with.z_2sigma_um < without.z_2sigma_um,
         "{with:?} vs {without:?}"
     );
-    // The validation measurement knows nothing of the model: points never seen by the fit.
-    let _ = AxisState::default();
 }
 
 fn full_model(r: &robopost::identify::pipeline::Identified) -> &Model {
@@ -597,5 +609,106 @@ fn adding_an_effect_to_a_calibration_reidentifies() {
         before.fit.stats.rms_um,
         after.fit.stats.rms_um
     );
-    let _ = Point3::<f64>::origin();
+}
+
+#[test]
+fn direct_method_reads_axis_lines_and_backlash_off_the_circles() {
+    let plan = campaign();
+    let exact0 = VirtualRobot::new(empty_model())
+        .with_noise(TrackerNoise::NONE)
+        .measure(&plan)
+        .unwrap();
+    let truth = truth_on_grids(PAPER, &exact0);
+    let exact = VirtualRobot::new(truth.clone())
+        .with_noise(TrackerNoise::NONE)
+        .measure(&plan)
+        .unwrap();
+    let mut model = zero_model(PAPER, &exact);
+    let result = direct::direct_method(&mut model, &exact).unwrap();
+    assert_eq!(result.lines.len(), 10);
+    // A1's average line is the base Z axis (the truth has no A1 line errors): a positive A1
+    // rotation turns about −Z.
+    let a1 = result.lines.iter().find(|l| l.axis == 1).unwrap();
+    assert!((a1.circle.normal.into_inner() - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-6);
+    assert!(a1.circle.centre.xy().norm() < 1e-3, "{}", a1.circle.centre);
+    // Backlash (half the difference of the two directions) does not depend on the gauge:
+    // read off the circles it matches the truth to a small fraction of its size.
+    let (names, est, tv) = (model.parameter_names(), model.values(), truth.values());
+    let mut worst: f64 = 0.0;
+    for (i, n) in names.iter().enumerate() {
+        if n.starts_with("backlash:A1")
+            || n.starts_with("backlash:A2")
+            || n.starts_with("backlash:A3")
+        {
+            worst = worst.max((est[i] - tv[i]).abs());
+        }
+    }
+    println!("direct method: worst backlash A1..A3 error {worst:.2e}°");
+    assert!(worst < 1e-5, "backlash off by {worst}°");
+    // And the refinement from there reproduces the noise-free data exactly.
+    let fit = refine(
+        &mut model,
+        &exact,
+        &RefineOptions {
+            standard_errors: false,
+            ..RefineOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(fit.stats.rms_um < 0.01, "{:?}", fit.stats);
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+    use robopost::identify::register::rigid_fit;
+    use std::f64::consts::{PI, TAU};
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Points on any circle (any centre, orientation, radius, arc of 20°..360°) give that
+        /// circle back.
+        #[test]
+        fn circle_fit_is_exact_on_exact_points(
+            cx in -2000.0..2000.0f64, cy in -2000.0..2000.0f64, cz in 0.0..2000.0f64,
+            theta in 0.0..PI, phi in -PI..PI,
+            radius in 30.0..2000.0f64, start in -PI..PI, arc in 0.35..TAU,
+        ) {
+            let centre = Vector3::new(cx, cy, cz);
+            let normal = Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+            let helper = if normal.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+            let u = normal.cross(&helper).normalize();
+            let v = normal.cross(&u);
+            let points: Vec<Vector3<f64>> = (0..25)
+                .map(|k| {
+                    let a = start + arc * k as f64 / 24.0;
+                    centre + (u * a.cos() + v * a.sin()) * radius
+                })
+                .collect();
+            let c = fit_circle(&points).unwrap();
+            prop_assert!((c.centre - centre).norm() < 1e-6 * radius.max(1.0));
+            prop_assert!((c.radius - radius).abs() < 1e-6 * radius.max(1.0));
+            prop_assert!(c.normal.dot(&normal).abs() > 1.0 - 1e-9);
+        }
+
+        /// The rigid registration inverts any rigid transform of a non-degenerate point set.
+        #[test]
+        fn rigid_fit_inverts_a_transform(
+            t in prop::array::uniform3(-5000.0..5000.0f64),
+            r in prop::array::uniform3(-3.0..3.0f64),
+        ) {
+            let truth = Isometry3::new(Vector3::from(t), Vector3::from(r));
+            let from: Vec<Vector3<f64>> = (0..12)
+                .map(|i| {
+                    let s = i as f64;
+                    Vector3::new((1.3 * s).sin() * 800.0, (0.7 * s).cos() * 600.0, s * 50.0)
+                })
+                .collect();
+            let to: Vec<Vector3<f64>> = from.iter().map(|p| (truth * Point3::from(*p)).coords).collect();
+            let fit = rigid_fit(&from, &to).unwrap();
+            prop_assert!((fit.translation.vector - truth.translation.vector).norm() < 1e-6);
+            prop_assert!(fit.rotation.angle_to(&truth.rotation) < 1e-9);
+        }
+    }
 }

@@ -1,13 +1,13 @@
 //! Sparse linear least squares, the inner step of Gauss–Newton / Levenberg–Marquardt
 //! identification: rows of the measurement Jacobian (a few dozen non-zeros each: the geometric
-//! parameters plus two interpolation weights per table) are gathered as triplets, the normal
+//! parameters plus two interpolation weights per table) are gathered by rows, the normal
 //! matrix AᵀA is formed sparse and factored by faer's sparse Cholesky (with its fill-reducing
 //! ordering), which also yields covariance columns for standard errors.
 //! Damping (λ·I rows) and regularisation (smoothness rows) are ordinary extra rows.
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::matmul::sparse_sparse_matmul;
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Mat, Par, Side};
 
 /// Why a least-squares system could not be solved.
@@ -21,13 +21,24 @@ pub enum LsqError {
     BadIndex { index: usize, n: usize },
 }
 
-/// A sparse system `min ‖A x − b‖²` assembled row by row.
-#[derive(Debug, Clone, Default)]
+/// A sparse system `min ‖A x − b‖²` assembled row by row, stored by rows (CSR), which is
+/// exactly Aᵀ by columns: no triplet sorting when the normal matrix is formed.
+#[derive(Debug, Clone)]
 pub struct SparseLsq {
     n: usize,
-    rows: usize,
-    entries: Vec<Triplet<usize, usize, f64>>,
+    /// Start of each row in `cols`/`vals`, plus the end.
+    row_ptr: Vec<usize>,
+    cols: Vec<usize>,
+    vals: Vec<f64>,
     rhs: Vec<f64>,
+    /// Scratch for sorting and merging a row's entries.
+    scratch: Vec<(usize, f64)>,
+}
+
+impl Default for SparseLsq {
+    fn default() -> Self {
+        SparseLsq::new(0)
+    }
 }
 
 /// The solution and the factorisation of the normal matrix it came from.
@@ -44,7 +55,11 @@ impl SparseLsq {
     pub fn new(n: usize) -> Self {
         SparseLsq {
             n,
-            ..Default::default()
+            row_ptr: vec![0],
+            cols: Vec::new(),
+            vals: Vec::new(),
+            rhs: Vec::new(),
+            scratch: Vec::new(),
         }
     }
 
@@ -53,21 +68,36 @@ impl SparseLsq {
     }
 
     pub fn rows(&self) -> usize {
-        self.rows
+        self.rhs.len()
     }
 
-    /// Appends the row `Σ value·x[index] ≈ rhs` (zero entries are skipped).
+    /// Appends the row `Σ value·x[index] ≈ rhs` (zero entries are skipped, repeated indices
+    /// summed).
     pub fn push_row(&mut self, entries: &[(usize, f64)], rhs: f64) -> Result<(), LsqError> {
+        self.scratch.clear();
         for &(index, value) in entries {
             if index >= self.n {
                 return Err(LsqError::BadIndex { index, n: self.n });
             }
             if value != 0.0 {
-                self.entries.push(Triplet::new(self.rows, index, value));
+                self.scratch.push((index, value));
             }
         }
+        self.scratch.sort_unstable_by_key(|e| e.0);
+        let mut last = None;
+        for &(index, value) in &self.scratch {
+            if last == Some(index) {
+                if let Some(v) = self.vals.last_mut() {
+                    *v += value;
+                }
+            } else {
+                self.cols.push(index);
+                self.vals.push(value);
+                last = Some(index);
+            }
+        }
+        self.row_ptr.push(self.cols.len());
         self.rhs.push(rhs);
-        self.rows += 1;
         Ok(())
     }
 
@@ -85,33 +115,40 @@ impl SparseLsq {
     /// Solves the normal equations AᵀA x = Aᵀb by sparse Cholesky.
     pub fn solve(&self) -> Result<LsqSolution, LsqError> {
         let oom = |_| LsqError::OutOfMemory;
-        let a = SparseColMat::<usize, f64>::try_new_from_triplets(self.rows, self.n, &self.entries)
-            .map_err(|_| LsqError::OutOfMemory)?;
-        let transposed: Vec<Triplet<usize, usize, f64>> = self
-            .entries
-            .iter()
-            .map(|t| Triplet::new(t.col, t.row, t.val))
-            .collect();
-        let at = SparseColMat::<usize, f64>::try_new_from_triplets(self.n, self.rows, &transposed)
-            .map_err(|_| LsqError::OutOfMemory)?;
+        let rows = self.rows();
+        // The rows of A are the columns of Aᵀ (indices sorted and unique per row).
+        let symbolic = SymbolicSparseColMat::new_checked(
+            self.n,
+            rows,
+            self.row_ptr.clone(),
+            None,
+            self.cols.clone(),
+        );
+        let at = SparseColMat::<usize, f64>::new(symbolic, self.vals.clone());
+        let a = at.as_ref().transpose().to_col_major().map_err(oom)?;
         let ata = sparse_sparse_matmul(at.as_ref(), a.as_ref(), 1.0, Par::Seq).map_err(oom)?;
         let llt = ata
             .sp_cholesky(Side::Lower)
             .map_err(|_| LsqError::Singular)?;
         let mut atb = Mat::<f64>::zeros(self.n, 1);
-        for t in &self.entries {
-            atb[(t.col, 0)] += t.val * self.rhs[t.row];
+        for r in 0..rows {
+            for k in self.row_ptr[r]..self.row_ptr[r + 1] {
+                atb[(self.cols[k], 0)] += self.vals[k] * self.rhs[r];
+            }
         }
         llt.solve_in_place(atb.as_mut());
         let x: Vec<f64> = (0..self.n).map(|i| atb[(i, 0)]).collect();
         if x.iter().any(|v| !v.is_finite()) {
             return Err(LsqError::Singular);
         }
-        let mut residual = self.rhs.iter().map(|b| -b).collect::<Vec<f64>>();
-        for t in &self.entries {
-            residual[t.row] += t.val * x[t.col];
-        }
-        let rss = residual.iter().map(|r| r * r).sum();
+        let rss = (0..rows)
+            .map(|r| {
+                let ax: f64 = (self.row_ptr[r]..self.row_ptr[r + 1])
+                    .map(|k| self.vals[k] * x[self.cols[k]])
+                    .sum();
+                (ax - self.rhs[r]).powi(2)
+            })
+            .sum();
         Ok(LsqSolution {
             x,
             rss,

@@ -10,4 +10,6 @@ pub mod refine;
 pub mod register;
 pub mod setup;
 
-pub use refine::{refine, Fit, Free, IdentifyError, Progress, RefineOptions, Status, Warning};
+pub use refine::{
+    refine, Fit, Free, IdentifyError, Progress, ProgressFn, RefineOptions, Status, Warning,
+};

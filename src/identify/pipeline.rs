@@ -3,12 +3,10 @@
 //! registration, run the direct method when the data hold indexing tests and the model is
 //! fresh, refine globally, and wrap the result as a calibration with its provenance.
 
-use std::sync::Arc;
-
 use nalgebra::{Point3, Vector3};
 
 use super::direct::{direct_method, DirectResult};
-use super::refine::{refine, Fit, IdentifyError, Progress, RefineOptions};
+use super::refine::{refine, Fit, IdentifyError, ProgressFn, RefineOptions};
 use super::register::rigid_fit;
 use super::setup::{add_effects, GridChoice};
 use crate::calibration::{Calibration, KukaFrame, MeasurementFrame, Provenance};
@@ -43,7 +41,7 @@ pub struct Request {
     pub robot_name: Option<String>,
     /// Measurement files, for the provenance.
     pub sources: Vec<String>,
-    pub progress: Option<Arc<dyn Fn(&Progress) + Send + Sync>>,
+    pub progress: Option<ProgressFn>,
 }
 
 /// The outcome: the new calibration, the fit, and what the direct method found.
@@ -54,14 +52,6 @@ pub struct Identified {
     pub direct: Option<DirectResult>,
     /// The effects identified (canonical names).
     pub effects: Vec<String>,
-}
-
-/// Why a request cannot be carried out (before any fitting).
-pub fn effects_error(message: String) -> IdentifyError {
-    IdentifyError::UnknownEffect {
-        name: message,
-        available: "the effects of the contract table".into(),
-    }
 }
 
 /// Runs the identification (see the module documentation).
@@ -99,10 +89,10 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
                 }
             }
             model = kept;
-            add_effects(&mut model, &names, stops, &request.grid).map_err(effects_error)?;
+            add_effects(&mut model, &names, stops, &request.grid).map_err(IdentifyError::Setup)?;
         }
         Effects::Add(names) => {
-            add_effects(&mut model, &names, stops, &request.grid).map_err(effects_error)?;
+            add_effects(&mut model, &names, stops, &request.grid).map_err(IdentifyError::Setup)?;
         }
     }
     let effects: Vec<String> = model.effects().iter().map(|e| e.name()).collect();

@@ -49,6 +49,9 @@ pub enum Free {
     Mask(Vec<bool>),
 }
 
+/// A progress callback (called after every iteration).
+pub type ProgressFn = Arc<dyn Fn(&Progress) + Send + Sync>;
+
 /// Progress of the iteration, for a progress bar.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Progress {
@@ -79,7 +82,7 @@ pub struct RefineOptions {
     pub vif_limit: f64,
     /// Compute per-parameter standard errors (the inverse of the normal matrix).
     pub standard_errors: bool,
-    pub progress: Option<Arc<dyn Fn(&Progress) + Send + Sync>>,
+    pub progress: Option<ProgressFn>,
 }
 
 impl Default for RefineOptions {
@@ -130,6 +133,8 @@ pub enum IdentifyError {
     UnknownEffect { name: String, available: String },
     #[error("cannot start the tracker-frame registration: the measured points are collinear or fewer than three")]
     FrameStart,
+    #[error("cannot set up the effect: {0}")]
+    Setup(String),
     #[error("least squares failed: {0}")]
     Lsq(#[from] LsqError),
 }
@@ -137,7 +142,8 @@ pub enum IdentifyError {
 /// Something the user should know about the fit.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Warning {
-    /// No measured stop depends on this effect: it was held at its current values.
+    /// No measured stop depends on this effect (or this scalar parameter of an effect): it
+    /// was held at its current values.
     Unobserved { effect: String },
     /// These parameters are not determined by the data (VIF above the limit); they were held
     /// near their starting values. `correlated_with` are the parameters they trade off
@@ -224,8 +230,8 @@ pub struct Fit {
 }
 
 impl Fit {
-    /// Identified parameters by standard error relative to nothing: the `n` largest standard
-    /// errors per unit (names, value, unit), for reports.
+    /// The `n` identified parameters with the largest standard errors (name, standard error,
+    /// unit), for reports; mixed units, so most useful within one effect.
     pub fn largest_standard_errors(&self, n: usize) -> Vec<(String, f64, &'static str)> {
         let mut v: Vec<(String, f64, &'static str)> = self
             .standard_errors
@@ -420,9 +426,13 @@ pub fn refine(
                 }
             }
             None => {
-                for i in range {
+                let names = effect.parameters();
+                for (local, i) in range.enumerate() {
                     if free[i] && !observed(i) {
                         free[i] = false;
+                        warnings.push(Warning::Unobserved {
+                            effect: names[local].name.clone(),
+                        });
                     }
                 }
             }
@@ -581,7 +591,8 @@ pub fn refine(
         }
         // Columns of the inverse in blocks, the blocks in parallel.
         const CHUNK: usize = 128;
-        let blocks: Vec<(Vec<(usize, f64)>, Vec<(usize, Vec<f64>)>)> = (0..n_cols)
+        type Block = (Vec<(usize, f64)>, Vec<(usize, Vec<f64>)>);
+        let blocks: Vec<Block> = (0..n_cols)
             .step_by(CHUNK)
             .collect::<Vec<_>>()
             .into_par_iter()
@@ -914,9 +925,7 @@ impl Problem<'_> {
         let frame_start = self.flat_of.len();
         for (p, r) in self.points.iter().zip(residuals) {
             model.target_jacobian_into(&p.state, &mut scratch, &mut partials);
-            for k in 0..3 {
-                row[k].clear();
-            }
+            row.iter_mut().for_each(Vec::clear);
             for (i, d) in &partials {
                 if let Some(c) = self.col_of[*i] {
                     for k in 0..3 {

@@ -84,10 +84,11 @@ struct Columns {
 
 /// Parses measurement CSV bytes; `file` names the source in errors.
 pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError> {
+    // Split once: looking a line up per row must not rescan the file (quadratic time).
+    let raw_lines: Vec<&[u8]> = bytes.split(|&b| b == b'\n').collect();
     let line_of = |line: usize| -> String {
-        bytes
-            .split(|&b| b == b'\n')
-            .nth(line.saturating_sub(1))
+        raw_lines
+            .get(line.saturating_sub(1))
             .map(|l| {
                 String::from_utf8_lossy(l)
                     .trim_end_matches('\r')
