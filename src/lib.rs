@@ -9,11 +9,14 @@
 
 pub mod calibration;
 pub mod cli;
+pub mod compare;
+pub mod diagnose;
 pub mod diagnostic;
 pub mod identify;
 pub mod kinematics;
 pub mod krl;
 pub mod measure;
 pub mod model;
+pub mod report;
 pub mod simulate;
 pub mod stats;

@@ -7,7 +7,9 @@
 use clap::{Parser, Subcommand};
 
 pub mod check;
+pub mod compare;
 pub mod compensate;
+pub mod diagnose;
 pub mod identify;
 pub mod kin;
 pub mod simulate;
@@ -44,6 +46,10 @@ pub enum Command {
     Fk(kin::FkArgs),
     /// Axis angles of every IK branch of a flange pose, or the selected one.
     Ik(kin::IkArgs),
+    /// Compare a calibration's model with measurements: Table 1 statistics, HTML report.
+    Compare(compare::Args),
+    /// Which effect of the contract table the calibration is missing, with the evidence.
+    Diagnose(diagnose::Args),
     /// The virtual robot: measurement campaigns and pose lists on a truth model.
     Simulate(simulate::Args),
     /// Identify a calibration from laser-tracker measurements.
@@ -94,6 +100,8 @@ pub fn main() -> i32 {
         Command::Check(a) => check::run(a),
         Command::Fk(a) => kin::run_fk(a),
         Command::Ik(a) => kin::run_ik(a),
+        Command::Compare(a) => compare::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
     };

@@ -1,0 +1,157 @@
+//! `robopost compare -c CAL.json MEAS.csv... [--json] [--report DIR] [--against OTHER.json]`:
+//! the model's prediction against every measured row, the paper's Table 1 statistics overall
+//! and per test, optionally a second calibration side by side and an HTML report.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::{json, Value};
+
+use super::Exit;
+use crate::calibration::{self, Calibration};
+use crate::compare::{self, table, Row, Summary};
+use crate::measure::{self, Measurements};
+use crate::report::{self, ReportInput, ReportModel};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Calibration whose model is compared with the measurements.
+    #[arg(short = 'c', long = "cal")]
+    pub cal: PathBuf,
+    /// Measurement CSV files (laser tracker data), `-` for stdin.
+    #[arg(required = true)]
+    pub measurements: Vec<PathBuf>,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write an HTML report (index.html with inline SVG plots) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// A second calibration shown side by side (e.g. the one before adding an effect).
+    #[arg(long, value_name = "OTHER.json")]
+    pub against: Option<PathBuf>,
+}
+
+/// Loads calibrations and measurement files, printing errors; `None` means exit 2.
+pub(crate) fn load_inputs(
+    cals: &[&Path],
+    files: &[PathBuf],
+) -> Option<(Vec<Calibration>, Vec<Measurements>)> {
+    let mut loaded = Vec::new();
+    for path in cals {
+        match calibration::load(path) {
+            Ok(c) => loaded.push(c),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return None;
+            }
+        }
+    }
+    let mut data = Vec::new();
+    for path in files {
+        match measure::read_csv(path) {
+            Ok(m) => {
+                if !m.ignored_columns.is_empty() {
+                    eprintln!(
+                        "note: {}: ignored columns: {}",
+                        m.source,
+                        m.ignored_columns.join(", ")
+                    );
+                }
+                data.push(m);
+            }
+            Err(e) => {
+                eprint!("{}", e.render());
+                return None;
+            }
+        }
+    }
+    if data.iter().all(|m| m.measured().next().is_none()) {
+        eprintln!("error: the measurement files hold no measured row (x, y, z all empty)");
+        return None;
+    }
+    Some((loaded, data))
+}
+
+/// The file name a user recognises in a table column.
+pub(crate) fn short_name(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string())
+}
+
+fn summary_json(s: &Summary, path: &Path) -> Value {
+    let mut v = serde_json::to_value(s).unwrap_or(Value::Null);
+    if let Value::Object(map) = &mut v {
+        map.insert("calibration".into(), json!(path.display().to_string()));
+    }
+    v
+}
+
+pub fn run(args: Args) -> Exit {
+    let mut cal_paths = vec![args.cal.as_path()];
+    cal_paths.extend(args.against.as_deref());
+    let Some((cals, data)) = load_inputs(&cal_paths, &args.measurements) else {
+        return Exit::Usage;
+    };
+    let rows: Vec<Vec<Row>> = cals.iter().map(|c| compare::compare(c, &data)).collect();
+    let summaries: Vec<Summary> = rows.iter().map(|r| Summary::residuals(r)).collect();
+    let nominal = Summary::uncompensated(&rows[0]);
+
+    if let Some(dir) = &args.report {
+        let labels: Vec<String> = cal_paths.iter().map(|p| short_name(p)).collect();
+        let input = ReportInput {
+            models: cals
+                .iter()
+                .zip(&rows)
+                .zip(&labels)
+                .map(|((c, r), l)| ReportModel {
+                    label: l,
+                    model: c.model_ref(),
+                    rows: r,
+                })
+                .collect(),
+            sources: args
+                .measurements
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect(),
+        };
+        match report::write(dir, &input) {
+            Ok(path) => eprintln!("report: {}", path.display()),
+            Err(e) => {
+                eprintln!("error: cannot write the report in {}: {e}", dir.display());
+                return Exit::Usage;
+            }
+        }
+    }
+
+    if args.json {
+        let mut out = summary_json(&summaries[0], &args.cal);
+        if let Value::Object(map) = &mut out {
+            map.insert(
+                "nominal".into(),
+                serde_json::to_value(&nominal).unwrap_or(Value::Null),
+            );
+            if let (Some(path), Some(s)) = (&args.against, summaries.get(1)) {
+                map.insert("against".into(), summary_json(s, path));
+            }
+        }
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&out).unwrap_or_else(|_| "{}".into())
+        );
+    } else {
+        let mut models: Vec<(String, &Summary)> = vec![("nominal".into(), &nominal)];
+        // The baseline first, so ΔRMS on the calibration's line is the fall it brought.
+        if let (Some(path), Some(s)) = (&args.against, summaries.get(1)) {
+            models.push((short_name(path), s));
+        }
+        models.push((short_name(&args.cal), &summaries[0]));
+        let refs: Vec<(&str, &Summary)> = models.iter().map(|(l, s)| (l.as_str(), *s)).collect();
+        print!("{}", table::render(&refs));
+        println!(
+            "(residual = measured − predicted; `nominal` is the robot's error from the command)"
+        );
+    }
+    Exit::Success
+}

@@ -1,0 +1,102 @@
+//! Model versus measurement: for every measured row of a measurement file, where the
+//! calibrated model says the target is (`Model::target_position` at the row's command angles,
+//! rotation directions and time), where the nominal robot would put it, and where the laser
+//! tracker saw it (brought into the base frame when the calibration's measurements are in a
+//! tracker frame). The residual `measured − predicted` is what the model fails to explain; its
+//! statistics (the paper's Table 1, overall and per test) live in [`summary`], the quantities
+//! a residual may depend on (axis angles, gravity torques, time) in [`drivers`].
+
+pub mod axis_residual;
+pub mod drivers;
+pub mod summary;
+pub mod table;
+
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+
+use crate::calibration::{Calibration, MeasurementFrame};
+use crate::measure::Measurements;
+use crate::model::{AxisState, Model};
+
+pub use drivers::{Driver, DRIVERS};
+pub use summary::Summary;
+
+/// One measured row with the model's and the nominal robot's answer (mm, base frame).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// Label of the test or path (CSV column `test`).
+    pub test: String,
+    /// The measurement file and 1-based line the row came from.
+    pub source: String,
+    pub line: usize,
+    pub state: AxisState,
+    /// The tracker's position, in the base frame.
+    pub measured: Vector3<f64>,
+    /// The calibrated model's target position.
+    pub predicted: Vector3<f64>,
+    /// The nominal robot's target position (no error effects): what the program commanded.
+    pub nominal: Vector3<f64>,
+}
+
+impl Row {
+    /// What the model fails to explain: measured − predicted.
+    pub fn residual(&self) -> Vector3<f64> {
+        self.measured - self.predicted
+    }
+    /// The robot's error from the command: measured − nominal (the paper's Fig. 9a).
+    pub fn measured_error(&self) -> Vector3<f64> {
+        self.measured - self.nominal
+    }
+    /// The error the model predicts: predicted − nominal (the paper's Fig. 9b).
+    pub fn predicted_error(&self) -> Vector3<f64> {
+        self.predicted - self.nominal
+    }
+}
+
+/// A measured position in the base frame, given the frame the calibration says it is in.
+pub fn to_base(frame: &MeasurementFrame, measured: &Vector3<f64>) -> Vector3<f64> {
+    match frame {
+        MeasurementFrame::Base => *measured,
+        MeasurementFrame::Tracker(f) => (f.to_isometry() * Point3::from(*measured)).coords,
+    }
+}
+
+/// Every measured row of `files`, in file order, predicted by `model` (rows in parallel).
+pub fn rows_of(model: &Model, frame: &MeasurementFrame, files: &[Measurements]) -> Vec<Row> {
+    let nominal = Model::new(model.robot, model.payload, model.target_mm);
+    let measured: Vec<_> = files
+        .iter()
+        .flat_map(|m| {
+            m.measured()
+                .map(move |(stop, p)| (m.source.as_str(), stop, p))
+        })
+        .collect();
+    measured
+        .par_iter()
+        .map(|&(source, stop, p)| Row {
+            test: stop.test.clone(),
+            source: source.to_string(),
+            line: stop.line,
+            state: stop.state,
+            measured: to_base(frame, &p),
+            predicted: model.target_position(&stop.state),
+            nominal: nominal.target_position(&stop.state),
+        })
+        .collect()
+}
+
+/// The rows of a calibration against measurement files.
+pub fn compare(cal: &Calibration, files: &[Measurements]) -> Vec<Row> {
+    rows_of(cal.model_ref(), &cal.frame, files)
+}
+
+/// Test labels in the order they first appear.
+pub fn test_order(rows: &[Row]) -> Vec<String> {
+    let mut order: Vec<String> = Vec::new();
+    for r in rows {
+        if order.last() != Some(&r.test) && !order.contains(&r.test) {
+            order.push(r.test.clone());
+        }
+    }
+    order
+}

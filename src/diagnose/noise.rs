@@ -1,0 +1,209 @@
+//! The noise floor: the RMS 3-D residual a perfect model would still leave, because the laser
+//! tracker itself is not exact. Estimated from repeated points when the data has enough of
+//! them (the same command angles and rotation directions, measured within a few minutes so
+//! that thermal drift does not count as noise), otherwise from the tracker's specification
+//! (Leica AT960: MPE ±(15 µm + 6 µm/m) of a measured point, `U_xyz`; the typical 3-D error is
+//! about half of it).
+//!
+//! Bidirectional points are not used: on indexing data a map and a backlash table fit every
+//! forward/backward pair exactly along the motion, so their residuals understate the noise,
+//! and without backlash in the model they measure backlash, not noise.
+
+use std::collections::HashMap;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::calibration::MeasurementFrame;
+use crate::compare::Row;
+
+/// Tracker MPE: constant part (µm) and part per metre of distance (µm/m).
+pub const MPE_UM: f64 = 15.0;
+pub const MPE_UM_PER_M: f64 = 6.0;
+/// The typical error is about half of the MPE (MODEL.md).
+pub const TYPICAL_FRACTION: f64 = 0.5;
+/// Where the tracker is assumed to stand when the data do not say: a typical set-up 3 m in
+/// front of the robot at the height of the A2 axis.
+pub const ASSUMED_STATION_MM: [f64; 3] = [3000.0, 0.0, 800.0];
+/// Repeats further apart than this (s) are not compared: drift would count as noise.
+const REPEAT_WINDOW_S: f64 = 600.0;
+/// Degrees of freedom of the repeats needed before they are trusted over the specification.
+const MIN_REPEAT_DOF: usize = 10;
+
+/// Where the noise floor came from.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum NoiseSource {
+    /// The scatter of repeated points (degrees of freedom of the pooled estimate).
+    Repeats { dof: usize },
+    /// The tracker specification at the mean distance of the points from the tracker.
+    TrackerSpec {
+        mean_distance_m: f64,
+        station_assumed: bool,
+    },
+}
+
+impl NoiseSource {
+    /// In words, for the verdict.
+    pub fn describe(&self) -> String {
+        match self {
+            NoiseSource::Repeats { dof } => format!("from repeated points, {dof} degrees of freedom"),
+            NoiseSource::TrackerSpec {
+                mean_distance_m,
+                station_assumed,
+            } => format!(
+                "tracker specification, typical half of the AT960 MPE ±(15 µm + 6 µm/m) at {:.1} m{}",
+                mean_distance_m,
+                if *station_assumed {
+                    " from a tracker assumed 3 m in front of the robot"
+                } else {
+                    ""
+                }
+            ),
+        }
+    }
+}
+
+/// The noise floor as an RMS of the 3-D residual, µm.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NoiseFloor {
+    pub rms_um: f64,
+    pub source: NoiseSource,
+}
+
+/// Estimates the noise floor of `rows` measured in `frame`.
+pub fn estimate(rows: &[Row], frame: &MeasurementFrame) -> NoiseFloor {
+    if let Some((rms_um, dof)) = from_repeats(rows) {
+        return NoiseFloor {
+            rms_um,
+            source: NoiseSource::Repeats { dof },
+        };
+    }
+    let (station, station_assumed) = match frame {
+        // The tracker frame's origin is the tracker head.
+        MeasurementFrame::Tracker(f) => (f.to_isometry().translation.vector, false),
+        MeasurementFrame::Base => (Vector3::from(ASSUMED_STATION_MM), true),
+    };
+    from_spec(rows, &station, station_assumed)
+}
+
+/// Spec noise: the typical 3-D error, half the MPE at each point's distance from the
+/// tracker, as an RMS over the points.
+pub fn from_spec(rows: &[Row], station: &Vector3<f64>, station_assumed: bool) -> NoiseFloor {
+    let n = rows.len().max(1) as f64;
+    let (mut var, mut dist) = (0.0, 0.0);
+    for r in rows {
+        let d_m = (r.measured - station).norm() / 1000.0;
+        let typical = TYPICAL_FRACTION * (MPE_UM + MPE_UM_PER_M * d_m);
+        var += typical * typical;
+        dist += d_m;
+    }
+    NoiseFloor {
+        rms_um: (var / n).sqrt(),
+        source: NoiseSource::TrackerSpec {
+            mean_distance_m: dist / n,
+            station_assumed,
+        },
+    }
+}
+
+/// Pooled within-group scatter of repeated points: `√(Σ|r − r̄_g|² / Σ(n_g − 1))` in µm (a 3-D
+/// RMS), with its degrees of freedom; `None` when there are too few repeats.
+fn from_repeats(rows: &[Row]) -> Option<(f64, usize)> {
+    let key = |r: &Row| {
+        let angles = r.state.axes_deg.map(|a| (a * 1e6).round() as i64);
+        let dirs = r.state.directions.map(|d| d.sign() as i8);
+        (angles, dirs)
+    };
+    let mut groups: HashMap<_, Vec<&Row>> = HashMap::new();
+    for r in rows {
+        groups.entry(key(r)).or_default().push(r);
+    }
+    let (mut ss, mut dof) = (0.0, 0usize);
+    for group in groups.values() {
+        // Split a group where consecutive measurements are far apart in time.
+        let mut sorted = group.clone();
+        sorted.sort_by(|a, b| a.state.time_s.total_cmp(&b.state.time_s));
+        for cluster in sorted.chunk_by(|a, b| b.state.time_s - a.state.time_s <= REPEAT_WINDOW_S) {
+            if cluster.len() < 2 {
+                continue;
+            }
+            let mean: Vector3<f64> =
+                cluster.iter().map(|r| r.measured).sum::<Vector3<f64>>() / cluster.len() as f64;
+            ss += cluster
+                .iter()
+                .map(|r| (r.measured - mean).norm_squared())
+                .sum::<f64>();
+            dof += cluster.len() - 1;
+        }
+    }
+    (dof >= MIN_REPEAT_DOF).then(|| ((ss / dof as f64).sqrt() * 1000.0, dof))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::AxisState;
+
+    fn row(axes: [f64; 6], t: f64, measured: Vector3<f64>) -> Row {
+        Row {
+            test: "t".into(),
+            source: "s".into(),
+            line: 0,
+            state: AxisState {
+                time_s: t,
+                ..AxisState::new(axes)
+            },
+            measured,
+            predicted: measured,
+            nominal: measured,
+        }
+    }
+
+    #[test]
+    fn spec_floor_by_hand() {
+        // Points 2 m and 1 m from the tracker: typical errors ½(15 + 12) = 13.5 µm and
+        // ½(15 + 6) = 10.5 µm; RMS √((13.5² + 10.5²)/2).
+        let station = Vector3::new(3000.0, 0.0, 800.0);
+        let rows = [
+            row([0.0; 6], 0.0, Vector3::new(1000.0, 0.0, 800.0)),
+            row([0.0; 6], 0.0, Vector3::new(3000.0, 0.0, 1800.0)),
+        ];
+        let f = from_spec(&rows, &station, true);
+        assert!((f.rms_um - ((13.5f64.powi(2) + 10.5f64.powi(2)) / 2.0).sqrt()).abs() < 1e-9);
+        assert_eq!(
+            f.source,
+            NoiseSource::TrackerSpec {
+                mean_distance_m: 1.5,
+                station_assumed: true
+            }
+        );
+    }
+
+    #[test]
+    fn repeats_give_the_pooled_scatter_and_ignore_far_apart_times() {
+        // 12 pairs of repeats, each pair differing by (0.02, 0, 0) mm: per pair
+        // Σ|r − r̄|² = 2·(0.01)² mm², one degree of freedom → RMS 0.01·√2 mm = 14.142 µm.
+        let mut rows = Vec::new();
+        for k in 0..12 {
+            let axes = [k as f64, 0.0, 0.0, 0.0, 0.0, 0.0];
+            rows.push(row(axes, 10.0 * k as f64, Vector3::new(1.0, 2.0, 3.0)));
+            rows.push(row(
+                axes,
+                10.0 * k as f64 + 5.0,
+                Vector3::new(1.02, 2.0, 3.0),
+            ));
+            // A third visit an hour later (drift) is not a repeat of the first two.
+            rows.push(row(
+                axes,
+                3600.0 + 10.0 * k as f64,
+                Vector3::new(1.5, 2.0, 3.0),
+            ));
+        }
+        let (rms, dof) = from_repeats(&rows).unwrap();
+        assert_eq!(dof, 12);
+        assert!((rms - 0.02 / 2f64.sqrt() * 1000.0).abs() < 1e-9, "{rms}");
+        // Too few repeats: no estimate.
+        assert!(from_repeats(&rows[..9]).is_none());
+    }
+}

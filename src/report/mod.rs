@@ -1,0 +1,57 @@
+//! The HTML report of `robopost compare --report DIR`: one self-contained page
+//! (`DIR/index.html`, inline SVG, no script, no external file) that shows a user where the
+//! model fails — the paper's Table 1 per test, the tests and points the model explains worst,
+//! its Figs. 9–11, per indexing test the residual over the swept angle by rotation direction,
+//! and the residual against every candidate driver. Written atomically.
+
+pub mod figures;
+mod page;
+pub mod plot;
+
+use std::path::{Path, PathBuf};
+
+use crate::compare::Row;
+use crate::model::Model;
+
+/// One model in the report with its rows (all models over the same measured rows, in order).
+#[derive(Clone, Copy, Debug)]
+pub struct ReportModel<'a> {
+    /// How the page names it (the calibration's file name).
+    pub label: &'a str,
+    pub model: &'a Model,
+    pub rows: &'a [Row],
+}
+
+/// What the report shows: the main calibration first, then the one it is compared against.
+#[derive(Clone, Debug)]
+pub struct ReportInput<'a> {
+    pub models: Vec<ReportModel<'a>>,
+    /// The measurement files, as the user named them.
+    pub sources: Vec<String>,
+}
+
+/// The page as a string.
+pub fn html(input: &ReportInput) -> String {
+    page::render(input)
+}
+
+/// Writes `dir/index.html` atomically (creating `dir`) and returns its path.
+pub fn write(dir: &Path, input: &ReportInput) -> std::io::Result<PathBuf> {
+    if input.models.is_empty() {
+        return Err(std::io::Error::other("no model to report on"));
+    }
+    let text = html(input);
+    std::fs::create_dir_all(dir)?;
+    let path = dir.join("index.html");
+    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+    // A temporary file is private (0600); a report is for reading, like any written file.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
+    }
+    std::io::Write::write_all(&mut tmp, text.as_bytes())?;
+    tmp.persist(&path).map_err(|e| e.error)?;
+    Ok(path)
+}
