@@ -9,6 +9,7 @@
 
 pub mod calibration;
 pub mod cli;
+pub mod compensate;
 pub mod diagnostic;
 pub mod identify;
 pub mod kinematics;

@@ -1,0 +1,452 @@
+//! Compensation of a sequence of targets with the rotation directions of the compensated
+//! motion.
+//!
+//! Directions depend on the previous target, so the work runs in three passes: (1) the
+//! nominal directions from the simulated nominal motion (sequential, cheap); (2) every target
+//! solved with its nominal directions, in parallel (rayon); (3) a sequential re-check of the
+//! directions of the *compensated* motion. An axis whose compensated motion reverses the
+//! assumed direction is re-solved on the other backlash branch; when that flips it back again
+//! (the axis moves less than the correction difference, e.g. A1 on a vertical segment: the
+//! iteration would oscillate between branches with no consistent solution) the target is
+//! resolved deliberately by the candidate predicting the smaller error: hold the axis still
+//! (its direction then stays the previous one, consistent by construction; the other axes
+//! solve the pose in the least-squares sense) or accept one branch and evaluate it with the
+//! direction its motion really has.
+//!
+//! The compensated motion's direction of axis i on arrival at target k is the sign of
+//! `v = arrival_i + (c_k,i − c_k−1,i)`, `c = command − nominal`: exact for PTP (interpolated
+//! linearly in axis space, `arrival` is the nominal step) and to first order in the
+//! correction for LIN/CIRC (whose joint path moves by the interpolated correction).
+
+use nalgebra::Vector6;
+use rayon::prelude::*;
+
+use super::pose::{self, Frame};
+use super::solve::{self, weighted_norm, Method, Problem, SolveError};
+use super::status::status_turn;
+use crate::model::{Direction, Model};
+
+/// An axis that moves less than this (deg) between two targets is at rest: it keeps its
+/// direction. Far below any backlash, above the IK's rounding.
+pub const REST_DEG: f64 = 1e-7;
+
+/// Status bits a target must keep after compensation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Keep {
+    /// The configuration S (Cartesian targets; the controller's IK chooses the branch by it).
+    pub s: Option<u8>,
+    /// The turn T (PTP Cartesian targets with an explicit T: the controller picks ±360° by it).
+    pub t: Option<u8>,
+}
+
+/// One target of the simulated program.
+#[derive(Clone, Copy, Debug)]
+pub struct Target {
+    /// The programmed TCP pose in the robot base frame.
+    pub goal: Frame,
+    /// Index of the tool (flange → TCP) in the tool table passed alongside.
+    pub tool: u32,
+    /// The nominal command axes (what the controller computes for the programmed target).
+    pub nominal_axes: [f64; 6],
+    /// Nominal motion of each axis on arrival, deg per segment (the step for PTP, the arrival
+    /// velocity `dq/du` at the end for LIN/CIRC; 0 when the axis rests); `None` when the
+    /// motion comes from an unknown place (first motion, unresolved target before).
+    pub arrival: Option<[f64; 6]>,
+    /// Whether to compensate (false: the target still moves the robot, its command stays).
+    pub compensate: bool,
+    pub keep: Keep,
+}
+
+/// How a target's directions were settled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Resolution {
+    /// The nominal directions held for the compensated motion.
+    #[default]
+    Consistent,
+    /// Some axis's direction came out reversed; re-solved on that branch, which is consistent.
+    Rebranched,
+    /// Oscillation between branches: these axes were held still.
+    Held([bool; 6]),
+    /// Oscillation between branches: one branch accepted (it predicted the smaller error).
+    Branch,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum TargetError {
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    #[error("the compensated A{axis} = {value:.4}° leaves its limits [{lo}, {hi}]")]
+    OutOfLimits {
+        axis: u8,
+        value: f64,
+        lo: f64,
+        hi: f64,
+    },
+    #[error("compensation changes the configuration: S {s_from} T {t_from} → S {s_to} T {t_to}")]
+    Configuration {
+        s_from: u8,
+        t_from: u8,
+        s_to: u8,
+        t_to: u8,
+    },
+}
+
+/// The result for one target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Outcome {
+    /// The command axes (compensated, or nominal when not compensated or rejected).
+    pub axes_deg: [f64; 6],
+    /// Directions of the commanded motion on arrival.
+    pub directions: [Direction; 6],
+    /// Directions of the nominal motion on arrival.
+    pub nominal_directions: [Direction; 6],
+    /// Predicted TCP error of the uncompensated command `[mm; rad]`.
+    pub before: Vector6<f64>,
+    /// Predicted TCP error at the command.
+    pub residual: Vector6<f64>,
+    pub iterations: u32,
+    pub resolution: Resolution,
+    pub error: Option<TargetError>,
+    /// Whether the command differs from the nominal one.
+    pub changed: bool,
+}
+
+impl Outcome {
+    /// Axes whose compensated direction differs from the nominal one.
+    pub fn flipped(&self) -> [bool; 6] {
+        std::array::from_fn(|i| self.directions[i] != self.nominal_directions[i])
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Options {
+    pub method: Method,
+    /// Solve the targets on rayon's pool (else on the calling thread).
+    pub parallel: bool,
+}
+
+/// The direction state after arriving with motion `v` from state `before`.
+fn arrive(before: &[Direction; 6], v: Option<[f64; 6]>) -> [Direction; 6] {
+    match v {
+        None => [Direction::Unknown; 6],
+        Some(v) => std::array::from_fn(|i| {
+            if v[i].abs() < REST_DEG {
+                before[i]
+            } else {
+                Direction::from_sign(if v[i] > 0.0 { 1 } else { -1 })
+            }
+        }),
+    }
+}
+
+/// Directions of the nominal motion at every target, from the directions before the first.
+pub fn nominal_directions(targets: &[Target], start: [Direction; 6]) -> Vec<[Direction; 6]> {
+    let mut state = start;
+    targets
+        .iter()
+        .map(|t| {
+            state = arrive(&state, t.arrival);
+            state
+        })
+        .collect()
+}
+
+/// Compensates `targets` (tools indexed by `Target::tool`), directions before the first
+/// target given by `start`.
+pub fn compensate(
+    model: &Model,
+    tools: &[Frame],
+    targets: &[Target],
+    start: [Direction; 6],
+    options: &Options,
+) -> Vec<Outcome> {
+    let nominal = nominal_directions(targets, start);
+    let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
+    let mut outcomes: Vec<Outcome> = if options.parallel {
+        (0..targets.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(first)
+            .collect()
+    } else {
+        (0..targets.len()).map(first).collect()
+    };
+    recheck(model, tools, targets, start, &mut outcomes, options.method);
+    outcomes
+}
+
+fn tcp_error(
+    model: &Model,
+    tool: &Frame,
+    axes: &[f64; 6],
+    dirs: &[Direction; 6],
+    goal: &Frame,
+) -> Vector6<f64> {
+    pose::error(&solve::Chain::Model(model).tcp(axes, dirs, tool), goal)
+}
+
+/// Solves one target with given directions and holds, checking limits and configuration.
+fn solve_target(
+    model: &Model,
+    tool: &Frame,
+    target: &Target,
+    directions: &[Direction; 6],
+    start: [f64; 6],
+    hold: [bool; 6],
+    method: Method,
+) -> Result<solve::Solution, TargetError> {
+    let problem = Problem {
+        goal: target.goal,
+        tool,
+        start,
+        directions: *directions,
+        hold,
+    };
+    let sol = solve::solve(model, &problem, method)?;
+    let robot = &model.robot;
+    for (n, (a, [lo, hi])) in sol.axes_deg.iter().zip(robot.limits_deg.iter()).enumerate() {
+        if a < lo || a > hi {
+            return Err(TargetError::OutOfLimits {
+                axis: n as u8 + 1,
+                value: *a,
+                lo: *lo,
+                hi: *hi,
+            });
+        }
+    }
+    if target.keep.s.is_some() || target.keep.t.is_some() {
+        let (s0, t0) = status_turn(robot, &target.nominal_axes);
+        let (s1, t1) = status_turn(robot, &sol.axes_deg);
+        let s_bad = target.keep.s.is_some() && s0 != s1;
+        let t_bad = target.keep.t.is_some() && t0 != t1;
+        if s_bad || t_bad {
+            return Err(TargetError::Configuration {
+                s_from: s0,
+                t_from: t0,
+                s_to: s1,
+                t_to: t1,
+            });
+        }
+    }
+    Ok(sol)
+}
+
+fn first_pass(
+    model: &Model,
+    tools: &[Frame],
+    target: &Target,
+    directions: &[Direction; 6],
+    method: Method,
+) -> Outcome {
+    let tool = &tools[target.tool as usize];
+    let before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
+    let mut out = Outcome {
+        axes_deg: target.nominal_axes,
+        directions: *directions,
+        nominal_directions: *directions,
+        before,
+        residual: before,
+        iterations: 0,
+        resolution: Resolution::Consistent,
+        error: None,
+        changed: false,
+    };
+    if !target.compensate {
+        return out;
+    }
+    match solve_target(
+        model,
+        tool,
+        target,
+        directions,
+        target.nominal_axes,
+        [false; 6],
+        method,
+    ) {
+        Ok(sol) => {
+            out.changed = sol.axes_deg != target.nominal_axes;
+            out.axes_deg = sol.axes_deg;
+            out.residual = sol.residual;
+            out.iterations = sol.iterations;
+        }
+        Err(e) => out.error = Some(e),
+    }
+    out
+}
+
+/// The compensated motion's direction state on arrival at `target` commanded at `axes`.
+fn motion_directions(
+    target: &Target,
+    axes: &[f64; 6],
+    previous: Option<(&Target, &[f64; 6])>,
+    before: &[Direction; 6],
+) -> [Direction; 6] {
+    let v = match (target.arrival, previous) {
+        (Some(arrival), Some((pt, pa))) => Some(std::array::from_fn(|i| {
+            let c = axes[i] - target.nominal_axes[i];
+            let c_prev = pa[i] - pt.nominal_axes[i];
+            arrival[i] + (c - c_prev)
+        })),
+        (arrival, _) => arrival,
+    };
+    arrive(before, v)
+}
+
+/// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
+/// they were solved with.
+fn recheck(
+    model: &Model,
+    tools: &[Frame],
+    targets: &[Target],
+    start: [Direction; 6],
+    outcomes: &mut [Outcome],
+    method: Method,
+) {
+    let mut state = start;
+    for k in 0..targets.len() {
+        let target = &targets[k];
+        let tool = &tools[target.tool as usize];
+        let previous_axes = k.checked_sub(1).map(|p| outcomes[p].axes_deg);
+        let previous = previous_axes.as_ref().map(|a| (&targets[k - 1], a));
+        let fixed = !target.compensate || outcomes[k].error.is_some();
+        // The nominal motion's signs, but resting axes keep the *compensated* state: after an
+        // earlier flip this differs from the nominal directions the first pass assumed.
+        let expected = arrive(&state, target.arrival);
+        if expected != outcomes[k].directions && !fixed {
+            let mut o = first_pass(model, tools, target, &expected, method);
+            o.nominal_directions = outcomes[k].nominal_directions;
+            outcomes[k] = o;
+        }
+        let actual = motion_directions(target, &outcomes[k].axes_deg, previous, &state);
+        if actual != outcomes[k].directions {
+            outcomes[k] = if fixed || outcomes[k].error.is_some() {
+                // The command is the nominal one: only the prediction changes.
+                let mut o = outcomes[k];
+                o.directions = actual;
+                o.before = tcp_error(model, tool, &target.nominal_axes, &actual, &target.goal);
+                o.residual = o.before;
+                o
+            } else {
+                resettle(
+                    model,
+                    tool,
+                    target,
+                    previous,
+                    &state,
+                    &outcomes[k],
+                    actual,
+                    method,
+                )
+            };
+        }
+        state = outcomes[k].directions;
+    }
+}
+
+/// Candidate command of a target with its true directions and predicted error.
+struct Candidate {
+    axes: [f64; 6],
+    directions: [Direction; 6],
+    error: Vector6<f64>,
+    iterations: u32,
+    resolution: Resolution,
+}
+
+/// Re-solves target k whose compensated motion arrives with `actual` directions instead of the
+/// ones it was solved with.
+#[allow(clippy::too_many_arguments)]
+fn resettle(
+    model: &Model,
+    tool: &Frame,
+    target: &Target,
+    previous: Option<(&Target, &[f64; 6])>,
+    state: &[Direction; 6],
+    first: &Outcome,
+    actual: [Direction; 6],
+    method: Method,
+) -> Outcome {
+    let mut out = *first;
+    // The first solution, evaluated with the direction its motion really has.
+    let mut candidates = vec![Candidate {
+        axes: first.axes_deg,
+        directions: actual,
+        error: tcp_error(model, tool, &first.axes_deg, &actual, &target.goal),
+        iterations: first.iterations,
+        resolution: Resolution::Branch,
+    }];
+    let mut oscillating = [false; 6];
+    match solve_target(
+        model,
+        tool,
+        target,
+        &actual,
+        first.axes_deg,
+        [false; 6],
+        method,
+    ) {
+        Ok(sol) => {
+            let again = motion_directions(target, &sol.axes_deg, previous, state);
+            if again == actual {
+                out.axes_deg = sol.axes_deg;
+                out.directions = actual;
+                out.residual = sol.residual;
+                out.iterations += sol.iterations;
+                out.resolution = Resolution::Rebranched;
+                out.changed = sol.axes_deg != target.nominal_axes;
+                return out;
+            }
+            for i in 0..6 {
+                oscillating[i] = again[i] != actual[i];
+            }
+            candidates.push(Candidate {
+                axes: sol.axes_deg,
+                directions: again,
+                error: tcp_error(model, tool, &sol.axes_deg, &again, &target.goal),
+                iterations: sol.iterations,
+                resolution: Resolution::Branch,
+            });
+        }
+        Err(_) => {
+            for i in 0..6 {
+                oscillating[i] = actual[i] != first.directions[i];
+            }
+        }
+    }
+    // Hold the oscillating axes still: zero motion on arrival, so they keep `state`.
+    if let Some(arrival) = target.arrival.filter(|_| oscillating.iter().any(|&o| o)) {
+        let mut start = first.axes_deg;
+        for i in 0..6 {
+            if oscillating[i] {
+                let c_prev = previous.map_or(0.0, |(pt, pa)| pa[i] - pt.nominal_axes[i]);
+                start[i] = target.nominal_axes[i] - arrival[i] + c_prev;
+            }
+        }
+        let mut dirs = actual;
+        for i in 0..6 {
+            if oscillating[i] {
+                dirs[i] = state[i];
+            }
+        }
+        if let Ok(sol) = solve_target(model, tool, target, &dirs, start, oscillating, method) {
+            let really = motion_directions(target, &sol.axes_deg, previous, state);
+            candidates.push(Candidate {
+                axes: sol.axes_deg,
+                directions: really,
+                error: tcp_error(model, tool, &sol.axes_deg, &really, &target.goal),
+                iterations: sol.iterations,
+                resolution: Resolution::Held(oscillating),
+            });
+        }
+    }
+    let best = candidates
+        .into_iter()
+        .min_by(|a, b| weighted_norm(&a.error).total_cmp(&weighted_norm(&b.error)))
+        .expect("the first solution is always a candidate");
+    out.axes_deg = best.axes;
+    out.directions = best.directions;
+    out.residual = best.error;
+    out.iterations += best.iterations;
+    out.resolution = best.resolution;
+    out.changed = best.axes != target.nominal_axes;
+    out
+}
