@@ -1,8 +1,18 @@
 //! Nominal kinematics of a KUKA six-axis arm as the controller sees it: poses in the KUKA
 //! X/Y/Z/A/B/C convention, the robot description as plain data, forward kinematics (a pure
-//! function) and closed-form inverse kinematics with the S/T configuration bits. Knows nothing
-//! of KRL syntax nor of error models.
+//! function), the S/T configuration bits, singularity distances, and closed-form inverse
+//! kinematics with every branch and the controller's ways of choosing one. Knows nothing of
+//! KRL syntax nor of error models.
 
+pub mod fk;
+pub mod ik;
+pub mod pose;
 pub mod robot;
 
+pub use fk::{
+    flange_frame, forward, singularity, singularity_distances, singularity_with, status_turn,
+    wrist_point, Singularity, SingularityKind, SingularityThresholds,
+};
+pub use ik::{inverse, inverse_all, inverse_all_into, IkError, IkSolution, Select};
+pub use pose::{abc_to_matrix, matrix_to_abc, E6Axis, E6Pos, Pose};
 pub use robot::{Gravity, Links, Payload, RobotDescription};
