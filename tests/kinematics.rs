@@ -91,10 +91,14 @@ mod reference {
     fn the_first_two_poses_are_exact_by_hand() {
         // HOME: upper arm up, forearm forward 145 above A3, flange 170 beyond the wrist.
         let home = forward(&robot(), &POSES[0].0).translation.vector;
-        assert!((home - Vector3::new(350.0 + 820.0 + 170.0, 0.0, 815.0 + 850.0 + 145.0)).norm() < 1e-12);
+        assert!(
+            (home - Vector3::new(350.0 + 820.0 + 170.0, 0.0, 815.0 + 850.0 + 145.0)).norm() < 1e-12
+        );
         // Zero: both arms forward.
         let zero = forward(&robot(), &POSES[1].0).translation.vector;
-        assert!((zero - Vector3::new(350.0 + 850.0 + 820.0 + 170.0, 0.0, 815.0 + 145.0)).norm() < 1e-12);
+        assert!(
+            (zero - Vector3::new(350.0 + 850.0 + 820.0 + 170.0, 0.0, 815.0 + 145.0)).norm() < 1e-12
+        );
     }
 
     #[test]
@@ -103,7 +107,8 @@ mod reference {
             let flange = forward(&robot(), &axes);
             if singularity_distances(&robot(), &axes)[0].distance < 1e-6 {
                 // HOME and zero have A5 = 0: resolved by keeping A4.
-                let sol = inverse(&robot(), &flange, Select::StatusNearest { s, near: axes }).unwrap();
+                let sol =
+                    inverse(&robot(), &flange, Select::StatusNearest { s, near: axes }).unwrap();
                 assert!(close_axes(&sol.axes_deg, &axes, 1e-9), "{axes:?}: {sol:?}");
                 continue;
             }
@@ -183,7 +188,11 @@ mod forward_kinematics {
             let (s1, c1) = axes[0].to_radians().sin_cos();
             // A1 turns about −Z: the A1 frame's x axis is (cos A1, −sin A1, 0).
             assert!((w.x * c1 - w.y * s1 - x).abs() < 1e-9, "{axes:?}");
-            assert_eq!(status_turn(&robot(), &axes).0 & 1, u8::from(x < 0.0), "{axes:?}");
+            assert_eq!(
+                status_turn(&robot(), &axes).0 & 1,
+                u8::from(x < 0.0),
+                "{axes:?}"
+            );
         }
         assert!(x_by_hand(-130.0, 30.0) < 0.0, "reaching back over the base");
     }
@@ -291,7 +300,12 @@ mod inverse_kinematics {
         for w in path.windows(2) {
             let flange = forward(&r, &w[1]);
             let sol = inverse(&r, &flange, Select::Nearest(w[0])).unwrap();
-            assert!(close_axes(&sol.axes_deg, &w[1], 1e-8), "{:?} vs {:?}", sol.axes_deg, w[1]);
+            assert!(
+                close_axes(&sol.axes_deg, &w[1], 1e-8),
+                "{:?} vs {:?}",
+                sol.axes_deg,
+                w[1]
+            );
             let kept = inverse(&r, &flange, Select::StatusNearest { s, near: w[0] }).unwrap();
             assert_eq!(kept.axes_deg, sol.axes_deg);
             let by_status = inverse(&r, &flange, Select::Status { s, t: None }).unwrap();
@@ -315,7 +329,12 @@ mod inverse_kinematics {
         for w in path.windows(2) {
             let flange = forward(&r, &w[1]);
             let sol = inverse(&r, &flange, Select::Nearest(w[0])).unwrap();
-            assert!(close_axes(&sol.axes_deg, &w[1], 1e-8), "{:?} vs {:?}", sol.axes_deg, w[1]);
+            assert!(
+                close_axes(&sol.axes_deg, &w[1], 1e-8),
+                "{:?} vs {:?}",
+                sol.axes_deg,
+                w[1]
+            );
             let kept = inverse(&r, &flange, Select::StatusNearest { s: s0, near: w[0] }).unwrap();
             assert!(gap(&forward(&r, &kept.axes_deg), &flange).0 < 1e-8);
             assert_eq!(kept.s, s0);
@@ -341,7 +360,10 @@ mod inverse_kinematics {
         }
         // A4 + A6 is what the pose fixes (both turn about the same line): 55°.
         let previous = [10.5, -80.0, 100.0, 50.0, 3.0, 0.0];
-        for select in [Select::Nearest(previous), Select::StatusNearest { s, near: previous }] {
+        for select in [
+            Select::Nearest(previous),
+            Select::StatusNearest { s, near: previous },
+        ] {
             let sol = inverse(&r, &flange, select).unwrap();
             assert_eq!(sol.axes_deg[3], 50.0, "A4 kept");
             assert!(sol.axes_deg[4].abs() < 1e-7);
@@ -351,7 +373,9 @@ mod inverse_kinematics {
         }
         // inverse_all leaves the undetermined configuration out and keeps the others.
         let all = inverse_all(&r, &flange).unwrap();
-        assert!(!all.iter().any(|x| x.s & 3 == s & 3 && x.axes_deg[4].abs() < 1e-6));
+        assert!(!all
+            .iter()
+            .any(|x| x.s & 3 == s & 3 && x.axes_deg[4].abs() < 1e-6));
         for x in &all {
             assert_same_pose(&forward(&r, &x.axes_deg), &flange, 1e-8, "other branch");
         }
@@ -369,7 +393,12 @@ mod inverse_kinematics {
             }) => assert!(distance_deg_or_mm < 1e-9),
             other => panic!("{other:?}"),
         }
-        let sol = inverse(&r, &flange, Select::Nearest([30.0, -100.0, 60.0, 0.0, 20.0, 0.0])).unwrap();
+        let sol = inverse(
+            &r,
+            &flange,
+            Select::Nearest([30.0, -100.0, 60.0, 0.0, 20.0, 0.0]),
+        )
+        .unwrap();
         assert_eq!(sol.axes_deg[0], 30.0, "A1 kept");
         assert_same_pose(&forward(&r, &sol.axes_deg), &flange, 1e-8, "resolved");
     }
@@ -388,7 +417,12 @@ mod inverse_kinematics {
                 other => panic!("S {s}: {other:?}"),
             }
         }
-        let sol = inverse(&r, &flange, Select::Nearest([0.0, -29.0, 12.0, 0.0, 20.0, 0.0])).unwrap();
+        let sol = inverse(
+            &r,
+            &flange,
+            Select::Nearest([0.0, -29.0, 12.0, 0.0, 20.0, 0.0]),
+        )
+        .unwrap();
         assert!(close_axes(&sol.axes_deg, &axes, 1e-5), "{:?}", sol.axes_deg);
         assert_same_pose(&forward(&r, &sol.axes_deg), &flange, 1e-6, "stretched");
     }
@@ -455,7 +489,11 @@ mod inverse_kinematics {
         let flange = forward(&r, &[30.0, -60.0, 100.0, 20.0, 40.0, -50.0]);
         // T bit 0 asks for A1 < 0: 30° − 360° is beyond −185°.
         match inverse(&r, &flange, Select::Status { s: 2, t: Some(35) }) {
-            Err(IkError::NoBranch { s: 2, t: Some(35), available }) => {
+            Err(IkError::NoBranch {
+                s: 2,
+                t: Some(35),
+                available,
+            }) => {
                 assert!(available.contains(&(2, 34)), "{available:?}");
             }
             other => panic!("{other:?}"),
@@ -525,7 +563,10 @@ mod poses {
         // defined, and the convention puts it all in A.
         let axes = [30.0, -90.0, 90.0, 0.0, 0.0, 0.0];
         let p = Pose::from_isometry(&forward(&robot(), &axes));
-        assert!((p.a + 30.0).abs() < 1e-9 && p.b == 90.0 && p.c == 0.0, "{p:?}");
+        assert!(
+            (p.a + 30.0).abs() < 1e-9 && p.b == 90.0 && p.c == 0.0,
+            "{p:?}"
+        );
         assert_same_pose(&p.to_isometry(), &forward(&robot(), &axes), 1e-9, "B = 90");
     }
 }
@@ -547,7 +588,11 @@ mod cli {
     }
 
     fn json(out: &Output) -> serde_json::Value {
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         serde_json::from_slice(&out.stdout).expect("JSON on stdout")
     }
 
@@ -558,7 +603,9 @@ mod cli {
     #[test]
     fn fk_json_is_the_forward_kinematics() {
         let axes = [30.0, -60.0, 100.0, 20.0, 40.0, -50.0];
-        let v = json(&run(&["fk", "30", "-60", "100", "20", "40", "-50", "--json"]));
+        let v = json(&run(&[
+            "fk", "30", "-60", "100", "20", "40", "-50", "--json",
+        ]));
         let p = Pose::from_isometry(&forward(&robot(), &axes));
         for (key, want) in ["x", "y", "z", "a", "b", "c"].iter().zip(p.to_array()) {
             assert_eq!(v[key].as_f64().unwrap(), want, "{key}");
@@ -573,7 +620,15 @@ mod cli {
         assert!(out.status.success());
         insta::assert_snapshot!("fk_reference_3", text(&out));
         let out = run(&[
-            "fk", "-45", "-112", "153", "0", "-30", "90", "-c", "calibrations/kr30ha-nominal.json",
+            "fk",
+            "-45",
+            "-112",
+            "153",
+            "0",
+            "-30",
+            "90",
+            "-c",
+            "calibrations/kr30ha-nominal.json",
         ]);
         assert!(out.status.success());
         insta::assert_snapshot!("fk_reference_4_nominal_calibration", text(&out));
@@ -590,9 +645,14 @@ mod cli {
             .collect();
         model.set_values(&values);
         let path = dir.join("cal.json");
-        Calibration::from_model("test", model.clone(), MeasurementFrame::Base, Provenance::default())
-            .save_atomic(&path)
-            .unwrap();
+        Calibration::from_model(
+            "test",
+            model.clone(),
+            MeasurementFrame::Base,
+            Provenance::default(),
+        )
+        .save_atomic(&path)
+        .unwrap();
         (path, model)
     }
 
@@ -602,14 +662,26 @@ mod cli {
         let (path, model) = calibration_with_errors(dir.path());
         let axes = [10.0, -70.0, 100.0, 20.0, 30.0, -40.0];
         let out = run(&[
-            "fk", "10", "-70", "100", "20", "30", "-40", "-c", path.to_str().unwrap(), "--json",
+            "fk",
+            "10",
+            "-70",
+            "100",
+            "20",
+            "30",
+            "-40",
+            "-c",
+            path.to_str().unwrap(),
+            "--json",
         ]);
         let v = json(&out);
         // Unknown directions: the backlash branch mean, i.e. the map alone.
         let predicted = model.flange_pose(&AxisState::new(axes));
         let p = Pose::from_isometry(&predicted);
         for (key, want) in ["x", "y", "z", "a", "b", "c"].iter().zip(p.to_array()) {
-            assert!((v["model"][key].as_f64().unwrap() - want).abs() < 1e-12, "{key}");
+            assert!(
+                (v["model"][key].as_f64().unwrap() - want).abs() < 1e-12,
+                "{key}"
+            );
         }
         let nominal = forward(&robot(), &axes).translation.vector;
         let d = predicted.translation.vector - nominal;
@@ -617,29 +689,57 @@ mod cli {
         for (k, key) in ["x", "y", "z"].iter().enumerate() {
             assert!((v["difference"][key].as_f64().unwrap() - d[k]).abs() < 1e-12);
         }
-        assert!((v["difference"]["distance_um"].as_f64().unwrap() - d.norm() * 1000.0).abs() < 1e-9);
-        let human = text(&run(&["fk", "10", "-70", "100", "20", "30", "-40", "-c", path.to_str().unwrap()]));
-        assert!(human.contains("model    {X ") && human.contains("model − nominal"), "{human}");
+        assert!(
+            (v["difference"]["distance_um"].as_f64().unwrap() - d.norm() * 1000.0).abs() < 1e-9
+        );
+        let human = text(&run(&[
+            "fk",
+            "10",
+            "-70",
+            "100",
+            "20",
+            "30",
+            "-40",
+            "-c",
+            path.to_str().unwrap(),
+        ]));
+        assert!(
+            human.contains("model    {X ") && human.contains("model − nominal"),
+            "{human}"
+        );
     }
 
     #[test]
     fn ik_json_lists_branches_that_reach_the_pose() {
         let axes = [30.0, -60.0, 100.0, 20.0, 40.0, -50.0];
         let flange = forward(&robot(), &axes);
-        let p = Pose::from_isometry(&flange).to_array().map(|v| format!("{v}"));
+        let p = Pose::from_isometry(&flange)
+            .to_array()
+            .map(|v| format!("{v}"));
         let mut args = vec!["ik"];
         args.extend(p.iter().map(String::as_str));
         args.push("--json");
         let v = json(&run(&args));
         let solutions = v["solutions"].as_array().unwrap();
-        assert_eq!(solutions.len(), inverse_all(&robot(), &flange).unwrap().len());
+        assert_eq!(
+            solutions.len(),
+            inverse_all(&robot(), &flange).unwrap().len()
+        );
         let mut found = false;
         for sol in solutions {
-            let a: Vec<f64> = sol["axes"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+            let a: Vec<f64> = sol["axes"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect();
             let a: [f64; 6] = a.try_into().unwrap();
             assert!(gap(&forward(&robot(), &a), &flange).0 < 1e-8);
             let (s, t) = status_turn(&robot(), &a);
-            assert_eq!((sol["s"].as_u64(), sol["t"].as_u64()), (Some(s as u64), Some(t as u64)));
+            assert_eq!(
+                (sol["s"].as_u64(), sol["t"].as_u64()),
+                (Some(s as u64), Some(t as u64))
+            );
             found |= close_axes(&a, &axes, 1e-8);
         }
         assert!(found);
@@ -648,7 +748,12 @@ mod cli {
         let v = json(&run(&args));
         let only = v["solutions"].as_array().unwrap();
         assert_eq!(only.len(), 1);
-        let a: Vec<f64> = only[0]["axes"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let a: Vec<f64> = only[0]["axes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
         assert!(close_axes(&a.try_into().unwrap(), &axes, 1e-8));
     }
 
@@ -667,7 +772,12 @@ mod cli {
         assert!(out.stdout.is_empty());
         // Too few angles, a bad S literal, a missing calibration: usage errors.
         assert_eq!(run(&["fk", "0", "-90"]).status.code(), Some(2));
-        assert_eq!(run(&["ik", "1", "2", "3", "4", "5", "6", "--s", "B102"]).status.code(), Some(2));
+        assert_eq!(
+            run(&["ik", "1", "2", "3", "4", "5", "6", "--s", "B102"])
+                .status
+                .code(),
+            Some(2)
+        );
         let out = run(&["fk", "0", "0", "0", "0", "0", "0", "-c", "no/such/cal.json"]);
         assert_eq!(out.status.code(), Some(2));
         assert!(String::from_utf8_lossy(&out.stderr).contains("no/such/cal.json"));

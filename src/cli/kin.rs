@@ -110,10 +110,7 @@ fn pose_json(p: &Pose) -> serde_json::Value {
 fn axis_notes(robot: &RobotDescription, axes: &[f64; 6]) {
     for (i, (a, [lo, hi])) in axes.iter().zip(robot.limits_deg).enumerate() {
         if *a < lo || *a > hi {
-            eprintln!(
-                "note: A{} = {a} is outside its limits [{lo}, {hi}]",
-                i + 1
-            );
+            eprintln!("note: A{} = {a} is outside its limits [{lo}, {hi}]", i + 1);
         }
     }
     if let Some(s) = singularity(robot, axes) {
@@ -231,7 +228,11 @@ fn all_rows(robot: &RobotDescription, flange: &Isometry3<f64>) -> Result<Vec<Row
             let near = Select::StatusNearest { s, near: [0.0; 6] };
             if let Ok(solution) = inverse(robot, flange, near) {
                 let at = rows.partition_point(|r| r.solution.s < s);
-                let why = format!("{kind}, {} {} from it", fixed(distance_deg_or_mm, 4), kind.unit());
+                let why = format!(
+                    "{kind}, {} {} from it",
+                    fixed(distance_deg_or_mm, 4),
+                    kind.unit()
+                );
                 rows.insert(
                     at,
                     Row {
@@ -271,7 +272,11 @@ fn selected_row(
                     distance_deg_or_mm,
                 });
             }
-            let why = format!("{kind}, {} {} from it", fixed(distance_deg_or_mm, 4), kind.unit());
+            let why = format!(
+                "{kind}, {} {} from it",
+                fixed(distance_deg_or_mm, 4),
+                kind.unit()
+            );
             Ok(Row {
                 solution,
                 singular: Some(why),

@@ -10,7 +10,6 @@
 pub mod pose;
 pub mod sequence;
 pub mod solve;
-mod status;
 
 pub use pose::Frame;
 pub use sequence::{
@@ -18,4 +17,3 @@ pub use sequence::{
     REST_DEG,
 };
 pub use solve::{Method, SolveError, TOL_POSITION_MM, TOL_ROTATION_RAD};
-pub use status::status_turn;

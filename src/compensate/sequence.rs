@@ -23,7 +23,7 @@ use rayon::prelude::*;
 
 use super::pose::{self, Frame};
 use super::solve::{self, weighted_norm, Method, Problem, SolveError};
-use super::status::status_turn;
+use crate::kinematics::status_turn;
 use crate::model::{Direction, Model};
 
 /// An axis that moves less than this (deg) between two targets is at rest: it keeps its

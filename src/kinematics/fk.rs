@@ -282,7 +282,10 @@ mod tests {
         let home = [0.0, -90.0, 90.0, 0.0, 0.0, 0.0];
         let (r, p) = flange_frame(&robot, &home);
         assert!((p - Vector3::new(1340.0, 0.0, 1810.0)).norm() < 1e-12);
-        assert!((r.column(2) - Vector3::x()).norm() < 1e-15, "flange Z along +X");
+        assert!(
+            (r.column(2) - Vector3::x()).norm() < 1e-15,
+            "flange Z along +X"
+        );
         assert!((r.column(0) + Vector3::z()).norm() < 1e-15, "flange X down");
         assert!((wrist_point(&robot, &home) - Vector3::new(1170.0, 0.0, 1810.0)).norm() < 1e-12);
     }
@@ -294,7 +297,13 @@ mod tests {
         assert!((phi - 10.028).abs() < 1e-3);
         let d = singularity_distances(&robot, &[0.0, -30.0, phi + 0.25, 0.0, 10.0, 0.0]);
         assert!((d[1].distance - 0.25).abs() < 1e-9);
-        assert_eq!(status_turn(&robot, &[0.0, -30.0, phi + 1e-9, 0.0, 0.0, 0.0]).0, 2);
-        assert_eq!(status_turn(&robot, &[0.0, -30.0, phi - 1e-9, 0.0, 0.0, 0.0]).0, 0);
+        assert_eq!(
+            status_turn(&robot, &[0.0, -30.0, phi + 1e-9, 0.0, 0.0, 0.0]).0,
+            2
+        );
+        assert_eq!(
+            status_turn(&robot, &[0.0, -30.0, phi - 1e-9, 0.0, 0.0, 0.0]).0,
+            0
+        );
     }
 }

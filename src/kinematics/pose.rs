@@ -183,9 +183,21 @@ mod tests {
     fn elementary_rotations_by_hand() {
         // A = 90°: x → y. B = 90°: x → −z. C = 90°: y → z.
         let close = |m: Matrix3<f64>, v: Vector3<f64>, w: Vector3<f64>| (m * v - w).norm() < 1e-15;
-        assert!(close(abc_to_matrix(90.0, 0.0, 0.0), Vector3::x(), Vector3::y()));
-        assert!(close(abc_to_matrix(0.0, 90.0, 0.0), Vector3::x(), -Vector3::z()));
-        assert!(close(abc_to_matrix(0.0, 0.0, 90.0), Vector3::y(), Vector3::z()));
+        assert!(close(
+            abc_to_matrix(90.0, 0.0, 0.0),
+            Vector3::x(),
+            Vector3::y()
+        ));
+        assert!(close(
+            abc_to_matrix(0.0, 90.0, 0.0),
+            Vector3::x(),
+            -Vector3::z()
+        ));
+        assert!(close(
+            abc_to_matrix(0.0, 0.0, 90.0),
+            Vector3::y(),
+            Vector3::z()
+        ));
     }
 
     #[test]
@@ -193,10 +205,16 @@ mod tests {
         // Rz(30)·Ry(90)·Rx(10) = Rz(20)·Ry(90).
         let r = abc_to_matrix(30.0, 90.0, 10.0);
         let [a, b, c] = matrix_to_abc(&r);
-        assert!((a - 20.0).abs() < 1e-9 && b == 90.0 && c == 0.0, "{a} {b} {c}");
+        assert!(
+            (a - 20.0).abs() < 1e-9 && b == 90.0 && c == 0.0,
+            "{a} {b} {c}"
+        );
         // Rz(30)·Ry(−90)·Rx(10) = Rz(40)·Ry(−90).
         let [a, b, c] = matrix_to_abc(&abc_to_matrix(30.0, -90.0, 10.0));
-        assert!((a - 40.0).abs() < 1e-9 && b == -90.0 && c == 0.0, "{a} {b} {c}");
+        assert!(
+            (a - 40.0).abs() < 1e-9 && b == -90.0 && c == 0.0,
+            "{a} {b} {c}"
+        );
     }
 
     #[test]
