@@ -16,5 +16,6 @@ pub mod kinematics;
 pub mod krl;
 pub mod measure;
 pub mod model;
+pub mod motion;
 pub mod simulate;
 pub mod stats;

@@ -3,15 +3,14 @@
 //! motion. This module owns the solver ([`solve`]: the paper's equation (3) iterated to a
 //! fixed point, or one step of it), the sequence logic ([`sequence`]: nominal directions,
 //! parallel solving, the sequential direction re-check and the resolution of backlash-branch
-//! oscillation) and the pose arithmetic they share ([`pose`]). It knows nothing of KRL: its
+//! oscillation). It knows nothing of KRL: its
 //! input is a list of goal poses with nominal axes and arrival motions (from `motion`), its
 //! output the command axes per target (turned into KRL edits by `rewrite`).
 
-pub mod pose;
 pub mod sequence;
 pub mod solve;
 
-pub use pose::Frame;
+pub use crate::motion::frame::{self as pose, Frame};
 pub use sequence::{
     compensate, nominal_directions, Keep, Options, Outcome, Resolution, Target, TargetError,
     REST_DEG,

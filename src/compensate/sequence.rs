@@ -21,10 +21,10 @@
 use nalgebra::Vector6;
 use rayon::prelude::*;
 
-use super::pose::{self, Frame};
 use super::solve::{self, weighted_norm, Method, Problem, SolveError};
 use crate::kinematics::status_turn;
 use crate::model::{Direction, Model};
+use crate::motion::frame::Frame;
 
 /// An axis that moves less than this (deg) between two targets is at rest: it keeps its
 /// direction. Far below any backlash, above the IK's rounding.
@@ -182,7 +182,7 @@ fn tcp_error(
     dirs: &[Direction; 6],
     goal: &Frame,
 ) -> Vector6<f64> {
-    pose::error(&solve::Chain::Model(model).tcp(axes, dirs, tool), goal)
+    solve::predicted_error(model, dirs, axes, tool, goal)
 }
 
 /// Solves one target with given directions and holds, checking limits and configuration.

@@ -3,12 +3,12 @@
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
-use robopost::compensate::solve::local_ik;
 use robopost::compensate::{
     compensate, Frame, Keep, Method, Options, Resolution, Target, TOL_POSITION_MM, TOL_ROTATION_RAD,
 };
 use robopost::kinematics::Payload;
 use robopost::model::{AxisState, Direction, Model};
+use robopost::motion::nominal::local_ik;
 
 use super::{handset, nominal};
 

@@ -1,9 +1,12 @@
-//! Pose arithmetic of compensation: a rigid frame as rotation matrix + position (cheaper than
-//! quaternions in the solver's inner loop), pose errors as six-vectors `[Δp (mm); Δr (rad)]`
-//! with the rotation error as the rotation vector of `R_actual · R_goalᵀ` (a world-frame
-//! error, the frame in which the paper writes `p̂ − p*`), and its inverse, the exponential.
+//! Pose arithmetic shared by motion simulation and compensation: a rigid frame as rotation
+//! matrix + position (cheaper than quaternions in inner loops), pose errors as six-vectors
+//! `[Δp (mm); Δr (rad)]` with the rotation error as the rotation vector of `R_actual · R_goalᵀ`
+//! (a world-frame error, the frame in which the paper writes `p̂ − p*`), and its inverse, the
+//! exponential; conversions to and from KUKA X/Y/Z/A/B/C.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+use crate::kinematics::{abc_to_matrix, matrix_to_abc};
 
 /// A rigid frame: `x ↦ rotation · x + position`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,6 +37,25 @@ impl Frame {
         Isometry3::from_parts(Translation3::from(self.position), q)
     }
 
+    /// A KUKA frame: X, Y, Z in mm, R = Rz(A)·Ry(B)·Rx(C) in degrees.
+    pub fn from_kuka(xyzabc: &[f64; 6]) -> Frame {
+        let [x, y, z, a, b, c] = *xyzabc;
+        Frame {
+            rotation: abc_to_matrix(a, b, c),
+            position: Vector3::new(x, y, z),
+        }
+    }
+
+    /// X, Y, Z, A, B, C of this frame, the angles chosen nearest to `near` (A, B, C of the
+    /// value being replaced): of the two Euler triples of a rotation and their ±360° copies,
+    /// the one a user would expect next to the original; at B = ±90° (where only A∓C is
+    /// defined) C is kept.
+    pub fn to_kuka_near(&self, near: &[f64; 3]) -> [f64; 6] {
+        let p = self.position;
+        let [a, b, c] = abc_near(&self.rotation, near);
+        [p.x, p.y, p.z, a, b, c]
+    }
+
     /// `self · other`.
     pub fn compose(&self, other: &Frame) -> Frame {
         Frame {
@@ -57,6 +79,33 @@ impl Frame {
             rotation: exp_so3(&Vector3::new(e[3], e[4], e[5])) * self.rotation,
             position: self.position + Vector3::new(e[0], e[1], e[2]),
         }
+    }
+}
+
+/// The nearest representation to `near` (see [`Frame::to_kuka_near`]).
+pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
+    let wrap = |x: f64, to: f64| x - 360.0 * ((x - to) / 360.0).round();
+    let cb = r[(0, 0)].hypot(r[(1, 0)]);
+    if cb < 1e-9 {
+        // Gimbal lock: keep C; R·Rx(C)ᵀ = Rz(A)·Ry(±90°) has r01 = −sin A, r11 = cos A.
+        let b = if r[(2, 0)] < 0.0 { 90.0 } else { -90.0 };
+        let c = near[2];
+        let rc = r * abc_to_matrix(0.0, 0.0, c).transpose();
+        let a = (-rc[(0, 1)]).atan2(rc[(1, 1)]).to_degrees();
+        return [wrap(a, near[0]), b, c];
+    }
+    let [a, b, c] = matrix_to_abc(r);
+    let first = [wrap(a, near[0]), wrap(b, near[1]), wrap(c, near[2])];
+    let second = [
+        wrap(a + 180.0, near[0]),
+        wrap(180.0 - b, near[1]),
+        wrap(c + 180.0, near[2]),
+    ];
+    let dist = |t: &[f64; 3]| -> f64 { t.iter().zip(near).map(|(x, y)| (x - y).abs()).sum() };
+    if dist(&second) < dist(&first) {
+        second
+    } else {
+        first
     }
 }
 
@@ -133,6 +182,26 @@ mod tests {
             // Against nalgebra's own exponential.
             let r2 = Rotation3::from_scaled_axis(w);
             assert_relative_eq!(r, *r2.matrix(), epsilon = 1e-15);
+        }
+    }
+
+    #[test]
+    fn kuka_angles_nearest_the_original() {
+        for (abc, near) in [
+            ([10.0, 20.0, 30.0], [10.0, 20.0, 30.0]),
+            ([180.0, 0.0, 180.0], [-180.0, 0.0, -180.0]),
+            ([-179.9999, 45.0, 0.0], [180.0, 45.0, 0.0]),
+            ([30.0, 90.0, 40.0], [30.0, 90.0, 40.0]),
+            ([30.0, -90.0, -40.0], [30.0, -90.0, -40.0]),
+            ([0.0, 0.0, 350.0], [0.0, 0.0, 350.0]),
+        ] {
+            let f = Frame::from_kuka(&[1.0, 2.0, 3.0, abc[0], abc[1], abc[2]]);
+            let out = f.to_kuka_near(&near);
+            for i in 0..3 {
+                assert!((out[3 + i] - near[i]).abs() < 1e-3, "{abc:?} → {out:?}");
+            }
+            let back = Frame::from_kuka(&out);
+            assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
         }
     }
 
