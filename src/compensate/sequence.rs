@@ -26,9 +26,7 @@ use crate::kinematics::status_turn;
 use crate::model::{Direction, Model};
 use crate::motion::frame::Frame;
 
-/// An axis that moves less than this (deg) between two targets is at rest: it keeps its
-/// direction. Far below any backlash, above the IK's rounding.
-pub const REST_DEG: f64 = 1e-7;
+pub use crate::motion::interpolate::REST_DEG;
 
 /// Status bits a target must keep after compensation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

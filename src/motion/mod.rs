@@ -5,4 +5,5 @@
 //! Knows nothing of error models; `compensate` consumes what it yields.
 
 pub mod frame;
+pub mod interpolate;
 pub mod nominal;
