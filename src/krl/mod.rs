@@ -1,1 +1,109 @@
-//! KUKA KRL front end (filled in by the parser work).
+//! The KUKA KRL front end: a lossless parser of `.src` and `.dat` files (nom over bytes, never
+//! decoding), the syntax tree it builds, and byte edits to rewrite a program. Every byte of a
+//! file belongs to a statement or to trivia, so `parse(b)?.emit() == b` for any input; lines
+//! the parser does not understand are kept as opaque statements. Malformed motions,
+//! declarations and aggregates are errors with a line, column and hint. This module knows
+//! nothing of kinematics: it only says what the program says, with the byte span of every
+//! number so another module can compute new values and write them back with [`edit`].
+//!
+//! # How to walk a program
+//!
+//! ```
+//! use robopost::krl::{self, Expr, FileKind, StmtKind, Symbols};
+//!
+//! let src = b"DEF demo()\r\n\
+//!   $BASE = BASE_DATA[1]\r\n\
+//!   PTP XHOME\r\n\
+//!   FOR i = 1 TO 2\r\n\
+//!     LIN {X 100.0, Y -2.5E+01, Z .25} C_DIS ; cut\r\n\
+//!   ENDFOR\r\n\
+//!   CIRC XAUX, XEND, CA 90\r\n\
+//! END";
+//! let dat = b"DEFDAT demo\r\nDECL E6POS XHOME={X 1,Y 2,Z 3,A 0,B 90,C 0}\r\nENDDAT\r\n";
+//! let program = krl::parse(src, FileKind::Src).unwrap();
+//! let data = krl::parse(dat, FileKind::Dat).unwrap();
+//! assert_eq!(program.emit(), src); // lossless
+//!
+//! // Statements in execution-text order, nested bodies included (FOR, IF, SPLINE blocks…).
+//! let symbols = Symbols::new(&[&data, &program]);
+//! let mut seen = Vec::new();
+//! for stmt in program.statements() {
+//!     match &stmt.kind {
+//!         StmtKind::Motion(m) => {
+//!             let target = match &m.target {
+//!                 // An inline aggregate: every member's number with its span.
+//!                 Expr::Aggregate(a) => {
+//!                     let y = a.number(program.source(), "Y").unwrap();
+//!                     assert_eq!(program.text(y.span), b"-2.5E+01");
+//!                     format!("inline Y={}", y.value)
+//!                 }
+//!                 // A variable: resolve it through the .dat.
+//!                 Expr::Path(p) if p.is_simple() => {
+//!                     let sym = symbols.get(program.text(p.root));
+//!                     format!("variable, declared: {}", sym.is_some())
+//!                 }
+//!                 other => format!("{:?}", other.span()),
+//!             };
+//!             seen.push(format!("L{} {} {}", stmt.line, m.kind.keyword(), target));
+//!         }
+//!         StmtKind::For(Some(f)) => seen.push(format!("L{} FOR {}", stmt.line, program.text_lossy(f.var))),
+//!         _ => {}
+//!     }
+//! }
+//! assert_eq!(seen, [
+//!     "L3 PTP variable, declared: true",
+//!     "L4 FOR i",
+//!     "L5 LIN inline Y=-25",
+//!     "L7 CIRC variable, declared: false",
+//! ]);
+//!
+//! // Rewrite one number in the original style; everything else is copied byte for byte.
+//! let (_, lin) = program.motions().nth(1).unwrap();
+//! let x = lin.target.as_aggregate().unwrap().number(program.source(), "X").unwrap();
+//! let mut edits = krl::Edits::new();
+//! edits.replace(x.span, krl::number::format_like(program.text(x.span), 100.0374, 3));
+//! let out = edits.apply(program.source()).unwrap();
+//! assert!(out.windows(17).any(|w| w == b"LIN {X 100.037, Y"));
+//! ```
+//!
+//! Inline forms: `program.inline_form(stmt)` gives the ILF fold a statement sits in, with the
+//! point name, velocity, motion data and tool/base of the form (`IlfMotion`), and the names
+//! KUKA gives their `.dat` variables (`position_var` → `XP1`, `frame_data_var` → `FP1`,
+//! `motion_data_var` → `PPDAT1`/`LCPDAT1`).
+
+pub mod decl;
+pub mod dump;
+pub mod edit;
+pub mod error;
+pub mod expr;
+pub mod fold;
+mod lex;
+pub mod motion;
+pub mod number;
+pub mod span;
+pub mod stmt;
+pub mod symbols;
+pub mod tree;
+mod trivia;
+
+pub use decl::{Decl, DeclVar, Dims, Param, ParamMode, RoutineHeader, TypeKind, TypeRef};
+pub use edit::{apply, Edit, EditError, Edits};
+pub use error::{ParseError, Problem, Severity};
+pub use expr::{Access, Aggregate, BinOp, Call, Expr, Member, Number, Path, UnOp};
+pub use fold::{Fold, FoldId, Ilf, IlfFrame, IlfMotion, IlfVelocity};
+pub use motion::{Approx, ApproxKind, Motion, MotionKind, RelFrame, RelFrameKind, WithItem};
+pub use span::{LineIndex, Span};
+pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, For, Stmt, StmtKind};
+pub use symbols::{Symbol, Symbols};
+pub use tree::{parse, parse_recovering, FileKind, SourceFile, Stats, TileKind};
+
+/// The `.dat` beside a `.src` (same stem, `.dat` or `.DAT`), if it exists.
+pub fn companion_dat(src: &std::path::Path) -> Option<std::path::PathBuf> {
+    if FileKind::from_path(src) == FileKind::Dat {
+        return None;
+    }
+    ["dat", "DAT", "Dat"]
+        .iter()
+        .map(|e| src.with_extension(e))
+        .find(|p| p.is_file())
+}

@@ -1,0 +1,330 @@
+//! Motion statements, fully structured: the kind (`PTP`, `LIN`, `CIRC`, their `_REL` forms,
+//! the spline motions `SPTP SLIN SCIRC SPL` and their `_REL` forms), the target expression,
+//! the auxiliary point and `CA` angle of circular motions, the approximation keywords, the
+//! `#BASE`/`#TOOL` frame of relative motions and the `WITH` assignments. Once a line starts
+//! with a motion keyword the parser is committed: anything malformed is an error, never
+//! silently skipped, because a missed target would be left uncompensated.
+
+use super::expr::{expr, path, Expr};
+use super::lex::{expect, fail, ident, keyword, punct, sep, ws, Cx, PResult};
+use super::span::Span;
+
+/// Which motion instruction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MotionKind {
+    Ptp,
+    Lin,
+    Circ,
+    PtpRel,
+    LinRel,
+    CircRel,
+    Sptp,
+    Slin,
+    Scirc,
+    Spl,
+    SptpRel,
+    SlinRel,
+    ScircRel,
+}
+
+impl MotionKind {
+    /// The kind named by an (upper-case) keyword.
+    pub fn from_keyword(upper: &[u8]) -> Option<MotionKind> {
+        use MotionKind::*;
+        Some(match upper {
+            b"PTP" => Ptp,
+            b"LIN" => Lin,
+            b"CIRC" => Circ,
+            b"PTP_REL" => PtpRel,
+            b"LIN_REL" => LinRel,
+            b"CIRC_REL" => CircRel,
+            b"SPTP" => Sptp,
+            b"SLIN" => Slin,
+            b"SCIRC" => Scirc,
+            b"SPL" => Spl,
+            b"SPTP_REL" => SptpRel,
+            b"SLIN_REL" => SlinRel,
+            b"SCIRC_REL" => ScircRel,
+            _ => return None,
+        })
+    }
+
+    pub fn keyword(self) -> &'static str {
+        use MotionKind::*;
+        match self {
+            Ptp => "PTP",
+            Lin => "LIN",
+            Circ => "CIRC",
+            PtpRel => "PTP_REL",
+            LinRel => "LIN_REL",
+            CircRel => "CIRC_REL",
+            Sptp => "SPTP",
+            Slin => "SLIN",
+            Scirc => "SCIRC",
+            Spl => "SPL",
+            SptpRel => "SPTP_REL",
+            SlinRel => "SLIN_REL",
+            ScircRel => "SCIRC_REL",
+        }
+    }
+
+    /// Axis-interpolated (the target may be an axis or a Cartesian position).
+    pub fn is_joint(self) -> bool {
+        use MotionKind::*;
+        matches!(self, Ptp | PtpRel | Sptp | SptpRel)
+    }
+
+    /// Circular: auxiliary point, target, optional `CA`.
+    pub fn is_circular(self) -> bool {
+        use MotionKind::*;
+        matches!(self, Circ | CircRel | Scirc | ScircRel)
+    }
+
+    /// The target is relative to the current position.
+    pub fn is_relative(self) -> bool {
+        use MotionKind::*;
+        matches!(
+            self,
+            PtpRel | LinRel | CircRel | SptpRel | SlinRel | ScircRel
+        )
+    }
+
+    /// A spline motion (`SPTP SLIN SCIRC SPL` and their `_REL` forms).
+    pub fn is_spline(self) -> bool {
+        use MotionKind::*;
+        matches!(
+            self,
+            Sptp | Slin | Scirc | Spl | SptpRel | SlinRel | ScircRel
+        )
+    }
+}
+
+/// A motion statement.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Motion {
+    pub kind: MotionKind,
+    pub keyword: Span,
+    /// The auxiliary point of a circular motion.
+    pub aux: Option<Expr>,
+    /// The target: an aggregate, a variable, an array element, a `:` chain, `$AXIS_ACT`…
+    pub target: Expr,
+    /// `CA angle` of a circular motion.
+    pub angle: Option<CircAngle>,
+    /// Approximation keywords in order (`C_DIS C_DIS` gives two).
+    pub approx: Vec<Approx>,
+    /// `#BASE` or `#TOOL` of a relative motion.
+    pub frame: Option<RelFrame>,
+    /// `WITH $VEL.CP = 0.2, …`.
+    pub with: Vec<WithItem>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct CircAngle {
+    pub keyword: Span,
+    pub value: Expr,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ApproxKind {
+    Dis,
+    Ptp,
+    Vel,
+    Ori,
+    Spl,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Approx {
+    pub kind: ApproxKind,
+    pub span: Span,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RelFrameKind {
+    Base,
+    Tool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RelFrame {
+    pub kind: RelFrameKind,
+    pub span: Span,
+}
+
+/// One `lhs = value` of a `WITH` clause (motions, `SPLINE … WITH`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct WithItem {
+    pub span: Span,
+    /// A variable path (`$VEL_AXIS[1]`, `$APO.CDIS`).
+    pub lhs: Expr,
+    pub value: Expr,
+}
+
+const HELP_TARGET: &str =
+    "write the target as a point name, an array element or an aggregate: LIN P1, LIN {X 100, Y 0, Z 500}";
+const HELP_TAIL: &str = "after the target may follow CA angle (circular), C_DIS/C_PTP/C_VEL/C_ORI/C_SPL, #BASE/#TOOL (relative) or WITH …";
+const HELP_WITH: &str =
+    "WITH takes assignments separated by commas: WITH $VEL.CP = 0.2, $APO.CDIS = 5";
+
+/// `KIND [aux ,] target [, CA angle] { approx | #BASE | #TOOL | WITH … }`; `kind` was read
+/// from the first word of the line.
+pub(crate) fn motion<'a>(cx: Cx<'a>, kind: MotionKind, i: &'a [u8]) -> PResult<'a, Motion> {
+    let (j, kw) = ident(i)?;
+    let (j, _) = ws(j)?;
+    let (mut j, first) = expect("expected a motion target", HELP_TARGET, |x| expr(cx, 0, x))(j)?;
+    let (aux, target) = if kind.is_circular() {
+        let (k, _) = ws(j)?;
+        let (k, _) = expect(
+            "a circular motion needs an auxiliary point and a target",
+            "write CIRC auxiliary_point, target_point",
+            punct(b','),
+        )(k)?;
+        let (k, _) = ws(k)?;
+        let (k, t) = expect(
+            "expected the target of the circular motion",
+            HELP_TARGET,
+            |x| expr(cx, 0, x),
+        )(k)?;
+        j = k;
+        (Some(first), t)
+    } else {
+        (None, first)
+    };
+    let mut angle = None;
+    if kind.is_circular() {
+        let (k, _) = ws(j)?;
+        if let Ok((k, _)) = punct(b',')(k) {
+            let (k, _) = ws(k)?;
+            let (k, ca) = expect(
+                "expected CA after the circular motion's target",
+                "the circular angle is written CIRC aux, target, CA 90",
+                keyword("CA"),
+            )(k)?;
+            let (k, _) = ws(k)?;
+            let (k, value) = expect(
+                "expected the circular angle after CA",
+                "the circular angle is written CIRC aux, target, CA 90",
+                |x| expr(cx, 0, x),
+            )(k)?;
+            angle = Some(CircAngle {
+                keyword: cx.span_of(ca),
+                value,
+            });
+            j = k;
+        }
+    }
+    let mut m = Motion {
+        kind,
+        keyword: cx.span_of(kw),
+        aux,
+        target,
+        angle,
+        approx: Vec::new(),
+        frame: None,
+        with: Vec::new(),
+    };
+    let (rest, ()) = motion_tail(cx, &mut m.approx, &mut m.frame, &mut m.with, j)?;
+    Ok((rest, m))
+}
+
+/// The clauses after a motion's target, in any order, up to the end of the code.
+fn motion_tail<'a>(
+    cx: Cx<'a>,
+    approx: &mut Vec<Approx>,
+    frame: &mut Option<RelFrame>,
+    with: &mut Vec<WithItem>,
+    i: &'a [u8],
+) -> PResult<'a, ()> {
+    let mut j = i;
+    loop {
+        let (k, _) = ws(j)?;
+        if k.is_empty() {
+            return Ok((k, ()));
+        }
+        if k[0] == b'#' {
+            let (r, name) =
+                ident(&k[1..]).or_else(|_| fail(k, "expected #BASE or #TOOL", HELP_TAIL))?;
+            let kind = if name.eq_ignore_ascii_case(b"BASE") {
+                RelFrameKind::Base
+            } else if name.eq_ignore_ascii_case(b"TOOL") {
+                RelFrameKind::Tool
+            } else {
+                return fail(k, "expected #BASE or #TOOL", HELP_TAIL);
+            };
+            *frame = Some(RelFrame {
+                kind,
+                span: cx.span(k, r),
+            });
+            j = r;
+            continue;
+        }
+        if let Ok((r, a)) = approximation(cx, k) {
+            approx.push(a);
+            j = r;
+            continue;
+        }
+        if let Ok((r, _)) = keyword("WITH")(k) {
+            let (r, items) = with_clause(cx, r)?;
+            with.extend(items);
+            j = r;
+            continue;
+        }
+        return fail(k, "unexpected text after the motion", HELP_TAIL);
+    }
+}
+
+/// `C_DIS | C_PTP | C_VEL | C_ORI | C_SPL`.
+pub(crate) fn approximation<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Approx> {
+    let (r, w) = ident(i)?;
+    const KINDS: [(&[u8], ApproxKind); 5] = [
+        (b"C_DIS", ApproxKind::Dis),
+        (b"C_PTP", ApproxKind::Ptp),
+        (b"C_VEL", ApproxKind::Vel),
+        (b"C_ORI", ApproxKind::Ori),
+        (b"C_SPL", ApproxKind::Spl),
+    ];
+    let Some(&(_, kind)) = KINDS.iter().find(|(k, _)| w.eq_ignore_ascii_case(k)) else {
+        return super::lex::backtrack(i);
+    };
+    Ok((
+        r,
+        Approx {
+            kind,
+            span: cx.span_of(w),
+        },
+    ))
+}
+
+/// The assignments after `WITH` (the keyword already read): `item {, item}`.
+pub(crate) fn with_clause<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Vec<WithItem>> {
+    let mut items = Vec::new();
+    let (mut j, _) = sep(i).or_else(|_| fail(i, "expected an assignment after WITH", HELP_WITH))?;
+    loop {
+        let (k, item) = expect("expected an assignment after WITH", HELP_WITH, |x| {
+            with_item(cx, x)
+        })(j)?;
+        items.push(item);
+        let (k2, _) = ws(k)?;
+        match punct(b',')(k2) {
+            Ok((k3, _)) => j = ws(k3)?.0,
+            Err(_) => return Ok((k, items)),
+        }
+    }
+}
+
+/// `path = expr`.
+fn with_item<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, WithItem> {
+    let (j, lhs) = path(cx, 0, i)?;
+    let (j, _) = ws(j)?;
+    let (j, _) = punct(b'=')(j)?;
+    let (j, _) = ws(j)?;
+    let (rest, value) = expect("expected a value after `=`", HELP_WITH, |x| expr(cx, 0, x))(j)?;
+    Ok((
+        rest,
+        WithItem {
+            span: cx.span(i, rest),
+            lhs,
+            value,
+        },
+    ))
+}

@@ -1,0 +1,615 @@
+//! The lossless syntax tree of one file (`SourceFile`) and how it is built: lines are cut into
+//! trivia and code, each line of code is parsed on its own, and a stack of open blocks nests
+//! the statements. Every byte of the file is either a statement's code or trivia (a
+//! statement's leading trivia, or the file's trailing trivia), so `emit` gives the file back
+//! byte for byte. Unbalanced blocks and folds are recovered from with warnings.
+
+use super::decl::{Decl, RoutineHeader};
+use super::error::{ParseError, Problem};
+use super::fold::{Fold, FoldId, FoldTracker, Ilf};
+use super::lex::Cx;
+use super::motion::Motion;
+use super::span::{LineIndex, Span};
+use super::stmt::{self, Arm, ArmKind, BlockKind, Clause, Line, Stmt, StmtKind};
+use super::trivia::split_line;
+use crate::diagnostic::Diagnostic;
+use std::borrow::Cow;
+use std::path::Path;
+
+/// Which kind of KRL file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FileKind {
+    /// A program (`.src`, `.sub`): routines.
+    Src,
+    /// A data list (`.dat`): `DEFDAT` with declarations; `DECL` is optional.
+    Dat,
+}
+
+impl FileKind {
+    /// `.dat` (any case) is a data list, anything else a program.
+    pub fn from_path(path: &Path) -> FileKind {
+        match path.extension() {
+            Some(e) if e.eq_ignore_ascii_case("dat") => FileKind::Dat,
+            _ => FileKind::Src,
+        }
+    }
+}
+
+/// Deepest block nesting followed; deeper openers are kept as opaque lines.
+const MAX_BLOCK_DEPTH: usize = 200;
+
+/// A parsed KRL file: its original bytes, the statements, the fold overlay, the problems.
+#[derive(Clone, Debug)]
+pub struct SourceFile {
+    src: Vec<u8>,
+    kind: FileKind,
+    body: Vec<Stmt>,
+    trailing: Span,
+    folds: Vec<Fold>,
+    problems: Vec<Problem>,
+    lines: LineIndex,
+}
+
+/// Counts of what a file holds (what `robopost check` prints).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    pub statements: usize,
+    pub routines: usize,
+    pub motions: usize,
+    /// Position variables declared (`FRAME POS E6POS AXIS E6AXIS`) plus initialised elements
+    /// of position arrays (`CNC1[17]={…}` in a data list).
+    pub declared_points: usize,
+    pub opaque: usize,
+    pub invalid: usize,
+    pub folds: usize,
+    pub inline_forms: usize,
+    pub errors: usize,
+    pub warnings: usize,
+}
+
+/// Parses a file; `Err` when a motion, declaration or aggregate is malformed (the error holds
+/// the recovered tree and every problem). Any byte sequence is accepted otherwise.
+pub fn parse(bytes: &[u8], kind: FileKind) -> Result<SourceFile, ParseError> {
+    let file = parse_recovering(bytes, kind);
+    if file.has_errors() {
+        Err(ParseError {
+            file: Box::new(file),
+        })
+    } else {
+        Ok(file)
+    }
+}
+
+/// Parses a file, never failing: malformed lines become `StmtKind::Invalid` and are listed in
+/// `problems()` as errors.
+pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
+    let src = bytes.to_vec();
+    if src.len() > u32::MAX as usize {
+        let mut problems = vec![Problem::error(
+            Span::at(0),
+            "file larger than 4 GiB",
+            "split the program into several files",
+        )];
+        problems[0].label = "here";
+        return SourceFile {
+            lines: LineIndex::default(),
+            src: Vec::new(),
+            kind,
+            body: Vec::new(),
+            trailing: Span::default(),
+            folds: Vec::new(),
+            problems,
+        };
+    }
+    let built = build(&src, kind);
+    SourceFile {
+        src,
+        kind,
+        body: built.body,
+        trailing: built.trailing,
+        folds: built.folds,
+        problems: built.problems,
+        lines: built.lines,
+    }
+}
+
+struct Built {
+    body: Vec<Stmt>,
+    trailing: Span,
+    folds: Vec<Fold>,
+    problems: Vec<Problem>,
+    lines: LineIndex,
+}
+
+fn build(src: &[u8], kind: FileKind) -> Built {
+    let cx = Cx::new(src);
+    let mut b = Builder::default();
+    let mut folds = FoldTracker::default();
+    let mut starts = Vec::with_capacity(src.len() / 32 + 1);
+    starts.push(0u32);
+    let mut pos = 0;
+    let mut line = 1u32;
+    let mut pending = 0usize;
+    while pos < src.len() {
+        let l = split_line(src, pos);
+        if l.code_start == l.code_end {
+            if let Some((c0, c1)) = l.comment {
+                folds.comment_line(cx, &src[c0..c1], line);
+            }
+        } else {
+            let leading = Span::new(pending, l.code_start);
+            let head = Span::new(l.code_start, l.code_end);
+            pending = l.code_end;
+            let code = &src[l.code_start..l.code_end];
+            let parsed = match stmt::line(cx, kind, code) {
+                Ok(parsed) => parsed,
+                Err(e) => {
+                    let kind = match e {
+                        Some(e) => {
+                            let at = cx.off(e.at).min(l.code_end);
+                            let mut p = Problem::error(
+                                Span::new(at, (at + 1).min(l.code_end).max(at)),
+                                e.label,
+                                e.help,
+                            );
+                            if p.message.is_empty() {
+                                p.message = "malformed statement".into();
+                            }
+                            b.problems.push(p);
+                            StmtKind::Invalid
+                        }
+                        None => StmtKind::Opaque,
+                    };
+                    Line::Simple(kind)
+                }
+            };
+            b.feed(parsed, leading, head, line, folds.current());
+        }
+        if l.newline < src.len() {
+            starts.push(l.next as u32);
+            line += 1;
+        }
+        pos = l.next.max(pos + 1);
+    }
+    let (body, mut problems) = b.finish();
+    let (folds, fold_problems) = folds.finish();
+    problems.extend(fold_problems);
+    problems.sort_by_key(|p| (p.span.start, p.severity));
+    Built {
+        body,
+        trailing: Span::new(pending, src.len()),
+        folds,
+        problems,
+        lines: LineIndex::from_starts(starts, src.len()),
+    }
+}
+
+/// An open block being filled.
+struct Frame {
+    stmt: Stmt,
+    kind: BlockKind,
+}
+
+#[derive(Default)]
+struct Builder {
+    top: Vec<Stmt>,
+    stack: Vec<Frame>,
+    problems: Vec<Problem>,
+}
+
+fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<FoldId>) -> Stmt {
+    Stmt {
+        leading,
+        span: head,
+        head,
+        line,
+        fold,
+        kind,
+        block: None,
+    }
+}
+
+impl Builder {
+    fn body(&mut self) -> &mut Vec<Stmt> {
+        match self.stack.last_mut() {
+            None => &mut self.top,
+            Some(f) => {
+                let b = f.stmt.block.as_mut().expect("frames hold blocks");
+                match b.arms.last_mut() {
+                    Some(a) => &mut a.body,
+                    None => &mut b.body,
+                }
+            }
+        }
+    }
+
+    fn feed(&mut self, l: Line, leading: Span, head: Span, line: u32, fold: Option<FoldId>) {
+        match l {
+            Line::Simple(kind) => {
+                let s = simple(kind, leading, head, line, fold);
+                self.body().push(s);
+            }
+            Line::Open(kind, bk) => {
+                if matches!(bk, BlockKind::Routine | BlockKind::DefDat) {
+                    self.close_all();
+                }
+                if self.stack.len() >= MAX_BLOCK_DEPTH {
+                    self.problems.push(Problem::warning(
+                        head,
+                        "blocks nested too deeply; this line is kept but not followed",
+                        "split the routine",
+                    ));
+                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
+                    self.body().push(s);
+                    return;
+                }
+                let mut s = simple(kind, leading, head, line, fold);
+                s.block = Some(Box::default());
+                self.stack.push(Frame { stmt: s, kind: bk });
+            }
+            Line::Arm(bk, arm) => {
+                let clause = Clause {
+                    leading,
+                    span: head,
+                    line,
+                };
+                match self.stack.last_mut() {
+                    Some(f) if f.kind == bk && arm_fits(f, &arm) => {
+                        let b = f.stmt.block.as_mut().expect("frames hold blocks");
+                        b.arms.push(Arm {
+                            clause,
+                            kind: arm,
+                            body: Vec::new(),
+                        });
+                    }
+                    _ => {
+                        self.problems.push(Problem::warning(
+                            head,
+                            format!("this line belongs inside {} … {}", bk.opener(), bk.closer()),
+                            "check the block structure around this line",
+                        ));
+                        let s = simple(StmtKind::Opaque, leading, head, line, fold);
+                        self.body().push(s);
+                    }
+                }
+            }
+            Line::Close(bk, until) => {
+                let Some(at) = self.stack.iter().rposition(|f| f.kind == bk) else {
+                    self.problems.push(Problem::warning(
+                        head,
+                        format!("`{}` without an open `{}`", bk.closer(), bk.opener()),
+                        "remove it or add the line that opens the block",
+                    ));
+                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
+                    self.body().push(s);
+                    return;
+                };
+                while self.stack.len() > at + 1 {
+                    self.pop_unclosed();
+                }
+                let mut f = self.stack.pop().expect("found above");
+                if let (StmtKind::Repeat(cond), Some(e)) = (&mut f.stmt.kind, until) {
+                    *cond = Some(Box::new(e));
+                }
+                let block = f.stmt.block.as_mut().expect("frames hold blocks");
+                block.end = Some(Clause {
+                    leading,
+                    span: head,
+                    line,
+                });
+                f.stmt.span = f.stmt.head.to(head);
+                self.body().push(f.stmt);
+            }
+        }
+    }
+
+    /// Closes the innermost block without its closer (a warning says so).
+    fn pop_unclosed(&mut self) {
+        let mut f = self.stack.pop().expect("caller checked");
+        self.problems.push(Problem::warning(
+            f.stmt.head,
+            format!(
+                "`{}` on line {} is never closed (`{}` missing)",
+                f.kind.opener(),
+                f.stmt.line,
+                f.kind.closer()
+            ),
+            "add the closing line where the block ends",
+        ));
+        let end = last_end(&f.stmt);
+        f.stmt.span = Span::new(f.stmt.head.start as usize, end);
+        self.body().push(f.stmt);
+    }
+
+    fn close_all(&mut self) {
+        while !self.stack.is_empty() {
+            self.pop_unclosed();
+        }
+    }
+
+    fn finish(mut self) -> (Vec<Stmt>, Vec<Problem>) {
+        self.close_all();
+        (self.top, self.problems)
+    }
+}
+
+/// `ELSE` once per `IF`, `DEFAULT` once per `SWITCH`, `CASE` not after `DEFAULT`.
+fn arm_fits(f: &Frame, arm: &ArmKind) -> bool {
+    let arms = &f.stmt.block.as_ref().expect("frames hold blocks").arms;
+    let has = |k: fn(&ArmKind) -> bool| arms.iter().any(|a| k(&a.kind));
+    match arm {
+        ArmKind::Else => !has(|k| matches!(k, ArmKind::Else)),
+        ArmKind::Case(_) | ArmKind::Default => !has(|k| matches!(k, ArmKind::Default)),
+    }
+}
+
+/// End of the last byte of code inside a statement (its head when the block is empty).
+fn last_end(s: &Stmt) -> usize {
+    let mut end = s.head.end;
+    if let Some(b) = &s.block {
+        if let Some(last) = b.body.last() {
+            end = end.max(last.span.end);
+        }
+        for a in &b.arms {
+            end = end.max(a.clause.span.end);
+            if let Some(last) = a.body.last() {
+                end = end.max(last.span.end);
+            }
+        }
+        if let Some(e) = &b.end {
+            end = end.max(e.span.end);
+        }
+    }
+    end as usize
+}
+
+/// What a tile of the file is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TileKind {
+    Trivia,
+    Code,
+}
+
+impl SourceFile {
+    /// The original bytes.
+    pub fn source(&self) -> &[u8] {
+        &self.src
+    }
+
+    pub fn kind(&self) -> FileKind {
+        self.kind
+    }
+
+    /// The bytes of a span.
+    pub fn text(&self, span: Span) -> &[u8] {
+        &self.src[span.range()]
+    }
+
+    /// The text of a span for display (UTF-8 if valid, else one character per byte).
+    pub fn text_lossy(&self, span: Span) -> Cow<'_, str> {
+        let t = self.text(span);
+        match std::str::from_utf8(t) {
+            Ok(s) => Cow::Borrowed(s),
+            Err(_) => Cow::Owned(t.iter().map(|&b| char::from(b)).collect()),
+        }
+    }
+
+    /// Whether the text of `span` is `name`, ignoring ASCII case (KRL names are
+    /// case-insensitive).
+    pub fn is_named(&self, span: Span, name: &str) -> bool {
+        self.text(span).eq_ignore_ascii_case(name.as_bytes())
+    }
+
+    /// The top-level statements (header directives, routines, `DEFDAT`, stray lines).
+    pub fn body(&self) -> &[Stmt] {
+        &self.body
+    }
+
+    /// Trivia after the last statement.
+    pub fn trailing(&self) -> Span {
+        self.trailing
+    }
+
+    /// The routines (`DEF`/`DEFFCT` blocks) in order.
+    pub fn routines(&self) -> impl Iterator<Item = (&Stmt, &RoutineHeader)> {
+        self.body.iter().filter_map(|s| match &s.kind {
+            StmtKind::Routine(h) => Some((s, &**h)),
+            _ => None,
+        })
+    }
+
+    /// Every statement, nested ones included, in source order (parents before children).
+    pub fn statements(&self) -> Statements<'_> {
+        Statements {
+            stack: vec![self.body.iter()],
+            pending: Vec::new(),
+        }
+    }
+
+    /// Every motion statement with its motion, in source order.
+    pub fn motions(&self) -> impl Iterator<Item = (&Stmt, &Motion)> {
+        self.statements()
+            .filter_map(|s| s.as_motion().map(|m| (s, m)))
+    }
+
+    /// Every declaration statement, in source order.
+    pub fn declarations(&self) -> impl Iterator<Item = (&Stmt, &Decl)> {
+        self.statements()
+            .filter_map(|s| s.as_decl().map(|d| (s, d)))
+    }
+
+    /// The fold overlay (index with `FoldId.0`).
+    pub fn folds(&self) -> &[Fold] {
+        &self.folds
+    }
+
+    pub fn fold(&self, id: FoldId) -> &Fold {
+        &self.folds[id.0 as usize]
+    }
+
+    /// The inline form a statement belongs to: its innermost enclosing fold carrying ILF
+    /// parameters (walking out through `Parameters` sub-folds).
+    pub fn inline_form(&self, stmt: &Stmt) -> Option<(&Fold, &Ilf)> {
+        let mut id = stmt.fold;
+        while let Some(i) = id {
+            let f = self.fold(i);
+            if let Some(ilf) = &f.ilf {
+                return Some((f, ilf));
+            }
+            id = f.parent;
+        }
+        None
+    }
+
+    /// Problems found, errors and warnings, in source order.
+    pub fn problems(&self) -> &[Problem] {
+        &self.problems
+    }
+
+    pub fn has_errors(&self) -> bool {
+        self.problems.iter().any(Problem::is_error)
+    }
+
+    /// 1-based line and byte column of an offset.
+    pub fn line_col(&self, offset: usize) -> (usize, usize) {
+        self.lines.line_col(offset)
+    }
+
+    pub fn line_index(&self) -> &LineIndex {
+        &self.lines
+    }
+
+    /// A problem as a located diagnostic of file `name`.
+    pub fn diagnostic(&self, p: &Problem, name: &str) -> Diagnostic {
+        Diagnostic::at_bytes(
+            p.severity,
+            name,
+            &self.src,
+            p.span.range(),
+            p.message.clone(),
+        )
+        .with_label(p.label)
+        .with_help(p.help)
+    }
+
+    /// The file again, byte for byte, from the tree's tiles.
+    pub fn emit(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.src.len());
+        self.emit_into(&mut out);
+        out
+    }
+
+    /// Appends the file's bytes, tile by tile, to `out`.
+    pub fn emit_into(&self, out: &mut Vec<u8>) {
+        self.for_each_tile(&mut |span, _| out.extend_from_slice(&self.src[span.range()]));
+    }
+
+    /// Every tile (trivia or code) of the file in order; together they cover it exactly.
+    pub fn tiles(&self) -> Vec<(Span, TileKind)> {
+        let mut v = Vec::new();
+        self.for_each_tile(&mut |s, k| v.push((s, k)));
+        v
+    }
+
+    fn for_each_tile(&self, f: &mut impl FnMut(Span, TileKind)) {
+        fn clause(c: &Clause, f: &mut impl FnMut(Span, TileKind)) {
+            f(c.leading, TileKind::Trivia);
+            f(c.span, TileKind::Code);
+        }
+        fn stmt(s: &Stmt, f: &mut impl FnMut(Span, TileKind)) {
+            f(s.leading, TileKind::Trivia);
+            f(s.head, TileKind::Code);
+            if let Some(b) = &s.block {
+                b.body.iter().for_each(|c| stmt(c, f));
+                for a in &b.arms {
+                    clause(&a.clause, f);
+                    a.body.iter().for_each(|c| stmt(c, f));
+                }
+                if let Some(e) = &b.end {
+                    clause(e, f);
+                }
+            }
+        }
+        self.body.iter().for_each(|s| stmt(s, f));
+        f(self.trailing, TileKind::Trivia);
+    }
+
+    /// Counts for reports.
+    pub fn stats(&self) -> Stats {
+        let mut st = Stats {
+            folds: self.folds.len(),
+            inline_forms: self.folds.iter().filter(|f| f.ilf.is_some()).count(),
+            errors: self.problems.iter().filter(|p| p.is_error()).count(),
+            ..Stats::default()
+        };
+        st.warnings = self.problems.len() - st.errors;
+        let mut position_arrays: Vec<&[u8]> = Vec::new();
+        for s in self.statements() {
+            st.statements += 1;
+            match &s.kind {
+                StmtKind::Routine(_) => st.routines += 1,
+                StmtKind::Motion(_) => st.motions += 1,
+                StmtKind::Invalid => st.invalid += 1,
+                StmtKind::Decl(d) if d.ty.kind.is_position() => {
+                    for v in &d.vars {
+                        if v.dims.is_some() {
+                            position_arrays.push(self.text(v.name));
+                        } else {
+                            st.declared_points += 1;
+                        }
+                    }
+                }
+                StmtKind::Assign(a) => {
+                    if let Some(p) = a.lhs.as_path() {
+                        let root = self.text(p.root);
+                        let element =
+                            matches!(p.access.as_slice(), [super::expr::Access::Index { .. }]);
+                        if element && position_arrays.iter().any(|n| n.eq_ignore_ascii_case(root)) {
+                            st.declared_points += 1;
+                        }
+                    }
+                }
+                _ => {}
+            }
+            if s.is_opaque() {
+                st.opaque += 1;
+            }
+        }
+        st
+    }
+}
+
+/// Depth-first iterator over statements (see `SourceFile::statements`).
+pub struct Statements<'a> {
+    stack: Vec<std::slice::Iter<'a, Stmt>>,
+    pending: Vec<std::slice::Iter<'a, Stmt>>,
+}
+
+impl<'a> Iterator for Statements<'a> {
+    type Item = &'a Stmt;
+
+    fn next(&mut self) -> Option<&'a Stmt> {
+        loop {
+            let top = self.stack.last_mut()?;
+            match top.next() {
+                Some(s) => {
+                    if let Some(b) = &s.block {
+                        // Arms come after the body: push them first (stack order).
+                        self.pending.clear();
+                        self.pending.push(b.body.iter());
+                        for a in &b.arms {
+                            self.pending.push(a.body.iter());
+                        }
+                        while let Some(it) = self.pending.pop() {
+                            self.stack.push(it);
+                        }
+                    }
+                    return Some(s);
+                }
+                None => {
+                    self.stack.pop();
+                }
+            }
+        }
+    }
+}
