@@ -119,6 +119,34 @@ impl Cartesian {
         Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
     }
 
+    /// The path parameter at which an arc passes `point` (its angle from the start over the
+    /// arc's angle); for a line, the projection onto it.
+    pub fn fraction_at(&self, point: &Vector3<f64>) -> f64 {
+        match self.shape {
+            Shape::Line { from, delta } => {
+                let l2 = delta.norm_squared();
+                if l2 == 0.0 {
+                    0.0
+                } else {
+                    (point - from).dot(&delta) / l2
+                }
+            }
+            Shape::Arc {
+                centre,
+                axis,
+                radius0,
+                angle,
+            } => {
+                let r = point - centre;
+                let mut a = axis.dot(&radius0.cross(&r)).atan2(radius0.dot(&r));
+                if a < 0.0 {
+                    a += 2.0 * std::f64::consts::PI;
+                }
+                a / angle
+            }
+        }
+    }
+
     /// TCP travel (mm) and orientation change (deg).
     pub fn extent(&self) -> (f64, f64) {
         let length = match self.shape {
@@ -169,26 +197,40 @@ pub fn arrival(
         return Ok(std::array::from_fn(|i| rest(q1[i] - q0[i])));
     }
     let cart = Cartesian::new(start.0, end.0, path)?;
+    arrival_along(robot, tool, &cart, 1.0, q0, q1)
+}
+
+/// How every axis arrives at parameter `u_end` of `cart` (whose start the robot leaves at
+/// axes `q0`), reaching axes `q1` there: `dq/du` scaled to the sub-segment `[0, u_end]`.
+pub fn arrival_along(
+    robot: &RobotDescription,
+    tool: &Frame,
+    cart: &Cartesian,
+    u_end: f64,
+    q0: &[f64; 6],
+    q1: &[f64; 6],
+) -> Result<[f64; 6], PathError> {
     let (length, turn) = cart.extent();
-    let n = ((length / PITCH_MM).max(turn / PITCH_DEG).ceil() as usize).clamp(1, MAX_SAMPLES);
+    let n = ((length * u_end / PITCH_MM).max(turn * u_end / PITCH_DEG).ceil() as usize)
+        .clamp(1, MAX_SAMPLES);
     // Walk the path; keep the last sample at which each axis still differed from its end.
     let mut q = *q0;
-    let mut last_moving: [Option<([f64; 6], f64)>; 6] = [None; 6];
     let mut samples = Vec::with_capacity(n);
+    samples.push((*q0, 0.0));
     for j in 1..n {
-        let u = j as f64 / n as f64;
+        let u = u_end * j as f64 / n as f64;
         q = nominal::local_ik(robot, &cart.pose(u), tool, &q)
             .map_err(|_| PathError::Lost {
                 at: u,
                 reason: "no nearby axis solution (singularity or out of reach)",
             })?
             .axes_deg;
-        samples.push((q, u));
+        samples.push((q, u / u_end));
     }
     if n > 1 {
-        let walked = nominal::local_ik(robot, end.0, tool, &q)
+        let walked = nominal::local_ik(robot, &cart.pose(u_end), tool, &q)
             .map_err(|_| PathError::Lost {
-                at: 1.0,
+                at: u_end,
                 reason: "no nearby axis solution at the end",
             })?
             .axes_deg;
@@ -202,7 +244,7 @@ pub fn arrival(
             });
         }
     }
-    samples.insert(0, (*q0, 0.0));
+    let mut last_moving: [Option<([f64; 6], f64)>; 6] = [None; 6];
     for (qs, u) in samples.iter().rev() {
         for i in 0..6 {
             if last_moving[i].is_none() && (q1[i] - qs[i]).abs() >= REST_DEG {
@@ -212,7 +254,7 @@ pub fn arrival(
     }
     // The exact rate at the end, where the Jacobian is regular.
     let (_, jac) = Nominal(robot).tcp_jacobian(q1, tool);
-    let rate = jac.lu().solve(&cart.twist(1.0));
+    let rate = jac.lu().solve(&(cart.twist(u_end) * u_end));
     Ok(std::array::from_fn(|i| {
         let r = rate.map_or(0.0, |r| r[i]);
         if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {

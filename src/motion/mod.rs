@@ -7,3 +7,9 @@
 pub mod frame;
 pub mod interpolate;
 pub mod nominal;
+pub mod simulate;
+pub mod value;
+pub mod workspace;
+
+pub use simulate::{simulate, GivenFrame, Rel, Role, Simulation, Stop};
+pub use workspace::{FileId, Workspace};
