@@ -7,10 +7,14 @@
 //! input is a list of goal poses with nominal axes and arrival motions (from `motion`), its
 //! output the command axes per target (turned into KRL edits by `rewrite`).
 
+pub mod files;
+pub mod program;
+pub mod rewrite;
 pub mod sequence;
 pub mod solve;
 
 pub use crate::motion::frame::{self as pose, Frame};
+pub use program::{compensate_program, Calibrated, ProgramResult, Report};
 pub use sequence::{
     compensate, nominal_directions, Keep, Options, Outcome, Resolution, Target, TargetError,
     REST_DEG,

@@ -32,9 +32,9 @@ pub use crate::motion::interpolate::REST_DEG;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Keep {
     /// The configuration S (Cartesian targets; the controller's IK chooses the branch by it).
-    pub s: Option<u8>,
+    pub s: bool,
     /// The turn T (PTP Cartesian targets with an explicit T: the controller picks ±360° by it).
-    pub t: Option<u8>,
+    pub t: bool,
 }
 
 /// One target of the simulated program.
@@ -107,12 +107,21 @@ pub struct Outcome {
     pub error: Option<TargetError>,
     /// Whether the command differs from the nominal one.
     pub changed: bool,
+    /// Axes held at 0° to keep the program's turn T.
+    pub turn_held: [bool; 6],
 }
 
 impl Outcome {
-    /// Axes whose compensated direction differs from the nominal one.
+    /// Axes whose compensated motion arrives in the opposite direction to the nominal one
+    /// (a direction becoming known where the nominal axis rests is not a flip).
     pub fn flipped(&self) -> [bool; 6] {
-        std::array::from_fn(|i| self.directions[i] != self.nominal_directions[i])
+        use Direction::{Negative, Positive};
+        std::array::from_fn(|i| {
+            matches!(
+                (self.directions[i], self.nominal_directions[i]),
+                (Positive, Negative) | (Negative, Positive)
+            )
+        })
     }
 }
 
@@ -184,6 +193,11 @@ fn tcp_error(
 }
 
 /// Solves one target with given directions and holds, checking limits and configuration.
+/// An axis that the correction moves across 0° where the program's turn T fixes its sign
+/// (typically A4 or A6 at exactly 0°) is held at 0° on its side — the rest of the pose
+/// solved in the least-squares sense — rather than rejecting the target. Returns the axes
+/// held so.
+#[allow(clippy::too_many_arguments)]
 fn solve_target(
     model: &Model,
     tool: &Frame,
@@ -192,7 +206,7 @@ fn solve_target(
     start: [f64; 6],
     hold: [bool; 6],
     method: Method,
-) -> Result<solve::Solution, TargetError> {
+) -> Result<(solve::Solution, [bool; 6]), TargetError> {
     let problem = Problem {
         goal: target.goal,
         tool,
@@ -200,8 +214,37 @@ fn solve_target(
         directions: *directions,
         hold,
     };
-    let sol = solve::solve(model, &problem, method)?;
     let robot = &model.robot;
+    // Near a singularity the goal may be out of reach in one direction: take the least-squares
+    // command there (reported by its residual) rather than rejecting the target.
+    let near_singular = crate::kinematics::singularity(robot, &target.nominal_axes).is_some();
+    let solve_or_best = |p: &Problem, m: Method| match solve::solve(model, p, m) {
+        Ok(s) => Ok(s),
+        Err(e) if near_singular => Ok(e.best),
+        Err(e) => Err(e),
+    };
+    let mut sol = solve_or_best(&problem, method)?;
+    let mut turn_held = [false; 6];
+    let (s0, t0) = status_turn(robot, &target.nominal_axes);
+    let (mut s1, mut t1) = status_turn(robot, &sol.axes_deg);
+    if target.keep.t && t0 != t1 && s0 == s1 {
+        let mut start = sol.axes_deg;
+        let mut hold = hold;
+        for i in 0..6 {
+            if (t0 ^ t1) >> i & 1 == 1 {
+                turn_held[i] = true;
+                hold[i] = true;
+                start[i] = if t0 >> i & 1 == 1 { -1e-9 } else { 0.0 };
+            }
+        }
+        let retry = Problem {
+            start,
+            hold,
+            ..problem
+        };
+        sol = solve_or_best(&retry, Method::Iterate)?;
+        (s1, t1) = status_turn(robot, &sol.axes_deg);
+    }
     for (n, (a, [lo, hi])) in sol.axes_deg.iter().zip(robot.limits_deg.iter()).enumerate() {
         if a < lo || a > hi {
             return Err(TargetError::OutOfLimits {
@@ -212,21 +255,17 @@ fn solve_target(
             });
         }
     }
-    if target.keep.s.is_some() || target.keep.t.is_some() {
-        let (s0, t0) = status_turn(robot, &target.nominal_axes);
-        let (s1, t1) = status_turn(robot, &sol.axes_deg);
-        let s_bad = target.keep.s.is_some() && s0 != s1;
-        let t_bad = target.keep.t.is_some() && t0 != t1;
-        if s_bad || t_bad {
-            return Err(TargetError::Configuration {
-                s_from: s0,
-                t_from: t0,
-                s_to: s1,
-                t_to: t1,
-            });
-        }
+    let s_bad = target.keep.s && s0 != s1;
+    let t_bad = target.keep.t && t0 != t1;
+    if s_bad || t_bad {
+        return Err(TargetError::Configuration {
+            s_from: s0,
+            t_from: t0,
+            s_to: s1,
+            t_to: t1,
+        });
     }
-    Ok(sol)
+    Ok((sol, turn_held))
 }
 
 fn first_pass(
@@ -248,6 +287,7 @@ fn first_pass(
         resolution: Resolution::Consistent,
         error: None,
         changed: false,
+        turn_held: [false; 6],
     };
     if !target.compensate {
         return out;
@@ -261,11 +301,12 @@ fn first_pass(
         [false; 6],
         method,
     ) {
-        Ok(sol) => {
+        Ok((sol, turn_held)) => {
             out.changed = sol.axes_deg != target.nominal_axes;
             out.axes_deg = sol.axes_deg;
             out.residual = sol.residual;
             out.iterations = sol.iterations;
+            out.turn_held = turn_held;
         }
         Err(e) => out.error = Some(e),
     }
@@ -382,7 +423,7 @@ fn resettle(
         [false; 6],
         method,
     ) {
-        Ok(sol) => {
+        Ok((sol, turn_held)) => {
             let again = motion_directions(target, &sol.axes_deg, previous, state);
             if again == actual {
                 out.axes_deg = sol.axes_deg;
@@ -391,6 +432,7 @@ fn resettle(
                 out.iterations += sol.iterations;
                 out.resolution = Resolution::Rebranched;
                 out.changed = sol.axes_deg != target.nominal_axes;
+                out.turn_held = turn_held;
                 return out;
             }
             for i in 0..6 {
@@ -425,7 +467,7 @@ fn resettle(
                 dirs[i] = state[i];
             }
         }
-        if let Ok(sol) = solve_target(model, tool, target, &dirs, start, oscillating, method) {
+        if let Ok((sol, _)) = solve_target(model, tool, target, &dirs, start, oscillating, method) {
             let really = motion_directions(target, &sol.axes_deg, previous, state);
             candidates.push(Candidate {
                 axes: sol.axes_deg,

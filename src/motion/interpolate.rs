@@ -183,18 +183,31 @@ fn arc(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Result<Shape, Pa
     })
 }
 
-/// How every axis arrives at the end of a segment: `dq/du` at the end in degrees per segment
-/// (the whole step for PTP), 0 for an axis at rest.
+/// How a segment arrives at its end.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arrival {
+    /// `dq/du` at the end in degrees per segment (the whole step for PTP), 0 for an axis at
+    /// rest.
+    pub rate: [f64; 6],
+    /// The end axes the controller reaches by following the path: the given ones, or their
+    /// ±360° variant where the path turns an axis past the nearest one (continuity).
+    pub end: [f64; 6],
+}
+
+/// How every axis arrives at the end of a segment from `start` to `end` (TCP, axes).
 pub fn arrival(
     robot: &RobotDescription,
     tool: &Frame,
     path: &Path,
     start: (&Frame, &[f64; 6]),
     end: (&Frame, &[f64; 6]),
-) -> Result<[f64; 6], PathError> {
+) -> Result<Arrival, PathError> {
     let (q0, q1) = (start.1, end.1);
     if *path == Path::Ptp {
-        return Ok(std::array::from_fn(|i| rest(q1[i] - q0[i])));
+        return Ok(Arrival {
+            rate: std::array::from_fn(|i| rest(q1[i] - q0[i])),
+            end: *q1,
+        });
     }
     let cart = Cartesian::new(start.0, end.0, path)?;
     arrival_along(robot, tool, &cart, 1.0, q0, q1)
@@ -209,9 +222,12 @@ pub fn arrival_along(
     u_end: f64,
     q0: &[f64; 6],
     q1: &[f64; 6],
-) -> Result<[f64; 6], PathError> {
+) -> Result<Arrival, PathError> {
+    let mut q1 = *q1;
     let (length, turn) = cart.extent();
-    let n = ((length * u_end / PITCH_MM).max(turn * u_end / PITCH_DEG).ceil() as usize)
+    let n = ((length * u_end / PITCH_MM)
+        .max(turn * u_end / PITCH_DEG)
+        .ceil() as usize)
         .clamp(1, MAX_SAMPLES);
     // Walk the path; keep the last sample at which each axis still differed from its end.
     let mut q = *q0;
@@ -234,16 +250,19 @@ pub fn arrival_along(
                 reason: "no nearby axis solution at the end",
             })?
             .axes_deg;
-        if let Some((axis, by)) = (0..6)
-            .map(|i| (i, (walked[i] - q1[i]).abs()))
-            .find(|(_, d)| *d > END_MATCH_DEG)
-        {
-            return Err(PathError::EndMismatch {
-                axis: axis as u8 + 1,
-                by_deg: by,
-            });
+        for i in 0..6 {
+            let d = walked[i] - q1[i];
+            let turns = (d / 360.0).round();
+            if (d - 360.0 * turns).abs() > END_MATCH_DEG {
+                return Err(PathError::EndMismatch {
+                    axis: i as u8 + 1,
+                    by_deg: d.abs(),
+                });
+            }
+            q1[i] += 360.0 * turns;
         }
     }
+    let q1 = &q1;
     let mut last_moving: [Option<([f64; 6], f64)>; 6] = [None; 6];
     for (qs, u) in samples.iter().rev() {
         for i in 0..6 {
@@ -255,16 +274,19 @@ pub fn arrival_along(
     // The exact rate at the end, where the Jacobian is regular.
     let (_, jac) = Nominal(robot).tcp_jacobian(q1, tool);
     let rate = jac.lu().solve(&(cart.twist(u_end) * u_end));
-    Ok(std::array::from_fn(|i| {
-        let r = rate.map_or(0.0, |r| r[i]);
-        if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
-            return r;
-        }
-        match last_moving[i] {
-            Some((qs, u)) => rest((q1[i] - qs[i]) / (1.0 - u)),
-            None => 0.0,
-        }
-    }))
+    Ok(Arrival {
+        rate: std::array::from_fn(|i| {
+            let r = rate.map_or(0.0, |r| r[i]);
+            if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
+                return r;
+            }
+            match last_moving[i] {
+                Some((qs, u)) => rest((q1[i] - qs[i]) / (1.0 - u)),
+                None => 0.0,
+            }
+        }),
+        end: *q1,
+    })
 }
 
 fn rest(d: f64) -> f64 {
@@ -330,7 +352,9 @@ mod tests {
         )
         .unwrap()
         .axes_deg;
-        let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&end, &q1)).unwrap();
+        let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&end, &q1))
+            .unwrap()
+            .rate;
         // Independent: nominal IK a little before the end, by the closed form.
         let cart = Cartesian::new(&start, &end, &Path::Lin).unwrap();
         let h = 1e-5;
@@ -359,7 +383,9 @@ mod tests {
         )
         .unwrap()
         .axes_deg;
-        let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&down, &qd)).unwrap();
+        let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&down, &qd))
+            .unwrap()
+            .rate;
         assert_eq!(v[0], 0.0);
         assert!(v[1].abs() > 1.0 && v[2].abs() > 1.0);
     }
@@ -384,7 +410,9 @@ mod tests {
         )
         .unwrap()
         .axes_deg;
-        let v = arrival(&r, &tool, &Path::Circ { aux }, (&start, &q0), (&end, &q1)).unwrap();
+        let v = arrival(&r, &tool, &Path::Circ { aux }, (&start, &q0), (&end, &q1))
+            .unwrap()
+            .rate;
         // On arrival the TCP moves down and forward (the arc's far side): compare with the
         // sign of the nominal motion over the last 10⁻⁶ of the arc by closed-form IK.
         let cart = Cartesian::new(&start, &end, &Path::Circ { aux }).unwrap();

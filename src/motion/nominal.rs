@@ -113,6 +113,8 @@ pub struct NotConverged {
     pub position_um: f64,
     pub rotation_urad: f64,
     pub iterations: u32,
+    /// The best solution found (least squares where the goal cannot be reached exactly).
+    pub best: Solution,
 }
 
 fn within(e: &Vector6<f64>, tol_p: f64, tol_r: f64) -> bool {
@@ -131,15 +133,33 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
             iterations: 0,
         });
     }
+    let weighted = |e: &Vector6<f64>| {
+        let (p, r) = frame::norms(e);
+        p + LEVER_MM * r
+    };
+    let mut best = Solution {
+        axes_deg: q,
+        residual: e,
+        iterations: 0,
+    };
     let least_squares = goal.hold.iter().any(|&h| h);
     let (_, mut j) = arm.tcp_jacobian(&q, goal.tool);
     let mut stepper = Stepper::new(&j, &goal.hold);
-    for it in 1..=MAX_ITERATIONS {
+    let mut it = 0;
+    while it < MAX_ITERATIONS {
+        it += 1;
         let dq = stepper.step(&j, &e, &goal.hold);
         for (a, d) in q.iter_mut().zip(dq.iter()) {
             *a += d;
         }
         e = frame::error(&arm.tcp(&q, goal.tool), &goal.pose);
+        if weighted(&e) < weighted(&best.residual) {
+            best = Solution {
+                axes_deg: q,
+                residual: e,
+                iterations: it,
+            };
+        }
         let still = dq.iter().all(|d| d.abs() < 1e-11);
         if within(&e, goal.tol_mm, goal.tol_rad) || (least_squares && still) {
             return Ok(Solution {
@@ -148,17 +168,22 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
                 iterations: it,
             });
         }
+        if still {
+            // Stalled short of the goal: a singular direction (least squares reached).
+            break;
+        }
         // Refresh the Jacobian when progress is slow (large steps, strong table slopes).
         if it % 3 == 0 {
             j = arm.tcp_jacobian(&q, goal.tool).1;
             stepper = Stepper::new(&j, &goal.hold);
         }
     }
-    let (p, r) = frame::norms(&e);
+    let (p, r) = frame::norms(&best.residual);
     Err(NotConverged {
         position_um: p * 1e3,
         rotation_urad: r * 1e6,
-        iterations: MAX_ITERATIONS,
+        iterations: it,
+        best,
     })
 }
 
@@ -214,9 +239,10 @@ impl Stepper {
     }
 }
 
-/// `min ‖W(J·dq + e)‖² + λ‖dq‖²` over the free axes, `W = diag(1,1,1,L,L,L)`; λ is tiny, only
-/// to keep a singular wrist (A4 ∥ A6) from producing a huge step; a step still larger than
-/// [`MAX_STEP_DEG`] is shortened.
+/// `min ‖W(J·dq + e)‖² + λ‖dq‖²` over the free axes, `W = diag(1,1,1,L,L,L)`; λ = 10⁻⁶ of
+/// the largest diagonal entry, negligible for a regular Jacobian (whose squared singular
+/// values are 10⁻³ of it or more) but enough to keep a singular wrist (A4 ∥ A6) from
+/// producing a huge step; a step still larger than [`MAX_STEP_DEG`] is shortened.
 fn damped_least_squares(j: &Matrix6<f64>, e: &Vector6<f64>, hold: &[bool; 6]) -> [f64; 6] {
     let w = Vector6::new(1.0, 1.0, 1.0, LEVER_MM, LEVER_MM, LEVER_MM);
     let mut a = Matrix6::zeros();
@@ -229,7 +255,7 @@ fn damped_least_squares(j: &Matrix6<f64>, e: &Vector6<f64>, hold: &[bool; 6]) ->
     let mut n = a.transpose() * a;
     let scale = n.diagonal().max().max(1e-30);
     for c in 0..6 {
-        n[(c, c)] += if hold[c] { 1.0 } else { 1e-12 * scale };
+        n[(c, c)] += if hold[c] { 1.0 } else { 1e-6 * scale };
     }
     let rhs = a.transpose() * b;
     let dq = n

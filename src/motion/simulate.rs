@@ -133,6 +133,9 @@ struct State {
     external_tcp: Option<(FileId, Span)>,
     fdat: Option<Fdat>,
     current: Option<Current>,
+    /// A, B, C of the last Cartesian target as written: the representation to stay near when
+    /// completing a partial position.
+    last_abc: [f64; 3],
 }
 
 #[derive(Default)]
@@ -227,6 +230,7 @@ impl<'f> Simulator<'f> {
                 external_tcp: None,
                 fdat: None,
                 current: None,
+                last_abc: [0.0; 3],
             },
             out: Simulation::default(),
             seen: HashSet::new(),
@@ -535,7 +539,11 @@ impl<'f> Simulator<'f> {
                         Value::Bool(false) => {}
                         v => {
                             let why = reason(&v, "the condition");
-                            self.unresolved(file, s, &format!("REPEAT … UNTIL depends on run time ({why})"));
+                            self.unresolved(
+                                file,
+                                s,
+                                &format!("REPEAT … UNTIL depends on run time ({why})"),
+                            );
                             return Flow::Next;
                         }
                     }
@@ -592,7 +600,14 @@ impl<'f> Simulator<'f> {
         }
     }
 
-    fn assign(&mut self, file: FileId, s: &'f Stmt, lhs: &'f Expr, rhs: &'f Expr, scope: &mut Scope<'f>) {
+    fn assign(
+        &mut self,
+        file: FileId,
+        s: &'f Stmt,
+        lhs: &'f Expr,
+        rhs: &'f Expr,
+        scope: &mut Scope<'f>,
+    ) {
         let Some(p) = lhs.as_path() else {
             return;
         };
@@ -609,7 +624,8 @@ impl<'f> Simulator<'f> {
                     return;
                 }
                 b"$IPO_MODE" => {
-                    self.state.external_tcp = self.is_tcp(file, rhs, scope).then_some((file, s.head));
+                    self.state.external_tcp =
+                        self.is_tcp(file, rhs, scope).then_some((file, s.head));
                     return;
                 }
                 b"FDAT_ACT" => {
@@ -641,7 +657,10 @@ impl<'f> Simulator<'f> {
                     .collect();
                 if let Some(idx) = idx {
                     let key = (root, idx);
-                    if scope.elements.contains_key(&key) || !self.globals.elements.contains_key(&key) && scope.vars.contains_key(&key.0) {
+                    if scope.elements.contains_key(&key)
+                        || !self.globals.elements.contains_key(&key)
+                            && scope.vars.contains_key(&key.0)
+                    {
                         scope.elements.insert(key, v);
                     } else {
                         self.globals.elements.insert(key, v);
@@ -651,7 +670,8 @@ impl<'f> Simulator<'f> {
             [Access::Field { name, .. }] => {
                 let field = upper(src.text(*name));
                 let mut current = self.lookup(file, &root, scope);
-                if let (Value::Pos(pos), Some((axis, k))) = (&mut current, value::component(&field)) {
+                if let (Value::Pos(pos), Some((axis, k))) = (&mut current, value::component(&field))
+                {
                     if pos.axis == axis {
                         pos.v[k] = v.as_f64();
                         // Computed now: its numbers are no longer those of the aggregate.
@@ -669,7 +689,14 @@ impl<'f> Simulator<'f> {
     }
 
     /// The value of a `$BASE`/`$TOOL` assignment.
-    fn frame_value(&mut self, file: FileId, s: &Stmt, rhs: &'f Expr, scope: &Scope<'f>, what: &str) -> FrameState {
+    fn frame_value(
+        &mut self,
+        file: FileId,
+        s: &Stmt,
+        rhs: &'f Expr,
+        scope: &Scope<'f>,
+        what: &str,
+    ) -> FrameState {
         match self.eval(file, rhs, scope) {
             Value::Pos(p) if !p.axis && p.is_complete() => {
                 FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
@@ -742,8 +769,16 @@ impl<'f> Simulator<'f> {
         let src = self.src(file);
         let name = upper(src.text(c.name));
         if name == b"BAS" {
-            let kind = c.args.first().and_then(|a| a.as_ref()).map(|a| self.eval(file, a, scope));
-            let arg = c.args.get(1).and_then(|a| a.as_ref()).map(|a| self.eval(file, a, scope));
+            let kind = c
+                .args
+                .first()
+                .and_then(|a| a.as_ref())
+                .map(|a| self.eval(file, a, scope));
+            let arg = c
+                .args
+                .get(1)
+                .and_then(|a| a.as_ref())
+                .map(|a| self.eval(file, a, scope));
             match kind {
                 Some(Value::Enum(k)) => match k.as_slice() {
                     b"TOOL" | b"BASE" => {
@@ -758,7 +793,11 @@ impl<'f> Simulator<'f> {
                                 }
                             }
                             None => {
-                                let st = FrameState::Unknown(file, s.head, "BAS with a run-time frame number".into());
+                                let st = FrameState::Unknown(
+                                    file,
+                                    s.head,
+                                    "BAS with a run-time frame number".into(),
+                                );
                                 if base {
                                     self.state.base = st;
                                 } else {
@@ -788,7 +827,11 @@ impl<'f> Simulator<'f> {
             return;
         };
         if self.depth >= MAX_CALL_DEPTH {
-            self.warn(file, s.head, "calls nested too deeply (recursion?): not followed");
+            self.warn(
+                file,
+                s.head,
+                "calls nested too deeply (recursion?): not followed",
+            );
             self.state.current = None;
             return;
         }
@@ -807,7 +850,12 @@ impl<'f> Simulator<'f> {
     }
 
     /// `WITH` items of a motion or spline block: `$TOOL`, `$BASE`, `$IPO_MODE` for this motion.
-    fn apply_with(&mut self, file: FileId, with: &'f [krl::WithItem], scope: &Scope<'f>) -> Option<State> {
+    fn apply_with(
+        &mut self,
+        file: FileId,
+        with: &'f [krl::WithItem],
+        scope: &Scope<'f>,
+    ) -> Option<State> {
         if with.is_empty() {
             return None;
         }
@@ -825,10 +873,15 @@ impl<'f> Simulator<'f> {
                 block: None,
             };
             match name.as_slice() {
-                b"$TOOL" => self.state.tool = self.frame_value(file, &fake, &w.value, scope, "$TOOL"),
-                b"$BASE" => self.state.base = self.frame_value(file, &fake, &w.value, scope, "$BASE"),
+                b"$TOOL" => {
+                    self.state.tool = self.frame_value(file, &fake, &w.value, scope, "$TOOL")
+                }
+                b"$BASE" => {
+                    self.state.base = self.frame_value(file, &fake, &w.value, scope, "$BASE")
+                }
                 b"$IPO_MODE" => {
-                    self.state.external_tcp = self.is_tcp(file, &w.value, scope).then_some((file, w.span))
+                    self.state.external_tcp =
+                        self.is_tcp(file, &w.value, scope).then_some((file, w.span))
                 }
                 _ => {}
             }
@@ -922,7 +975,11 @@ impl<'f> Simulator<'f> {
                 None => Value::Unknown("SBASE without argument".into()),
             },
             b"SIPO_MODE" => match arg(0) {
-                Some(Value::Fdat(f)) => Value::Enum(if f.external_tcp { b"TCP".to_vec() } else { b"BASE".to_vec() }),
+                Some(Value::Fdat(f)) => Value::Enum(if f.external_tcp {
+                    b"TCP".to_vec()
+                } else {
+                    b"BASE".to_vec()
+                }),
                 Some(v) => v,
                 None => Value::Unknown("SIPO_MODE without argument".into()),
             },
@@ -937,7 +994,9 @@ impl<'f> Simulator<'f> {
         let v = if axis {
             cur.axes
         } else {
-            let (Some(base), Some(tool)) = (self.known(&self.state.base), self.known(&self.state.tool)) else {
+            let (Some(base), Some(tool)) =
+                (self.known(&self.state.base), self.known(&self.state.tool))
+            else {
                 return Value::Unknown("the position in an unknown frame".into());
             };
             let tcp = Nominal(&self.robot).tcp(&cur.axes, &tool);
@@ -978,7 +1037,11 @@ impl<'f> Simulator<'f> {
             b"$POS_ACT" | b"$POS_INT" | b"$POS_RET" => return self.current_pos(false),
             b"$AXIS_ACT" | b"$AXIS_INT" | b"$AXIS_RET" => return self.current_pos(true),
             b"$BASE" | b"$TOOL" => {
-                let st = if name == b"$BASE" { &self.state.base } else { &self.state.tool };
+                let st = if name == b"$BASE" {
+                    &self.state.base
+                } else {
+                    &self.state.tool
+                };
                 return match self.known(st) {
                     Some(f) => Value::Pos(Pos {
                         axis: false,
@@ -987,13 +1050,18 @@ impl<'f> Simulator<'f> {
                         t: None,
                         origin: None,
                     }),
-                    None => Value::Unknown(format!("{}, unknown here", String::from_utf8_lossy(name))),
+                    None => {
+                        Value::Unknown(format!("{}, unknown here", String::from_utf8_lossy(name)))
+                    }
                 };
             }
             _ => {}
         }
         if name.starts_with(b"$") {
-            return Value::Unknown(format!("the run-time value {}", String::from_utf8_lossy(name)));
+            return Value::Unknown(format!(
+                "the run-time value {}",
+                String::from_utf8_lossy(name)
+            ));
         }
         match self.symbol(file, name) {
             Some(sym) => {
@@ -1027,7 +1095,11 @@ impl<'f> Simulator<'f> {
     }
 
     fn symbol(&self, file: FileId, name: &[u8]) -> Option<&krl::Symbol<'f>> {
-        let own = self.module_of.get(file as usize).copied().unwrap_or(usize::MAX);
+        let own = self
+            .module_of
+            .get(file as usize)
+            .copied()
+            .unwrap_or(usize::MAX);
         if let Some(s) = self.symbols.get(own).and_then(|s| s.get(name)) {
             return Some(s);
         }
@@ -1039,12 +1111,20 @@ impl<'f> Simulator<'f> {
 
     fn element(&self, file: FileId, name: &[u8], idx: &[i64], scope: &Scope<'f>) -> Value<'f> {
         let key = (name.to_vec(), idx.to_vec());
-        if let Some(v) = scope.elements.get(&key).or_else(|| self.globals.elements.get(&key)) {
+        if let Some(v) = scope
+            .elements
+            .get(&key)
+            .or_else(|| self.globals.elements.get(&key))
+        {
             return v.clone();
         }
         if idx.len() == 1 && (name == b"BASE_DATA" || name == b"TOOL_DATA") {
             let base = name == b"BASE_DATA";
-            if let Some(g) = self.given.iter().find(|g| g.base == base && g.index == idx[0]) {
+            if let Some(g) = self
+                .given
+                .iter()
+                .find(|g| g.base == base && g.index == idx[0])
+            {
                 return Value::Pos(Pos {
                     axis: false,
                     v: g.xyzabc.map(Some),
@@ -1054,7 +1134,11 @@ impl<'f> Simulator<'f> {
                 });
             }
         }
-        let own = self.module_of.get(file as usize).copied().unwrap_or(usize::MAX);
+        let own = self
+            .module_of
+            .get(file as usize)
+            .copied()
+            .unwrap_or(usize::MAX);
         let found = self
             .symbols
             .get(own)
@@ -1122,14 +1206,26 @@ impl<'f> Simulator<'f> {
                         Some(x) => Value::Real(x),
                         None => Value::Unknown("a component not given".into()),
                     },
-                    (_, b"S") => pos.s.map_or(Value::Unknown("S not given".into()), |s| Value::Int(s.into())),
-                    (_, b"T") => pos.t.map_or(Value::Unknown("T not given".into()), |t| Value::Int(t.into())),
+                    (_, b"S") => pos.s.map_or(Value::Unknown("S not given".into()), |s| {
+                        Value::Int(s.into())
+                    }),
+                    (_, b"T") => pos.t.map_or(Value::Unknown("T not given".into()), |t| {
+                        Value::Int(t.into())
+                    }),
                     _ => Value::Unknown(format!("the member {}", String::from_utf8_lossy(&field))),
                 },
                 Value::Fdat(f) => match field.as_slice() {
-                    b"TOOL_NO" => f.tool_no.map_or(Value::Unknown("TOOL_NO".into()), Value::Int),
-                    b"BASE_NO" => f.base_no.map_or(Value::Unknown("BASE_NO".into()), Value::Int),
-                    b"IPO_FRAME" => Value::Enum(if f.external_tcp { b"TCP".to_vec() } else { b"BASE".to_vec() }),
+                    b"TOOL_NO" => f
+                        .tool_no
+                        .map_or(Value::Unknown("TOOL_NO".into()), Value::Int),
+                    b"BASE_NO" => f
+                        .base_no
+                        .map_or(Value::Unknown("BASE_NO".into()), Value::Int),
+                    b"IPO_FRAME" => Value::Enum(if f.external_tcp {
+                        b"TCP".to_vec()
+                    } else {
+                        b"BASE".to_vec()
+                    }),
                     _ => Value::Unknown(format!("the member {}", String::from_utf8_lossy(&field))),
                 },
                 u @ Value::Unknown(_) => u,
@@ -1152,7 +1248,10 @@ impl<'f> Simulator<'f> {
     /// The base and tool for a Cartesian motion, or an error naming where the frame was lost.
     fn motion_frames(&mut self, file: FileId, s: &Stmt) -> Option<(Frame, Frame)> {
         let mut out = [Frame::identity(); 2];
-        for (k, st) in [self.state.base.clone(), self.state.tool.clone()].iter().enumerate() {
+        for (k, st) in [self.state.base.clone(), self.state.tool.clone()]
+            .iter()
+            .enumerate()
+        {
             match st {
                 FrameState::Known(f) => out[k] = *f,
                 FrameState::Unset => {
@@ -1174,7 +1273,11 @@ impl<'f> Simulator<'f> {
                     } else {
                         why.clone()
                     };
-                    let (f, span) = if span.is_empty() && *f == 0 { (file, s.head) } else { (*f, *span) };
+                    let (f, span) = if span.is_empty() && *f == 0 {
+                        (file, s.head)
+                    } else {
+                        (*f, *span)
+                    };
                     self.error(
                         f,
                         span,
@@ -1188,7 +1291,13 @@ impl<'f> Simulator<'f> {
     }
 
     fn lost(&mut self, file: FileId, s: &Stmt, why: String) {
-        self.warn(file, s.head, format!("{why}: this motion is left unchanged and the robot's position after it is unknown"));
+        self.warn(
+            file,
+            s.head,
+            format!(
+                "{why}: this motion is left unchanged and the robot's position after it is unknown"
+            ),
+        );
         self.state.current = None;
     }
 
@@ -1213,7 +1322,11 @@ impl<'f> Simulator<'f> {
         let target = self.eval(file, &m.target, scope);
         let Value::Pos(pos) = target else {
             let why = reason(&target, "the target");
-            self.lost(file, s, format!("the target is not known before run time ({why})"));
+            self.lost(
+                file,
+                s,
+                format!("the target is not known before run time ({why})"),
+            );
             return;
         };
         let reference = m.target.as_path().filter(|p| p.is_simple()).map(|p| p.root);
@@ -1245,8 +1358,14 @@ impl<'f> Simulator<'f> {
         let current = self.state.current;
         let start_tcp = current.map(|c| Nominal(&self.robot).tcp(&c.axes, &tool));
         // The programmed position, completed as the controller does.
-        let Some((programmed, goal, s_t)) = self.complete(&pos, rel, current, &base, &tool, start_tcp.as_ref()) else {
-            self.lost(file, s, "a partial or relative position whose start is unknown".into());
+        let Some((programmed, goal, s_t)) =
+            self.complete(&pos, rel, current, &base, &tool, start_tcp.as_ref())
+        else {
+            self.lost(
+                file,
+                s,
+                "a partial or relative position whose start is unknown".into(),
+            );
             return;
         };
         let robot = self.robot;
@@ -1257,18 +1376,30 @@ impl<'f> Simulator<'f> {
             let aux = self.eval(file, aux_expr, scope);
             let Value::Pos(aux) = aux else {
                 let why = reason(&aux, "the auxiliary point");
-                self.lost(file, s, format!("the auxiliary point is not known before run time ({why})"));
+                self.lost(
+                    file,
+                    s,
+                    format!("the auxiliary point is not known before run time ({why})"),
+                );
                 return;
             };
             let (Some(cur), Some(start)) = (current, start_tcp) else {
                 self.lost(file, s, "a circular motion whose start is unknown".into());
                 return;
             };
-            let Some((aux_prog, aux_goal, _)) = self.complete(&aux, rel, current, &base, &tool, start_tcp.as_ref()) else {
+            let Some((aux_prog, aux_goal, _)) =
+                self.complete(&aux, rel, current, &base, &tool, start_tcp.as_ref())
+            else {
                 self.lost(file, s, "an auxiliary point whose start is unknown".into());
                 return;
             };
-            let cart = match Cartesian::new(&start, &goal, &Path::Circ { aux: aux_goal.position }) {
+            let cart = match Cartesian::new(
+                &start,
+                &goal,
+                &Path::Circ {
+                    aux: aux_goal.position,
+                },
+            ) {
                 Ok(c) => c,
                 Err(e) => {
                     self.lost(file, s, e.to_string());
@@ -1281,20 +1412,36 @@ impl<'f> Simulator<'f> {
                 position: aux_goal.position,
             };
             let s_cur = status_turn(&robot, &cur.axes).0;
-            let q_aux = match kinematics::inverse(&robot, &aux_pose.compose(&tool.inverse()).to_isometry(), Select::StatusNearest { s: s_cur, near: cur.axes }) {
+            let q_aux = match kinematics::inverse(
+                &robot,
+                &aux_pose.compose(&tool.inverse()).to_isometry(),
+                Select::StatusNearest {
+                    s: s_cur,
+                    near: cur.axes,
+                },
+            ) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
                     self.lost(file, s, format!("auxiliary point: {e}"));
                     return;
                 }
             };
-            let arrival = match interpolate::arrival_along(&robot, &tool, &cart, u_aux, &cur.axes, &q_aux) {
-                Ok(a) => Some(a),
-                Err(e) => {
-                    self.warn(file, s.head, format!("auxiliary point: {e}; directions from the axis steps"));
-                    Some(std::array::from_fn(|i| q_aux[i] - cur.axes[i]))
-                }
-            };
+            let mut q_aux = q_aux;
+            let arrival =
+                match interpolate::arrival_along(&robot, &tool, &cart, u_aux, &cur.axes, &q_aux) {
+                    Ok(a) => {
+                        q_aux = a.end;
+                        Some(a.rate)
+                    }
+                    Err(e) => {
+                        self.warn(
+                            file,
+                            s.head,
+                            format!("auxiliary point: {e}; directions from the axis steps"),
+                        );
+                        Some(std::array::from_fn(|i| q_aux[i] - cur.axes[i]))
+                    }
+                };
             let tool_i = self.frames_index(&tool);
             let base_i = self.frames_index(&base);
             let aux_ref = aux_expr.as_path().filter(|p| p.is_simple()).map(|p| p.root);
@@ -1327,13 +1474,22 @@ impl<'f> Simulator<'f> {
         } else {
             let (s_given, t_given) = s_t;
             let select = match (m.kind.is_joint(), current) {
-                (true, _) if s_given.is_some() && t_given.is_some() => Select::Status { s: s_given.unwrap_or(0), t: t_given },
-                (true, Some(c)) => Select::StatusNearest { s: s_given.unwrap_or_else(|| status_turn(&robot, &c.axes).0), near: c.axes },
+                (true, _) if s_given.is_some() && t_given.is_some() => Select::Status {
+                    s: s_given.unwrap_or(0),
+                    t: t_given,
+                },
+                (true, Some(c)) => Select::StatusNearest {
+                    s: s_given.unwrap_or_else(|| status_turn(&robot, &c.axes).0),
+                    near: c.axes,
+                },
                 (true, None) => match s_given {
                     Some(s) => Select::Status { s, t: None },
                     None => Select::Nearest(HOME),
                 },
-                (false, Some(c)) => Select::StatusNearest { s: status_turn(&robot, &c.axes).0, near: c.axes },
+                (false, Some(c)) => Select::StatusNearest {
+                    s: status_turn(&robot, &c.axes).0,
+                    near: c.axes,
+                },
                 (false, None) => match s_given {
                     Some(s) => Select::Status { s, t: t_given },
                     None => Select::Nearest(HOME),
@@ -1349,20 +1505,34 @@ impl<'f> Simulator<'f> {
             }
         };
         if pos.axis && !robot.within_limits(&q) {
-            self.warn(file, s.head, "the axis target is outside the joint limits: left unchanged");
+            self.warn(
+                file,
+                s.head,
+                "the axis target is outside the joint limits: left unchanged",
+            );
         }
-        let goal = if pos.axis { Nominal(&robot).tcp(&q, &tool) } else { goal };
+        let goal = if pos.axis {
+            Nominal(&robot).tcp(&q, &tool)
+        } else {
+            goal
+        };
         let path = if m.kind.is_joint() {
             Path::Ptp
         } else if let (Some(_), Some(aux_i)) = (&circle, aux_stop) {
-            Path::Circ { aux: self.out.stops[aux_i as usize].goal.position }
+            Path::Circ {
+                aux: self.out.stops[aux_i as usize].goal.position,
+            }
         } else {
             Path::Lin
         };
+        let mut q = q;
         let arrival = match (current, start_tcp) {
             (Some(cur), Some(start)) => {
                 match interpolate::arrival(&robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
-                    Ok(a) => Some(a),
+                    Ok(a) => {
+                        q = a.end;
+                        Some(a.rate)
+                    }
                     Err(e) => {
                         self.warn(file, s.head, format!("{e}; directions from the axis steps"));
                         Some(std::array::from_fn(|i| q[i] - cur.axes[i]))
@@ -1371,14 +1541,21 @@ impl<'f> Simulator<'f> {
             }
             _ => None,
         };
-        let compensable = pos.origin.is_some()
-            && m.angle.is_none()
-            && (!pos.axis || robot.within_limits(&q));
+        let compensable =
+            pos.origin.is_some() && m.angle.is_none() && (!pos.axis || robot.within_limits(&q));
         if pos.origin.is_none() {
-            self.warn(file, s.head, "the target is computed in the program (not a literal position): left unchanged");
+            self.warn(
+                file,
+                s.head,
+                "the target is computed in the program (not a literal position): left unchanged",
+            );
         }
         if m.angle.is_some() {
-            self.warn(file, s.head, "a circular motion with CA ends elsewhere than its target: left unchanged");
+            self.warn(
+                file,
+                s.head,
+                "a circular motion with CA ends elsewhere than its target: left unchanged",
+            );
         }
         let tool_i = self.frames_index(&tool);
         let base_i = self.frames_index(&base);
@@ -1403,10 +1580,16 @@ impl<'f> Simulator<'f> {
             compensable,
         });
         let idx = (self.out.stops.len() - 1) as u32;
+        if !pos.axis && rel.is_none() {
+            self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
+        }
         self.state.current = if m.angle.is_some() {
             None
         } else {
-            Some(Current { axes: q, stop: Some(idx) })
+            Some(Current {
+                axes: q,
+                stop: Some(idx),
+            })
         };
     }
 
@@ -1453,7 +1636,7 @@ impl<'f> Simulator<'f> {
                         position: start_in_base.position + r.position,
                     },
                 };
-                let near = start_in_base.to_kuka_near(&[0.0; 3]);
+                let near = start_in_base.to_kuka_near(&self.state.last_abc);
                 let programmed = p.to_kuka_near(&[near[3], near[4], near[5]]);
                 Some((programmed, base.compose(&p), st))
             }
@@ -1463,10 +1646,11 @@ impl<'f> Simulator<'f> {
                 } else {
                     let start = start_tcp?;
                     let _ = current?;
+                    let last = self.state.last_abc;
                     let here = base.inverse().compose(start).to_kuka_near(&[
-                        pos.v[3].unwrap_or(0.0),
-                        pos.v[4].unwrap_or(0.0),
-                        pos.v[5].unwrap_or(0.0),
+                        pos.v[3].unwrap_or(last[0]),
+                        pos.v[4].unwrap_or(last[1]),
+                        pos.v[5].unwrap_or(last[2]),
                     ]);
                     std::array::from_fn(|i| pos.v[i].unwrap_or(here[i]))
                 };

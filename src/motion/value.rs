@@ -169,7 +169,10 @@ pub fn aggregate<'f>(
                     e => eval(e).as_int(),
                 };
                 let Some(v) = v else {
-                    return Value::Unknown(format!("{} is not a constant", String::from_utf8_lossy(name)));
+                    return Value::Unknown(format!(
+                        "{} is not a constant",
+                        String::from_utf8_lossy(name)
+                    ));
                 };
                 if up == b"S" {
                     pos.s = Some(v as u8);

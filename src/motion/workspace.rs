@@ -151,10 +151,11 @@ impl Workspace {
             let mut any = false;
             for name in wanted {
                 let Some(path) = entries.iter().find(|p| {
-                    p.extension()
-                        .is_some_and(|e| e.eq_ignore_ascii_case("src") || e.eq_ignore_ascii_case("sub"))
-                        && p.file_stem()
-                            .is_some_and(|s| s.to_string_lossy().as_bytes().eq_ignore_ascii_case(&name))
+                    p.extension().is_some_and(|e| {
+                        e.eq_ignore_ascii_case("src") || e.eq_ignore_ascii_case("sub")
+                    }) && p
+                        .file_stem()
+                        .is_some_and(|s| s.to_string_lossy().as_bytes().eq_ignore_ascii_case(&name))
                 }) else {
                     continue;
                 };

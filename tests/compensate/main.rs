@@ -1,6 +1,7 @@
 //! Compensation tests: the solver and sequence logic (`core`), and later the KRL pipeline.
 
 mod core;
+mod pipeline;
 
 use std::path::Path;
 
