@@ -2,6 +2,10 @@
 //! at 1° pitch, crosstalk A3->A2) predicting the target position at varied states.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
+
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
+use cpu_time::ThreadCpuTime;
 use nalgebra::Vector3;
 use robopost::kinematics::{Payload, RobotDescription};
 use robopost::model::{expand_list, AxisState, Direction, GridOptions, Model};
@@ -47,7 +51,7 @@ fn states() -> Vec<AxisState> {
         .collect()
 }
 
-fn prediction(c: &mut Criterion) {
+fn prediction(c: &mut Criterion<ThreadCpuTime>) {
     let model = paper_model();
     let states = states();
     let mut i = 0;
@@ -61,7 +65,7 @@ fn prediction(c: &mut Criterion) {
 
 criterion_group! {
     name = benches;
-    config = Criterion::default().measurement_time(std::time::Duration::from_secs(3)).warm_up_time(std::time::Duration::from_secs(1));
+    config = Criterion::default().with_measurement(ThreadCpuTime::new()).measurement_time(std::time::Duration::from_secs(3)).warm_up_time(std::time::Duration::from_secs(1));
     targets = prediction
 }
 criterion_main!(benches);

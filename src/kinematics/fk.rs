@@ -41,7 +41,7 @@ impl Geometry {
             l3z: l.l3z,
             l4x: l.l4x,
             l5x: l.l5x,
-            k: l.l3z.hypot(l.l4x),
+            k: (l.l3z * l.l3z + l.l4x * l.l4x).sqrt(),
             senses: robot.senses,
             offsets: robot.offsets_deg.map(f64::to_radians),
         }

@@ -4,10 +4,12 @@
 //! kinematics with every branch and the controller's ways of choosing one. Knows nothing of
 //! KRL syntax nor of error models.
 
+mod branches;
 pub mod fk;
 pub mod ik;
 pub mod pose;
 pub mod robot;
+mod turns;
 
 pub use fk::{
     flange_frame, forward, singularity, singularity_distances, singularity_with, status_turn,

@@ -545,14 +545,14 @@ fn param<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Param> {
     let mut mode = ParamMode::Default;
     let (k, _) = ws(j)?;
     if let Ok((k, _)) = punct(b':')(k) {
-        let (k, _) = ws(k)?;
-        let (k, m) = expect("expected IN or OUT after `:`", HELP_DEF, ident)(k)?;
+        let (at, _) = ws(k)?;
+        let (k, m) = expect("expected IN or OUT after `:`", HELP_DEF, ident)(at)?;
         mode = if m.eq_ignore_ascii_case(b"IN") {
             ParamMode::In
         } else if m.eq_ignore_ascii_case(b"OUT") {
             ParamMode::Out
         } else {
-            return fail(k, "expected IN or OUT after `:`", HELP_DEF);
+            return fail(at, "expected IN or OUT after `:`", HELP_DEF);
         };
         j = k;
     }

@@ -5,7 +5,7 @@
 
 use super::lex::{
     bits, enum_literal, expect, fail, ident, is_ident_char, keyword, number_literal, punct, string,
-    ws, Cx, PResult,
+    ws, Cx, Fails, PResult,
 };
 use super::number;
 use super::span::Span;
@@ -295,7 +295,7 @@ impl Aggregate {
 const HELP_AGG: &str =
     "aggregate members are written NAME value, separated by commas: {X 10, Y -2.5}";
 
-fn too_deep(i: &[u8]) -> PResult<'_, Expr> {
+fn too_deep(i: &[u8]) -> Fails<'_, Expr> {
     fail(
         i,
         "expression nested too deeply",
@@ -632,6 +632,13 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
         }
         if let Ok((k, close)) = punct(b'}')(k) {
             return Ok((k, agg_expr(cx, i, k, open, type_name, members, close)));
+        }
+        if k.is_empty() {
+            return fail(
+                k,
+                "unclosed aggregate: `}` missing",
+                "close the aggregate with } on the same line (a KRL statement never continues on the next line)",
+            );
         }
         return fail(
             k,

@@ -229,7 +229,8 @@ fn parse_fold(cx: Cx<'_>, comment: &[u8], line: u32, parent: Option<FoldId>) -> 
     let title = trim(&rest[..meta_at.unwrap_or(rest.len())]);
     let ilf = meta_at.and_then(|p| {
         let meta = &rest[p + 1..];
-        meta.starts_with(b"%{").then(|| parse_ilf(cx, title, meta))
+        // `%{h}` marks a hidden helper fold (the `Parameters` of spline forms), not a form.
+        (meta.starts_with(b"%{") && !meta.starts_with(b"%{h}")).then(|| parse_ilf(cx, title, meta))
     });
     Fold {
         open: cx.span_of(comment),

@@ -9,8 +9,12 @@ use super::span::Span;
 use nom::error::{ErrorKind, ParseError};
 use nom::IResult;
 
-/// Result of every grammar production (each `fn` returning it is named in `grammars/krl.ebnf`).
+/// Result of every grammar production (each `fn` returning it is named in `grammars/krl.ebnf`,
+/// and a test keeps the two lists equal).
 pub(crate) type PResult<'a, T> = IResult<&'a [u8], T, PErr<'a>>;
+
+/// The same type for helpers that only build an error (not grammar productions).
+pub(crate) type Fails<'a, T> = IResult<&'a [u8], T, PErr<'a>>;
 
 /// A parse error: where (the remaining input), what was expected, and how to fix it.
 #[derive(Clone, Copy, Debug)]
@@ -77,7 +81,7 @@ impl<'a> Cx<'a> {
 }
 
 /// A backtracking error at `at`.
-pub(crate) fn backtrack<T>(at: &[u8]) -> PResult<'_, T> {
+pub(crate) fn backtrack<T>(at: &[u8]) -> Fails<'_, T> {
     Err(nom::Err::Error(PErr {
         at,
         label: "",
@@ -86,7 +90,7 @@ pub(crate) fn backtrack<T>(at: &[u8]) -> PResult<'_, T> {
 }
 
 /// A committed failure at `at` with a message and a hint.
-pub(crate) fn fail<'a, T>(at: &'a [u8], label: &'static str, help: &'static str) -> PResult<'a, T> {
+pub(crate) fn fail<'a, T>(at: &'a [u8], label: &'static str, help: &'static str) -> Fails<'a, T> {
     Err(nom::Err::Failure(PErr { at, label, help }))
 }
 
