@@ -65,14 +65,22 @@ fn kinematics(c: &mut Criterion<ThreadCpuTime>) {
     c.bench_function("ik selected by S and T", |b| {
         b.iter(|| {
             i = (i + 1) % n;
-            black_box(inverse(black_box(&robot), black_box(&points[i].1), selects[i]))
+            black_box(inverse(
+                black_box(&robot),
+                black_box(&points[i].1),
+                selects[i],
+            ))
         })
     });
     c.bench_function("ik nearest of all 8 configurations", |b| {
         b.iter(|| {
             i = (i + 1) % n;
             let near = points[(i + n - 1) % n].0;
-            black_box(inverse(black_box(&robot), black_box(&points[i].1), Select::Nearest(near)))
+            black_box(inverse(
+                black_box(&robot),
+                black_box(&points[i].1),
+                Select::Nearest(near),
+            ))
         })
     });
     let near_selects: Vec<Select> = points
@@ -85,7 +93,11 @@ fn kinematics(c: &mut Criterion<ThreadCpuTime>) {
     c.bench_function("ik selected by S, nearest", |b| {
         b.iter(|| {
             i = (i + 1) % n;
-            black_box(inverse(black_box(&robot), black_box(&points[i].1), near_selects[i]))
+            black_box(inverse(
+                black_box(&robot),
+                black_box(&points[i].1),
+                near_selects[i],
+            ))
         })
     });
 }

@@ -249,7 +249,11 @@ pub(crate) fn arm(t: &Target, sh: &Shoulder, up: bool) -> Arm {
     };
     Arm {
         bits: u8::from(sh.back) | u8::from(up) << 1,
-        axes: [sh.a1, wrap_deg(g.kuka(1, t2)), wrap_deg(g.kuka(2, e - t.psi))],
+        axes: [
+            sh.a1,
+            wrap_deg(g.kuka(1, t2)),
+            wrap_deg(g.kuka(2, e - t.psi)),
+        ],
         m,
         singular,
     }

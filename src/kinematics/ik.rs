@@ -106,7 +106,10 @@ fn config(t: &Target, s: u8) -> Config {
         Ok(sh) => {
             let arm = arm(t, &sh, s & 2 == 2);
             let w = wrist(t, &arm);
-            let axes = join(&arm.axes, if s & 4 == 4 { &w.negative } else { &w.positive });
+            let axes = join(
+                &arm.axes,
+                if s & 4 == 4 { &w.negative } else { &w.positive },
+            );
             Config::Solved {
                 axes,
                 singular: arm.singular.or(w.singular),
@@ -289,8 +292,10 @@ pub fn inverse(
                     s,
                     t: turn(&axes_deg),
                 }),
-                None => Err(limits_error(robot, &axes)
-                    .unwrap_or_else(|| no_branch(robot, flange, s, t))),
+                None => {
+                    Err(limits_error(robot, &axes)
+                        .unwrap_or_else(|| no_branch(robot, flange, s, t)))
+                }
             }
         }
         Select::StatusNearest { s, near } => {
@@ -306,8 +311,10 @@ pub fn inverse(
                     s,
                     t: turn(&axes_deg),
                 }),
-                None => Err(limits_error(robot, &axes)
-                    .unwrap_or_else(|| no_branch(robot, flange, s, None))),
+                None => {
+                    Err(limits_error(robot, &axes)
+                        .unwrap_or_else(|| no_branch(robot, flange, s, None)))
+                }
             }
         }
         Select::Nearest(near) => nearest(robot, &Target::new(robot, &r, &p, Some(&near)), &near),
@@ -334,7 +341,8 @@ fn nearest(
     let beaten = |best: &Option<(f64, IkSolution)>, bound: f64| {
         bound.is_infinite() || best.as_ref().is_some_and(|(d, _)| *d <= bound)
     };
-    let mut shoulders = [false, true].map(|back| (axis_distance(robot, 0, target.a1(back), near), back));
+    let mut shoulders =
+        [false, true].map(|back| (axis_distance(robot, 0, target.a1(back), near), back));
     if shoulders[1].0 < shoulders[0].0 {
         shoulders.swap(0, 1);
     }
@@ -350,7 +358,8 @@ fn nearest(
                 continue;
             }
         };
-        let mut elbows = [false, true].map(|up| (d1 + axis_distance(robot, 2, a3(target, &sh, up), near), up));
+        let mut elbows =
+            [false, true].map(|up| (d1 + axis_distance(robot, 2, a3(target, &sh, up), near), up));
         if elbows[1].0 < elbows[0].0 {
             elbows.swap(0, 1);
         }

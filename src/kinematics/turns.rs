@@ -167,7 +167,10 @@ pub(crate) fn first_outside(robot: &RobotDescription, axes: &[f64; 6]) -> Option
         }
         let [lo, hi] = robot.limits_deg[i];
         let mid = 0.5 * (lo + hi);
-        Some((i as u8 + 1, axes[i] + 360.0 * ((mid - axes[i]) / 360.0).round()))
+        Some((
+            i as u8 + 1,
+            axes[i] + 360.0 * ((mid - axes[i]) / 360.0).round(),
+        ))
     })
 }
 
@@ -184,12 +187,21 @@ mod tests {
         // A2 within −135..35: 170 has none.
         assert!(Variants::of(&robot, 1, 170.0).is_empty());
         assert_eq!(nearest(&robot, 3, 100.0, -200.0), Some(-260.0));
-        assert_eq!(nearest(&robot, 3, 100.0, 500.0), Some(100.0), "460 is beyond 350");
+        assert_eq!(
+            nearest(&robot, 3, 100.0, 500.0),
+            Some(100.0),
+            "460 is beyond 350"
+        );
         assert_eq!(nearest(&robot, 0, 179.0, -170.0), Some(-181.0));
         assert_eq!(nearest(&robot, 1, 170.0, 0.0), None);
-        assert_eq!(with_turn(&robot, &[0.0, 0.0, 0.0, 100.0, 0.0, 0.0], 0b1000).map(|a| a[3]), Some(-260.0));
+        assert_eq!(
+            with_turn(&robot, &[0.0, 0.0, 0.0, 100.0, 0.0, 0.0], 0b1000).map(|a| a[3]),
+            Some(-260.0)
+        );
         let mut ts = Vec::new();
-        each_variant(&robot, &[179.0, -30.0, 20.0, 100.0, 40.0, -10.0], |a| ts.push(turn(&a)));
+        each_variant(&robot, &[179.0, -30.0, 20.0, 100.0, 40.0, -10.0], |a| {
+            ts.push(turn(&a))
+        });
         assert_eq!(ts.len(), 8);
         assert!(ts.windows(2).all(|w| w[0] <= w[1]), "{ts:?}");
     }

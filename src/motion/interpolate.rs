@@ -119,6 +119,33 @@ impl Cartesian {
         Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
     }
 
+    /// The arc from the same start about the same centre turned by `angle_deg` (a circular
+    /// motion with `CA`: it ends there, with the end orientation `rotation`); `None` for a line.
+    pub fn with_arc_angle(
+        &self,
+        angle_deg: f64,
+        rotation: &nalgebra::Matrix3<f64>,
+    ) -> Option<Cartesian> {
+        match self.shape {
+            Shape::Line { .. } => None,
+            Shape::Arc {
+                centre,
+                axis,
+                radius0,
+                ..
+            } => Some(Cartesian {
+                start: self.start,
+                omega: frame::log_so3(&(rotation * self.start.rotation.transpose())),
+                shape: Shape::Arc {
+                    centre,
+                    axis,
+                    radius0,
+                    angle: angle_deg.to_radians(),
+                },
+            }),
+        }
+    }
+
     /// The path parameter at which an arc passes `point` (its angle from the start over the
     /// arc's angle); for a line, the projection onto it.
     pub fn fraction_at(&self, point: &Vector3<f64>) -> f64 {

@@ -1516,6 +1516,79 @@ impl<'f> Simulator<'f> {
         } else {
             goal
         };
+        // `CA`: the motion ends on the circle at that angle (orientation of the target), not at
+        // the target; the stops are kept for the directions but left unchanged.
+        if let (Some(ca), Some(cart), Some(cur)) = (&m.angle, &circle, current) {
+            let angle = self.eval(file, &ca.value, scope).as_f64();
+            let ended = angle.and_then(|a| cart.with_arc_angle(a, &goal.rotation));
+            let Some(arc) = ended else {
+                self.lost(
+                    file,
+                    s,
+                    "a circular angle CA not known before run time".into(),
+                );
+                return;
+            };
+            let end = arc.pose(1.0);
+            let s_cur = status_turn(&robot, &cur.axes).0;
+            let flange = end.compose(&tool.inverse());
+            let select = Select::StatusNearest {
+                s: s_cur,
+                near: cur.axes,
+            };
+            let q_end = match kinematics::inverse(&robot, &flange.to_isometry(), select) {
+                Ok(sol) => sol.axes_deg,
+                Err(e) => {
+                    self.lost(
+                        file,
+                        s,
+                        format!("the end of the circle (CA) cannot be reached: {e}"),
+                    );
+                    return;
+                }
+            };
+            let walked = interpolate::arrival_along(&robot, &tool, &arc, 1.0, &cur.axes, &q_end);
+            let (q_end, arrival) = match walked {
+                Ok(a) => (a.end, Some(a.rate)),
+                Err(e) => {
+                    self.warn(file, s.head, format!("{e}; directions from the axis steps"));
+                    (q_end, Some(std::array::from_fn(|i| q_end[i] - cur.axes[i])))
+                }
+            };
+            self.warn(
+                file,
+                s.head,
+                "a circular motion with CA ends elsewhere than its target: left unchanged",
+            );
+            let tool_i = self.frames_index(&tool);
+            let base_i = self.frames_index(&base);
+            self.out.stops.push(Stop {
+                file,
+                stmt: s,
+                kind: m.kind,
+                role: Role::Target,
+                goal: end,
+                tool: tool_i,
+                base: base_i,
+                nominal_axes: q_end,
+                arrival,
+                axis: false,
+                programmed,
+                keep_s: true,
+                keep_t: false,
+                rel,
+                origin: None,
+                reference: None,
+                prev: aux_stop,
+                compensable: false,
+            });
+            let idx = (self.out.stops.len() - 1) as u32;
+            self.state.current = Some(Current {
+                axes: q_end,
+                stop: Some(idx),
+            });
+            return;
+        }
         let path = if m.kind.is_joint() {
             Path::Ptp
         } else if let (Some(_), Some(aux_i)) = (&circle, aux_stop) {
@@ -1550,13 +1623,6 @@ impl<'f> Simulator<'f> {
                 "the target is computed in the program (not a literal position): left unchanged",
             );
         }
-        if m.angle.is_some() {
-            self.warn(
-                file,
-                s.head,
-                "a circular motion with CA ends elsewhere than its target: left unchanged",
-            );
-        }
         let tool_i = self.frames_index(&tool);
         let base_i = self.frames_index(&base);
         self.out.stops.push(Stop {
@@ -1583,14 +1649,10 @@ impl<'f> Simulator<'f> {
         if !pos.axis && rel.is_none() {
             self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
         }
-        self.state.current = if m.angle.is_some() {
-            None
-        } else {
-            Some(Current {
-                axes: q,
-                stop: Some(idx),
-            })
-        };
+        self.state.current = Some(Current {
+            axes: q,
+            stop: Some(idx),
+        });
     }
 
     /// The absolute programmed values (in the base, or axes), the goal TCP in the robot base
@@ -1685,6 +1747,8 @@ fn binary<'f>(op: BinOp, l: Value<'f>, r: Value<'f>) -> Value<'f> {
         BinOp::Geo => match (l, r) {
             (Pos(a), Pos(mut b)) if !a.axis && !b.axis && a.is_complete() => {
                 let fa = super::frame::Frame::from_kuka(&a.v.map(|x| x.unwrap_or(0.0)));
+                // The right operand is a frame: components it does not give are zero.
+                b.v = b.v.map(|x| Some(x.unwrap_or(0.0)));
                 let complete = b.is_complete();
                 match &mut b.origin {
                     Some(o) => {

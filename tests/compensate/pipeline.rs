@@ -11,7 +11,8 @@ fn debug_stops() {
     let name = std::env::var("PROG").unwrap_or("fixtures/programs/paper_path2.src".into());
     let p = Path::new(&name);
     let bytes = std::fs::read(p).unwrap();
-    let ws = files::load_program(Some(p), &bytes, None).unwrap();
+    let cfg = std::env::var("CFG").ok();
+    let ws = files::load_program(Some(p), &bytes, cfg.as_deref().map(Path::new)).unwrap();
     let robot = robopost::kinematics::RobotDescription::kr30ha();
     let sim = motion::simulate(&ws, &robot, &[]);
     for d in &sim.diagnostics {

@@ -35,7 +35,12 @@ fn check_numbers(file: &krl::SourceFile, e: &Expr, path: &std::path::Path) -> us
     for num in e.numbers() {
         let text = std::str::from_utf8(file.text(num.span)).unwrap();
         let want: f64 = text.parse().unwrap();
-        assert_eq!(num.value.to_bits(), want.to_bits(), "{} {text}", path.display());
+        assert_eq!(
+            num.value.to_bits(),
+            want.to_bits(),
+            "{} {text}",
+            path.display()
+        );
         n += 1;
     }
     n
@@ -69,7 +74,10 @@ fn every_number_of_every_position_reads_back_exactly() {
 #[test]
 fn no_fixture_program_has_errors() {
     for path in files_under("programs") {
-        if !matches!(path.extension().and_then(|e| e.to_str()), Some("src" | "dat")) {
+        if !matches!(
+            path.extension().and_then(|e| e.to_str()),
+            Some("src" | "dat")
+        ) {
             continue;
         }
         let bytes = std::fs::read(&path).unwrap();

@@ -56,9 +56,14 @@ fn parser_functions(rust: &str) -> BTreeSet<String> {
                 _ => {}
             }
         }
-        let Some(params_end) = params_end else { continue };
+        let Some(params_end) = params_end else {
+            continue;
+        };
         if let Some(arrow) = sig[params_end..].find("->") {
-            if sig[params_end + arrow + 2..].trim_start().starts_with("PResult") {
+            if sig[params_end + arrow + 2..]
+                .trim_start()
+                .starts_with("PResult")
+            {
                 out.insert(name);
             }
         }
@@ -93,5 +98,8 @@ fn the_scanners_themselves_work() {
         ["foo", "qux_2"].iter().map(|s| s.to_string()).collect()
     );
     let rust = "fn a<'x>(i: &'x [u8]) -> PResult<'x, u8> {}\nfn b() -> impl Fn(&[u8]) -> PResult<'_, u8> {}\nfn c() -> Fails<'_, u8> {}\nfn d<'a>(p: impl FnMut(&'a [u8]) -> PResult<'a, u8>) -> impl FnMut(&'a [u8]) -> PResult<'a, u8> {}";
-    assert_eq!(parser_functions(rust), ["a"].iter().map(|s| s.to_string()).collect());
+    assert_eq!(
+        parser_functions(rust),
+        ["a"].iter().map(|s| s.to_string()).collect()
+    );
 }

@@ -129,7 +129,11 @@ fn number_text() -> impl Strategy<Value = String> {
         1 => {
             let t = format!("{:.d$}", v.abs() / 1000.0);
             let t = t.trim_start_matches('0');
-            if t.is_empty() { "0".to_string() } else { t.to_string() }
+            if t.is_empty() {
+                "0".to_string()
+            } else {
+                t.to_string()
+            }
         }
         2 => format!("{v:.d$E}"),
         _ => format!("{}", v.round() as i64),
@@ -143,7 +147,13 @@ fn case(word: &str, mix: u8) -> String {
         _ => word
             .chars()
             .enumerate()
-            .map(|(i, c)| if i % 2 == 0 { c.to_ascii_lowercase() } else { c })
+            .map(|(i, c)| {
+                if i % 2 == 0 {
+                    c.to_ascii_lowercase()
+                } else {
+                    c
+                }
+            })
             .collect(),
     }
 }
@@ -164,7 +174,13 @@ fn motion_line() -> impl Strategy<Value = GenLine> {
         proptest::collection::vec(number_text(), 8),
         proptest::collection::vec(0u8..4, 10),
         any::<u8>(),
-        prop_oneof![Just(""), Just(" C_DIS"), Just(" C_PTP C_DIS"), Just(" ; comment {X 1"), Just("\t")],
+        prop_oneof![
+            Just(""),
+            Just(" C_DIS"),
+            Just(" C_PTP C_DIS"),
+            Just(" ; comment {X 1"),
+            Just("\t")
+        ],
         proptest::option::of(prop_oneof![Just("FRAME"), Just("E6POS"), Just("POS")]),
     )
         .prop_map(|(kind, names, values, spaces, mix, tail, prefix)| {

@@ -3,8 +3,8 @@
 
 use super::fixture;
 use robopost::krl::{
-    self, Access, ApproxKind, ArmKind, BinOp, Expr, MotionKind, ParamMode, RelFrameKind, SourceFile,
-    StmtKind, Symbols, TypeKind,
+    self, Access, ApproxKind, ArmKind, BinOp, Expr, MotionKind, ParamMode, RelFrameKind,
+    SourceFile, StmtKind, Symbols, TypeKind,
 };
 
 fn text(f: &SourceFile, span: krl::Span) -> String {
@@ -27,11 +27,25 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     let ms: Vec<_> = src.motions().collect();
     let summary: Vec<String> = ms
         .iter()
-        .map(|(s, m)| format!("{} {} {}", s.line, m.kind.keyword(), path_text(&src, &m.target)))
+        .map(|(s, m)| {
+            format!(
+                "{} {} {}",
+                s.line,
+                m.kind.keyword(),
+                path_text(&src, &m.target)
+            )
+        })
         .collect();
     assert_eq!(
         summary,
-        ["24 PTP XHOME", "32 PTP XP1", "40 LIN XP2", "55 LIN XP3", "63 CIRC XP5", "76 PTP XHOME"]
+        [
+            "24 PTP XHOME",
+            "32 PTP XP1",
+            "40 LIN XP2",
+            "55 LIN XP3",
+            "63 CIRC XP5",
+            "76 PTP XHOME"
+        ]
     );
     // PTP P1 CONT Vel=100 % PDAT1 Tool[1]:Gripper Base[2]:Table
     let (stmt, m) = ms[1];
@@ -43,21 +57,40 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     assert_eq!(text(&src, ilf.module.unwrap()), "KUKATPBASIS");
     assert_eq!(text(&src, ilf.command.unwrap()), "MOVE");
     assert_eq!(text(&src, ilf.variant.unwrap()), "PTP");
-    let params: Vec<(u32, String)> = ilf.params.iter().map(|(n, v)| (*n, text(&src, *v))).collect();
+    let params: Vec<(u32, String)> = ilf
+        .params
+        .iter()
+        .map(|(n, v)| (*n, text(&src, *v)))
+        .collect();
     assert_eq!(
         params,
-        [(1, "PTP".into()), (2, "P1".into()), (3, "C_PTP".into()), (5, "100".into()), (7, "PDAT1".into())]
+        [
+            (1, "PTP".into()),
+            (2, "P1".into()),
+            (3, "C_PTP".into()),
+            (5, "100".into()),
+            (7, "PDAT1".into())
+        ]
     );
     let im = ilf.motion.as_ref().unwrap();
     assert_eq!(im.kind, MotionKind::Ptp);
     assert!(im.cont.is_some());
     let v = im.velocity.unwrap();
-    assert_eq!((v.value, text(&src, v.unit.unwrap())), (100.0, "%".to_string()));
+    assert_eq!(
+        (v.value, text(&src, v.unit.unwrap())),
+        (100.0, "%".to_string())
+    );
     assert_eq!(text(&src, im.data.unwrap()), "PDAT1");
     let tool = im.tool.unwrap();
-    assert_eq!((tool.index, text(&src, tool.name.unwrap())), (Some(1), "Gripper".into()));
+    assert_eq!(
+        (tool.index, text(&src, tool.name.unwrap())),
+        (Some(1), "Gripper".into())
+    );
     let base = im.base.unwrap();
-    assert_eq!((base.index, text(&src, base.name.unwrap())), (Some(2), "Table".into()));
+    assert_eq!(
+        (base.index, text(&src, base.name.unwrap())),
+        (Some(2), "Table".into())
+    );
     // Names KUKA gives the data, resolved in the .dat.
     let x = im.position_var(src.source(), 0).unwrap();
     assert_eq!(x, b"XP1");
@@ -67,12 +100,17 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     let xn = agg.number(dat.source(), "X").unwrap();
     assert_eq!((xn.value, dat.text(xn.span)), (812.441, &b"812.441"[..]));
     assert_eq!(agg.number(dat.source(), "A").unwrap().value, -172.25);
-    let pd = syms.get(&im.motion_data_var(src.source()).unwrap()).unwrap();
+    let pd = syms
+        .get(&im.motion_data_var(src.source()).unwrap())
+        .unwrap();
     assert_eq!(pd.decl.ty.kind, TypeKind::Pdat);
     let fd = syms.get(&im.frame_data_var(src.source()).unwrap()).unwrap();
     let fa = fd.var.init.as_ref().unwrap().as_aggregate().unwrap();
     assert_eq!(fa.number(dat.source(), "BASE_NO").unwrap().value, 2.0);
-    assert!(matches!(fa.member(dat.source(), "IPO_FRAME").unwrap().value, Expr::Enum(_)));
+    assert!(matches!(
+        fa.member(dat.source(), "IPO_FRAME").unwrap().value,
+        Expr::Enum(_)
+    ));
     // LIN P2 Vel=0.5 m/s CPDAT1: path motion data is LDAT L + name.
     let (s2, _) = ms[2];
     let im2 = src.inline_form(s2).unwrap().1.motion.as_ref().unwrap();
@@ -98,7 +136,10 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     assert_eq!(folds[2].parent, Some(krl::FoldId(0)));
     assert!(folds.iter().all(|f| f.close.is_some()));
     // The OUT form is an inline form without a motion.
-    let out = folds.iter().find(|f| text(&src, f.title).starts_with("OUT 17")).unwrap();
+    let out = folds
+        .iter()
+        .find(|f| text(&src, f.title).starts_with("OUT 17"))
+        .unwrap();
     assert!(out.ilf.as_ref().unwrap().motion.is_none());
     assert_eq!(src.stats().inline_forms, 10);
     assert_eq!(dat.stats().declared_points, 5);
@@ -114,7 +155,10 @@ fn spline_inline_forms_with_parameter_folds() {
     let (s, sc) = ms[3];
     assert_eq!(path_text(&src, sc.aux.as_ref().unwrap()), "XS3");
     assert_eq!(path_text(&src, &sc.target), "XS4");
-    assert_eq!(sc.angle.as_ref().unwrap().value.as_number().unwrap().value, 180.0);
+    assert_eq!(
+        sc.angle.as_ref().unwrap().value.as_number().unwrap().value,
+        180.0
+    );
     assert_eq!(sc.approx[0].kind, ApproxKind::Spl);
     assert_eq!(sc.with.len(), 12);
     let vel = &sc.with[0];
@@ -122,10 +166,19 @@ fn spline_inline_forms_with_parameter_folds() {
     let Expr::Call(c) = &vel.value else { panic!() };
     assert_eq!(text(&src, c.name), "SVEL_CP");
     assert_eq!(c.args.len(), 3);
-    assert!(c.args[1].is_none(), "the empty argument of SVEL_CP(0.012, , LCPDAT5)");
+    assert!(
+        c.args[1].is_none(),
+        "the empty argument of SVEL_CP(0.012, , LCPDAT5)"
+    );
     let (_, ilf) = src.inline_form(s).unwrap();
-    assert_eq!(ilf.setting(src.source(), "Kuka.PointName"), Some(&b"S4"[..]));
-    assert_eq!(ilf.setting(src.source(), "kuka.auxpointname"), Some(&b"S3"[..]));
+    assert_eq!(
+        ilf.setting(src.source(), "Kuka.PointName"),
+        Some(&b"S4"[..])
+    );
+    assert_eq!(
+        ilf.setting(src.source(), "kuka.auxpointname"),
+        Some(&b"S3"[..])
+    );
     assert_eq!(ilf.setting(src.source(), "IlfCommand"), Some(&b"SCIRC"[..]));
     let im = ilf.motion.as_ref().unwrap();
     assert_eq!(im.kind, Scirc);
@@ -149,7 +202,9 @@ fn cam_frame_array_driven_by_a_for_loop() {
         .statements()
         .find(|s| matches!(s.kind, StmtKind::For(_)))
         .unwrap();
-    let StmtKind::For(Some(f)) = &for_stmt.kind else { panic!() };
+    let StmtKind::For(Some(f)) = &for_stmt.kind else {
+        panic!()
+    };
     assert_eq!(text(&src, f.var), "I");
     assert_eq!(f.from.as_number().unwrap().value, 2.0);
     assert_eq!(path_text(&src, &f.to), "NPTS");
@@ -158,7 +213,9 @@ fn cam_frame_array_driven_by_a_for_loop() {
     let m = body[0].as_motion().unwrap();
     let p = m.target.as_path().unwrap();
     assert_eq!(text(&src, p.root), "CNC1");
-    let Access::Index { items, .. } = &p.access[0] else { panic!() };
+    let Access::Index { items, .. } = &p.access[0] else {
+        panic!()
+    };
     assert_eq!(path_text(&src, &items[0]), "I");
     // The array and element 17 (generator: t = 2π·16/240, x = 400 + 150 cos t + 12 cos 5t …).
     let decl = syms.get(b"CNC1").unwrap();
@@ -205,7 +262,10 @@ fn generated_cam_program_has_every_lin() {
         .nth(2)
         .unwrap();
     let v = |n| first.number(f.source(), n).unwrap().value;
-    assert_eq!((v("X"), v("Y"), v("Z"), v("B"), v("C")), (0.0, 0.0, -1.0, 94.5, 0.0));
+    assert_eq!(
+        (v("X"), v("Y"), v("Z"), v("B"), v("C")),
+        (0.0, 0.0, -1.0, 94.5, 0.0)
+    );
 }
 
 #[test]
@@ -236,7 +296,12 @@ fn robodk_style_split_program() {
     assert_eq!(text(&p1, axis.type_name.unwrap()), "AXIS");
     assert_eq!(axis.number(p1.source(), "A2").unwrap().value, -78.4);
     assert_eq!(ms[6].approx[0].kind, ApproxKind::Dis);
-    let z = ms[4].target.as_aggregate().unwrap().number(p1.source(), "Z").unwrap();
+    let z = ms[4]
+        .target
+        .as_aggregate()
+        .unwrap()
+        .number(p1.source(), "Z")
+        .unwrap();
     assert_eq!((z.value, p1.text(z.span)), (-12.5, &b"-12.500"[..]));
 }
 
@@ -261,7 +326,14 @@ fn every_language_construct() {
             format!("{}{} {}", h.global.is_some(), h.function, ps.join(","))
         })
         .collect();
-    assert_eq!(routines, ["truefalse countIn,table[,]Out", "falsetrue valueIn", "falsefalse "]);
+    assert_eq!(
+        routines,
+        [
+            "truefalse countIn,table[,]Out",
+            "falsetrue valueIn",
+            "falsefalse "
+        ]
+    );
     let (_, fct) = f.routines().nth(1).unwrap();
     assert_eq!(fct.ret.unwrap().kind, TypeKind::Real);
     assert_eq!(fct.params[0].mode, ParamMode::In);
@@ -270,7 +342,9 @@ fn every_language_construct() {
     let find = |pred: &dyn Fn(&krl::Stmt) -> bool| *all.iter().find(|s| pred(s)).unwrap();
     // $BASE = BASE_DATA[2] : {X 10}
     let s = find(&|s| f.text(s.head).starts_with(b"$BASE"));
-    let StmtKind::Assign(a) = &s.kind else { panic!() };
+    let StmtKind::Assign(a) = &s.kind else {
+        panic!()
+    };
     let Expr::Binary(b) = &a.rhs else { panic!() };
     assert_eq!(b.op, BinOp::Geo);
     assert_eq!(path_text(&f, &b.lhs), "BASE_DATA[2]");
@@ -289,29 +363,64 @@ fn every_language_construct() {
     assert_eq!(text(&f, e6.type_name.unwrap()), "E6POS");
     assert_eq!(e6.number(f.source(), "Y").unwrap().value, -25.0);
     assert_eq!(e6.number(f.source(), "Z").unwrap().value, 0.25);
-    assert!(matches!(e6.member(f.source(), "S").unwrap().value, Expr::Bits(_)));
+    assert!(matches!(
+        e6.member(f.source(), "S").unwrap().value,
+        Expr::Bits(_)
+    ));
     assert_eq!(ms[3].approx[0].kind, ApproxKind::Vel);
-    let Expr::Binary(g) = &ms[4].target else { panic!() };
-    assert_eq!((g.op, path_text(&f, &g.lhs), path_text(&f, &g.rhs)), (BinOp::Geo, "pickPos".into(), "offset".into()));
+    let Expr::Binary(g) = &ms[4].target else {
+        panic!()
+    };
+    assert_eq!(
+        (g.op, path_text(&f, &g.lhs), path_text(&f, &g.rhs)),
+        (BinOp::Geo, "pickPos".into(), "offset".into())
+    );
     assert_eq!(ms[6].approx[0].kind, ApproxKind::Ori);
     let p = ms[7].target.as_path().unwrap();
-    let Access::Index { items, .. } = &p.access[0] else { panic!() };
+    let Access::Index { items, .. } = &p.access[0] else {
+        panic!()
+    };
     assert_eq!(items.len(), 2);
-    assert_eq!(ms[8].angle.as_ref().unwrap().value.as_number().unwrap().value, 90.0);
+    assert_eq!(
+        ms[8]
+            .angle
+            .as_ref()
+            .unwrap()
+            .value
+            .as_number()
+            .unwrap()
+            .value,
+        90.0
+    );
     assert!(ms[9].angle.is_none());
     assert_eq!(ms[10].frame.unwrap().kind, RelFrameKind::Tool);
     assert_eq!(ms[11].frame.unwrap().kind, RelFrameKind::Base);
     assert_eq!(ms[11].approx[0].kind, ApproxKind::Dis);
-    assert_eq!(ms[13].angle.as_ref().unwrap().value.as_number().unwrap().value, -45.5);
+    assert_eq!(
+        ms[13]
+            .angle
+            .as_ref()
+            .unwrap()
+            .value
+            .as_number()
+            .unwrap()
+            .value,
+        -45.5
+    );
     assert_eq!(ms[15].approx[0].kind, ApproxKind::Ptp);
     // Control flow.
-    let ifs: Vec<_> = all.iter().filter(|s| matches!(s.kind, StmtKind::If(_))).collect();
+    let ifs: Vec<_> = all
+        .iter()
+        .filter(|s| matches!(s.kind, StmtKind::If(_)))
+        .collect();
     assert_eq!(ifs.len(), 3);
     let b0 = ifs[0].block.as_ref().unwrap();
     assert_eq!((b0.body.len(), b0.arms.len()), (1, 1));
     assert_eq!(b0.arms[0].kind, ArmKind::Else);
     assert_eq!(b0.end.unwrap().line, ifs[0].line + 4);
-    let StmtKind::If(c) = &ifs[0].kind else { panic!() };
+    let StmtKind::If(c) = &ifs[0].kind else {
+        panic!()
+    };
     let Expr::Binary(and) = &**c else { panic!() };
     assert_eq!(and.op, BinOp::And);
     let sw = find(&|s| matches!(s.kind, StmtKind::Switch(_)));
@@ -335,19 +444,42 @@ fn every_language_construct() {
         })
         .collect();
     assert_eq!(fors.len(), 2);
-    assert_eq!(fors[0].step.as_ref().unwrap().as_number().unwrap().value, 2.0);
-    assert_eq!(fors[1].step.as_ref().unwrap().as_number().unwrap().value, -1.0);
+    assert_eq!(
+        fors[0].step.as_ref().unwrap().as_number().unwrap().value,
+        2.0
+    );
+    assert_eq!(
+        fors[1].step.as_ref().unwrap().as_number().unwrap().value,
+        -1.0
+    );
     let rep = find(&|s| matches!(s.kind, StmtKind::Repeat(_)));
-    let StmtKind::Repeat(Some(u)) = &rep.kind else { panic!() };
+    let StmtKind::Repeat(Some(u)) = &rep.kind else {
+        panic!()
+    };
     let Expr::Binary(ge) = &**u else { panic!() };
     assert_eq!(ge.op, BinOp::Ge);
     let lp = find(&|s| matches!(s.kind, StmtKind::Loop));
     let inner: Vec<_> = lp.children().collect();
     assert!(matches!(inner[0].kind, StmtKind::If(_)));
-    assert!(matches!(inner[0].children().next().unwrap().kind, StmtKind::Exit));
-    for kind in ["Label", "Goto", "WaitFor", "WaitSec", "Brake", "Trigger", "Interrupt", "Return", "Halt", "Continue"] {
+    assert!(matches!(
+        inner[0].children().next().unwrap().kind,
+        StmtKind::Exit
+    ));
+    for kind in [
+        "Label",
+        "Goto",
+        "WaitFor",
+        "WaitSec",
+        "Brake",
+        "Trigger",
+        "Interrupt",
+        "Return",
+        "Halt",
+        "Continue",
+    ] {
         assert!(
-            all.iter().any(|s| format!("{:?}", s.kind).starts_with(kind)),
+            all.iter()
+                .any(|s| format!("{:?}", s.kind).starts_with(kind)),
             "{kind}"
         );
     }
@@ -358,13 +490,21 @@ fn every_language_construct() {
             _ => None,
         })
         .collect();
-    assert_eq!(trig[0].delay.as_ref().unwrap().as_number().unwrap().value, 20.0);
-    assert_eq!(trig[1].prio.as_ref().unwrap().as_number().unwrap().value, -1.0);
+    assert_eq!(
+        trig[0].delay.as_ref().unwrap().as_number().unwrap().value,
+        20.0
+    );
+    assert_eq!(
+        trig[1].prio.as_ref().unwrap().as_number().unwrap().value,
+        -1.0
+    );
     let st = f.stats();
     assert_eq!((st.opaque, st.routines, st.motions), (3, 3, 17));
     // The string with a semicolon is code, not a comment.
     let lt = find(&|s| f.text(s.head).starts_with(b"label_text"));
-    let StmtKind::Assign(a) = &lt.kind else { panic!() };
+    let StmtKind::Assign(a) = &lt.kind else {
+        panic!()
+    };
     assert_eq!(f.text(a.rhs.span()), b"\"start; go\"");
 }
 
@@ -372,16 +512,41 @@ fn every_language_construct() {
 fn data_list_declarations() {
     let (_, d) = fixture("language/coverage.dat");
     let syms = Symbols::new(&[&d]);
-    assert_eq!(syms.get(b"xHomePose").unwrap().decl.ty.kind, TypeKind::E6Axis);
-    assert!(syms.get(b"xHomePose").unwrap().decl.decl.is_none(), "DECL is optional");
+    assert_eq!(
+        syms.get(b"xHomePose").unwrap().decl.ty.kind,
+        TypeKind::E6Axis
+    );
+    assert!(
+        syms.get(b"xHomePose").unwrap().decl.decl.is_none(),
+        "DECL is optional"
+    );
     assert!(syms.get(b"TOLERANCE").unwrap().decl.constant.is_some());
     assert!(syms.get(b"P_ARRAY").unwrap().decl.global.is_some());
     let (_, e) = syms.element(b"P_TABLE", &[1, 2]).unwrap();
     assert_eq!(e.as_aggregate().unwrap().members.len(), 3);
-    let job = syms.get(b"job").unwrap().var.init.as_ref().unwrap().as_aggregate().unwrap();
-    let inner = job.member(d.source(), "fCnC").unwrap().value.as_aggregate().unwrap();
+    let job = syms
+        .get(b"job")
+        .unwrap()
+        .var
+        .init
+        .as_ref()
+        .unwrap()
+        .as_aggregate()
+        .unwrap();
+    let inner = job
+        .member(d.source(), "fCnC")
+        .unwrap()
+        .value
+        .as_aggregate()
+        .unwrap();
     assert_eq!(inner.number(d.source(), "Z").unwrap().value, 3.5);
-    assert_eq!(job.member(d.source(), "sName").unwrap().index.map(|s| d.text(s)), Some(&b"[]"[..]));
+    assert_eq!(
+        job.member(d.source(), "sName")
+            .unwrap()
+            .index
+            .map(|s| d.text(s)),
+        Some(&b"[]"[..])
+    );
     let spacing = syms.get(b"spacing").unwrap().var.init.as_ref().unwrap();
     assert_eq!(spacing.as_number().unwrap().value, 1.25);
     let strucs: Vec<_> = d
@@ -392,7 +557,9 @@ fn data_list_declarations() {
         })
         .collect();
     assert_eq!(strucs[0].fields.len(), 3);
-    assert!(d.statements().any(|s| matches!(&s.kind, StmtKind::Signal(sg) if sg.to.is_some())));
+    assert!(d
+        .statements()
+        .any(|s| matches!(&s.kind, StmtKind::Signal(sg) if sg.to.is_some())));
     // P_ARRAY[1], [2] and P_TABLE[1,2] are initialised elements; P_AUX, P_END, xHomePose.
     assert_eq!(d.stats().declared_points, 6);
 }
@@ -409,7 +576,10 @@ fn code_pages_and_line_endings_are_kept() {
             _ => None,
         })
         .unwrap();
-    assert_eq!(f.text(msg.rhs.span()), b"\"Dr\xfccken Sie Start; Teil fertig\"");
+    assert_eq!(
+        f.text(msg.rhs.span()),
+        b"\"Dr\xfccken Sie Start; Teil fertig\""
+    );
     assert_eq!(f.stats().motions, 2);
     let (bytes, f) = fixture("encodings/spawanie_cp1250.src");
     assert!(bytes.contains(&0xB9)); // ą in Windows-1250
@@ -435,13 +605,34 @@ fn long_data_lines() {
     let (bytes, d) = fixture("long_lines/weld_table.dat");
     assert!(bytes.split(|&b| b == b'\n').any(|l| l.len() > 1300));
     let syms = Symbols::new(&[&d]);
-    let wtab = syms.get(b"WTAB").unwrap().var.init.as_ref().unwrap().as_aggregate().unwrap();
+    let wtab = syms
+        .get(b"WTAB")
+        .unwrap()
+        .var
+        .init
+        .as_ref()
+        .unwrap()
+        .as_aggregate()
+        .unwrap();
     assert_eq!(wtab.members.len(), 39);
-    let w39 = wtab.member(d.source(), "W39").unwrap().value.as_aggregate().unwrap();
+    let w39 = wtab
+        .member(d.source(), "W39")
+        .unwrap()
+        .value
+        .as_aggregate()
+        .unwrap();
     // Generator: CUR 100+i .5, VOLT 18 + i%7 .25 → i = 39: 139.5, 22.25.
     assert_eq!(w39.number(d.source(), "CUR").unwrap().value, 139.5);
     assert_eq!(w39.number(d.source(), "VOLT").unwrap().value, 22.25);
-    let p = syms.get(b"XSEAM_START").unwrap().var.init.as_ref().unwrap().as_aggregate().unwrap();
+    let p = syms
+        .get(b"XSEAM_START")
+        .unwrap()
+        .var
+        .init
+        .as_ref()
+        .unwrap()
+        .as_aggregate()
+        .unwrap();
     assert_eq!(p.number(d.source(), "C").unwrap().value, 179.9999);
 }
 
@@ -463,11 +654,26 @@ fn spline_blocks() {
         .children()
         .map(|s| match &s.kind {
             StmtKind::Motion(m) => m.kind.keyword().to_string(),
-            StmtKind::Trigger(t) => format!("TRIGGER {:?}{}", t.when, if t.onstart.is_some() { " ONSTART" } else { "" }),
+            StmtKind::Trigger(t) => format!(
+                "TRIGGER {:?}{}",
+                t.when,
+                if t.onstart.is_some() { " ONSTART" } else { "" }
+            ),
             k => format!("{k:?}"),
         })
         .collect();
-    assert_eq!(seg, ["SPL", "TRIGGER Path ONSTART", "SLIN", "SCIRC", "SPL", "SLIN", "TRIGGER Path"]);
+    assert_eq!(
+        seg,
+        [
+            "SPL",
+            "TRIGGER Path ONSTART",
+            "SLIN",
+            "SCIRC",
+            "SPL",
+            "SLIN",
+            "TRIGGER Path"
+        ]
+    );
     let ms = motions(&f);
     let rel = ms.iter().find(|m| m.kind == MotionKind::SlinRel).unwrap();
     assert_eq!(rel.frame.unwrap().kind, RelFrameKind::Tool);
@@ -495,7 +701,11 @@ fn rewriting_every_number_of_the_cam_program_changes_nothing_else() {
     }
     let out = edits.apply(&bytes).unwrap();
     let g = krl::parse(&out, krl::FileKind::Src).unwrap();
-    let got: Vec<f64> = g.motions().flat_map(|(_, m)| m.target.numbers()).map(|n| n.value).collect();
+    let got: Vec<f64> = g
+        .motions()
+        .flat_map(|(_, m)| m.target.numbers())
+        .map(|n| n.value)
+        .collect();
     assert_eq!(got.len(), want.len());
     for (a, b) in got.iter().zip(&want) {
         assert!((a - b).abs() <= 0.0005 + 1e-9, "{a} {b}");
