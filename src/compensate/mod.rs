@@ -16,7 +16,7 @@ pub mod solve;
 pub use crate::motion::frame::{self as pose, Frame};
 pub use program::{compensate_program, Calibrated, ProgramResult, Report};
 pub use sequence::{
-    compensate, nominal_directions, Keep, Options, Outcome, Resolution, Target, TargetError,
-    REST_DEG,
+    compensate, nominal_directions, Interp, Keep, Options, Outcome, Resolution, Target,
+    TargetError, REST_DEG,
 };
 pub use solve::{Method, SolveError, TOL_POSITION_MM, TOL_ROTATION_RAD};

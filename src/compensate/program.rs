@@ -15,7 +15,7 @@ use crate::motion::workspace::Role as FileRole;
 use crate::motion::{self, FileId, GivenFrame, Role, Simulation, Workspace};
 
 use super::rewrite::{self, Rewrite};
-use super::sequence::{self, Keep, Outcome, Resolution, Target};
+use super::sequence::{self, Interp, Keep, Outcome, Quantum, Resolution, Target};
 use super::solve::Method;
 
 /// The first words of the header comment robopost writes; a file carrying it was compensated.
@@ -180,7 +180,7 @@ fn axes_list(mask: &[bool; 6]) -> Vec<String> {
 }
 
 /// The compensation targets of a simulation.
-pub fn targets(sim: &Simulation) -> Vec<Target> {
+pub fn targets(ws: &Workspace, sim: &Simulation) -> Vec<Target> {
     sim.stops
         .iter()
         .map(|s| Target {
@@ -188,7 +188,18 @@ pub fn targets(sim: &Simulation) -> Vec<Target> {
             tool: s.tool,
             nominal_axes: s.nominal_axes,
             arrival: s.arrival,
+            interp: match (s.kind.is_joint(), s.kind.is_circular(), s.role) {
+                (true, _, _) => Interp::Joint,
+                (false, true, Role::Aux) => Interp::CircAux,
+                (false, true, Role::Target) => Interp::CircEnd,
+                (false, false, _) => Interp::Line,
+            },
             compensate: s.compensable,
+            quantum: s.origin.filter(|_| s.compensable).map(|o| Quantum {
+                base: s.base,
+                axis: s.axis,
+                decimals: rewrite::decimals(&ws.get(o.file).file, o.agg, s.axis),
+            }),
             keep: Keep {
                 s: s.keep_s,
                 t: s.keep_t,
@@ -323,7 +334,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             target_errors: 0,
         };
     }
-    let targets = targets(&sim);
+    let targets = targets(ws, &sim);
     let outcomes = sequence::compensate(
         model,
         &sim.frames,

@@ -168,6 +168,7 @@ fn aggregate_edits(
     axis: bool,
     values: &[f64; 6],
     write: [bool; 6],
+    relative: bool,
 ) -> Option<TargetEdits> {
     let src = file.source();
     let names = if axis { AXIS_NAMES } else { CARTESIAN_NAMES };
@@ -218,13 +219,17 @@ fn aggregate_edits(
                 });
             }
             None => {
+                let text = format!("{:.*}", decimals(k), values[k]);
+                let zero = text.bytes().all(|b| b == b'0' || b == b'.' || b == b'-');
+                // A relative motion's missing components are zero: write only those that
+                // are not.
+                if relative && zero {
+                    continue;
+                }
                 any = true;
                 let (sep, nv) = separators(file, agg);
-                let text = format!("{:.*}", decimals(k), values[k]);
-                let text = if text.starts_with('-')
-                    && text.bytes().skip(1).all(|b| b == b'0' || b == b'.')
-                {
-                    text[1..].to_string()
+                let text = if zero {
+                    text.trim_start_matches('-').to_string()
                 } else {
                     text
                 };
@@ -258,6 +263,33 @@ fn aggregate_edits(
     // Insertions at one offset must keep X..C order: they were pushed in that order.
     edits.sort_by_key(|e| e.range.start);
     Some(edits)
+}
+
+/// Decimals a literal is written with.
+fn literal_decimals(text: &[u8]) -> usize {
+    text.iter().position(|&b| b == b'.').map_or(0, |p| {
+        text[p + 1..]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count()
+    })
+}
+
+/// The decimals each component of `agg` will be written with: its own literal's (never fewer
+/// than 3 in mm and 4 in degrees), or for a missing one the aggregate's most precise.
+pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
+    let src = file.source();
+    let mut own = [None; 6];
+    for m in &agg.members {
+        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
+            if is_axis == axis {
+                own[k] =
+                    literal_span(file, &m.value).map(|(_, lit)| literal_decimals(file.text(lit)));
+            }
+        }
+    }
+    let most = own.iter().flatten().copied().max().unwrap_or(0);
+    std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
 }
 
 /// The original component values of an aggregate (`None` where not given).
@@ -309,7 +341,14 @@ pub fn rewrite(
             continue;
         };
         let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
-        let edits = match aggregate_edits(file, origin.agg, stop.axis, &values, write) {
+        let edits = match aggregate_edits(
+            file,
+            origin.agg,
+            stop.axis,
+            &values,
+            write,
+            stop.rel.is_some(),
+        ) {
             Some(e) => e,
             None => {
                 out.diagnostics.push(ws.diagnostic(
@@ -525,7 +564,10 @@ fn copy_declaration(
         b"\n"
     };
     // Insert after the original line's ending (or add one at the end of the file).
-    let after = line_span.end as usize;
+    let after = src[end..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(src.len(), |p| end + p + 1);
     let mut bytes = Vec::new();
     if after == src.len() && !src.ends_with(b"\n") {
         bytes.extend_from_slice(newline);

@@ -25,6 +25,8 @@ use super::solve::{self, weighted_norm, Method, Problem, SolveError};
 use crate::kinematics::status_turn;
 use crate::model::{Direction, Model};
 use crate::motion::frame::Frame;
+use crate::motion::interpolate::{Cartesian, Path};
+use crate::motion::nominal::{Arm, Nominal};
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -50,9 +52,42 @@ pub struct Target {
     /// velocity `dq/du` at the end for LIN/CIRC; 0 when the axis rests); `None` when the
     /// motion comes from an unknown place (first motion, unresolved target before).
     pub arrival: Option<[f64; 6]>,
+    /// How the controller interpolates the motion reaching it.
+    pub interp: Interp,
+    /// How its command will be written (rounded), when it is written: the directions of the
+    /// compensated motion are those of the rounded commands.
+    pub quantum: Option<Quantum>,
     /// Whether to compensate (false: the target still moves the robot, its command stays).
     pub compensate: bool,
     pub keep: Keep,
+}
+
+/// The rounding of a written command: decimals of `X Y Z A B C` in the base (index into the
+/// frame table), or of `A1..A6`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Quantum {
+    pub base: u32,
+    pub axis: bool,
+    pub decimals: [u8; 6],
+}
+
+fn round_to(v: f64, decimals: u8) -> f64 {
+    let scale = 10f64.powi(decimals as i32);
+    (v * scale).round() / scale
+}
+
+/// How the controller interpolates the motion reaching a target (from the previous one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Interp {
+    /// PTP: linear in axis space.
+    #[default]
+    Joint,
+    /// LIN (and spline segments, approximated): straight line, orientation slerp.
+    Line,
+    /// The auxiliary point of a CIRC (the arc continues to the next target).
+    CircAux,
+    /// The end of a CIRC (its auxiliary point is the previous target).
+    CircEnd,
 }
 
 /// How a target's directions were settled.
@@ -178,7 +213,27 @@ pub fn compensate(
     } else {
         (0..targets.len()).map(first).collect()
     };
-    recheck(model, tools, targets, start, &mut outcomes, options.method);
+    let ctx = Ctx {
+        model,
+        tools,
+        targets,
+        method: options.method,
+    };
+    // Arrival rates of the first-pass commands (each needs its neighbours' commands).
+    let rate = |k: usize| {
+        let cmd = |j: usize| outcomes[j].axes_deg;
+        ctx.rate(k, &outcomes[k].axes_deg, &cmd)
+    };
+    let rates: Vec<Option<[f64; 6]>> = if options.parallel {
+        (0..targets.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(rate)
+            .collect()
+    } else {
+        (0..targets.len()).map(rate).collect()
+    };
+    recheck(&ctx, start, &mut outcomes, &rates);
     outcomes
 }
 
@@ -207,6 +262,12 @@ fn solve_target(
     hold: [bool; 6],
     method: Method,
 ) -> Result<(solve::Solution, [bool; 6]), TargetError> {
+    // Equation (3) is taken at the programmed (nominal) command, whatever the start.
+    let start = if method == Method::OneStep && !hold.iter().any(|&h| h) {
+        target.nominal_axes
+    } else {
+        start
+    };
     let problem = Problem {
         goal: target.goal,
         tool,
@@ -313,69 +374,131 @@ fn first_pass(
     out
 }
 
-/// The compensated motion's direction state on arrival at `target` commanded at `axes`.
-fn motion_directions(
-    target: &Target,
-    axes: &[f64; 6],
-    previous: Option<(&Target, &[f64; 6])>,
-    before: &[Direction; 6],
-) -> [Direction; 6] {
-    let v = match (target.arrival, previous) {
-        (Some(arrival), Some((pt, pa))) => Some(std::array::from_fn(|i| {
-            let c = axes[i] - target.nominal_axes[i];
-            let c_prev = pa[i] - pt.nominal_axes[i];
-            arrival[i] + (c - c_prev)
-        })),
-        (arrival, _) => arrival,
-    };
-    arrive(before, v)
+/// What the re-check needs besides the outcomes.
+struct Ctx<'a> {
+    model: &'a Model,
+    tools: &'a [Frame],
+    targets: &'a [Target],
+    method: Method,
+}
+
+impl Ctx<'_> {
+    fn tool(&self, k: usize) -> &Frame {
+        &self.tools[self.targets[k].tool as usize]
+    }
+
+    /// The TCP commanded at target `k` with `axes`, as written (rounded) when it is written.
+    fn tcp(&self, k: usize, axes: &[f64; 6]) -> Frame {
+        let arm = Nominal(&self.model.robot);
+        let tool = self.tool(k);
+        match self.targets[k].quantum {
+            Some(q) if q.axis => {
+                let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], q.decimals[i]));
+                arm.tcp(&r, tool)
+            }
+            Some(q) => {
+                let base = &self.tools[q.base as usize];
+                let p = base
+                    .inverse()
+                    .compose(&arm.tcp(axes, tool))
+                    .to_kuka_near(&[0.0; 3]);
+                let r: [f64; 6] = std::array::from_fn(|i| round_to(p[i], q.decimals[i]));
+                base.compose(&Frame::from_kuka(&r))
+            }
+            None => arm.tcp(axes, tool),
+        }
+    }
+
+    /// How the commanded motion arrives at target `k` commanded at `axes`, the other targets
+    /// at `cmd(j)`: the controller's interpolation between the commands, exactly as
+    /// `motion::interpolate` computes the nominal arrival (`dq/du` at the end).
+    fn rate(&self, k: usize, axes: &[f64; 6], cmd: &dyn Fn(usize) -> [f64; 6]) -> Option<[f64; 6]> {
+        let t = &self.targets[k];
+        let nominal = t.arrival?;
+        if k == 0 {
+            return Some(nominal);
+        }
+        let prev = cmd(k - 1);
+        let step: [f64; 6] = std::array::from_fn(|i| axes[i] - prev[i]);
+        let twist = match t.interp {
+            Interp::Joint => return Some(step),
+            Interp::Line => {
+                let (a, b) = (self.tcp(k, &prev), self.tcp(k, axes));
+                let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
+                let v = b.position - a.position;
+                nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+            }
+            Interp::CircEnd if k >= 2 => {
+                let start = self.tcp(k, &cmd(k - 2));
+                let aux = self.tcp(k, &prev).position;
+                let end = self.tcp(k, axes);
+                match Cartesian::new(&start, &end, &Path::Circ { aux }) {
+                    Ok(c) => c.twist(1.0),
+                    Err(_) => return Some(step),
+                }
+            }
+            Interp::CircAux if k + 1 < self.targets.len() => {
+                let start = self.tcp(k, &prev);
+                let aux = self.tcp(k, axes).position;
+                let end = self.tcp(k, &cmd(k + 1));
+                match Cartesian::new(&start, &end, &Path::Circ { aux }) {
+                    Ok(c) => {
+                        let u = c.fraction_at(&aux);
+                        c.twist(u) * u
+                    }
+                    Err(_) => return Some(step),
+                }
+            }
+            _ => return Some(step),
+        };
+        let (_, j) = Nominal(&self.model.robot).tcp_jacobian(axes, self.tool(k));
+        let rate = j.lu().solve(&twist);
+        Some(std::array::from_fn(|i| match rate {
+            Some(r) if r[i].is_finite() && r[i].abs() >= REST_DEG => r[i],
+            // A turning point right at the target: the sign of the whole step.
+            _ => step[i],
+        }))
+    }
 }
 
 /// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
-/// they were solved with.
-fn recheck(
-    model: &Model,
-    tools: &[Frame],
-    targets: &[Target],
-    start: [Direction; 6],
-    outcomes: &mut [Outcome],
-    method: Method,
-) {
+/// they were solved with. `rates[k]` is the arrival rate at k computed with the first-pass
+/// commands; it is recomputed when a command it depends on changed since.
+fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[Option<[f64; 6]>]) {
     let mut state = start;
-    for k in 0..targets.len() {
-        let target = &targets[k];
-        let tool = &tools[target.tool as usize];
-        let previous_axes = k.checked_sub(1).map(|p| outcomes[p].axes_deg);
-        let previous = previous_axes.as_ref().map(|a| (&targets[k - 1], a));
+    let mut resolved = vec![false; ctx.targets.len()];
+    for k in 0..ctx.targets.len() {
+        let target = &ctx.targets[k];
+        let tool = ctx.tool(k);
         let fixed = !target.compensate || outcomes[k].error.is_some();
         // The nominal motion's signs, but resting axes keep the *compensated* state: after an
         // earlier flip this differs from the nominal directions the first pass assumed.
         let expected = arrive(&state, target.arrival);
         if expected != outcomes[k].directions && !fixed {
-            let mut o = first_pass(model, tools, target, &expected, method);
+            let mut o = first_pass(ctx.model, ctx.tools, target, &expected, ctx.method);
             o.nominal_directions = outcomes[k].nominal_directions;
             outcomes[k] = o;
+            resolved[k] = true;
         }
-        let actual = motion_directions(target, &outcomes[k].axes_deg, previous, &state);
+        let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
+        let rate = if stale {
+            let snapshot = |j: usize| outcomes[j].axes_deg;
+            ctx.rate(k, &outcomes[k].axes_deg, &snapshot)
+        } else {
+            rates[k]
+        };
+        let actual = arrive(&state, rate);
         if actual != outcomes[k].directions {
             outcomes[k] = if fixed || outcomes[k].error.is_some() {
                 // The command is the nominal one: only the prediction changes.
                 let mut o = outcomes[k];
                 o.directions = actual;
-                o.before = tcp_error(model, tool, &target.nominal_axes, &actual, &target.goal);
+                o.before = tcp_error(ctx.model, tool, &target.nominal_axes, &actual, &target.goal);
                 o.residual = o.before;
                 o
             } else {
-                resettle(
-                    model,
-                    tool,
-                    target,
-                    previous,
-                    &state,
-                    &outcomes[k],
-                    actual,
-                    method,
-                )
+                resolved[k] = true;
+                resettle(ctx, k, outcomes, &state, actual)
             };
         }
         state = outcomes[k].directions;
@@ -393,17 +516,19 @@ struct Candidate {
 
 /// Re-solves target k whose compensated motion arrives with `actual` directions instead of the
 /// ones it was solved with.
-#[allow(clippy::too_many_arguments)]
 fn resettle(
-    model: &Model,
-    tool: &Frame,
-    target: &Target,
-    previous: Option<(&Target, &[f64; 6])>,
+    ctx: &Ctx,
+    k: usize,
+    outcomes: &[Outcome],
     state: &[Direction; 6],
-    first: &Outcome,
     actual: [Direction; 6],
-    method: Method,
 ) -> Outcome {
+    let (model, method) = (ctx.model, ctx.method);
+    let target = &ctx.targets[k];
+    let tool = ctx.tool(k);
+    let first = &outcomes[k];
+    let cmd = |j: usize| outcomes[j].axes_deg;
+    let directions_at = |axes: &[f64; 6]| arrive(state, ctx.rate(k, axes, &cmd));
     let mut out = *first;
     // The first solution, evaluated with the direction its motion really has.
     let mut candidates = vec![Candidate {
@@ -424,7 +549,7 @@ fn resettle(
         method,
     ) {
         Ok((sol, turn_held)) => {
-            let again = motion_directions(target, &sol.axes_deg, previous, state);
+            let again = directions_at(&sol.axes_deg);
             if again == actual {
                 out.axes_deg = sol.axes_deg;
                 out.directions = actual;
@@ -452,23 +577,21 @@ fn resettle(
             }
         }
     }
-    // Hold the oscillating axes still: zero motion on arrival, so they keep `state`.
-    if let Some(arrival) = target.arrival.filter(|_| oscillating.iter().any(|&o| o)) {
+    // Hold the oscillating axes still — the same command as at the previous target — so that
+    // they rest and keep `state` (exactly for PTP; along a Cartesian path up to the path's
+    // own second-order motion, which the evaluation below takes into account).
+    if k > 0 && target.arrival.is_some() && oscillating.iter().any(|&o| o) {
         let mut start = first.axes_deg;
-        for i in 0..6 {
-            if oscillating[i] {
-                let c_prev = previous.map_or(0.0, |(pt, pa)| pa[i] - pt.nominal_axes[i]);
-                start[i] = target.nominal_axes[i] - arrival[i] + c_prev;
-            }
-        }
+        let prev = cmd(k - 1);
         let mut dirs = actual;
         for i in 0..6 {
             if oscillating[i] {
+                start[i] = prev[i];
                 dirs[i] = state[i];
             }
         }
         if let Ok((sol, _)) = solve_target(model, tool, target, &dirs, start, oscillating, method) {
-            let really = motion_directions(target, &sol.axes_deg, previous, state);
+            let really = directions_at(&sol.axes_deg);
             candidates.push(Candidate {
                 axes: sol.axes_deg,
                 directions: really,

@@ -16,9 +16,11 @@ use super::frame::{self, exp_so3, Frame};
 use super::nominal::{self, Arm, Nominal};
 use crate::kinematics::RobotDescription;
 
-/// An axis that moves less than this (deg) between two targets is at rest: it keeps its
-/// direction. Far below any backlash, above the IK's rounding.
-pub const REST_DEG: f64 = 1e-7;
+/// An axis whose arrival rate is below this (degrees per segment) is at rest: it keeps its
+/// direction. 10⁻⁴° is the resolution of the numbers a program is written with (1 µm and
+/// 0.1 mdeg move an axis by about that much), far below any backlash: a motion the program
+/// cannot even express does not decide which branch a gear sits on.
+pub const REST_DEG: f64 = 1e-4;
 /// Sample pitch of Cartesian paths: a sample every this many mm of TCP travel …
 const PITCH_MM: f64 = 20.0;
 /// … and every this many degrees of orientation change.

@@ -1614,13 +1614,25 @@ impl<'f> Simulator<'f> {
             }
             _ => None,
         };
-        let compensable =
-            pos.origin.is_some() && m.angle.is_none() && (!pos.axis || robot.within_limits(&q));
+        let in_config = pos
+            .origin
+            .is_some_and(|o| self.ws.get(o.file).role == super::workspace::Role::Config);
+        let compensable = pos.origin.is_some()
+            && !in_config
+            && m.angle.is_none()
+            && (!pos.axis || robot.within_limits(&q));
         if pos.origin.is_none() {
             self.warn(
                 file,
                 s.head,
                 "the target is computed in the program (not a literal position): left unchanged",
+            );
+        }
+        if in_config {
+            self.warn(
+                file,
+                s.head,
+                "the target is declared in $config.dat, which robopost does not rewrite (every program shares it): left unchanged",
             );
         }
         let tool_i = self.frames_index(&tool);
@@ -1747,6 +1759,11 @@ fn binary<'f>(op: BinOp, l: Value<'f>, r: Value<'f>) -> Value<'f> {
         BinOp::Geo => match (l, r) {
             (Pos(a), Pos(mut b)) if !a.axis && !b.axis && a.is_complete() => {
                 let fa = super::frame::Frame::from_kuka(&a.v.map(|x| x.unwrap_or(0.0)));
+                // Both operands written in the program: compensating the right one while the
+                // left one may be compensated elsewhere would not add up; leave it.
+                if a.origin.is_some() {
+                    b.origin = None;
+                }
                 // The right operand is a frame: components it does not give are zero.
                 b.v = b.v.map(|x| Some(x.unwrap_or(0.0)));
                 let complete = b.is_complete();
