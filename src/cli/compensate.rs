@@ -28,7 +28,7 @@ pub struct ProgramArgs {
 }
 
 impl ProgramArgs {
-    pub fn options(&self, parallel: bool) -> program::Options {
+    pub fn options(&self, parallel: bool, points: bool) -> program::Options {
         let mut frames = Vec::new();
         for (n, v) in &self.base {
             frames.push(GivenFrame {
@@ -52,6 +52,7 @@ impl ProgramArgs {
             },
             parallel,
             frames,
+            points,
         }
     }
 }
@@ -146,6 +147,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     let input = (!stdin).then_some(args.input.as_path());
+    let t0 = std::time::Instant::now();
     let ws = match files::load_program(input, &bytes, args.program.config.as_deref()) {
         Ok(ws) => ws,
         Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
@@ -158,6 +160,9 @@ pub fn run(args: Args) -> Exit {
         }
     };
     drop(bytes);
+    if std::env::var_os("ROBOPOST_TIMING").is_some() {
+        eprintln!("load: {:.3} s", t0.elapsed().as_secs_f64());
+    }
     let to_stdout = is_dash(&args.out);
     if !to_stdout {
         for f in &ws.files {
@@ -176,7 +181,11 @@ pub fn run(args: Args) -> Exit {
         }
     }
     let calibrated = calibrated(&cal, &args.cal, &cal_bytes);
-    let result = compensate::compensate_program(&ws, &calibrated, &args.program.options(true));
+    let result = compensate::compensate_program(
+        &ws,
+        &calibrated,
+        &args.program.options(true, args.report.is_some()),
+    );
     for d in &result.diagnostics {
         eprintln!("{}", d.render());
     }
@@ -213,6 +222,14 @@ pub fn run(args: Args) -> Exit {
         }
     }
     summary(&result.report);
+    let status = exit_status(&result);
+    // Freeing millions of syntax-tree nodes one by one takes longer than the process exit.
+    std::mem::forget(result);
+    std::mem::forget(ws);
+    status
+}
+
+fn exit_status(result: &compensate::ProgramResult) -> Exit {
     let errors = result
         .diagnostics
         .iter()
@@ -238,4 +255,65 @@ pub fn summary(r: &compensate::Report) {
         r.direction_flips,
         r.oscillations_resolved
     );
+}
+
+/// `check -c`: each program simulated and compensated in memory; prints a summary line per
+/// program and every error and warning; writes nothing.
+pub fn check_programs(programs: &[PathBuf], cal_path: &Path, args: &ProgramArgs) -> Exit {
+    let (cal, cal_bytes) = match load_calibration(cal_path) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Exit::Usage;
+        }
+    };
+    let calibrated = calibrated(&cal, cal_path, &cal_bytes);
+    let mut exit = Exit::Success;
+    for path in programs {
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("dat"))
+        {
+            continue;
+        }
+        let bytes = match crate::krl::program::read_bytes(path) {
+            Ok(b) => b,
+            Err(e) => {
+                eprintln!("error: {e}");
+                exit = Exit::Usage;
+                continue;
+            }
+        };
+        let input = (!is_dash(path)).then_some(path.as_path());
+        let ws = match files::load_program(input, &bytes, args.config.as_deref()) {
+            Ok(ws) => ws,
+            Err(e) => {
+                eprintln!("{e}");
+                exit = exit.max(Exit::Rejected);
+                continue;
+            }
+        };
+        let result = compensate::compensate_program(&ws, &calibrated, &args.options(true, false));
+        for d in &result.diagnostics {
+            eprintln!("{}", d.render());
+        }
+        let r = &result.report;
+        if result.rejected {
+            println!("{}: rejected", path.display());
+            exit = exit.max(Exit::Rejected);
+            continue;
+        }
+        println!(
+            "{}: {} targets simulated, {} compensable, {} rejected (unreachable, out of limits or configuration), predicted error max {:.1} µm",
+            path.display(),
+            r.targets,
+            r.compensated,
+            result.target_errors,
+            r.predicted_before.position_um.max
+        );
+        if result.target_errors > 0 {
+            exit = exit.max(Exit::Rejected);
+        }
+    }
+    exit
 }

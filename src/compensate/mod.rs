@@ -7,6 +7,7 @@
 //! input is a list of goal poses with nominal axes and arrival motions (from `motion`), its
 //! output the command axes per target (turned into KRL edits by `rewrite`).
 
+pub mod batch;
 pub mod files;
 pub mod program;
 pub mod rewrite;

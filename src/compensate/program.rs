@@ -51,6 +51,8 @@ pub struct Options {
     pub parallel: bool,
     /// `BASE_DATA[n]`/`TOOL_DATA[n]` given on the command line.
     pub frames: Vec<GivenFrame>,
+    /// List every target in the report (`--report`); the summary is always filled.
+    pub points: bool,
 }
 
 /// The new contents of one file of the program.
@@ -318,7 +320,15 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         };
     }
     let model = cal.model;
+    let timing = std::env::var_os("ROBOPOST_TIMING").is_some();
+    let t0 = std::time::Instant::now();
+    let lap = |what: &str| {
+        if timing {
+            eprintln!("{what}: {:.3} s", t0.elapsed().as_secs_f64());
+        }
+    };
     let sim = motion::simulate(ws, &model.robot, &options.frames);
+    lap("simulate");
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
         report.errors = diagnostics
@@ -345,7 +355,24 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             parallel: options.parallel,
         },
     );
-    let mut target_errors = 0;
+    lap("compensate");
+    let mut target_errors = sim.unreachable;
+    // Near-singular targets: the compensation there is least squares, and small Cartesian
+    // changes turn axes a lot.
+    let robot = &model.robot;
+    let mut seen = std::collections::HashSet::new();
+    for stop in &sim.stops {
+        if let Some(sing) = crate::kinematics::singularity(robot, &stop.nominal_axes) {
+            if stop.compensable && seen.insert((stop.file, stop.stmt.head.start)) {
+                diagnostics.push(ws.diagnostic(
+                    Severity::Warning,
+                    stop.file,
+                    stop.stmt.head,
+                    format!("the target is near a singularity ({sing}): compensated in the least-squares sense where the pose cannot be reached exactly"),
+                ));
+            }
+        }
+    }
     for (stop, o) in sim.stops.iter().zip(&outcomes) {
         if let Some(e) = &o.error {
             target_errors += 1;
@@ -362,9 +389,29 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             );
         }
     }
-    let rw = rewrite::rewrite(ws, &sim, &outcomes, &model.robot);
+    drop(targets);
+    let mut rw = rewrite::rewrite(ws, &sim, &outcomes, &model.robot);
+    lap("rewrite");
     diagnostics.extend(rw.diagnostics.iter().cloned());
-    let files = apply(ws, &rw, cal, options.method);
+    let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
+        Ok(files) => files,
+        Err(d) => {
+            diagnostics.push(d);
+            report.errors = diagnostics
+                .iter()
+                .filter(|d| d.severity == Severity::Error)
+                .map(|d| d.render())
+                .collect();
+            return ProgramResult {
+                files: unchanged(ws),
+                report,
+                diagnostics,
+                rejected: true,
+                target_errors,
+            };
+        }
+    };
+    lap("apply");
     fill_report(
         &mut report,
         ws,
@@ -373,7 +420,9 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         &model.robot,
         &rw,
         &diagnostics,
+        options.points,
     );
+    lap("report");
     ProgramResult {
         files,
         report,
@@ -383,7 +432,13 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     }
 }
 
-fn apply(ws: &Workspace, rw: &Rewrite, cal: &Calibrated, method: Method) -> Vec<FileOutput> {
+fn apply(
+    ws: &Workspace,
+    edits: std::collections::BTreeMap<FileId, Vec<krl::Edit>>,
+    cal: &Calibrated,
+    method: Method,
+) -> Result<Vec<FileOutput>, Diagnostic> {
+    let mut edits = edits;
     ws.files
         .iter()
         .enumerate()
@@ -391,30 +446,34 @@ fn apply(ws: &Workspace, rw: &Rewrite, cal: &Calibrated, method: Method) -> Vec<
         .map(|(i, f)| {
             let id = i as FileId;
             let src = f.file.source();
-            match rw.edits.get(&id) {
-                Some(edits) if !edits.is_empty() => {
-                    let mut all = edits.clone();
+            match edits.remove(&id) {
+                Some(list) if !list.is_empty() => {
+                    // The header first: insertions at one offset keep their order.
                     let (at, text) = header(&f.file, cal, method);
+                    let mut all = Vec::with_capacity(list.len() + 1);
                     all.push(krl::Edit {
                         range: at..at,
                         bytes: text,
                     });
-                    // The header goes before any other insertion at the same offset.
-                    all.rotate_right(1);
+                    all.extend(list);
                     match krl::apply(src, &all) {
-                        Ok(bytes) => FileOutput {
+                        Ok(bytes) => Ok(FileOutput {
                             file: id,
                             bytes,
                             changed: true,
-                        },
-                        Err(e) => panic!("robopost built overlapping edits for {}: {e}", f.name),
+                        }),
+                        Err(e) => Err(Diagnostic::new(
+                            Severity::Error,
+                            &f.name,
+                            format!("internal error, nothing written: the rewrite produced {e}; please report this program"),
+                        )),
                     }
                 }
-                _ => FileOutput {
+                _ => Ok(FileOutput {
                     file: id,
                     bytes: src.to_vec(),
                     changed: false,
-                },
+                }),
             }
         })
         .collect()
@@ -428,53 +487,68 @@ fn fill_report(
     robot: &RobotDescription,
     rw: &Rewrite,
     diagnostics: &[Diagnostic],
+    points: bool,
 ) {
+    use rayon::prelude::*;
     let arm = Nominal(robot);
-    let mut corr: Vec<(f64, f64)> = Vec::with_capacity(outcomes.len());
-    for (stop, o) in sim.stops.iter().zip(outcomes) {
-        let tool: &Frame = &sim.frames[stop.tool as usize];
-        let cmd = arm.tcp(&o.axes_deg, tool);
-        let nominal = arm.tcp(&stop.nominal_axes, tool);
-        let (cp, cr) = frame::norms(&frame::error(&cmd, &nominal));
-        corr.push((cp * 1e3, cr.to_degrees() * 1e3));
-        let (bp, _) = frame::norms(&o.before);
-        let (rp, rr) = frame::norms(&o.residual);
-        let flipped = o.flipped();
-        report.points.push(PointReport {
-            file: ws.get(stop.file).name.clone(),
-            line: stop.stmt.line,
-            motion: stop.kind.keyword(),
-            role: match stop.role {
-                Role::Target => "target",
-                Role::Aux => "aux",
-            },
-            correction_um: cp * 1e3,
-            correction_mdeg: cr.to_degrees() * 1e3,
-            before_um: bp * 1e3,
-            residual_um: rp * 1e3,
-            residual_mdeg: rr.to_degrees() * 1e3,
-            iterations: o.iterations,
-            directions: o.directions.iter().map(|d| dir_char(*d)).collect(),
-            flipped: axes_list(&flipped),
-            resolution: match o.resolution {
-                Resolution::Consistent => "consistent".into(),
-                Resolution::Rebranched => "rebranched".into(),
-                Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
-                Resolution::Branch => "branch".into(),
-            } + &if o.turn_held.iter().any(|&h| h) {
-                format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
-            } else {
-                String::new()
-            },
-            compensated: o.changed && o.error.is_none() && stop.compensable,
-            error: o.error.map(|e| e.to_string()),
-        });
+    let compensated =
+        |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && sim.stops[i].compensable;
+    // Command change at the TCP, µm and mdeg.
+    let corr: Vec<(f64, f64)> = (0..outcomes.len())
+        .into_par_iter()
+        .with_min_len(4096)
+        .map(|i| {
+            let (stop, o) = (&sim.stops[i], &outcomes[i]);
+            if !o.changed {
+                return (0.0, 0.0);
+            }
+            let tool: &Frame = &sim.frames[stop.tool as usize];
+            let cmd = arm.tcp(&o.axes_deg, tool);
+            let nominal = arm.tcp(&stop.nominal_axes, tool);
+            let (cp, cr) = frame::norms(&frame::error(&cmd, &nominal));
+            (cp * 1e3, cr.to_degrees() * 1e3)
+        })
+        .collect();
+    if points {
+        for (i, (stop, o)) in sim.stops.iter().zip(outcomes).enumerate() {
+            let (bp, _) = frame::norms(&o.before);
+            let (rp, rr) = frame::norms(&o.residual);
+            let flipped = o.flipped();
+            report.points.push(PointReport {
+                file: ws.get(stop.file).name.clone(),
+                line: stop.stmt.line,
+                motion: stop.kind.keyword(),
+                role: match stop.role {
+                    Role::Target => "target",
+                    Role::Aux => "aux",
+                },
+                correction_um: corr[i].0,
+                correction_mdeg: corr[i].1,
+                before_um: bp * 1e3,
+                residual_um: rp * 1e3,
+                residual_mdeg: rr.to_degrees() * 1e3,
+                iterations: o.iterations,
+                directions: o.directions.iter().map(|d| dir_char(*d)).collect(),
+                flipped: axes_list(&flipped),
+                resolution: match o.resolution {
+                    Resolution::Consistent => "consistent".into(),
+                    Resolution::Rebranched => "rebranched".into(),
+                    Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
+                    Resolution::Branch => "branch".into(),
+                } + &if o.turn_held.iter().any(|&h| h) {
+                    format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
+                } else {
+                    String::new()
+                },
+                compensated: compensated(i),
+                error: o.error.map(|e| e.to_string()),
+            });
+        }
     }
     report.targets = outcomes.len();
-    report.compensated = report.points.iter().filter(|p| p.compensated).count();
+    let idx: Vec<usize> = (0..outcomes.len()).filter(|&i| compensated(i)).collect();
+    report.compensated = idx.len();
     report.rejected = outcomes.iter().filter(|o| o.error.is_some()).count();
-    let changed = |i: &usize| report.points[*i].compensated;
-    let idx: Vec<usize> = (0..outcomes.len()).filter(changed).collect();
     report.correction = PoseStats {
         position_um: MaxMean::of(idx.iter().map(|&i| corr[i].0)),
         orientation_mdeg: MaxMean::of(idx.iter().map(|&i| corr[i].1)),

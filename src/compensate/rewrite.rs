@@ -12,6 +12,8 @@
 
 use std::collections::{BTreeMap, HashSet};
 
+use rayon::prelude::*;
+
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, SourceFile, Span};
 use crate::motion::frame::Frame;
@@ -75,7 +77,7 @@ fn new_values(
     let abc_near = [near(3), near(4), near(5)];
     match stop.rel {
         None => {
-            let p = match stop.origin.and_then(|o| o.prefix) {
+            let p = match stop.origin.as_ref().and_then(|o| o.prefix.as_ref()) {
                 Some(prefix) => prefix.inverse().compose(&p_c),
                 None => p_c,
             };
@@ -205,13 +207,12 @@ fn aggregate_edits(
         match present[k] {
             Some(m) => {
                 let (replace, lit) = literal_span(file, &m.value)?;
-                let orig_text = file.text(lit);
                 let orig_value = value::literal(&m.value)?;
-                let min = min_decimals(axis, k);
-                let new = format_like(orig_text, values[k], min);
-                if new == format_like(orig_text, orig_value, min) {
+                let Some(new) =
+                    replacement(file.text(lit), orig_value, values[k], min_decimals(axis, k))
+                else {
                     continue;
-                }
+                };
                 any = true;
                 edits.push(Edit {
                     range: replace.range(),
@@ -219,7 +220,10 @@ fn aggregate_edits(
                 });
             }
             None => {
-                let text = format!("{:.*}", decimals(k), values[k]);
+                let text = match units(values[k], decimals(k)) {
+                    Some(u) => plain_text(u, decimals(k)),
+                    None => format!("{:.*}", decimals(k), values[k]),
+                };
                 let zero = text.bytes().all(|b| b == b'0' || b == b'.' || b == b'-');
                 // A relative motion's missing components are zero: write only those that
                 // are not.
@@ -263,6 +267,66 @@ fn aggregate_edits(
     // Insertions at one offset must keep X..C order: they were pushed in that order.
     edits.sort_by_key(|e| e.range.start);
     Some(edits)
+}
+
+/// Whether a literal is written plainly: `-?digits[.digits]` (no exponent, sign `+` or leading
+/// dot), the style of nearly every program; those are formatted here without allocation
+/// beyond the result, the others by `format_like`.
+fn plain_literal(text: &[u8]) -> bool {
+    let body = text.strip_prefix(b"-").unwrap_or(text);
+    let int = body.iter().take_while(|b| b.is_ascii_digit()).count();
+    if int == 0 {
+        return false;
+    }
+    match &body[int..] {
+        [] => true,
+        [b'.', rest @ ..] => rest.iter().all(u8::is_ascii_digit),
+        _ => false,
+    }
+}
+
+/// `value` rounded to `decimals` as an integer count of units, the way the compensation's
+/// direction check rounds commands (`sequence::Quantum`).
+fn units(value: f64, decimals: usize) -> Option<i64> {
+    let scaled = (value * 10f64.powi(decimals as i32)).round();
+    (scaled.abs() < 9.0e15).then_some(scaled as i64)
+}
+
+/// A plain literal of `units` at `decimals` (`-0.000` written `0.000`).
+fn plain_text(units: i64, decimals: usize) -> String {
+    let digits = units.unsigned_abs().to_string();
+    let mut out = String::with_capacity(digits.len() + decimals + 3);
+    if units < 0 {
+        out.push('-');
+    }
+    if decimals == 0 {
+        out.push_str(&digits);
+        return out;
+    }
+    if digits.len() <= decimals {
+        out.push_str("0.");
+        out.extend(std::iter::repeat_n('0', decimals - digits.len()));
+        out.push_str(&digits);
+    } else {
+        let (int, frac) = digits.split_at(digits.len() - decimals);
+        out.push_str(int);
+        out.push('.');
+        out.push_str(frac);
+    }
+    out
+}
+
+/// The new text of a literal `orig_text` (value `orig`) for `value`, or `None` when the
+/// written number would not change.
+fn replacement(orig_text: &[u8], orig: f64, value: f64, min: usize) -> Option<String> {
+    let decimals = literal_decimals(orig_text).max(min);
+    if plain_literal(orig_text) {
+        if let (Some(new), Some(old)) = (units(value, decimals), units(orig, decimals)) {
+            return (new != old).then(|| plain_text(new, decimals));
+        }
+    }
+    let new = format_like(orig_text, value, min);
+    (new != format_like(orig_text, orig, min)).then_some(new)
 }
 
 /// Decimals a literal is written with.
@@ -322,26 +386,26 @@ pub fn rewrite(
     robot: &crate::kinematics::RobotDescription,
 ) -> Rewrite {
     let mut out = Rewrite::default();
-    // Origin (file, aggregate start) → uses in execution order.
-    let mut uses: BTreeMap<(FileId, u32), Vec<Use>> = BTreeMap::new();
-    for (i, (stop, o)) in sim.stops.iter().zip(outcomes).enumerate() {
-        let Some(origin) = stop.origin else { continue };
+    // Each compensated target's edits, in parallel.
+    /// Why a target's numbers cannot be written (the diagnostic is built afterwards: a
+    /// `Diagnostic` per slot would cost a few hundred bytes for each of a million targets).
+    enum Skip {
+        Relative(usize),
+        NotLiteral(usize),
+    }
+    let per_stop = |i: usize| -> Option<Result<Use, Skip>> {
+        let (stop, o) = (&sim.stops[i], &outcomes[i]);
+        let origin = stop.origin?;
         if !stop.compensable || !o.changed || o.error.is_some() {
-            continue;
+            return None;
         }
         let file = &ws.get(origin.file).file;
         let original = original_values(file, origin.agg, stop.axis);
         let Some(values) = new_values(sim, outcomes, stop, &o.axes_deg, &original, robot) else {
-            out.diagnostics.push(ws.diagnostic(
-                Severity::Warning,
-                stop.file,
-                stop.stmt.head,
-                "a relative target after an unknown position cannot be rewritten: left unchanged",
-            ));
-            continue;
+            return Some(Err(Skip::Relative(i)));
         };
         let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
-        let edits = match aggregate_edits(
+        match aggregate_edits(
             file,
             origin.agg,
             stop.axis,
@@ -349,25 +413,53 @@ pub fn rewrite(
             write,
             stop.rel.is_some(),
         ) {
-            Some(e) => e,
-            None => {
+            Some(edits) => Some(Ok(Use {
+                stop: i,
+                edits,
+                site: (stop.file, stop.reference),
+                origin,
+            })),
+            None => Some(Err(Skip::NotLiteral(i))),
+        }
+    };
+    let computed: Vec<Option<Result<Use, Skip>>> = (0..sim.stops.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(per_stop)
+        .collect();
+    let mut all: Vec<Use> = Vec::with_capacity(computed.len());
+    for c in computed.into_iter().flatten() {
+        match c {
+            Ok(u) => all.push(u),
+            Err(Skip::Relative(i)) => {
+                let stop = &sim.stops[i];
+                out.diagnostics.push(ws.diagnostic(
+                    Severity::Warning,
+                    stop.file,
+                    stop.stmt.head,
+                    "a relative target after an unknown position cannot be rewritten: left unchanged",
+                ));
+            }
+            Err(Skip::NotLiteral(i)) => {
+                let origin = sim.stops[i].origin.expect("skipped for its origin");
                 out.diagnostics.push(ws.diagnostic(
                     Severity::Warning,
                     origin.file,
                     origin.agg.span,
                     "this position's numbers are not plain literals: left unchanged",
                 ));
-                continue;
             }
-        };
-        uses.entry((origin.file, origin.agg.span.start))
-            .or_default()
-            .push(Use {
-                stop: i,
-                edits,
-                site: (stop.file, stop.reference),
-                origin,
-            });
+        }
+    }
+    // Group the uses of each origin (file, aggregate start), keeping execution order.
+    let key = |u: &Use| (u.origin.file, u.origin.agg.span.start);
+    all.par_sort_by_key(|u| (key(u), u.stop));
+    let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
+    for u in all {
+        match uses.last_mut() {
+            Some((k, list)) if *k == key(&u) => list.push(u),
+            _ => uses.push((key(&u), vec![u])),
+        }
     }
     let mut taken: HashSet<Vec<u8>> = HashSet::new();
     for ((file, _), list) in uses {
@@ -382,10 +474,8 @@ pub fn rewrite(
         };
         let origin = list[0].origin;
         if distinct == 1 {
-            out.edits
-                .entry(file)
-                .or_default()
-                .extend(list[0].edits.iter().cloned());
+            let first = list.into_iter().next().expect("non-empty");
+            out.edits.entry(file).or_default().extend(first.edits);
             continue;
         }
         // Group by the place that names the point.

@@ -224,6 +224,11 @@ pub fn compensate(
         let cmd = |j: usize| outcomes[j].axes_deg;
         ctx.rate(k, &outcomes[k].axes_deg, &cmd)
     };
+    let timing = std::env::var_os("ROBOPOST_TIMING").is_some();
+    let t0 = std::time::Instant::now();
+    if timing {
+        eprintln!("  first pass done");
+    }
     let rates: Vec<Option<[f64; 6]>> = if options.parallel {
         (0..targets.len())
             .into_par_iter()
@@ -233,7 +238,13 @@ pub fn compensate(
     } else {
         (0..targets.len()).map(rate).collect()
     };
+    if timing {
+        eprintln!("  rates: {:.3} s", t0.elapsed().as_secs_f64());
+    }
     recheck(&ctx, start, &mut outcomes, &rates);
+    if timing {
+        eprintln!("  recheck: {:.3} s", t0.elapsed().as_secs_f64());
+    }
     outcomes
 }
 
@@ -467,6 +478,7 @@ impl Ctx<'_> {
 fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[Option<[f64; 6]>]) {
     let mut state = start;
     let mut resolved = vec![false; ctx.targets.len()];
+    let (mut n_expected, mut n_actual) = (0usize, 0usize);
     for k in 0..ctx.targets.len() {
         let target = &ctx.targets[k];
         let tool = ctx.tool(k);
@@ -479,6 +491,7 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
             o.nominal_directions = outcomes[k].nominal_directions;
             outcomes[k] = o;
             resolved[k] = true;
+            n_expected += 1;
         }
         let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
         let rate = if stale {
@@ -489,6 +502,7 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
         };
         let actual = arrive(&state, rate);
         if actual != outcomes[k].directions {
+            n_actual += 1;
             outcomes[k] = if fixed || outcomes[k].error.is_some() {
                 // The command is the nominal one: only the prediction changes.
                 let mut o = outcomes[k];
@@ -502,6 +516,9 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
             };
         }
         state = outcomes[k].directions;
+    }
+    if std::env::var_os("ROBOPOST_TIMING").is_some() {
+        eprintln!("recheck: {n_expected} re-solved for the compensated state, {n_actual} for the compensated motion");
     }
 }
 

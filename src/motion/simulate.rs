@@ -98,14 +98,16 @@ pub struct Simulation<'f> {
     /// Tools and bases referred to by the stops.
     pub frames: Vec<Frame>,
     pub diagnostics: Vec<Diagnostic>,
+    /// An error rejects the whole program (unknown frame, external TCP, endless loop).
+    pub fatal: bool,
+    /// Targets the robot cannot reach (errors of their own; the program goes on).
+    pub unreachable: usize,
 }
 
 impl Simulation<'_> {
     /// Whether an error rejects the program.
     pub fn rejected(&self) -> bool {
-        self.diagnostics
-            .iter()
-            .any(|d| d.severity == Severity::Error)
+        self.fatal
     }
 }
 
@@ -157,6 +159,9 @@ pub fn simulate<'f>(
     given: &[GivenFrame],
 ) -> Simulation<'f> {
     let mut sim = Simulator::new(ws, robot, given);
+    // At least one stop per motion statement (loops add more): no regrowth for CAM programs.
+    let motions: usize = ws.files.iter().map(|f| f.file.motions().count()).sum();
+    sim.out.stops.reserve(motions);
     sim.run();
     sim.out
 }
@@ -264,7 +269,23 @@ impl<'f> Simulator<'f> {
     }
 
     fn error(&mut self, file: FileId, span: Span, message: impl Into<String>) {
+        self.out.fatal = true;
         self.report(Severity::Error, file, span, message.into());
+    }
+
+    /// A target the robot cannot reach: an error of that target, the program goes on (its
+    /// position after it unknown).
+    fn unreachable(&mut self, file: FileId, s: &Stmt, why: String) {
+        self.out.unreachable += 1;
+        self.report(
+            Severity::Error,
+            file,
+            s.head,
+            format!(
+                "{why}: this motion is left unchanged and the robot's position after it is unknown"
+            ),
+        );
+        self.state.current = None;
     }
 
     fn run(&mut self) {
@@ -1422,7 +1443,11 @@ impl<'f> Simulator<'f> {
             ) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
-                    self.lost(file, s, format!("auxiliary point: {e}"));
+                    self.unreachable(
+                        file,
+                        s,
+                        format!("the auxiliary point cannot be reached: {e}"),
+                    );
                     return;
                 }
             };
@@ -1499,7 +1524,7 @@ impl<'f> Simulator<'f> {
             match kinematics::inverse(&robot, &flange.to_isometry(), select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
-                    self.lost(file, s, format!("the target cannot be reached: {e}"));
+                    self.unreachable(file, s, format!("the target cannot be reached: {e}"));
                     return;
                 }
             }
@@ -1539,7 +1564,7 @@ impl<'f> Simulator<'f> {
             let q_end = match kinematics::inverse(&robot, &flange.to_isometry(), select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
-                    self.lost(
+                    self.unreachable(
                         file,
                         s,
                         format!("the end of the circle (CA) cannot be reached: {e}"),
@@ -1729,8 +1754,8 @@ impl<'f> Simulator<'f> {
                     std::array::from_fn(|i| pos.v[i].unwrap_or(here[i]))
                 };
                 let p = Frame::from_kuka(&v);
-                let goal = match pos.origin.and_then(|o| o.prefix) {
-                    Some(prefix) => base.compose(&prefix).compose(&p),
+                let goal = match pos.origin.as_ref().and_then(|o| o.prefix.as_ref()) {
+                    Some(prefix) => base.compose(prefix).compose(&p),
                     None => base.compose(&p),
                 };
                 Some((v, goal, st))

@@ -55,6 +55,7 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
             method,
             parallel: true,
             frames: Vec::new(),
+            points: true,
         },
     )
 }
@@ -468,4 +469,22 @@ fn one_step_versus_iteration() {
             assert!(p.residual_um < 0.1, "line {}: {}", p.line, p.residual_um);
         }
     }
+}
+
+#[test]
+#[ignore]
+fn sizes() {
+    use std::mem::size_of;
+    eprintln!(
+        "Stmt {} StmtKind {} Motion {} Expr {} Aggregate {} Member {} Stop {} Target {} Outcome {}",
+        size_of::<robopost::krl::Stmt>(),
+        size_of::<robopost::krl::StmtKind>(),
+        size_of::<robopost::krl::Motion>(),
+        size_of::<robopost::krl::Expr>(),
+        size_of::<robopost::krl::Aggregate>(),
+        size_of::<robopost::krl::Member>(),
+        size_of::<robopost::motion::Stop>(),
+        size_of::<robopost::compensate::Target>(),
+        size_of::<robopost::compensate::Outcome>()
+    );
 }
