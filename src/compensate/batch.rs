@@ -78,6 +78,9 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Routine names a program calls (upper case), or why it could not be read.
+type Called = Result<HashSet<Vec<u8>>, String>;
+
 /// Routine names called by a `.src` (upper case), if it parses.
 fn calls(path: &Path) -> Result<HashSet<Vec<u8>>, String> {
     let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
@@ -109,7 +112,7 @@ pub fn plan(inputs: &[PathBuf], out_dir: &Path) -> std::io::Result<Plan> {
             (parent, v)
         };
         let srcs: Vec<&PathBuf> = found.iter().filter(|p| is_src(p)).collect();
-        let called: Vec<(PathBuf, Result<HashSet<Vec<u8>>, String>)> =
+        let called: Vec<(PathBuf, Called)> =
             srcs.par_iter().map(|p| ((*p).clone(), calls(p))).collect();
         // Names called per directory.
         let mut by_dir: HashMap<PathBuf, HashSet<Vec<u8>>> = HashMap::new();

@@ -396,7 +396,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
         Ok(files) => files,
         Err(d) => {
-            diagnostics.push(d);
+            diagnostics.push(*d);
             report.errors = diagnostics
                 .iter()
                 .filter(|d| d.severity == Severity::Error)
@@ -437,7 +437,7 @@ fn apply(
     edits: std::collections::BTreeMap<FileId, Vec<krl::Edit>>,
     cal: &Calibrated,
     method: Method,
-) -> Result<Vec<FileOutput>, Diagnostic> {
+) -> Result<Vec<FileOutput>, Box<Diagnostic>> {
     let mut edits = edits;
     ws.files
         .iter()
@@ -462,11 +462,11 @@ fn apply(
                             bytes,
                             changed: true,
                         }),
-                        Err(e) => Err(Diagnostic::new(
+                        Err(e) => Err(Box::new(Diagnostic::new(
                             Severity::Error,
                             &f.name,
                             format!("internal error, nothing written: the rewrite produced {e}; please report this program"),
-                        )),
+                        ))),
                     }
                 }
                 _ => Ok(FileOutput {
@@ -479,6 +479,7 @@ fn apply(
         .collect()
 }
 
+#[allow(clippy::too_many_arguments)]
 fn fill_report(
     report: &mut Report,
     ws: &Workspace,

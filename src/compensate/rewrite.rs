@@ -104,14 +104,14 @@ fn new_values(
 }
 
 /// The literal a member's value is written with: (span to replace, literal text).
-fn literal_span(file: &SourceFile, e: &Expr) -> Option<(Span, Span)> {
+fn literal_span(e: &Expr) -> Option<(Span, Span)> {
     match e {
         Expr::Number(n) => Some((n.span, n.span)),
         Expr::Unary(u) => match &u.operand {
             Expr::Number(n) => Some((u.span, n.span)),
             _ => None,
         },
-        Expr::Paren(p) => literal_span(file, &p.inner).map(|(_, lit)| (p.span, lit)),
+        Expr::Paren(p) => literal_span(&p.inner).map(|(_, lit)| (p.span, lit)),
         _ => None,
     }
 }
@@ -187,7 +187,7 @@ fn aggregate_edits(
         let most = present
             .iter()
             .flatten()
-            .filter_map(|m| literal_span(file, &m.value))
+            .filter_map(|m| literal_span(&m.value))
             .map(|(_, lit)| {
                 let t = file.text(lit);
                 t.iter().position(|&b| b == b'.').map_or(0, |p| {
@@ -206,7 +206,7 @@ fn aggregate_edits(
         }
         match present[k] {
             Some(m) => {
-                let (replace, lit) = literal_span(file, &m.value)?;
+                let (replace, lit) = literal_span(&m.value)?;
                 let orig_value = value::literal(&m.value)?;
                 let Some(new) =
                     replacement(file.text(lit), orig_value, values[k], min_decimals(axis, k))
@@ -305,7 +305,7 @@ fn plain_text(units: i64, decimals: usize) -> String {
     }
     if digits.len() <= decimals {
         out.push_str("0.");
-        out.extend(std::iter::repeat_n('0', decimals - digits.len()));
+        out.push_str(&"0".repeat(decimals - digits.len()));
         out.push_str(&digits);
     } else {
         let (int, frac) = digits.split_at(digits.len() - decimals);
@@ -347,8 +347,7 @@ pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
     for m in &agg.members {
         if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
             if is_axis == axis {
-                own[k] =
-                    literal_span(file, &m.value).map(|(_, lit)| literal_decimals(file.text(lit)));
+                own[k] = literal_span(&m.value).map(|(_, lit)| literal_decimals(file.text(lit)));
             }
         }
     }
@@ -369,6 +368,9 @@ fn original_values(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<f6
     }
     out
 }
+
+/// The place a point is named from: file and name span.
+type Site = (FileId, Option<Span>);
 
 /// One execution's edits of an origin.
 struct Use<'f> {
@@ -479,7 +481,7 @@ pub fn rewrite(
             continue;
         }
         // Group by the place that names the point.
-        let mut sites: Vec<((FileId, Option<Span>), Vec<&Use>)> = Vec::new();
+        let mut sites: Vec<(Site, Vec<&Use>)> = Vec::new();
         for u in &list {
             match sites.iter_mut().find(|(s, _)| *s == u.site) {
                 Some((_, v)) => v.push(u),

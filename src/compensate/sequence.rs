@@ -104,10 +104,22 @@ pub enum Resolution {
     Branch,
 }
 
+impl From<SolveError> for TargetError {
+    fn from(e: SolveError) -> TargetError {
+        TargetError::NotConverged {
+            position_um: e.position_um,
+            rotation_urad: e.rotation_urad,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum TargetError {
-    #[error(transparent)]
-    Solve(#[from] SolveError),
+    #[error("the compensation did not converge (left {position_um:.3} µm, {rotation_urad:.3} µrad; near-singular pose?)")]
+    NotConverged {
+        position_um: f64,
+        rotation_urad: f64,
+    },
     #[error("the compensated A{axis} = {value:.4}° leaves its limits [{lo}, {hi}]")]
     OutOfLimits {
         axis: u8,
@@ -292,7 +304,7 @@ fn solve_target(
     let near_singular = crate::kinematics::singularity(robot, &target.nominal_axes).is_some();
     let solve_or_best = |p: &Problem, m: Method| match solve::solve(model, p, m) {
         Ok(s) => Ok(s),
-        Err(e) if near_singular => Ok(e.best),
+        Err(e) if near_singular => Ok(*e.best),
         Err(e) => Err(e),
     };
     let mut sol = solve_or_best(&problem, method)?;

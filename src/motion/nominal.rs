@@ -107,14 +107,14 @@ pub struct Solution {
     pub iterations: u32,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("did not converge (left {position_um:.3} µm, {rotation_urad:.3} µrad after {iterations} iterations; near-singular pose?)")]
 pub struct NotConverged {
     pub position_um: f64,
     pub rotation_urad: f64,
     pub iterations: u32,
     /// The best solution found (least squares where the goal cannot be reached exactly).
-    pub best: Solution,
+    pub best: Box<Solution>,
 }
 
 fn within(e: &Vector6<f64>, tol_p: f64, tol_r: f64) -> bool {
@@ -183,7 +183,7 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         position_um: p * 1e3,
         rotation_urad: r * 1e6,
         iterations: it,
-        best,
+        best: Box::new(best),
     })
 }
 
@@ -210,7 +210,7 @@ pub fn local_ik(
 /// Solves `J·dq = −e` (all axes free: LU, damped when near-singular) or the weighted least
 /// squares over the free axes.
 enum Stepper {
-    Lu(nalgebra::LU<f64, nalgebra::U6, nalgebra::U6>),
+    Lu(Box<nalgebra::LU<f64, nalgebra::U6, nalgebra::U6>>),
     Damped,
 }
 
@@ -221,7 +221,7 @@ impl Stepper {
         }
         let lu = j.lu();
         if lu.is_invertible() {
-            Stepper::Lu(lu)
+            Stepper::Lu(Box::new(lu))
         } else {
             Stepper::Damped
         }
@@ -243,6 +243,7 @@ impl Stepper {
 /// the largest diagonal entry, negligible for a regular Jacobian (whose squared singular
 /// values are 10⁻³ of it or more) but enough to keep a singular wrist (A4 ∥ A6) from
 /// producing a huge step; a step still larger than [`MAX_STEP_DEG`] is shortened.
+#[allow(clippy::needless_range_loop)] // three arrays indexed alike
 fn damped_least_squares(j: &Matrix6<f64>, e: &Vector6<f64>, hold: &[bool; 6]) -> [f64; 6] {
     let w = Vector6::new(1.0, 1.0, 1.0, LEVER_MM, LEVER_MM, LEVER_MM);
     let mut a = Matrix6::zeros();

@@ -800,38 +800,29 @@ impl<'f> Simulator<'f> {
                 .get(1)
                 .and_then(|a| a.as_ref())
                 .map(|a| self.eval(file, a, scope));
-            match kind {
-                Some(Value::Enum(k)) => match k.as_slice() {
-                    b"TOOL" | b"BASE" => {
-                        let base = k == b"BASE";
-                        match arg.and_then(|v| v.as_int()) {
-                            Some(n) => {
-                                let st = self.frame_by_number(file, s, base, n);
-                                if base {
-                                    self.state.base = st;
-                                } else {
-                                    self.state.tool = st;
-                                }
-                            }
-                            None => {
-                                let st = FrameState::Unknown(
-                                    file,
-                                    s.head,
-                                    "BAS with a run-time frame number".into(),
-                                );
-                                if base {
-                                    self.state.base = st;
-                                } else {
-                                    self.state.tool = st;
-                                }
-                            }
-                        }
+            let Some(Value::Enum(k)) = kind else {
+                return;
+            };
+            match k.as_slice() {
+                b"TOOL" | b"BASE" => {
+                    let base = k == b"BASE";
+                    let st = match arg.and_then(|v| v.as_int()) {
+                        Some(n) => self.frame_by_number(file, s, base, n),
+                        None => FrameState::Unknown(
+                            file,
+                            s.head,
+                            "BAS with a run-time frame number".into(),
+                        ),
+                    };
+                    if base {
+                        self.state.base = st;
+                    } else {
+                        self.state.tool = st;
                     }
-                    b"PTP_PARAMS" | b"CP_PARAMS" | b"FRAMES" | b"PTP_DAT" | b"CP_DAT" => {
-                        self.apply_fdat(file, s)
-                    }
-                    _ => {}
-                },
+                }
+                b"PTP_PARAMS" | b"CP_PARAMS" | b"FRAMES" | b"PTP_DAT" | b"CP_DAT" => {
+                    self.apply_fdat(file, s)
+                }
                 _ => {}
             }
             return;
@@ -1194,11 +1185,11 @@ impl<'f> Simulator<'f> {
         let mut v = match p.access.first() {
             Some(Access::Index { items, .. }) => {
                 access.next();
-                let idx: Result<Vec<i64>, Value<'f>> = items
+                let idx: Result<Vec<i64>, String> = items
                     .iter()
                     .map(|e| {
                         let v = self.eval(file, e, scope);
-                        v.as_int().ok_or(v)
+                        v.as_int().ok_or_else(|| reason(&v, "an index"))
                     })
                     .collect();
                 match idx {
@@ -1211,7 +1202,7 @@ impl<'f> Simulator<'f> {
                         }
                         self.element(file, &name, &idx, scope)
                     }
-                    Err(v) => return Value::Unknown(reason(&v, "an index")),
+                    Err(why) => return Value::Unknown(why),
                 }
             }
             _ => self.lookup(file, &name, scope),

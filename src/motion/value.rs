@@ -58,6 +58,8 @@ pub struct Fdat {
     pub external_tcp: bool,
 }
 
+// Positions dominate the values a program moves with: boxing them would allocate per motion.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Value<'f> {
     Int(i64),
