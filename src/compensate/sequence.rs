@@ -231,16 +231,20 @@ pub fn compensate(
         targets,
         method: options.method,
     };
-    // Arrival rates of the first-pass commands (each needs its neighbours' commands).
-    let rate = |k: usize| {
-        let cmd = |j: usize| outcomes[j].axes_deg;
-        ctx.rate(k, &outcomes[k].axes_deg, &cmd)
+    // Arrival rates of the first-pass commands (each needs its neighbours' written TCPs,
+    // computed once).
+    let cmd = |j: usize| outcomes[j].axes_deg;
+    let tcp = |k: usize| ctx.tcp(k, &outcomes[k].axes_deg);
+    let tcps: Vec<Frame> = if options.parallel {
+        (0..targets.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(tcp)
+            .collect()
+    } else {
+        (0..targets.len()).map(tcp).collect()
     };
-    let timing = std::env::var_os("ROBOPOST_TIMING").is_some();
-    let t0 = std::time::Instant::now();
-    if timing {
-        eprintln!("  first pass done");
-    }
+    let rate = |k: usize| ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some(&tcps));
     let rates: Vec<Option<[f64; 6]>> = if options.parallel {
         (0..targets.len())
             .into_par_iter()
@@ -250,13 +254,8 @@ pub fn compensate(
     } else {
         (0..targets.len()).map(rate).collect()
     };
-    if timing {
-        eprintln!("  rates: {:.3} s", t0.elapsed().as_secs_f64());
-    }
+    drop(tcps);
     recheck(&ctx, start, &mut outcomes, &rates);
-    if timing {
-        eprintln!("  recheck: {:.3} s", t0.elapsed().as_secs_f64());
-    }
     outcomes
 }
 
@@ -360,13 +359,12 @@ fn first_pass(
     method: Method,
 ) -> Outcome {
     let tool = &tools[target.tool as usize];
-    let before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
     let mut out = Outcome {
         axes_deg: target.nominal_axes,
         directions: *directions,
         nominal_directions: *directions,
-        before,
-        residual: before,
+        before: Vector6::zeros(),
+        residual: Vector6::zeros(),
         iterations: 0,
         resolution: Resolution::Consistent,
         error: None,
@@ -374,6 +372,8 @@ fn first_pass(
         turn_held: [false; 6],
     };
     if !target.compensate {
+        out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
+        out.residual = out.before;
         return out;
     }
     match solve_target(
@@ -391,8 +391,18 @@ fn first_pass(
             out.residual = sol.residual;
             out.iterations = sol.iterations;
             out.turn_held = turn_held;
+            // The error at the nominal command (the start, unless a turn was kept by holding).
+            out.before = if turn_held.iter().any(|&h| h) {
+                tcp_error(model, tool, &target.nominal_axes, directions, &target.goal)
+            } else {
+                sol.initial
+            };
         }
-        Err(e) => out.error = Some(e),
+        Err(e) => {
+            out.error = Some(e);
+            out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
+            out.residual = out.before;
+        }
     }
     out
 }
@@ -435,35 +445,44 @@ impl Ctx<'_> {
     /// How the commanded motion arrives at target `k` commanded at `axes`, the other targets
     /// at `cmd(j)`: the controller's interpolation between the commands, exactly as
     /// `motion::interpolate` computes the nominal arrival (`dq/du` at the end).
-    fn rate(&self, k: usize, axes: &[f64; 6], cmd: &dyn Fn(usize) -> [f64; 6]) -> Option<[f64; 6]> {
+    fn rate(
+        &self,
+        k: usize,
+        axes: &[f64; 6],
+        cmd: &dyn Fn(usize) -> [f64; 6],
+        cache: Option<&[Frame]>,
+    ) -> Option<[f64; 6]> {
         let t = &self.targets[k];
         let nominal = t.arrival?;
         if k == 0 {
             return Some(nominal);
         }
+        // The written (rounded) TCP of target j: from the cache of first-pass commands, or
+        // computed (target k itself is evaluated at `axes`).
+        let tcp = |j: usize| match cache {
+            Some(c) => c[j],
+            None if j == k => self.tcp(k, axes),
+            None => self.tcp(j, &cmd(j)),
+        };
         let prev = cmd(k - 1);
         let step: [f64; 6] = std::array::from_fn(|i| axes[i] - prev[i]);
         let twist = match t.interp {
             Interp::Joint => return Some(step),
             Interp::Line => {
-                let (a, b) = (self.tcp(k, &prev), self.tcp(k, axes));
+                let (a, b) = (tcp(k - 1), tcp(k));
                 let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
                 let v = b.position - a.position;
                 nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
             }
             Interp::CircEnd if k >= 2 => {
-                let start = self.tcp(k, &cmd(k - 2));
-                let aux = self.tcp(k, &prev).position;
-                let end = self.tcp(k, axes);
+                let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
                 match Cartesian::new(&start, &end, &Path::Circ { aux }) {
                     Ok(c) => c.twist(1.0),
                     Err(_) => return Some(step),
                 }
             }
             Interp::CircAux if k + 1 < self.targets.len() => {
-                let start = self.tcp(k, &prev);
-                let aux = self.tcp(k, axes).position;
-                let end = self.tcp(k, &cmd(k + 1));
+                let (start, aux, end) = (tcp(k - 1), tcp(k).position, tcp(k + 1));
                 match Cartesian::new(&start, &end, &Path::Circ { aux }) {
                     Ok(c) => {
                         let u = c.fraction_at(&aux);
@@ -508,7 +527,7 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
         let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
         let rate = if stale {
             let snapshot = |j: usize| outcomes[j].axes_deg;
-            ctx.rate(k, &outcomes[k].axes_deg, &snapshot)
+            ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None)
         } else {
             rates[k]
         };
@@ -557,7 +576,7 @@ fn resettle(
     let tool = ctx.tool(k);
     let first = &outcomes[k];
     let cmd = |j: usize| outcomes[j].axes_deg;
-    let directions_at = |axes: &[f64; 6]| arrive(state, ctx.rate(k, axes, &cmd));
+    let directions_at = |axes: &[f64; 6]| arrive(state, ctx.rate(k, axes, &cmd, None));
     let mut out = *first;
     // The first solution, evaluated with the direction its motion really has.
     let mut candidates = vec![Candidate {

@@ -137,6 +137,7 @@ fn one_step(arm: &Predicted, problem: &Problem) -> Result<Solution, SolveError> 
             axes_deg: problem.start,
             residual: e0,
             iterations: 0,
+            initial: e0,
         });
     }
     // Equation (3): p_c = p* − (p̂ − p*), applied to the whole pose.
@@ -147,5 +148,6 @@ fn one_step(arm: &Predicted, problem: &Problem) -> Result<Solution, SolveError> 
         axes_deg: q.axes_deg,
         residual,
         iterations: 1,
+        initial: e0,
     })
 }

@@ -105,6 +105,8 @@ pub struct Solution {
     /// TCP error left at the solution, `[Δp (mm); Δr (rad)]`.
     pub residual: Vector6<f64>,
     pub iterations: u32,
+    /// TCP error at the start.
+    pub initial: Vector6<f64>,
 }
 
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -125,12 +127,16 @@ fn within(e: &Vector6<f64>, tol_p: f64, tol_r: f64) -> bool {
 /// Newton iteration `q ← q − J⁻¹·(tcp(q) − goal)` from `goal.start`.
 pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
     let mut q = goal.start;
-    let mut e = frame::error(&arm.tcp(&q, goal.tool), &goal.pose);
+    // The Jacobian comes with the first evaluation: one chain evaluation for both.
+    let (tcp0, mut j) = arm.tcp_jacobian(&q, goal.tool);
+    let mut e = frame::error(&tcp0, &goal.pose);
+    let initial = e;
     if within(&e, goal.tol_mm, goal.tol_rad) {
         return Ok(Solution {
             axes_deg: q,
             residual: e,
             iterations: 0,
+            initial,
         });
     }
     let weighted = |e: &Vector6<f64>| {
@@ -141,9 +147,9 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         axes_deg: q,
         residual: e,
         iterations: 0,
+        initial,
     };
     let least_squares = goal.hold.iter().any(|&h| h);
-    let (_, mut j) = arm.tcp_jacobian(&q, goal.tool);
     let mut stepper = Stepper::new(&j, &goal.hold);
     let mut it = 0;
     while it < MAX_ITERATIONS {
@@ -158,6 +164,7 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
                 axes_deg: q,
                 residual: e,
                 iterations: it,
+                initial,
             };
         }
         let still = dq.iter().all(|d| d.abs() < 1e-11);
@@ -166,6 +173,7 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
                 axes_deg: q,
                 residual: e,
                 iterations: it,
+                initial,
             });
         }
         if still {

@@ -108,15 +108,17 @@ pub fn bits_value(text: &[u8]) -> Option<i64> {
 
 /// Component index of an aggregate member name: Cartesian `X Y Z A B C`, or axis `A1..A6`.
 pub fn component(name: &[u8]) -> Option<(bool, usize)> {
-    let up = name.to_ascii_uppercase();
-    Some(match up.as_slice() {
-        b"X" => (false, 0),
-        b"Y" => (false, 1),
-        b"Z" => (false, 2),
-        b"A" => (false, 3),
-        b"B" => (false, 4),
-        b"C" => (false, 5),
-        [b'A', d @ b'1'..=b'6'] => (true, (d - b'1') as usize),
+    Some(match name {
+        [c] => match c.to_ascii_uppercase() {
+            b'X' => (false, 0),
+            b'Y' => (false, 1),
+            b'Z' => (false, 2),
+            b'A' => (false, 3),
+            b'B' => (false, 4),
+            b'C' => (false, 5),
+            _ => return None,
+        },
+        [a, d @ b'1'..=b'6'] if a.eq_ignore_ascii_case(&b'A') => (true, (d - b'1') as usize),
         _ => return None,
     })
 }
@@ -163,9 +165,9 @@ pub fn aggregate<'f>(
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
     for m in &agg.members {
         let name = &src[m.name.range()];
-        let up = name.to_ascii_uppercase();
-        match up.as_slice() {
-            b"S" | b"T" => {
+        let is = |word: &str| name.eq_ignore_ascii_case(word.as_bytes());
+        match () {
+            _ if is("S") || is("T") => {
                 let v = match &m.value {
                     Expr::Bits(s) => bits_value(file.text(*s)),
                     e => eval(e).as_int(),
@@ -176,22 +178,22 @@ pub fn aggregate<'f>(
                         String::from_utf8_lossy(name)
                     ));
                 };
-                if up == b"S" {
+                if is("S") {
                     pos.s = Some(v as u8);
                 } else {
                     pos.t = Some(v as u8);
                 }
                 cartesian = true;
             }
-            b"TOOL_NO" => {
+            _ if is("TOOL_NO") => {
                 is_fdat = true;
                 fdat.tool_no = eval(&m.value).as_int();
             }
-            b"BASE_NO" => {
+            _ if is("BASE_NO") => {
                 is_fdat = true;
                 fdat.base_no = eval(&m.value).as_int();
             }
-            b"IPO_FRAME" => {
+            _ if is("IPO_FRAME") => {
                 is_fdat = true;
                 fdat.external_tcp = matches!(&m.value, Expr::Enum(s) if file.text(*s).eq_ignore_ascii_case(b"#TCP"));
             }
