@@ -13,3 +13,33 @@ pub mod workspace;
 
 pub use simulate::{simulate, GivenFrame, Rel, Role, Simulation, Stop};
 pub use workspace::{FileId, Workspace};
+
+/// The commanded axis states of a program run, in execution order: every target's nominal
+/// axes with the rotation directions the simulated motion arrives with (for a virtual robot
+/// that measures the stops of a program). Directions are unknown before an axis first moves
+/// and after a position the simulation could not follow.
+pub fn program_states(sim: &Simulation) -> Vec<crate::model::AxisState> {
+    let mut state = [crate::model::Direction::Unknown; 6];
+    sim.stops
+        .iter()
+        .map(|s| {
+            state = match s.arrival {
+                None => [crate::model::Direction::Unknown; 6],
+                Some(v) => std::array::from_fn(|i| {
+                    if v[i].abs() < interpolate::REST_DEG {
+                        state[i]
+                    } else if v[i] > 0.0 {
+                        crate::model::Direction::Positive
+                    } else {
+                        crate::model::Direction::Negative
+                    }
+                }),
+            };
+            crate::model::AxisState {
+                axes_deg: s.nominal_axes,
+                directions: state,
+                time_s: 0.0,
+            }
+        })
+        .collect()
+}

@@ -471,20 +471,3 @@ fn one_step_versus_iteration() {
     }
 }
 
-#[test]
-#[ignore]
-fn sizes() {
-    use std::mem::size_of;
-    eprintln!(
-        "Stmt {} StmtKind {} Motion {} Expr {} Aggregate {} Member {} Stop {} Target {} Outcome {}",
-        size_of::<robopost::krl::Stmt>(),
-        size_of::<robopost::krl::StmtKind>(),
-        size_of::<robopost::krl::Motion>(),
-        size_of::<robopost::krl::Expr>(),
-        size_of::<robopost::krl::Aggregate>(),
-        size_of::<robopost::krl::Member>(),
-        size_of::<robopost::motion::Stop>(),
-        size_of::<robopost::compensate::Target>(),
-        size_of::<robopost::compensate::Outcome>()
-    );
-}
