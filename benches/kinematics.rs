@@ -34,6 +34,14 @@ fn kinematics(c: &mut Criterion<ThreadCpuTime>) {
     let robot = RobotDescription::kr30ha();
     let points = poses(&robot);
     let n = points.len();
+    let solutions: usize = points
+        .iter()
+        .map(|(_, f)| inverse_all(&robot, f).map_or(0, |v| v.len()))
+        .sum();
+    eprintln!(
+        "poses: {n}, mean solutions per pose (configurations × ±360° variants): {:.1}",
+        solutions as f64 / n as f64
+    );
     let mut i = 0;
     c.bench_function("fk (closed form)", |b| {
         b.iter(|| {

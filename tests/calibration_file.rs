@@ -120,6 +120,13 @@ fn with_effects(effects: &str) -> String {
     nominal.replace("\"effects\": []", &format!("\"effects\": {effects}"))
 }
 
+/// The nominal file with its robot description changed by `edit`.
+fn with_robot(edit: impl FnOnce(&mut serde_json::Value)) -> String {
+    let mut file: serde_json::Value = serde_json::from_str(&with_effects("[]")).unwrap();
+    edit(&mut file["robot"]["description"]);
+    serde_json::to_string_pretty(&file).unwrap()
+}
+
 #[test]
 fn bad_files_name_key_expected_and_found() {
     let cases = [
@@ -175,6 +182,58 @@ fn bad_files_name_key_expected_and_found() {
             "unknown_key",
             with_effects(r#"[{"name": "geometric", "values": {}}]"#),
         ),
+        ("missing_table", with_effects(r#"[{"name": "map:A3"}]"#)),
+        (
+            "parameters_on_a_table_effect",
+            with_effects(
+                r#"[{"name": "backlash:A2", "parameters": {"b": 0.01}, "table": {"grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
+        ),
+        (
+            "table_on_a_scalar_effect",
+            with_effects(
+                r#"[{"name": "geometric", "table": {"grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
+        ),
+        (
+            "empty_grid",
+            with_effects(r#"[{"name": "map:A1", "table": {"grid_deg": [], "values_deg": []}}]"#),
+        ),
+        (
+            "other_grid_on_a_1d_table",
+            with_effects(
+                r#"[{"name": "map:A1", "table": {"grid_deg": [0, 1], "other_grid_deg": [0], "values_deg": [0, 0]}}]"#,
+            ),
+        ),
+        (
+            "crosstalk_without_other_grid",
+            with_effects(
+                r#"[{"name": "crosstalk:A3->A2", "table": {"grid_deg": [0, 1], "values_deg": [0, 0]}}]"#,
+            ),
+        ),
+        (
+            "crosstalk_table_length",
+            with_effects(
+                r#"[{"name": "crosstalk:A3->A2", "table": {"grid_deg": [0, 1], "other_grid_deg": [58, 105, 153], "values_deg": [0, 0, 0, 0, 0]}}]"#,
+            ),
+        ),
+        (
+            "limits_reversed",
+            with_robot(|d| d["limits_deg"][2] = serde_json::json!([158.0, -120.0])),
+        ),
+        (
+            "sense_not_unit",
+            with_robot(|d| d["senses"][3] = serde_json::json!(0.5)),
+        ),
+        ("compliance_without_mass_data", {
+            let text = with_robot(|d| {
+                d.as_object_mut().unwrap().remove("gravity");
+            });
+            text.replace(
+                "\"effects\": []",
+                r#""effects": [{"name": "compliance:A2", "parameters": {"c": 0.004}}]"#,
+            )
+        }),
     ];
     for (kind, text) in cases {
         insta::assert_snapshot!(kind, error_of(&text));

@@ -123,6 +123,10 @@ fn close_axes(a: &[f64; 6], b: &[f64; 6], tol: f64) -> bool {
     a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
 }
 
+fn assert_close_axes(a: &[f64; 6], b: &[f64; 6], tol: f64) {
+    assert!(close_axes(a, b, tol), "{a:?} vs {b:?}");
+}
+
 /// Axis sets within the KR 30 HA's limits.
 fn axes_in_limits() -> impl Strategy<Value = [f64; 6]> {
     let l = robot().limits_deg;
@@ -217,6 +221,21 @@ mod forward_kinematics {
 mod inverse_kinematics {
     use super::*;
 
+    /// `result` is the singularity `kind`, closer than `within` (deg or mm).
+    fn assert_singular<T: std::fmt::Debug>(
+        result: Result<T, IkError>,
+        kind: SingularityKind,
+        within: f64,
+    ) {
+        match result {
+            Err(IkError::Singular {
+                kind: found,
+                distance_deg_or_mm,
+            }) if found == kind => assert!(distance_deg_or_mm < within, "{distance_deg_or_mm}"),
+            other => panic!("expected {kind:?}: {other:?}"),
+        }
+    }
+
     fn clear_of_singularities(axes: &[f64; 6]) -> bool {
         let d = singularity_distances(&robot(), axes);
         d[0].distance > 1e-3 && d[1].distance > 1e-3 && d[2].distance > 1e-2
@@ -300,12 +319,7 @@ mod inverse_kinematics {
         for w in path.windows(2) {
             let flange = forward(&r, &w[1]);
             let sol = inverse(&r, &flange, Select::Nearest(w[0])).unwrap();
-            assert!(
-                close_axes(&sol.axes_deg, &w[1], 1e-8),
-                "{:?} vs {:?}",
-                sol.axes_deg,
-                w[1]
-            );
+            assert_close_axes(&sol.axes_deg, &w[1], 1e-8);
             let kept = inverse(&r, &flange, Select::StatusNearest { s, near: w[0] }).unwrap();
             assert_eq!(kept.axes_deg, sol.axes_deg);
             let by_status = inverse(&r, &flange, Select::Status { s, t: None }).unwrap();
@@ -329,12 +343,7 @@ mod inverse_kinematics {
         for w in path.windows(2) {
             let flange = forward(&r, &w[1]);
             let sol = inverse(&r, &flange, Select::Nearest(w[0])).unwrap();
-            assert!(
-                close_axes(&sol.axes_deg, &w[1], 1e-8),
-                "{:?} vs {:?}",
-                sol.axes_deg,
-                w[1]
-            );
+            assert_close_axes(&sol.axes_deg, &w[1], 1e-8);
             let kept = inverse(&r, &flange, Select::StatusNearest { s: s0, near: w[0] }).unwrap();
             assert!(gap(&forward(&r, &kept.axes_deg), &flange).0 < 1e-8);
             assert_eq!(kept.s, s0);
@@ -351,13 +360,11 @@ mod inverse_kinematics {
         let flange = forward(&r, &axes);
         let (s, _) = status_turn(&r, &axes);
         // Strict selection reports the singularity and its distance.
-        match inverse(&r, &flange, Select::Status { s, t: None }) {
-            Err(IkError::Singular {
-                kind: SingularityKind::Wrist,
-                distance_deg_or_mm,
-            }) => assert!(distance_deg_or_mm < 1e-7),
-            other => panic!("{other:?}"),
-        }
+        assert_singular(
+            inverse(&r, &flange, Select::Status { s, t: None }),
+            SingularityKind::Wrist,
+            1e-7,
+        );
         // A4 + A6 is what the pose fixes (both turn about the same line): 55°.
         let previous = [10.5, -80.0, 100.0, 50.0, 3.0, 0.0];
         for select in [
@@ -386,13 +393,7 @@ mod inverse_kinematics {
         let r = robot();
         // Flange Z up (A = B = C = 0), wrist point 170 mm below it on the A1 axis.
         let flange = Pose::from_array([0.0, 0.0, 2170.0, 0.0, 0.0, 0.0]).to_isometry();
-        match inverse_all(&r, &flange) {
-            Err(IkError::Singular {
-                kind: SingularityKind::Shoulder,
-                distance_deg_or_mm,
-            }) => assert!(distance_deg_or_mm < 1e-9),
-            other => panic!("{other:?}"),
-        }
+        assert_singular(inverse_all(&r, &flange), SingularityKind::Shoulder, 1e-9);
         let sol = inverse(
             &r,
             &flange,
@@ -409,13 +410,11 @@ mod inverse_kinematics {
         let axes = [0.0, -30.0, phi(), 0.0, 20.0, 0.0];
         let flange = forward(&r, &axes);
         for s in [0, 2] {
-            match inverse(&r, &flange, Select::Status { s, t: None }) {
-                Err(IkError::Singular {
-                    kind: SingularityKind::Elbow,
-                    distance_deg_or_mm,
-                }) => assert!(distance_deg_or_mm < 1e-5),
-                other => panic!("S {s}: {other:?}"),
-            }
+            assert_singular(
+                inverse(&r, &flange, Select::Status { s, t: None }),
+                SingularityKind::Elbow,
+                1e-5,
+            );
         }
         let sol = inverse(
             &r,
@@ -480,6 +479,17 @@ mod inverse_kinematics {
                 assert!(value_deg < limits_deg[0] || value_deg > limits_deg[1]);
             }
             other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn non_finite_poses_are_errors_not_panics() {
+        let r = robot();
+        for bad in [f64::NAN, f64::INFINITY, 1e300] {
+            let flange = Pose::from_array([bad, 0.0, 1000.0, 0.0, 90.0, 0.0]).to_isometry();
+            assert!(inverse_all(&r, &flange).is_err());
+            assert!(inverse(&r, &flange, Select::Nearest([0.0; 6])).is_err());
+            assert!(inverse(&r, &flange, Select::Status { s: 2, t: None }).is_err());
         }
     }
 
@@ -661,7 +671,7 @@ mod cli {
         let dir = tempfile::tempdir().unwrap();
         let (path, model) = calibration_with_errors(dir.path());
         let axes = [10.0, -70.0, 100.0, 20.0, 30.0, -40.0];
-        let out = run(&[
+        let args = [
             "fk",
             "10",
             "-70",
@@ -671,9 +681,8 @@ mod cli {
             "-40",
             "-c",
             path.to_str().unwrap(),
-            "--json",
-        ]);
-        let v = json(&out);
+        ];
+        let v = json(&run(&[&args[..], &["--json"]].concat()));
         // Unknown directions: the backlash branch mean, i.e. the map alone.
         let predicted = model.flange_pose(&AxisState::new(axes));
         let p = Pose::from_isometry(&predicted);
@@ -692,17 +701,7 @@ mod cli {
         assert!(
             (v["difference"]["distance_um"].as_f64().unwrap() - d.norm() * 1000.0).abs() < 1e-9
         );
-        let human = text(&run(&[
-            "fk",
-            "10",
-            "-70",
-            "100",
-            "20",
-            "30",
-            "-40",
-            "-c",
-            path.to_str().unwrap(),
-        ]));
+        let human = text(&run(&args));
         assert!(
             human.contains("model    {X ") && human.contains("model − nominal"),
             "{human}"

@@ -170,6 +170,54 @@ fn crosstalk_reads_its_own_axis_along_rows_and_the_other_along_columns() {
     assert_eq!(angle_slot(&c, &state, 3), 0.0);
 }
 
+#[test]
+fn crosstalk_outside_the_other_grid_is_held_and_counted_per_table() {
+    let table = Table2 {
+        rows: Grid::new(vec![-100.0, -50.0]).unwrap(),
+        columns: Grid::new(vec![58.0, 105.0, 153.0]).unwrap(),
+        values: vec![0.0, 0.1, 0.2, 0.0, 0.3, 0.6],
+    };
+    let mut c = Crosstalk::zeros(3, 2, &Default::default(), &RobotDescription::kr30ha()).unwrap();
+    c.table = table;
+    // A3 = 30 lies below the other grid: held at the A3 = 58 column, mean of 0.0 and 0.0 at
+    // A2 = −75; A3 = 170 above it: the 153 column, mean of 0.2 and 0.6.
+    let low = AxisState::new([0.0, -75.0, 30.0, 0.0, 0.0, 0.0]);
+    let high = AxisState::new([0.0, -75.0, 170.0, 0.0, 0.0, 0.0]);
+    let inside = AxisState::new([0.0, -75.0, 129.0, 0.0, 0.0, 0.0]);
+    assert!(angle_slot(&c, &low, 2).abs() < 1e-15 && c.clamped(&low));
+    assert!((angle_slot(&c, &high, 2) / DEG - 0.4).abs() < 1e-14 && c.clamped(&high));
+    assert!(!c.clamped(&inside));
+    // The model says which table held a point: A2 = −120 is outside the crosstalk rows only,
+    // A2 = 40 (beyond the A2 limit of 35) outside the map too.
+    let mut model = robopost::model::Model::new(
+        RobotDescription::kr30ha(),
+        Payload::default(),
+        nalgebra::Vector3::zeros(),
+    );
+    model
+        .push_named(&EffectName::parse("map:A2").unwrap(), &Default::default())
+        .unwrap();
+    model.push(Box::new(c));
+    let states = [
+        inside,
+        AxisState::new([0.0, -120.0, 129.0, 0.0, 0.0, 0.0]),
+        AxisState::new([0.0, 40.0, 129.0, 0.0, 0.0, 0.0]),
+        low,
+    ];
+    let mut counts = [0; 2];
+    for s in &states {
+        for i in model.clamped_effects(s) {
+            counts[i] += 1;
+        }
+    }
+    assert_eq!(counts, [1, 3]);
+    assert_eq!(
+        states.iter().filter(|s| model.clamped(s)).count(),
+        3,
+        "points held at some table edge"
+    );
+}
+
 /// KR 30 HA geometry with one 10 kg point mass on link 3, 500 mm along its x (forward at HOME).
 fn one_mass_robot() -> RobotDescription {
     let mut robot = RobotDescription::kr30ha();

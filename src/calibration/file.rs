@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::kinematics::{Payload, RobotDescription};
+use crate::kinematics::{Payload, Pose, RobotDescription};
 use crate::model::EffectRecord;
 
 /// The only format version this build reads and writes.
@@ -54,17 +54,8 @@ pub enum MeasurementFrame {
     Tracker(KukaFrame),
 }
 
-/// A KUKA FRAME: X, Y, Z in mm and A, B, C in degrees, R = Rz(A)·Ry(B)·Rx(C).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct KukaFrame {
-    pub x: f64,
-    pub y: f64,
-    pub z: f64,
-    pub a: f64,
-    pub b: f64,
-    pub c: f64,
-}
+/// A KUKA FRAME as written in the file: the kinematics' [`Pose`].
+pub type KukaFrame = Pose;
 
 /// Where a calibration came from. Every field is optional.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]

@@ -118,21 +118,38 @@ fn axis_notes(robot: &RobotDescription, axes: &[f64; 6]) {
     }
 }
 
-pub fn run_fk(args: FkArgs) -> Exit {
-    let axes = axes_of(&args.axes);
-    if let Some(bad) = axes.iter().find(|a| !a.is_finite()) {
-        eprintln!("robopost fk: axis angle {bad} is not a finite number");
-        return Exit::Usage;
+/// The six numbers of the command line, or a usage error naming a non-finite one.
+fn six_finite(command: &str, values: &[f64]) -> Result<[f64; 6], Exit> {
+    match values.iter().find(|a| !a.is_finite()) {
+        Some(bad) => {
+            eprintln!("robopost {command}: {bad} is not a finite number");
+            Err(Exit::Usage)
+        }
+        None => Ok(axes_of(values)),
     }
-    let cal = match &args.cal {
-        Some(path) => match calibration::load(path) {
-            Ok(cal) => Some(cal),
-            Err(e) => {
-                eprintln!("robopost fk: {e}");
-                return Exit::Usage;
-            }
-        },
-        None => None,
+}
+
+/// The calibration of `-c`, if given; an unreadable or invalid file is a usage error.
+fn load_calibration(
+    command: &str,
+    path: Option<&PathBuf>,
+) -> Result<Option<calibration::Calibration>, Exit> {
+    path.map(|path| {
+        calibration::load(path).map_err(|e| {
+            eprintln!("robopost {command}: {e}");
+            Exit::Usage
+        })
+    })
+    .transpose()
+}
+
+pub fn run_fk(args: FkArgs) -> Exit {
+    let (axes, cal) = match (
+        six_finite("fk", &args.axes),
+        load_calibration("fk", args.cal.as_ref()),
+    ) {
+        (Ok(axes), Ok(cal)) => (axes, cal),
+        (Err(exit), _) | (_, Err(exit)) => return exit,
     };
     let robot = cal
         .as_ref()
@@ -287,21 +304,14 @@ fn selected_row(
 }
 
 pub fn run_ik(args: IkArgs) -> Exit {
-    let values = axes_of(&args.pose);
-    if let Some(bad) = values.iter().find(|a| !a.is_finite()) {
-        eprintln!("robopost ik: {bad} is not a finite number");
-        return Exit::Usage;
-    }
-    let robot = match &args.cal {
-        Some(path) => match calibration::load(path) {
-            Ok(cal) => cal.model_ref().robot,
-            Err(e) => {
-                eprintln!("robopost ik: {e}");
-                return Exit::Usage;
-            }
-        },
-        None => RobotDescription::kr30ha(),
+    let (values, cal) = match (
+        six_finite("ik", &args.pose),
+        load_calibration("ik", args.cal.as_ref()),
+    ) {
+        (Ok(values), Ok(cal)) => (values, cal),
+        (Err(exit), _) | (_, Err(exit)) => return exit,
     };
+    let robot = cal.map_or_else(RobotDescription::kr30ha, |c| c.model_ref().robot);
     let flange = Pose::from_array(values).to_isometry();
     let rows = match args.s {
         Some(s) if s > 7 => {

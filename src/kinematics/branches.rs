@@ -84,7 +84,7 @@ impl<'h> Target<'h> {
         let g = Geometry::new(robot);
         let approach = r.column(2).into_owned();
         let r06 = Matrix3::from_columns(&[approach, r.column(1).into_owned(), -r.column(0)]);
-        let wrist = p - g.l5x * approach;
+        let wrist = p - g.links.l5x * approach;
         let radius = norm2(wrist.x, wrist.y);
         let (s1, c1, a1_front) = if radius < SHOULDER_SINGULAR_MM {
             let a1 = hint.map_or(0.0, |h| h[0]);
@@ -103,7 +103,7 @@ impl<'h> Target<'h> {
             s1,
             x_front: wrist.x * c1 + wrist.y * s1,
             a1_front,
-            psi: g.l4x.atan2(g.l3z),
+            psi: g.links.l4x.atan2(g.links.l3z),
             hint,
         }
     }
@@ -153,9 +153,9 @@ pub(crate) fn shoulder(t: &Target, back: bool) -> Result<Shoulder, OutOfReach> {
     let sigma = if back { -1.0 } else { 1.0 };
     let (c1, s1, x) = (sigma * t.c1, sigma * t.s1, sigma * t.x_front);
     let a1 = t.a1(back);
-    let (dx, dz) = (x - g.l1x, t.wrist.z - g.l1z);
+    let (dx, dz) = (x - g.links.l1x, t.wrist.z - g.links.l1z);
     let dn = norm2(dx, dz);
-    let (sum, diff) = (g.l2 + g.k, (g.l2 - g.k).abs());
+    let (sum, diff) = (g.links.l2 + g.k, (g.links.l2 - g.k).abs());
     let (outer, inner) = (sum - dn, dn - diff);
     if outer < -REACH_TOLERANCE_MM {
         return Err(OutOfReach {
@@ -215,7 +215,7 @@ pub(crate) struct Arm {
 #[inline]
 pub(crate) fn arm(t: &Target, sh: &Shoulder, up: bool) -> Arm {
     let g = &t.g;
-    let (l2, k) = (g.l2, g.k);
+    let (l2, k) = (g.links.l2, g.k);
     let (e, sin_e) = elbow(t, sh, up);
     let cos_e = sh.cos_e;
     let (dx, dz) = (sh.dx, sh.dz);
@@ -225,7 +225,10 @@ pub(crate) fn arm(t: &Target, sh: &Shoulder, up: bool) -> Arm {
     // e^{i(θ2+θ3)} = D·(l2·e^{ie} + K)·(l3z − i·l4x) / (K·|D|²).
     let (ar, ai) = (l2 * cos_e + k, l2 * sin_e);
     let (br, bi) = (dz * ar - dx * ai, dz * ai + dx * ar);
-    let (cr, ci) = (br * g.l3z + bi * g.l4x, bi * g.l3z - br * g.l4x);
+    let (cr, ci) = (
+        br * g.links.l3z + bi * g.links.l4x,
+        bi * g.links.l3z - br * g.links.l4x,
+    );
     let norm = norm2(cr, ci);
     let (c23, s23) = (cr / norm, ci / norm);
     // G = Rz(θ1)ᵀ·R06, then M = Ry(θ2+θ3)ᵀ·G.

@@ -13,17 +13,12 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use super::robot::RobotDescription;
+use super::robot::{Links, RobotDescription};
 
 /// What the closed forms need of a robot, in radians and mm.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Geometry {
-    pub l1x: f64,
-    pub l1z: f64,
-    pub l2: f64,
-    pub l3z: f64,
-    pub l4x: f64,
-    pub l5x: f64,
+    pub links: Links,
     /// Distance A3 axis → wrist point, `hypot(l3z, l4x)`.
     pub k: f64,
     pub senses: [f64; 6],
@@ -33,14 +28,9 @@ pub(crate) struct Geometry {
 impl Geometry {
     #[inline]
     pub fn new(robot: &RobotDescription) -> Geometry {
-        let l = &robot.links;
+        let l = robot.links;
         Geometry {
-            l1x: l.l1x,
-            l1z: l.l1z,
-            l2: l.l2,
-            l3z: l.l3z,
-            l4x: l.l4x,
-            l5x: l.l5x,
+            links: l,
             k: (l.l3z * l.l3z + l.l4x * l.l4x).sqrt(),
             senses: robot.senses,
             offsets: robot.offsets_deg.map(f64::to_radians),
@@ -63,7 +53,7 @@ impl Geometry {
     /// point on the line A2–A3), ±180° folded.
     #[inline]
     pub fn elbow(&self, theta3: f64) -> f64 {
-        theta3 + self.l4x.atan2(self.l3z)
+        theta3 + self.links.l4x.atan2(self.links.l3z)
     }
 }
 
@@ -72,8 +62,8 @@ impl Geometry {
 fn arm_plane(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64) {
     let (s2, c2) = t2.sin_cos();
     let (s23, c23) = (t2 + t3).sin_cos();
-    let x = g.l1x + g.l2 * s2 + g.l4x * c23 + g.l3z * s23;
-    let z = g.l1z + g.l2 * c2 - g.l4x * s23 + g.l3z * c23;
+    let x = g.links.l1x + g.links.l2 * s2 + g.links.l4x * c23 + g.links.l3z * s23;
+    let z = g.links.l1z + g.links.l2 * c2 - g.links.l4x * s23 + g.links.l3z * c23;
     (x, z, s23, c23)
 }
 
@@ -115,7 +105,7 @@ pub fn flange_frame(robot: &RobotDescription, axes_deg: &[f64; 6]) -> (Matrix3<f
     // Flange = R06·Ry(90°): its Z is the A6 axis x̂, its X the A6 frame's −ẑ.
     let approach = r06.column(0).into_owned();
     let flange = Matrix3::from_columns(&[-r06.column(2), r06.column(1).into_owned(), approach]);
-    (flange, wrist + g.l5x * approach)
+    (flange, wrist + g.links.l5x * approach)
 }
 
 /// The nominal flange frame of `axes_deg` (KUKA degrees) in the robot base frame.
@@ -212,7 +202,8 @@ pub struct SingularityThresholds {
 
 impl Default for SingularityThresholds {
     /// 1° of A5: an orientation change δ there turns A4 and A6 by about δ/sin(A5) ≈ 57·δ.
-    /// 1° of elbow: the stretched arm's radial stiffness of motion falls as sin(e). 10 mm of
+    /// 1° of elbow: the reach changes only as 1 − cos(e) there, so a radial move of δ needs
+    /// an elbow move of about δ/(l2·K/|D|·sin e), some 40 times more than at 45°. 10 mm of
     /// wrist point radius: a 0.1 mm lateral move already turns A1 by 0.6°.
     fn default() -> Self {
         SingularityThresholds {

@@ -244,11 +244,11 @@ pub fn inverse_all_into(
             singular: None,
         } = c
         {
-            each_variant(robot, axes, |a| {
+            each_variant(robot, axes, |axes_deg, t| {
                 out.push(IkSolution {
-                    axes_deg: a,
+                    axes_deg,
                     s: s as u8,
-                    t: turn(&a),
+                    t,
                 })
             });
         }

@@ -4,14 +4,18 @@
 //! that carry S/T and the external axes beside the six robot axes.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// Below this `cos B` the orientation is taken as B = ±90° exactly, where only A − C (B = +90°)
 /// or A + C (B = −90°) is defined; MODEL.md's convention then puts everything in A (C = 0).
 /// 1e-10 rad of B is far below any printed KRL digit and below 1e-6 mm over 10 m.
 const GIMBAL_COS_B: f64 = 1e-10;
 
-/// A KUKA FRAME (or the geometric part of a POS/E6POS): mm and degrees.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// A KUKA FRAME (or the geometric part of a POS/E6POS): X, Y, Z in mm and A, B, C in
+/// degrees, R = Rz(A)·Ry(B)·Rx(C).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct Pose {
     pub x: f64,
     pub y: f64,

@@ -7,6 +7,11 @@ use super::robot::RobotDescription;
 /// Angles this far (deg) outside a joint limit are taken as on it (rounding).
 pub const LIMIT_TOLERANCE_DEG: f64 = 1e-9;
 
+/// Turns per degree. Counting turns by this product instead of a division (whose latency
+/// dominated the enumeration of variants) is off by an ulp at most, far inside the limit
+/// tolerance, so a limit never falls on a rounding edge.
+const PER_TURN: f64 = 1.0 / 360.0;
+
 fn limits(robot: &RobotDescription, i: usize) -> (f64, f64) {
     let [lo, hi] = robot.limits_deg[i];
     (lo - LIMIT_TOLERANCE_DEG, hi + LIMIT_TOLERANCE_DEG)
@@ -23,27 +28,24 @@ pub(crate) struct Variants {
 impl Variants {
     pub fn of(robot: &RobotDescription, i: usize, a: f64) -> Variants {
         let (lo, hi) = limits(robot, i);
-        let none = Variants { first: a, len: 0 };
-        if !a.is_finite() {
-            return none;
+        let q = (a - lo) * PER_TURN;
+        // Also refuses NaN and infinities.
+        if q.is_nan() || q.abs() >= 1e6 {
+            return Variants { first: a, len: 0 };
         }
-        // The lowest value ≥ lo (few steps: `a` is within a turn or two of the limits).
-        let mut v = a;
-        if (v - lo).abs() > 1e4 {
-            v = lo + (v - lo).rem_euclid(360.0);
+        // The lowest value ≥ lo is a − 360°·⌊q⌋; floor by a truncating cast (no libm call).
+        let mut k = q as i64;
+        if (k as f64) > q {
+            k -= 1;
         }
-        while v - 360.0 >= lo {
-            v -= 360.0;
+        let first = a - 360.0 * k as f64;
+        if first > hi {
+            return Variants { first, len: 0 };
         }
-        while v < lo {
-            v += 360.0;
-        }
-        if v > hi {
-            return none;
-        }
-        // Joint ranges are a few turns at most; the cast truncates the count of further turns.
-        let len = 1 + (((hi - v) / 360.0) as usize).min(64);
-        Variants { first: v, len }
+        // Joint ranges are a few turns at most; the cast truncates toward zero (≥ 0 here).
+        // Through i64: a float → unsigned cast is a branchy instruction sequence on x86-64.
+        let len = 1 + (((hi - first) * PER_TURN) as i64).clamp(0, 64) as usize;
+        Variants { first, len }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -53,7 +55,8 @@ impl Variants {
     /// The `j`-th value, ascending.
     #[inline]
     pub fn get(&self, j: usize) -> f64 {
-        self.first + 360.0 * j as f64
+        // j ≤ 64: through u32, whose conversion to f64 is one instruction (usize's is not).
+        self.first + 360.0 * f64::from(j as u32)
     }
 
     pub fn values(&self) -> impl Iterator<Item = f64> + '_ {
@@ -73,7 +76,7 @@ pub(crate) fn turn(axes: &[f64; 6]) -> u8 {
 pub(crate) fn nearest(robot: &RobotDescription, i: usize, a: f64, target: f64) -> Option<f64> {
     let (lo, hi) = limits(robot, i);
     // Round (target − a)/360 half away from zero with a truncating cast (no libm call).
-    let q = (target - a) / 360.0;
+    let q = (target - a) * PER_TURN;
     if q.abs() < 1e6 {
         let v = a + 360.0 * ((q + 0.5f64.copysign(q)) as i64) as f64;
         if v >= lo && v <= hi {
@@ -133,17 +136,26 @@ pub(crate) fn with_turn(robot: &RobotDescription, axes: &[f64; 6], t: u8) -> Opt
     Some(out)
 }
 
-/// Calls `f` with every combination of the axes' variants, in increasing T: A6 (T bit 5)
-/// varies slowest, A1 fastest, and each axis runs from its largest value down, so
-/// non-negative (bit 0) before negative (bit 1). Nothing when an axis has no variant.
-pub(crate) fn each_variant(robot: &RobotDescription, axes: &[f64; 6], mut f: impl FnMut([f64; 6])) {
-    let v: [Variants; 6] = std::array::from_fn(|i| Variants::of(robot, i, axes[i]));
-    if v.iter().any(Variants::is_empty) {
-        return;
+/// Calls `f` with every combination of the axes' variants and its turn bits, in increasing
+/// T: A6 (T bit 5) varies slowest, A1 fastest, and each axis runs from its largest value
+/// down, so non-negative (bit 0) before negative (bit 1). Nothing when an axis has no variant.
+pub(crate) fn each_variant(
+    robot: &RobotDescription,
+    axes: &[f64; 6],
+    mut f: impl FnMut([f64; 6], u8),
+) {
+    let mut v = [Variants { first: 0.0, len: 0 }; 6];
+    for i in 0..6 {
+        v[i] = Variants::of(robot, i, axes[i]);
+        if v[i].is_empty() {
+            return;
+        }
     }
     let mut index = [0usize; 6];
     loop {
-        f(std::array::from_fn(|i| v[i].get(v[i].len - 1 - index[i])));
+        let a: [f64; 6] = std::array::from_fn(|i| v[i].get(v[i].len - 1 - index[i]));
+        f(a, turn(&a));
+        // Next combination, A1 fastest.
         let mut i = 0;
         loop {
             index[i] += 1;
@@ -199,8 +211,9 @@ mod tests {
             Some(-260.0)
         );
         let mut ts = Vec::new();
-        each_variant(&robot, &[179.0, -30.0, 20.0, 100.0, 40.0, -10.0], |a| {
-            ts.push(turn(&a))
+        each_variant(&robot, &[179.0, -30.0, 20.0, 100.0, 40.0, -10.0], |a, t| {
+            assert_eq!(t, turn(&a));
+            ts.push(t)
         });
         assert_eq!(ts.len(), 8);
         assert!(ts.windows(2).all(|w| w[0] <= w[1]), "{ts:?}");

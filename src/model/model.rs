@@ -110,6 +110,16 @@ impl Model {
         self.effects.iter().any(|e| e.clamped(state))
     }
 
+    /// Indices (into [`Self::effects`]) of the table effects that held `state` at a table
+    /// edge, so that a report can count the points outside each table's range.
+    pub fn clamped_effects<'a>(&'a self, state: &'a AxisState) -> impl Iterator<Item = usize> + 'a {
+        self.effects
+            .iter()
+            .enumerate()
+            .filter(move |(_, e)| e.clamped(state))
+            .map(|(i, _)| i)
+    }
+
     pub fn n_parameters(&self) -> usize {
         self.starts[self.starts.len() - 1]
     }

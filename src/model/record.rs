@@ -63,8 +63,18 @@ impl RecordError {
 }
 
 impl EffectRecord {
-    /// The table, or an error naming the missing key.
+    /// The table, or an error naming the missing key. A table effect has no named
+    /// parameters: a `parameters` block beside the table would be silently ignored, so it is
+    /// an error too.
     pub fn require_table(&self) -> Result<&TableRecord, RecordError> {
+        if let Some(p) = &self.parameters {
+            let names: Vec<&str> = p.keys().map(String::as_str).collect();
+            return Err(RecordError::new(
+                "parameters",
+                "a table only (no named parameters)",
+                format!("parameters {{{}}}", names.join(", ")),
+            ));
+        }
         self.table
             .as_ref()
             .ok_or_else(|| RecordError::new("table", "a table {grid_deg, values_deg}", "nothing"))
