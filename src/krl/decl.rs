@@ -6,7 +6,9 @@
 //! malformed means error, because position data would otherwise go unseen.
 
 use super::expr::{expr, Expr};
-use super::lex::{expect, fail, ident, is_ident_char, keyword, punct, sep, ws, Cx, PResult};
+use super::lex::{
+    expecting, fail, ident, is_ident_char, keyword, next_item, punct, sep, ws, Cx, PResult,
+};
 use super::span::Span;
 
 /// The type of a declaration.
@@ -197,7 +199,7 @@ pub(crate) fn declaration<'a>(cx: Cx<'a>, commit_user: bool, i: &'a [u8]) -> PRe
     let (k, ty) = match ident(j) {
         Ok(r) => r,
         Err(_) if decl.is_some() => {
-            return fail(j, "expected a type after DECL", HELP_DECL);
+            return fail!(j, "expected a type after DECL", HELP_DECL);
         }
         Err(e) => return Err(e),
     };
@@ -205,7 +207,7 @@ pub(crate) fn declaration<'a>(cx: Cx<'a>, commit_user: bool, i: &'a [u8]) -> PRe
     let committed = decl.is_some() || kind != TypeKind::User || commit_user;
     let body = |x| decl_vars(cx, x);
     let (rest, vars) = if committed {
-        expect("expected a variable name after the type", HELP_DECL, body)(k)?
+        expecting!("expected a variable name after the type", HELP_DECL, body)(k)?
     } else {
         body(k)?
     };
@@ -233,13 +235,11 @@ fn decl_vars<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Vec<DeclVar>> {
     let (mut j, first) = decl_var(cx, j)?;
     let mut vars = vec![first];
     loop {
-        let (k, _) = ws(j)?;
-        let Ok((k, _)) = punct(b',')(k) else {
+        let Some(k) = next_item(j) else {
             return Ok((j, vars));
         };
-        let (k, _) = ws(k)?;
         // After a comma the next name is certain: a failure is the user's error.
-        let (k, v) = expect("expected a variable name after `,`", HELP_DECL, |x| {
+        let (k, v) = expecting!("expected a variable name after `,`", HELP_DECL, |x| {
             decl_var(cx, x)
         })(k)?;
         vars.push(v);
@@ -261,7 +261,7 @@ fn decl_var<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, DeclVar> {
     let (k, _) = ws(j)?;
     if let Ok((k2, _)) = punct(b'=')(k) {
         let (k3, _) = ws(k2)?;
-        let (k4, value) = expect("expected an initial value after `=`", HELP_DECL, |x| {
+        let (k4, value) = expecting!("expected an initial value after `=`", HELP_DECL, |x| {
             expr(cx, 0, x)
         })(k3)?;
         init = Some(value);
@@ -287,7 +287,8 @@ fn dims_list<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Dims> {
         let (k, size) = match k.first() {
             Some(b',') | Some(b']') => (k, None),
             _ => {
-                let (k, e) = expect("expected an array size", HELP_DECL, |x| expr(cx, 0, x))(k)?;
+                let (k, e) =
+                    expecting!("expected an array size", HELP_DECL, |x| expr(cx, 0, x))(k)?;
                 (k, Some(e))
             }
         };
@@ -297,9 +298,9 @@ fn dims_list<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Dims> {
             j = k;
             continue;
         }
-        let (k, _) = expect("expected `]` after the array size", HELP_DECL, punct(b']'))(k)?;
+        let (k, _) = expecting!("expected `]` after the array size", HELP_DECL, punct(b']'))(k)?;
         if sizes.len() > 3 {
-            return fail(i, "an array has at most three dimensions", HELP_DECL);
+            return fail!(i, "an array has at most three dimensions", HELP_DECL);
         }
         return Ok((
             k,
@@ -341,10 +342,9 @@ pub(crate) fn struc<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Struc> {
             last.1.push(v);
             j = k3;
         }
-        let (k, _) = ws(j)?;
-        match punct(b',')(k) {
-            Ok((k, _)) => j = ws(k)?.0,
-            Err(_) => break,
+        match next_item(j) {
+            Some(k) => j = k,
+            None => break,
         }
     }
     Ok((
@@ -369,10 +369,9 @@ pub(crate) fn enum_decl<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, EnumDecl> {
         let (k, v) = ident(j)?;
         values.push(cx.span_of(v));
         j = k;
-        let (k, _) = ws(j)?;
-        match punct(b',')(k) {
-            Ok((k, _)) => j = ws(k)?.0,
-            Err(_) => break,
+        match next_item(j) {
+            Some(k) => j = k,
+            None => break,
         }
     }
     Ok((
@@ -502,14 +501,14 @@ pub(crate) fn routine_header<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Routine
     } else {
         loop {
             let (k, _) = ws(j)?;
-            let (k, p) = expect("expected a parameter name", HELP_DEF, |x| param(cx, x))(k)?;
+            let (k, p) = expecting!("expected a parameter name", HELP_DEF, |x| param(cx, x))(k)?;
             params.push(p);
             let (k, _) = ws(k)?;
             if let Ok((k, _)) = punct(b',')(k) {
                 j = k;
                 continue;
             }
-            let (k, _) = expect("expected `)` after the parameters", HELP_DEF, punct(b')'))(k)?;
+            let (k, _) = expecting!("expected `)` after the parameters", HELP_DEF, punct(b')'))(k)?;
             j = k;
             break;
         }
@@ -533,7 +532,7 @@ fn param<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Param> {
     if j.first() == Some(&b'[') {
         let n = j.iter().position(|&b| b == b']').map(|p| p + 1);
         let Some(n) = n.filter(|&n| j[1..n - 1].iter().all(|&b| b == b',' || b == b' ')) else {
-            return fail(
+            return fail!(
                 j,
                 "expected `[]` or `[,]` after an array parameter",
                 HELP_DEF,
@@ -546,13 +545,13 @@ fn param<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Param> {
     let (k, _) = ws(j)?;
     if let Ok((k, _)) = punct(b':')(k) {
         let (at, _) = ws(k)?;
-        let (k, m) = expect("expected IN or OUT after `:`", HELP_DEF, ident)(at)?;
+        let (k, m) = expecting!("expected IN or OUT after `:`", HELP_DEF, ident)(at)?;
         mode = if m.eq_ignore_ascii_case(b"IN") {
             ParamMode::In
         } else if m.eq_ignore_ascii_case(b"OUT") {
             ParamMode::Out
         } else {
-            return fail(at, "expected IN or OUT after `:`", HELP_DEF);
+            return fail!(at, "expected IN or OUT after `:`", HELP_DEF);
         };
         j = k;
     }

@@ -119,7 +119,7 @@ fn stmt_text(f: &SourceFile, s: &Stmt) -> String {
     let t = |span| f.text_lossy(span).into_owned();
     let e = |x: &Expr| expr_text(f, x);
     match &s.kind {
-        StmtKind::Directive { name, value } => format!("&{} {}", t(*name), t(*value)),
+        StmtKind::Directive(d) => format!("&{} {}", t(d.name), t(d.value)),
         StmtKind::Routine(h) => routine_text(f, h),
         StmtKind::DefDat(h) => format!(
             "DEFDAT {}{}",
@@ -153,7 +153,7 @@ fn stmt_text(f: &SourceFile, s: &Stmt) -> String {
             t(x.name),
             t(x.params)
         ),
-        StmtKind::Motion(m) => motion_text(f, m),
+        StmtKind::Motion(m) => motion_text(f, f.motion(*m)),
         StmtKind::Spline(h) => format!(
             "{}{}",
             if h.ptp { "PTP_SPLINE" } else { "SPLINE" },
@@ -302,14 +302,14 @@ fn vars_text(f: &SourceFile, vars: &[DeclVar]) -> String {
 
 fn motion_text(f: &SourceFile, m: &Motion) -> String {
     let mut s = m.kind.keyword().to_string();
-    if let Some(a) = &m.aux {
+    if let Some(a) = m.aux() {
         s += &format!(" aux={}", expr_text(f, a));
     }
     s += &format!(" target={}", expr_text(f, &m.target));
-    if let Some(ca) = &m.angle {
+    if let Some(ca) = m.angle() {
         s += &format!(" CA={}", expr_text(f, &ca.value));
     }
-    for a in &m.approx {
+    for a in m.approx.iter() {
         s += match a.kind {
             ApproxKind::Dis => " C_DIS",
             ApproxKind::Ptp => " C_PTP",
@@ -324,7 +324,7 @@ fn motion_text(f: &SourceFile, m: &Motion) -> String {
             RelFrameKind::Tool => " #TOOL",
         };
     }
-    s += &with_text(f, &m.with);
+    s += &with_text(f, m.with());
     s
 }
 
@@ -424,15 +424,16 @@ pub fn expr_text(f: &SourceFile, e: &Expr) -> String {
                 .collect();
             format!("{}({})", t(c.name), args.join(", "))
         }
-        Expr::Aggregate(a) => {
-            let members: Vec<String> = a
-                .members
+        Expr::Aggregate(_, id) => {
+            let a = f.aggregate(*id);
+            let members: Vec<String> = f
+                .members(a)
                 .iter()
                 .map(|m| {
                     format!(
                         "{}{} {}",
                         t(m.name),
-                        m.index.map_or(String::new(), t),
+                        f.member_index(m).map_or(String::new(), t),
                         expr_text(f, &m.value)
                     )
                 })

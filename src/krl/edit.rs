@@ -73,11 +73,17 @@ impl Edits {
     }
 }
 
+impl AsRef<[Edit]> for Edits {
+    fn as_ref(&self) -> &[Edit] {
+        &self.edits
+    }
+}
+
 /// Applies `edits` to `source`: sorted by position (insertions at the same offset keep their
 /// order and go before a replacement starting there); overlapping edits, or an insertion
 /// strictly inside a replaced range, are rejected.
-pub fn apply(source: &[u8], edits: &[Edit]) -> Result<Vec<u8>, EditError> {
-    let mut order: Vec<&Edit> = edits.iter().collect();
+pub fn apply(source: &[u8], edits: impl AsRef<[Edit]>) -> Result<Vec<u8>, EditError> {
+    let mut order: Vec<&Edit> = edits.as_ref().iter().collect();
     for e in &order {
         if e.range.start > e.range.end || e.range.end > source.len() {
             return Err(EditError::OutOfBounds {
@@ -120,6 +126,11 @@ mod tests {
         e.insert(16, ",Z 0.0");
         e.replace(Span::new(7, 10), "1.25");
         assert_eq!(e.apply(src).unwrap(), b"LIN {X 1.25,Y 2.5,Z 0.0}");
+        assert_eq!(apply(src, &e).unwrap(), b"LIN {X 1.25,Y 2.5,Z 0.0}");
+        assert_eq!(
+            apply(src, e.as_slice()).unwrap(),
+            b"LIN {X 1.25,Y 2.5,Z 0.0}"
+        );
     }
 
     #[test]

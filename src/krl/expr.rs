@@ -4,9 +4,10 @@
 //! table. Every node keeps the byte span of its text so any number can be replaced in place.
 
 use super::lex::{
-    bits, enum_literal, expect, fail, ident, is_ident_char, keyword, number_literal, punct, string,
-    ws, Cx, Fails, PResult,
+    backtrack, bits, enum_literal, expecting, fail, ident, is_ident_char, keyword, number_literal,
+    punct, string, ws, Cx, Fails, PResult,
 };
+use super::nodes::{AggregateId, Nodes};
 use super::number;
 use super::span::Span;
 
@@ -29,8 +30,8 @@ pub enum Expr {
     Path(Box<Path>),
     /// A function call `SVEL_JOINT(100.0)`.
     Call(Box<Call>),
-    /// `{…}`.
-    Aggregate(Box<Aggregate>),
+    /// `{…}`: its span and its node in the file (`SourceFile::aggregate`).
+    Aggregate(Span, AggregateId),
     Unary(Box<Unary>),
     Binary(Box<Binary>),
     /// `( … )`.
@@ -39,13 +40,25 @@ pub enum Expr {
     Opaque(Span),
 }
 
-/// A numeric literal: its exact text span (sign included when glued to it) and its value.
+/// A numeric literal: its value and the exact span of its text (`span()`, sign included when
+/// glued to it). Packed into 16 bytes: a CAM program holds millions.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Number {
-    pub span: Span,
     pub value: f64,
+    start: u32,
+    len: u16,
     /// Written without `.` and exponent (`5`, `-3`).
     pub integer: bool,
+}
+
+impl Number {
+    /// The bytes of the literal.
+    pub fn span(&self) -> Span {
+        Span {
+            start: self.start,
+            end: self.start + u32::from(self.len),
+        }
+    }
 }
 
 /// A variable reference: a root name and member/index accesses.
@@ -74,25 +87,23 @@ pub struct Call {
     pub close: Span,
 }
 
-/// `{TYPE: NAME value, …}`.
-#[derive(Clone, Debug, PartialEq)]
+/// `{TYPE: NAME value, …}`; its members are in the file (`SourceFile::members`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Aggregate {
     pub span: Span,
-    /// The `{`.
-    pub open: Span,
     /// `E6POS` in `{E6POS: …}`.
     pub type_name: Option<Span>,
-    pub members: Vec<Member>,
-    /// The `}`.
-    pub close: Span,
+    pub(crate) first: u32,
+    pub(crate) len: u32,
+    /// Stored in the nested-members pool.
+    pub(crate) nested: bool,
 }
 
-/// `NAME value` inside an aggregate (`POINT2[] " "` has `index` = `[]`).
+/// `NAME value` inside an aggregate. An array member's `[]` (`POINT2[] " "`) follows the
+/// name directly: `SourceFile::member_index` gives its span.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Member {
-    pub span: Span,
     pub name: Span,
-    pub index: Option<Span>,
     pub value: Expr,
 }
 
@@ -192,11 +203,11 @@ pub struct Paren {
 impl Expr {
     pub fn span(&self) -> Span {
         match self {
-            Expr::Number(n) => n.span,
+            Expr::Number(n) => n.span(),
             Expr::Str(s) | Expr::Bits(s) | Expr::Enum(s) | Expr::Bool(s, _) | Expr::Opaque(s) => *s,
             Expr::Path(p) => p.span,
             Expr::Call(c) => c.span,
-            Expr::Aggregate(a) => a.span,
+            Expr::Aggregate(span, _) => *span,
             Expr::Unary(u) => u.span,
             Expr::Binary(b) => b.span,
             Expr::Paren(p) => p.span,
@@ -210,9 +221,11 @@ impl Expr {
         }
     }
 
-    pub fn as_aggregate(&self) -> Option<&Aggregate> {
+    /// The aggregate's id (look it up with `SourceFile::aggregate`, or use
+    /// `SourceFile::aggregate_of`).
+    pub fn as_aggregate(&self) -> Option<AggregateId> {
         match self {
-            Expr::Aggregate(a) => Some(a),
+            Expr::Aggregate(_, id) => Some(*id),
             _ => None,
         }
     }
@@ -224,39 +237,39 @@ impl Expr {
         }
     }
 
-    /// Whether any part of the expression was not understood.
-    pub fn has_opaque(&self) -> bool {
-        let mut found = false;
-        self.visit(&mut |e| found |= matches!(e, Expr::Opaque(_)));
-        found
+    /// Whether the expression is text the parser did not understand (conditions only: every
+    /// other expression is parsed fully or the line fails).
+    pub fn is_opaque(&self) -> bool {
+        matches!(self, Expr::Opaque(_))
     }
 
-    /// Calls `f` on this expression and every sub-expression, parents first.
-    pub fn visit(&self, f: &mut impl FnMut(&Expr)) {
+    /// Calls `f` on this expression and every sub-expression, parents first (aggregate
+    /// members are looked up in `nodes`).
+    pub(crate) fn visit(&self, nodes: &Nodes, f: &mut impl FnMut(&Expr)) {
         f(self);
         match self {
-            Expr::Path(p) => p.visit_items(f),
-            Expr::Call(c) => c.args.iter().flatten().for_each(|a| a.visit(f)),
-            Expr::Aggregate(a) => a.members.iter().for_each(|m| m.value.visit(f)),
-            Expr::Unary(u) => u.operand.visit(f),
-            Expr::Binary(b) => {
-                b.lhs.visit(f);
-                b.rhs.visit(f);
+            Expr::Path(p) => {
+                for a in &p.access {
+                    if let Access::Index { items, .. } = a {
+                        items.iter().for_each(|e| e.visit(nodes, f));
+                    }
+                }
             }
-            Expr::Paren(p) => p.inner.visit(f),
+            Expr::Call(c) => c.args.iter().flatten().for_each(|a| a.visit(nodes, f)),
+            Expr::Aggregate(_, id) => {
+                let a = &nodes.aggregates[id.0 as usize];
+                for m in nodes.members_of(a) {
+                    m.value.visit(nodes, f);
+                }
+            }
+            Expr::Unary(u) => u.operand.visit(nodes, f),
+            Expr::Binary(b) => {
+                b.lhs.visit(nodes, f);
+                b.rhs.visit(nodes, f);
+            }
+            Expr::Paren(p) => p.inner.visit(nodes, f),
             _ => {}
         }
-    }
-
-    /// Every numeric literal in the expression, in source order.
-    pub fn numbers(&self) -> Vec<Number> {
-        let mut out = Vec::new();
-        self.visit(&mut |e| {
-            if let Expr::Number(n) = e {
-                out.push(*n);
-            }
-        });
-        out
     }
 }
 
@@ -265,27 +278,43 @@ impl Path {
     pub fn is_simple(&self) -> bool {
         self.access.is_empty()
     }
+}
 
-    fn visit_items(&self, f: &mut impl FnMut(&Expr)) {
-        for a in &self.access {
-            if let Access::Index { items, .. } = a {
-                items.iter().for_each(|e| e.visit(f));
-            }
-        }
+impl Member {
+    /// From the name to the end of the value.
+    pub fn span(&self) -> Span {
+        self.name.to(self.value.span())
     }
 }
 
 impl Aggregate {
-    /// The member called `name` (case-insensitive); `src` is the file's source.
-    pub fn member(&self, src: &[u8], name: &str) -> Option<&Member> {
-        self.members
-            .iter()
-            .find(|m| src[m.name.range()].eq_ignore_ascii_case(name.as_bytes()))
+    /// The `{`.
+    pub fn open(&self) -> Span {
+        Span {
+            start: self.span.start,
+            end: self.span.start + 1,
+        }
     }
 
-    /// The number of member `name` when it is a plain (possibly signed) literal.
-    pub fn number(&self, src: &[u8], name: &str) -> Option<&Number> {
-        self.member(src, name)?.value.as_number()
+    /// The `}` (insert a missing member before it).
+    pub fn close(&self) -> Span {
+        Span {
+            start: self.span.end - 1,
+            end: self.span.end,
+        }
+    }
+
+    /// Number of members.
+    pub fn len(&self) -> usize {
+        self.len as usize
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    pub(crate) fn range(&self) -> std::ops::Range<usize> {
+        self.first as usize..(self.first + self.len) as usize
     }
 }
 
@@ -296,7 +325,7 @@ const HELP_AGG: &str =
     "aggregate members are written NAME value, separated by commas: {X 10, Y -2.5}";
 
 fn too_deep(i: &[u8]) -> Fails<'_, Expr> {
-    fail(
+    fail!(
         i,
         "expression nested too deeply",
         "split the expression into several assignments",
@@ -314,6 +343,9 @@ fn binary<'a>(cx: Cx<'a>, d: u32, i: &'a [u8], min_bp: u8) -> PResult<'a, Expr> 
         return too_deep(i);
     }
     let (mut i, mut lhs) = unary(cx, d, i)?;
+    // Each operator nests the tree one level deeper (left-associative chains too), and
+    // dropping or walking a tree is recursive: bound the depth, not only the parentheses.
+    let mut depth = d;
     loop {
         let (j, _) = ws(i)?;
         let Ok((k, (op, op_text))) = binary_op(j) else {
@@ -322,6 +354,10 @@ fn binary<'a>(cx: Cx<'a>, d: u32, i: &'a [u8], min_bp: u8) -> PResult<'a, Expr> 
         let bp = op.precedence();
         if bp < min_bp {
             break;
+        }
+        depth += 1;
+        if depth > MAX_DEPTH {
+            return too_deep(j);
         }
         let (k, _) = ws(k)?;
         let (k, rhs) = match binary(cx, d + 1, k, bp + 1) {
@@ -368,7 +404,7 @@ fn binary_op(i: &[u8]) -> PResult<'_, (BinOp, &[u8])> {
                 4 if w.eq_ignore_ascii_case(b"B_OR") => BOr,
                 5 if w.eq_ignore_ascii_case(b"B_AND") => BAnd,
                 6 if w.eq_ignore_ascii_case(b"B_EXOR") => BExor,
-                _ => return super::lex::backtrack(i),
+                _ => return backtrack(i),
             };
             Ok((rest, (op, w)))
         }
@@ -434,14 +470,18 @@ fn primary<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr> {
     }
 }
 
-/// A numeric literal.
+/// A numeric literal (at most 65,535 bytes long).
 fn number<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Expr> {
     let (rest, (text, lit)) = number_literal(i)?;
+    let Ok(len) = u16::try_from(text.len()) else {
+        return backtrack(i);
+    };
     Ok((
         rest,
         Expr::Number(Number {
-            span: cx.span_of(text),
             value: number::value(text, &lit),
+            start: cx.off(text) as u32,
+            len,
             integer: lit.is_integer(),
         }),
     ))
@@ -569,7 +609,7 @@ pub(crate) fn path<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr> {
 /// `[ [expr {, expr}] ]`.
 fn index<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Access> {
     if d > MAX_DEPTH {
-        return fail(i, "expression nested too deeply", "simplify the index");
+        return fail!(i, "expression nested too deeply", "simplify the index");
     }
     let (mut j, _) = punct(b'[')(i)?;
     let mut items = Vec::new();
@@ -608,7 +648,7 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
     if d > MAX_DEPTH {
         return too_deep(i);
     }
-    let (j, open) = punct(b'{')(i)?;
+    let (j, _) = punct(b'{')(i)?;
     let (mut j, _) = ws(j)?;
     let mut type_name = None;
     if let Ok((k, name)) = ident(j) {
@@ -618,29 +658,56 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
             j = ws(k)?.0;
         }
     }
-    let mut members = Vec::new();
-    if let Ok((k, close)) = punct(b'}')(j) {
-        return Ok((k, agg_expr(cx, i, k, open, type_name, members, close)));
+    // The outermost aggregate writes its members straight into the pool; nested ones gather
+    // theirs on the scratch stack (see `Nodes`).
+    let (nested, mark) = {
+        let mut n = cx.nodes.borrow_mut();
+        n.agg_depth += 1;
+        let nested = n.agg_depth > 1;
+        (
+            nested,
+            if nested {
+                n.scratch.len()
+            } else {
+                n.members.len()
+            },
+        )
+    };
+    if let Ok((k, _)) = punct(b'}')(j) {
+        return Ok((
+            k,
+            close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
+        ));
     }
     loop {
-        let (k, m) = expect("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
-        members.push(m);
+        let (k, m) = expecting!("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
+        {
+            let mut n = cx.nodes.borrow_mut();
+            if nested {
+                n.scratch.push(m);
+            } else {
+                n.members.push(m);
+            }
+        }
         let (k, _) = ws(k)?;
         if let Ok((k, _)) = punct(b',')(k) {
             j = ws(k)?.0;
             continue;
         }
-        if let Ok((k, close)) = punct(b'}')(k) {
-            return Ok((k, agg_expr(cx, i, k, open, type_name, members, close)));
+        if let Ok((k, _)) = punct(b'}')(k) {
+            return Ok((
+                k,
+                close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
+            ));
         }
         if k.is_empty() {
-            return fail(
+            return fail!(
                 k,
                 "unclosed aggregate: `}` missing",
                 "close the aggregate with } on the same line (a KRL statement never continues on the next line)",
             );
         }
-        return fail(
+        return fail!(
             k,
             "expected `,` or `}` in the aggregate",
             "separate members with commas and close the aggregate with } on the same line",
@@ -648,52 +715,72 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
     }
 }
 
-fn agg_expr<'a>(
-    cx: Cx<'a>,
-    start: &'a [u8],
-    rest: &'a [u8],
-    open: &'a [u8],
+/// Adds the aggregate whose members start at `mark` (in the pool, or on the scratch stack
+/// for a nested one, moved to the nested pool here).
+fn close_aggregate(
+    cx: Cx<'_>,
+    span: Span,
     type_name: Option<Span>,
-    members: Vec<Member>,
-    close: &'a [u8],
+    nested: bool,
+    mark: usize,
 ) -> Expr {
-    Expr::Aggregate(Box::new(Aggregate {
-        span: cx.span(start, rest),
-        open: cx.span_of(open),
+    let mut guard = cx.nodes.borrow_mut();
+    let n = &mut *guard;
+    let (first, len) = if nested {
+        let first = n.nested_members.len();
+        n.nested_members.extend(n.scratch.drain(mark..));
+        (first, n.nested_members.len() - first)
+    } else {
+        (mark, n.members.len() - mark)
+    };
+    n.agg_depth -= 1;
+    let id = AggregateId(n.aggregates.len() as u32);
+    n.aggregates.push(Aggregate {
+        span,
         type_name,
-        members,
-        close: cx.span_of(close),
-    }))
+        first: first as u32,
+        len: len as u32,
+        nested,
+    });
+    Expr::Aggregate(span, id)
 }
 
 /// `NAME[[…]] value`.
 fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Member> {
     let (j, name) = ident(i)?;
-    let (j, index) = match j.first() {
+    let j = match j.first() {
         Some(b'[') => match j.iter().position(|&b| b == b']') {
-            Some(p) => (&j[p + 1..], Some(cx.span_of(&j[..p + 1]))),
-            None => return fail(j, "unclosed `[` in a member name", HELP_AGG),
+            Some(p) => &j[p + 1..],
+            None => return fail!(j, "unclosed `[` in a member name", HELP_AGG),
         },
-        _ => (j, None),
+        _ => j,
     };
     let (k, blanks) = ws(j)?;
     // `X1` is one name, so a value glued to the name must start with a non-name byte.
     if blanks.is_empty() && k.first().is_some_and(|&b| is_ident_char(b)) {
-        return fail(
+        return fail!(
             k,
             "expected a blank between the member name and its value",
             HELP_AGG,
         );
     }
-    let (rest, value) = expect("expected a value for the member", HELP_AGG, |x| {
+    // Fast path: a plain number followed by `,` or `}` (what CAM programs are made of).
+    if let Ok((r, Expr::Number(n))) = number(cx, k) {
+        if matches!(ws(r)?.0.first(), Some(b',' | b'}')) {
+            let member = Member {
+                name: cx.span_of(name),
+                value: Expr::Number(n),
+            };
+            return Ok((r, member));
+        }
+    }
+    let (rest, value) = expecting!("expected a value for the member", HELP_AGG, |x| {
         expr(cx, d + 1, x)
     })(k)?;
     Ok((
         rest,
         Member {
-            span: cx.span(i, rest),
             name: cx.span_of(name),
-            index,
             value,
         },
     ))
@@ -702,16 +789,24 @@ fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Member> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::cell::RefCell;
 
-    fn parse(s: &[u8]) -> (usize, Expr) {
-        let cx = Cx::new(s);
-        let (rest, e) = expr(cx, 0, s).unwrap();
-        (s.len() - rest.len(), e)
+    fn parse(s: &[u8]) -> (usize, Expr, Nodes) {
+        let nodes = RefCell::new(Nodes::default());
+        let (rest, e) = expr(Cx::new(s, &nodes), 0, s).unwrap();
+        (s.len() - rest.len(), e, nodes.into_inner())
+    }
+
+    fn member<'n>(n: &'n Nodes, src: &[u8], a: &Aggregate, name: &str) -> &'n Member {
+        n.members_of(a)
+            .iter()
+            .find(|m| src[m.name.range()].eq_ignore_ascii_case(name.as_bytes()))
+            .unwrap()
     }
 
     #[test]
     fn precedence_follows_kuka_table() {
-        let (_, e) = parse(b"a + b * c : d");
+        let (_, e, _) = parse(b"a + b * c : d");
         let Expr::Binary(b) = e else { panic!() };
         assert_eq!(b.op, BinOp::Add);
         let Expr::Binary(r) = &b.rhs else { panic!() };
@@ -719,7 +814,7 @@ mod tests {
         let Expr::Binary(g) = &r.rhs else { panic!() };
         assert_eq!(g.op, BinOp::Geo);
         // Comparisons bind loosest; AND binds tighter than OR.
-        let (_, e) = parse(b"x == 1 OR y AND z");
+        let (_, e, _) = parse(b"x == 1 OR y AND z");
         let Expr::Binary(b) = e else { panic!() };
         assert_eq!(b.op, BinOp::Eq);
         let Expr::Binary(r) = &b.rhs else { panic!() };
@@ -729,19 +824,27 @@ mod tests {
     #[test]
     fn aggregate_spans_and_values() {
         let s = b"{E6POS: X 1.0, Y -2.5E+01,Z .25, S 'B010', fCnC {X 1}, POINT2[] \" \"} C_DIS";
-        let (n, e) = parse(s);
+        let (n, e, nodes) = parse(s);
         assert_eq!(&s[..n], &s[..s.len() - 6]);
-        let a = e.as_aggregate().unwrap();
+        let a = nodes.aggregates[e.as_aggregate().unwrap().0 as usize];
         assert_eq!(&s[a.type_name.unwrap().range()], b"E6POS");
-        assert_eq!(a.members.len(), 6);
-        let y = a.number(s, "y").unwrap();
-        assert_eq!((&s[y.span.range()], y.value), (&b"-2.5E+01"[..], -25.0));
-        assert_eq!(a.number(s, "Z").unwrap().value, 0.25);
-        assert!(matches!(a.member(s, "S").unwrap().value, Expr::Bits(_)));
-        assert!(a.member(s, "FCNC").unwrap().value.as_aggregate().is_some());
-        assert_eq!(&s[a.members[5].index.unwrap().range()], b"[]");
-        assert_eq!(&s[a.open.range()], b"{");
-        assert_eq!(a.close.end as usize, n);
+        assert_eq!(a.len(), 6);
+        let y = member(&nodes, s, &a, "y").value.as_number().unwrap();
+        assert_eq!((&s[y.span().range()], y.value), (&b"-2.5E+01"[..], -25.0));
+        let z = member(&nodes, s, &a, "Z").value.as_number().unwrap();
+        assert_eq!(z.value, 0.25);
+        assert!(matches!(member(&nodes, s, &a, "S").value, Expr::Bits(_)));
+        assert!(member(&nodes, s, &a, "FCNC").value.as_aggregate().is_some());
+        let p2 = member(&nodes, s, &a, "POINT2");
+        assert_eq!(
+            &s[p2.name.end as usize..p2.value.span().start as usize],
+            b"[] "
+        );
+        assert_eq!(&s[a.open().range()], b"{");
+        assert_eq!(&s[a.close().range()], b"}");
+        assert_eq!(a.close().end as usize, n);
+        // The nested aggregate's member went to the nested pool, the outer run is contiguous.
+        assert_eq!((nodes.members.len(), nodes.nested_members.len()), (6, 1));
     }
 
     #[test]
@@ -751,13 +854,15 @@ mod tests {
             (b"{X 1 Y 2}", "expected `,` or `}` in the aggregate"),
             (b"{X 1,", "expected a member name"),
             (b"{X1}", "expected a value for the member"),
+            (b"{X 1", "unclosed aggregate: `}` missing"),
             (
                 b"{P[]x}",
                 "expected a blank between the member name and its value",
             ),
         ] {
-            match expr(Cx::new(s), 0, s) {
-                Err(nom::Err::Failure(e)) => assert_eq!(e.label, label, "{:?}", s),
+            let nodes = RefCell::new(Nodes::default());
+            match expr(Cx::new(s, &nodes), 0, s) {
+                Err(nom::Err::Failure(e)) => assert_eq!(e.label(), label, "{:?}", s),
                 other => panic!("{:?}: {:?}", s, other.map(|r| r.1)),
             }
         }
@@ -766,23 +871,30 @@ mod tests {
     #[test]
     fn paths_calls_and_empty_arguments() {
         let s = b"SVEL_CP(2.0, , LCPDAT1)";
-        let (n, e) = parse(s);
+        let (n, e, _) = parse(s);
         assert_eq!(n, s.len());
         let Expr::Call(c) = e else { panic!() };
         assert_eq!(c.args.len(), 3);
         assert!(c.args[1].is_none());
         let s = b"BASE_DATA[i+1].X";
-        let (n, e) = parse(s);
+        let (n, e, _) = parse(s);
         assert_eq!(n, s.len());
         assert_eq!(e.as_path().unwrap().access.len(), 2);
     }
 
     #[test]
     fn deep_nesting_is_refused_not_overflowed() {
+        let nodes = RefCell::new(Nodes::default());
         let s = [b'('; 10_000];
-        assert!(expr(Cx::new(&s), 0, &s).is_err());
+        assert!(expr(Cx::new(&s, &nodes), 0, &s).is_err());
         let mut s = vec![b'-'; 100_000];
         s.push(b'x');
-        assert!(expr(Cx::new(&s), 0, &s).is_err());
+        assert!(expr(Cx::new(&s, &nodes), 0, &s).is_err());
+        let s = [b'{'; 10_000];
+        assert!(expr(Cx::new(&s, &nodes), 0, &s).is_err());
+        let s = b"a+".repeat(50_000);
+        assert!(expr(Cx::new(&s, &nodes), 0, &s).is_err());
+        let s = b"a+".repeat(30);
+        assert!(expr(Cx::new(&s[..59], &nodes), 0, &s[..59]).is_ok());
     }
 }

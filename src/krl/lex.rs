@@ -4,10 +4,12 @@
 //! `expect` combinator that turns a backtrack into a located failure, and `Cx`, which turns a
 //! sub-slice of the source back into a byte span.
 
+use super::nodes::Nodes;
 use super::number;
 use super::span::Span;
 use nom::error::{ErrorKind, ParseError};
 use nom::IResult;
+use std::cell::RefCell;
 
 /// Result of every grammar production (each `fn` returning it is named in `grammars/krl.ebnf`,
 /// and a test keeps the two lists equal).
@@ -16,20 +18,41 @@ pub(crate) type PResult<'a, T> = IResult<&'a [u8], T, PErr<'a>>;
 /// The same type for helpers that only build an error (not grammar productions).
 pub(crate) type Fails<'a, T> = IResult<&'a [u8], T, PErr<'a>>;
 
-/// A parse error: where (the remaining input), what was expected, and how to fix it.
+/// What was expected and how to fix it (static: errors stay two words wide, which keeps
+/// every parser's result small).
+#[derive(Debug)]
+pub(crate) struct Msg {
+    pub label: &'static str,
+    pub help: &'static str,
+}
+
+static NO_MSG: Msg = Msg {
+    label: "",
+    help: "",
+};
+
+/// A parse error: where (the remaining input) and the message.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PErr<'a> {
     pub at: &'a [u8],
-    pub label: &'static str,
-    pub help: &'static str,
+    pub msg: &'static Msg,
+}
+
+impl PErr<'_> {
+    pub fn label(&self) -> &'static str {
+        self.msg.label
+    }
+
+    pub fn help(&self) -> &'static str {
+        self.msg.help
+    }
 }
 
 impl<'a> ParseError<&'a [u8]> for PErr<'a> {
     fn from_error_kind(input: &'a [u8], _kind: ErrorKind) -> Self {
         PErr {
             at: input,
-            label: "",
-            help: "",
+            msg: &NO_MSG,
         }
     }
 
@@ -47,15 +70,17 @@ impl<'a> ParseError<&'a [u8]> for PErr<'a> {
     }
 }
 
-/// Context of one file: turns sub-slices of the source back into spans.
+/// Context of one file: turns sub-slices of the source back into spans, and holds the node
+/// pools the parsers add motions and aggregates to.
 #[derive(Clone, Copy)]
 pub(crate) struct Cx<'a> {
     base: &'a [u8],
+    pub nodes: &'a RefCell<Nodes>,
 }
 
 impl<'a> Cx<'a> {
-    pub fn new(base: &'a [u8]) -> Cx<'a> {
-        Cx { base }
+    pub fn new(base: &'a [u8], nodes: &'a RefCell<Nodes>) -> Cx<'a> {
+        Cx { base, nodes }
     }
 
     /// The whole source.
@@ -82,29 +107,52 @@ impl<'a> Cx<'a> {
 
 /// A backtracking error at `at`.
 pub(crate) fn backtrack<T>(at: &[u8]) -> Fails<'_, T> {
-    Err(nom::Err::Error(PErr {
-        at,
-        label: "",
-        help: "",
-    }))
+    Err(nom::Err::Error(PErr { at, msg: &NO_MSG }))
 }
 
-/// A committed failure at `at` with a message and a hint.
-pub(crate) fn fail<'a, T>(at: &'a [u8], label: &'static str, help: &'static str) -> Fails<'a, T> {
-    Err(nom::Err::Failure(PErr { at, label, help }))
+/// A committed failure at `at` with a message.
+pub(crate) fn fail_with<'a, T>(at: &'a [u8], msg: &'static Msg) -> Fails<'a, T> {
+    Err(nom::Err::Failure(PErr { at, msg }))
 }
 
-/// Runs `p`; if it backtracks, fails here with `label`/`help` (deeper failures pass through).
-pub(crate) fn expect<'a, T>(
-    label: &'static str,
-    help: &'static str,
+/// `fail!(at, "label", "help")`: a committed failure (label and help are constants).
+macro_rules! fail {
+    ($at:expr, $label:expr, $help:expr $(,)?) => {
+        $crate::krl::lex::fail_with(
+            $at,
+            &$crate::krl::lex::Msg {
+                label: $label,
+                help: $help,
+            },
+        )
+    };
+}
+pub(crate) use fail;
+
+/// Runs `p`; if it backtracks, fails here with `msg` (deeper failures pass through).
+pub(crate) fn expect_with<'a, T>(
+    msg: &'static Msg,
     mut p: impl FnMut(&'a [u8]) -> PResult<'a, T>,
 ) -> impl FnMut(&'a [u8]) -> PResult<'a, T> {
     move |i| match p(i) {
-        Err(nom::Err::Error(_)) => fail(i, label, help),
+        Err(nom::Err::Error(_)) => fail_with(i, msg),
         other => other,
     }
 }
+
+/// `expecting!("label", "help", parser)`: the parser, or a committed failure where it started.
+macro_rules! expecting {
+    ($label:expr, $help:expr, $p:expr $(,)?) => {
+        $crate::krl::lex::expect_with(
+            &$crate::krl::lex::Msg {
+                label: $label,
+                help: $help,
+            },
+            $p,
+        )
+    };
+}
+pub(crate) use expecting;
 
 pub(crate) fn is_blank(b: u8) -> bool {
     matches!(b, b' ' | b'\t' | b'\r' | 0x0b | 0x0c)
@@ -122,6 +170,14 @@ pub(crate) fn is_ident_char(b: u8) -> bool {
 pub(crate) fn ws(i: &[u8]) -> PResult<'_, &[u8]> {
     let n = i.iter().take_while(|&&b| is_blank(b)).count();
     Ok((&i[n..], &i[..n]))
+}
+
+/// After optional blanks, a `,` and optional blanks: the input after them, or `None` when no
+/// comma comes next (the separator of every list in the grammar).
+pub(crate) fn next_item(i: &[u8]) -> Option<&[u8]> {
+    let skip = |s: &[u8]| s.iter().take_while(|&&b| is_blank(b)).count();
+    let j = &i[skip(i)..];
+    (j.first() == Some(&b',')).then(|| &j[1 + skip(&j[1..])..])
 }
 
 /// At least one blank, or the end of the code, or a punctuation byte (keywords end there).
@@ -181,7 +237,7 @@ pub(crate) fn string(i: &[u8]) -> PResult<'_, &[u8]> {
     }
     match i[1..].iter().position(|&b| b == b'"') {
         Some(p) => Ok((&i[p + 2..], &i[..p + 2])),
-        None => fail(
+        None => fail!(
             i,
             "unterminated string",
             "close the string with a second \" on the same line",
@@ -196,7 +252,7 @@ pub(crate) fn bits(i: &[u8]) -> PResult<'_, &[u8]> {
     }
     match i[1..].iter().position(|&b| b == b'\'') {
         Some(p) => Ok((&i[p + 2..], &i[..p + 2])),
-        None => fail(
+        None => fail!(
             i,
             "unterminated bit or hex literal",
             "write binary as 'B0101' and hexadecimal as 'H1F'",
@@ -209,7 +265,7 @@ pub(crate) fn enum_literal(i: &[u8]) -> PResult<'_, &[u8]> {
     if i.first() != Some(&b'#') {
         return backtrack(i);
     }
-    let (rest, _) = expect(
+    let (rest, _) = expecting!(
         "expected an enumeration value after #",
         "enumeration values are written #NAME, e.g. #BASE",
         ident,

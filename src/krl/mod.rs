@@ -29,12 +29,14 @@
 //! let mut seen = Vec::new();
 //! for stmt in program.statements() {
 //!     match &stmt.kind {
-//!         StmtKind::Motion(m) => {
+//!         StmtKind::Motion(id) => {
+//!             let m = program.motion(*id);
 //!             let target = match &m.target {
 //!                 // An inline aggregate: every member's number with its span.
-//!                 Expr::Aggregate(a) => {
-//!                     let y = a.number(program.source(), "Y").unwrap();
-//!                     assert_eq!(program.text(y.span), b"-2.5E+01");
+//!                 Expr::Aggregate(_, aid) => {
+//!                     let a = program.aggregate(*aid);
+//!                     let y = program.member_number(a, "Y").unwrap();
+//!                     assert_eq!(program.text(y.span()), b"-2.5E+01");
 //!                     format!("inline Y={}", y.value)
 //!                 }
 //!                 // A variable: resolve it through the .dat.
@@ -59,9 +61,10 @@
 //!
 //! // Rewrite one number in the original style; everything else is copied byte for byte.
 //! let (_, lin) = program.motions().nth(1).unwrap();
-//! let x = lin.target.as_aggregate().unwrap().number(program.source(), "X").unwrap();
+//! let target = program.aggregate_of(&lin.target).unwrap();
+//! let x = program.member_number(target, "X").unwrap();
 //! let mut edits = krl::Edits::new();
-//! edits.replace(x.span, krl::number::format_like(program.text(x.span), 100.0374, 3));
+//! edits.replace(x.span(), krl::number::format_like(program.text(x.span()), 100.0374, 3));
 //! let out = edits.apply(program.source()).unwrap();
 //! assert!(out.windows(17).any(|w| w == b"LIN {X 100.037, Y"));
 //! ```
@@ -79,6 +82,7 @@ pub mod expr;
 pub mod fold;
 mod lex;
 pub mod motion;
+mod nodes;
 pub mod number;
 pub mod program;
 pub mod span;
@@ -92,10 +96,13 @@ pub use edit::{apply, Edit, EditError, Edits};
 pub use error::{ParseError, Problem, Severity};
 pub use expr::{Access, Aggregate, BinOp, Call, Expr, Member, Number, Path, UnOp};
 pub use fold::{Fold, FoldId, Ilf, IlfFrame, IlfMotion, IlfVelocity};
-pub use motion::{Approx, ApproxKind, Motion, MotionKind, RelFrame, RelFrameKind, WithItem};
+pub use motion::{
+    Approx, ApproxKind, Approxes, Motion, MotionKind, RelFrame, RelFrameKind, WithItem,
+};
+pub use nodes::{AggregateId, MotionId};
 pub use program::{LoadError, Program};
 pub use span::{LineIndex, Span};
-pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, For, Stmt, StmtKind};
+pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, Directive, For, Stmt, StmtKind};
 pub use symbols::{Symbol, Symbols};
 pub use tree::{parse, parse_recovering, FileKind, SourceFile, Stats, TileKind};
 

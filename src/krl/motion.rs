@@ -6,7 +6,7 @@
 //! silently skipped, because a missed target would be left uncompensated.
 
 use super::expr::{expr, path, Expr};
-use super::lex::{expect, fail, ident, keyword, punct, sep, ws, Cx, PResult};
+use super::lex::{expecting, fail, ident, keyword, next_item, punct, sep, ws, Cx, PResult};
 use super::span::Span;
 
 /// Which motion instruction.
@@ -104,18 +104,39 @@ impl MotionKind {
 pub struct Motion {
     pub kind: MotionKind,
     pub keyword: Span,
-    /// The auxiliary point of a circular motion.
-    pub aux: Option<Expr>,
     /// The target: an aggregate, a variable, an array element, a `:` chain, `$AXIS_ACT`…
     pub target: Expr,
-    /// `CA angle` of a circular motion.
-    pub angle: Option<CircAngle>,
     /// Approximation keywords in order (`C_DIS C_DIS` gives two).
-    pub approx: Vec<Approx>,
+    pub approx: Approxes,
     /// `#BASE` or `#TOOL` of a relative motion.
     pub frame: Option<RelFrame>,
-    /// `WITH $VEL.CP = 0.2, …`.
-    pub with: Vec<WithItem>,
+    /// The auxiliary point, `CA` and `WITH` clause, when any is written (boxed: a
+    /// million-line program of plain `LIN`s should not pay for them).
+    extra: Option<Box<MotionExtra>>,
+}
+
+#[derive(Clone, Debug, PartialEq, Default)]
+struct MotionExtra {
+    aux: Option<Expr>,
+    angle: Option<CircAngle>,
+    with: Vec<WithItem>,
+}
+
+impl Motion {
+    /// The auxiliary point of a circular motion.
+    pub fn aux(&self) -> Option<&Expr> {
+        self.extra.as_ref().and_then(|e| e.aux.as_ref())
+    }
+
+    /// `CA angle` of a circular motion.
+    pub fn angle(&self) -> Option<&CircAngle> {
+        self.extra.as_ref().and_then(|e| e.angle.as_ref())
+    }
+
+    /// `WITH $VEL.CP = 0.2, …` (empty without a `WITH`).
+    pub fn with(&self) -> &[WithItem] {
+        self.extra.as_ref().map_or(&[], |e| &e.with)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -137,6 +158,47 @@ pub enum ApproxKind {
 pub struct Approx {
     pub kind: ApproxKind,
     pub span: Span,
+}
+
+/// Up to two approximation keywords, stored inline (a slice through `Deref`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Approxes {
+    items: [Approx; 2],
+    len: u8,
+}
+
+impl Default for Approxes {
+    fn default() -> Self {
+        let none = Approx {
+            kind: ApproxKind::Dis,
+            span: Span::default(),
+        };
+        Approxes {
+            items: [none; 2],
+            len: 0,
+        }
+    }
+}
+
+impl std::ops::Deref for Approxes {
+    type Target = [Approx];
+
+    fn deref(&self) -> &[Approx] {
+        &self.items[..self.len as usize]
+    }
+}
+
+impl Approxes {
+    fn push(&mut self, a: Approx) -> bool {
+        match self.items.get_mut(self.len as usize) {
+            Some(slot) => {
+                *slot = a;
+                self.len += 1;
+                true
+            }
+            None => false,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -171,16 +233,17 @@ const HELP_WITH: &str =
 pub(crate) fn motion<'a>(cx: Cx<'a>, kind: MotionKind, i: &'a [u8]) -> PResult<'a, Motion> {
     let (j, kw) = ident(i)?;
     let (j, _) = ws(j)?;
-    let (mut j, first) = expect("expected a motion target", HELP_TARGET, |x| expr(cx, 0, x))(j)?;
+    let (mut j, first) =
+        expecting!("expected a motion target", HELP_TARGET, |x| expr(cx, 0, x))(j)?;
     let (aux, target) = if kind.is_circular() {
         let (k, _) = ws(j)?;
-        let (k, _) = expect(
+        let (k, _) = expecting!(
             "a circular motion needs an auxiliary point and a target",
             "write CIRC auxiliary_point, target_point",
             punct(b','),
         )(k)?;
         let (k, _) = ws(k)?;
-        let (k, t) = expect(
+        let (k, t) = expecting!(
             "expected the target of the circular motion",
             HELP_TARGET,
             |x| expr(cx, 0, x),
@@ -195,13 +258,13 @@ pub(crate) fn motion<'a>(cx: Cx<'a>, kind: MotionKind, i: &'a [u8]) -> PResult<'
         let (k, _) = ws(j)?;
         if let Ok((k, _)) = punct(b',')(k) {
             let (k, _) = ws(k)?;
-            let (k, ca) = expect(
+            let (k, ca) = expecting!(
                 "expected CA after the circular motion's target",
                 "the circular angle is written CIRC aux, target, CA 90",
                 keyword("CA"),
             )(k)?;
             let (k, _) = ws(k)?;
-            let (k, value) = expect(
+            let (k, value) = expecting!(
                 "expected the circular angle after CA",
                 "the circular angle is written CIRC aux, target, CA 90",
                 |x| expr(cx, 0, x),
@@ -216,21 +279,23 @@ pub(crate) fn motion<'a>(cx: Cx<'a>, kind: MotionKind, i: &'a [u8]) -> PResult<'
     let mut m = Motion {
         kind,
         keyword: cx.span_of(kw),
-        aux,
         target,
-        angle,
-        approx: Vec::new(),
+        approx: Approxes::default(),
         frame: None,
-        with: Vec::new(),
+        extra: None,
     };
-    let (rest, ()) = motion_tail(cx, &mut m.approx, &mut m.frame, &mut m.with, j)?;
+    let mut with = Vec::new();
+    let (rest, ()) = motion_tail(cx, &mut m.approx, &mut m.frame, &mut with, j)?;
+    if aux.is_some() || angle.is_some() || !with.is_empty() {
+        m.extra = Some(Box::new(MotionExtra { aux, angle, with }));
+    }
     Ok((rest, m))
 }
 
 /// The clauses after a motion's target, in any order, up to the end of the code.
 fn motion_tail<'a>(
     cx: Cx<'a>,
-    approx: &mut Vec<Approx>,
+    approx: &mut Approxes,
     frame: &mut Option<RelFrame>,
     with: &mut Vec<WithItem>,
     i: &'a [u8],
@@ -243,13 +308,13 @@ fn motion_tail<'a>(
         }
         if k[0] == b'#' {
             let (r, name) =
-                ident(&k[1..]).or_else(|_| fail(k, "expected #BASE or #TOOL", HELP_TAIL))?;
+                ident(&k[1..]).or_else(|_| fail!(k, "expected #BASE or #TOOL", HELP_TAIL))?;
             let kind = if name.eq_ignore_ascii_case(b"BASE") {
                 RelFrameKind::Base
             } else if name.eq_ignore_ascii_case(b"TOOL") {
                 RelFrameKind::Tool
             } else {
-                return fail(k, "expected #BASE or #TOOL", HELP_TAIL);
+                return fail!(k, "expected #BASE or #TOOL", HELP_TAIL);
             };
             *frame = Some(RelFrame {
                 kind,
@@ -259,7 +324,13 @@ fn motion_tail<'a>(
             continue;
         }
         if let Ok((r, a)) = approximation(cx, k) {
-            approx.push(a);
+            if !approx.push(a) {
+                return fail!(
+                    k,
+                    "too many approximation keywords",
+                    "a motion takes at most two, e.g. C_DIS C_DIS",
+                );
+            }
             j = r;
             continue;
         }
@@ -269,7 +340,7 @@ fn motion_tail<'a>(
             j = r;
             continue;
         }
-        return fail(k, "unexpected text after the motion", HELP_TAIL);
+        return fail!(k, "unexpected text after the motion", HELP_TAIL);
     }
 }
 
@@ -298,16 +369,16 @@ pub(crate) fn approximation<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Approx> 
 /// The assignments after `WITH` (the keyword already read): `item {, item}`.
 pub(crate) fn with_clause<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Vec<WithItem>> {
     let mut items = Vec::new();
-    let (mut j, _) = sep(i).or_else(|_| fail(i, "expected an assignment after WITH", HELP_WITH))?;
+    let (mut j, _) =
+        sep(i).or_else(|_| fail!(i, "expected an assignment after WITH", HELP_WITH))?;
     loop {
-        let (k, item) = expect("expected an assignment after WITH", HELP_WITH, |x| {
+        let (k, item) = expecting!("expected an assignment after WITH", HELP_WITH, |x| {
             with_item(cx, x)
         })(j)?;
         items.push(item);
-        let (k2, _) = ws(k)?;
-        match punct(b',')(k2) {
-            Ok((k3, _)) => j = ws(k3)?.0,
-            Err(_) => return Ok((k, items)),
+        match next_item(k) {
+            Some(k3) => j = k3,
+            None => return Ok((k, items)),
         }
     }
 }
@@ -318,7 +389,7 @@ fn with_item<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, WithItem> {
     let (j, _) = ws(j)?;
     let (j, _) = punct(b'=')(j)?;
     let (j, _) = ws(j)?;
-    let (rest, value) = expect("expected a value after `=`", HELP_WITH, |x| expr(cx, 0, x))(j)?;
+    let (rest, value) = expecting!("expected a value after `=`", HELP_WITH, |x| expr(cx, 0, x))(j)?;
     Ok((
         rest,
         WithItem {

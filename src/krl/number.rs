@@ -9,7 +9,8 @@ const POW10: [f64; 23] = [
     1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 ];
 
-/// The shape of a numeric literal: `[+-] digits [. digits] [(e|E) [+-] digits]`.
+/// The shape of a numeric literal: `[+-] digits [. digits] [(e|E) [+-] digits]`, and what
+/// is needed for its value, gathered in the same pass.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Literal {
     /// Total length in bytes.
@@ -21,12 +22,32 @@ pub(crate) struct Literal {
     pub frac_digits: usize,
     /// Exponent letter (`b'e'`/`b'E'`) with its sign byte (or 0) and digit count.
     pub exponent: Option<(u8, u8, usize)>,
+    /// The digits as an integer (exact when there are at most 19 of them).
+    mantissa: u64,
+    /// The exponent's value (clamped to ±1,000,000).
+    exp_value: i64,
 }
 
 impl Literal {
     pub fn is_integer(&self) -> bool {
         !self.has_dot && self.exponent.is_none()
     }
+}
+
+/// Digits from `p`: (count, value of the first 19 as an integer appended to `m`).
+fn digits(i: &[u8], mut p: usize, mut m: u64, mut taken: usize) -> (usize, u64, usize) {
+    let start = p;
+    while let Some(&b) = i.get(p) {
+        if !b.is_ascii_digit() {
+            break;
+        }
+        if taken < 19 {
+            m = m * 10 + u64::from(b - b'0');
+            taken += 1;
+        }
+        p += 1;
+    }
+    (p - start, m, taken)
 }
 
 /// Recognises a numeric literal at the start of `i` (no leading blanks), or `None`.
@@ -39,24 +60,27 @@ pub(crate) fn scan(i: &[u8]) -> Option<Literal> {
         }
         _ => 0,
     };
-    let digits = |from: usize| i[from..].iter().take_while(|b| b.is_ascii_digit()).count();
-    let int_digits = digits(p);
+    let (int_digits, mut m, mut taken) = digits(i, p, 0, 0);
     p += int_digits;
     let mut has_dot = false;
     let mut frac_digits = 0;
     if i.get(p) == Some(&b'.') {
-        let f = digits(p + 1);
+        let (f, m2, t2) = digits(i, p + 1, m, taken);
         // `1.` is a real, `.5` is a real, a lone `.` is not a number.
         if int_digits > 0 || f > 0 {
             has_dot = true;
             frac_digits = f;
             p += 1 + f;
+            m = m2;
+            taken = t2;
         }
     }
     if int_digits == 0 && frac_digits == 0 {
         return None;
     }
+    let _ = taken;
     let mut exponent = None;
+    let mut exp_value = 0;
     if let Some(&e @ (b'e' | b'E')) = i.get(p) {
         let mut q = p + 1;
         let esign = match i.get(q) {
@@ -66,10 +90,19 @@ pub(crate) fn scan(i: &[u8]) -> Option<Literal> {
             }
             _ => 0,
         };
-        let n = digits(q);
-        if n > 0 {
-            exponent = Some((e, esign, n));
-            p = q + n;
+        let start = q;
+        while i.get(q).is_some_and(u8::is_ascii_digit) {
+            exp_value = (exp_value * 10 + i64::from(i[q] - b'0')).min(1_000_000);
+            q += 1;
+        }
+        if q > start {
+            exponent = Some((e, esign, q - start));
+            if esign == b'-' {
+                exp_value = -exp_value;
+            }
+            p = q;
+        } else {
+            exp_value = 0;
         }
     }
     Some(Literal {
@@ -79,68 +112,33 @@ pub(crate) fn scan(i: &[u8]) -> Option<Literal> {
         has_dot,
         frac_digits,
         exponent,
+        mantissa: m,
+        exp_value,
     })
 }
 
 /// The value of a literal recognised by [`scan`], correctly rounded.
 ///
-/// Short literals (≤ 19 significant digits, mantissa ≤ 2^53, |exponent| ≤ 22 — every number a
-/// controller or CAM system writes) take Clinger's exact fast path: one exact integer, one
-/// exact power of ten, one rounding. Anything else goes through the standard library parser.
+/// Short literals (≤ 19 digits, mantissa ≤ 2^53, |exponent| ≤ 22 — every number a controller
+/// or CAM system writes) take Clinger's exact fast path: one exact integer, one exact power
+/// of ten, one rounding. Anything else goes through the standard library parser.
 pub(crate) fn value(text: &[u8], lit: &Literal) -> f64 {
-    let mut p = usize::from(lit.sign != 0);
-    let mut m: u64 = 0;
-    let mut sig = 0usize;
-    let mut e10: i64 = 0;
-    let mut fast = true;
-    let mut push = |d: u8, frac: bool, m: &mut u64, sig: &mut usize, e10: &mut i64| {
-        if *m == 0 && d == 0 {
-            if frac {
-                *e10 -= 1;
-            }
-            return;
-        }
-        if *sig >= 19 {
-            fast = false;
-            return;
-        }
-        *m = *m * 10 + u64::from(d);
-        *sig += 1;
-        if frac {
-            *e10 -= 1;
-        }
-    };
-    for &b in &text[p..p + lit.int_digits] {
-        push(b - b'0', false, &mut m, &mut sig, &mut e10);
-    }
-    p += lit.int_digits;
-    if lit.has_dot {
-        p += 1;
-        for &b in &text[p..p + lit.frac_digits] {
-            push(b - b'0', true, &mut m, &mut sig, &mut e10);
-        }
-        p += lit.frac_digits;
-    }
-    if let Some((_, esign, n)) = lit.exponent {
-        let digits = &text[p + 1 + usize::from(esign != 0)..p + 1 + usize::from(esign != 0) + n];
-        let mut e: i64 = 0;
-        for &b in digits {
-            e = (e * 10 + i64::from(b - b'0')).min(1_000_000);
-        }
-        e10 += if esign == b'-' { -e } else { e };
-    }
     let negative = lit.sign == b'-';
-    if fast && m == 0 {
-        return if negative { -0.0 } else { 0.0 };
-    }
-    if fast && m <= (1u64 << 53) && (-22..=22).contains(&e10) {
-        let v = m as f64;
-        let v = if e10 >= 0 {
-            v * POW10[e10 as usize]
-        } else {
-            v / POW10[(-e10) as usize]
-        };
-        return if negative { -v } else { v };
+    if lit.int_digits + lit.frac_digits <= 19 {
+        let m = lit.mantissa;
+        let e10 = lit.exp_value - lit.frac_digits as i64;
+        if m == 0 {
+            return if negative { -0.0 } else { 0.0 };
+        }
+        if m <= (1u64 << 53) && (-22..=22).contains(&e10) {
+            let v = m as f64;
+            let v = if e10 >= 0 {
+                v * POW10[e10 as usize]
+            } else {
+                v / POW10[(-e10) as usize]
+            };
+            return if negative { -v } else { v };
+        }
     }
     std::str::from_utf8(&text[..lit.len])
         .ok()

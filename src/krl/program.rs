@@ -105,8 +105,8 @@ pub fn unresolved_targets(file: &SourceFile, symbols: &Symbols<'_>) -> Vec<Probl
     let mut unknown: Vec<(Vec<u8>, Span, usize)> = Vec::new();
     for (_, m) in file.motions() {
         let mut names = Vec::new();
-        for e in m.aux.iter().chain(std::iter::once(&m.target)) {
-            e.visit(&mut |x| {
+        for e in m.aux().into_iter().chain(std::iter::once(&m.target)) {
+            file.visit_expr(e, &mut |x| {
                 if let Expr::Path(p) = x {
                     names.push(p.root);
                 }

@@ -11,9 +11,11 @@ use super::decl::{
 use super::expr::{call, expr, path, Call, Expr};
 use super::fold::FoldId;
 use super::lex::{
-    backtrack, fail, first_word, ident, is_ident_char, keyword, punct, sep, ws, Cx, PErr, PResult,
+    backtrack, fail, first_word, ident, is_ident_char, keyword, next_item, punct, sep, ws, Cx,
+    PErr, PResult,
 };
-use super::motion::{motion, with_clause, Motion, MotionKind, WithItem};
+use super::motion::{motion, with_clause, MotionKind, WithItem};
+use super::nodes::MotionId;
 use super::span::Span;
 use super::tree::FileKind;
 
@@ -23,10 +25,10 @@ pub struct Stmt {
     /// Trivia before the statement: the previous line's comment and line ending, blank and
     /// comment lines (folds included), the indentation.
     pub leading: Span,
-    /// The whole statement, closer line included for blocks.
-    pub span: Span,
     /// The code of the first line (the opener of a block), without comment and blanks.
     pub head: Span,
+    /// End of the whole statement (see `span()`).
+    pub(crate) end: u32,
     /// 1-based line of the first line.
     pub line: u32,
     /// The innermost fold the statement is in.
@@ -74,20 +76,18 @@ pub struct Clause {
 #[derive(Clone, Debug, PartialEq)]
 pub enum StmtKind {
     /// `&ACCESS RVP`, `&REL 1`, `&PARAM EDITMASK = *`, `&COMMENT …`.
-    Directive {
-        name: Span,
-        value: Span,
-    },
+    Directive(Box<Directive>),
     /// `DEF`/`DEFFCT` … `END`/`ENDFCT` (block).
     Routine(Box<RoutineHeader>),
     /// `DEFDAT` … `ENDDAT` (block).
-    DefDat(DatHeader),
+    DefDat(Box<DatHeader>),
     Decl(Box<Decl>),
     Struc(Box<Struc>),
     Enum(Box<EnumDecl>),
     Signal(Box<Signal>),
     Ext(Box<Ext>),
-    Motion(Box<Motion>),
+    /// A motion (`SourceFile::motion`).
+    Motion(MotionId),
     /// `SPLINE` / `PTP_SPLINE` … `ENDSPLINE` (block).
     Spline(Box<SplineHead>),
     Assign(Box<Assign>),
@@ -121,6 +121,13 @@ pub enum StmtKind {
     Invalid,
     /// A line not understood; bytes kept, counted by `check`.
     Opaque,
+}
+
+/// `&NAME value`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Directive {
+    pub name: Span,
+    pub value: Span,
 }
 
 /// `SPLINE [WITH …]` or `PTP_SPLINE [WITH …]`.
@@ -184,6 +191,14 @@ pub struct Trigger {
 }
 
 impl Stmt {
+    /// The whole statement, closer line included for blocks.
+    pub fn span(&self) -> Span {
+        Span {
+            start: self.head.start,
+            end: self.end,
+        }
+    }
+
     /// Everything inside the block (body and arms), in order.
     pub fn children(&self) -> impl Iterator<Item = &Stmt> {
         self.block.iter().flat_map(|b| {
@@ -193,9 +208,10 @@ impl Stmt {
         })
     }
 
-    pub fn as_motion(&self) -> Option<&Motion> {
+    /// The motion's id (look it up with `SourceFile::motion`, or use `SourceFile::motion_of`).
+    pub fn as_motion(&self) -> Option<MotionId> {
         match &self.kind {
-            StmtKind::Motion(m) => Some(m),
+            StmtKind::Motion(m) => Some(*m),
             _ => None,
         }
     }
@@ -209,7 +225,7 @@ impl Stmt {
 
     /// Whether the statement (or its header) was understood.
     pub fn is_opaque(&self) -> bool {
-        let opaque = |e: &Expr| e.has_opaque();
+        let opaque = |e: &Expr| e.is_opaque();
         match &self.kind {
             StmtKind::Opaque | StmtKind::For(None) => true,
             StmtKind::If(e) | StmtKind::Switch(e) | StmtKind::While(e) | StmtKind::WaitFor(e) => {
@@ -284,14 +300,26 @@ pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Lin
     let word = first_word(code, &mut buf);
     let committed =
         is_committed(word, code) || (file == FileKind::Dat && looks_like_user_decl(word, code));
-    match statement(cx, file, word, code) {
-        Ok((rest, l)) if rest.is_empty() => Ok(l),
+    let mark = {
+        let mut n = cx.nodes.borrow_mut();
+        n.new_line();
+        n.mark()
+    };
+    let result = statement(cx, file, word, code);
+    if !matches!(&result, Ok((rest, _)) if rest.is_empty()) {
+        // Whatever the failed line added to the pools is unreferenced: drop it.
+        cx.nodes.borrow_mut().reset(mark);
+    }
+    match result {
+        Ok((b"", l)) => Ok(l),
         Ok((rest, _)) => {
             if committed {
                 Err(Some(PErr {
                     at: rest,
-                    label: "unexpected text after the statement",
-                    help: "one statement per line; comments start with ;",
+                    msg: &super::lex::Msg {
+                        label: "unexpected text after the statement",
+                        help: "one statement per line; comments start with ;",
+                    },
                 }))
             } else {
                 Err(None)
@@ -359,7 +387,7 @@ fn looks_like_user_decl(word: &[u8], code: &[u8]) -> bool {
 
 /// Failures that are errors in any statement: malformed aggregates.
 fn is_hard(e: &PErr<'_>) -> bool {
-    e.label.contains("aggregate") || e.label.contains("member")
+    e.label().contains("aggregate") || e.label().contains("member")
 }
 
 /// A statement, dispatched on its upper-cased first word.
@@ -367,7 +395,10 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
     use StmtKind as K;
     if let Some(kind) = MotionKind::from_keyword(word) {
         let (r, m) = motion(cx, kind, i)?;
-        return Ok((r, Line::Simple(K::Motion(Box::new(m)))));
+        let mut nodes = cx.nodes.borrow_mut();
+        let id = MotionId(nodes.motions.len() as u32);
+        nodes.motions.push(m);
+        return Ok((r, Line::Simple(K::Motion(id))));
     }
     if TypeKind::builtin(word).is_some() {
         return decl_line(cx, file, i);
@@ -378,7 +409,7 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
         b"DEF" | b"DEFFCT" => routine_line(cx, i),
         b"DEFDAT" => {
             let (r, h) = dat_header(cx, i)?;
-            Ok((r, Line::Open(K::DefDat(h), BlockKind::DefDat)))
+            Ok((r, Line::Open(K::DefDat(Box::new(h)), BlockKind::DefDat)))
         }
         b"END" | b"ENDFCT" => alone(Line::Close(BlockKind::Routine, None)),
         b"ENDDAT" => alone(Line::Close(BlockKind::DefDat, None)),
@@ -453,11 +484,7 @@ fn keyword_alone(i: &[u8], l: Line) -> PResult<'_, Line> {
 fn lenient<'a>(cx: Cx<'a>, i: &'a [u8]) -> Result<Expr, nom::Err<PErr<'a>>> {
     let (j, _) = ws(i)?;
     if j.is_empty() {
-        return Err(nom::Err::Error(PErr {
-            at: j,
-            label: "",
-            help: "",
-        }));
+        return backtrack(j).map(|(_, e)| e);
     }
     match expr(cx, 0, j) {
         Ok((r, e)) if ws(r)?.0.is_empty() => Ok(e),
@@ -472,10 +499,10 @@ fn directive<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
     let (value, _) = ws(j)?;
     Ok((
         &i[i.len()..],
-        Line::Simple(StmtKind::Directive {
+        Line::Simple(StmtKind::Directive(Box::new(Directive {
             name: cx.span_of(name),
             value: cx.span_of(value),
-        }),
+        }))),
     ))
 }
 
@@ -484,7 +511,7 @@ fn routine_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
     let (r, h) = routine_header(cx, i)?;
     let (r, _) = ws(r)?;
     if !r.is_empty() {
-        return fail(
+        return fail!(
             r,
             "unexpected text after the routine header",
             "a routine header reads DEF name(p1:IN, p2:OUT)",
@@ -501,7 +528,7 @@ fn decl_line<'a>(cx: Cx<'a>, file: FileKind, i: &'a [u8]) -> PResult<'a, Line> {
     let (r, d) = declaration(cx, file == FileKind::Dat, i)?;
     let (r, _) = ws(r)?;
     if !r.is_empty() {
-        return fail(
+        return fail!(
             r,
             "unexpected text after the declaration",
             "separate several variables with commas; give an initial value with =",
@@ -568,10 +595,9 @@ fn case_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
         let (k, _) = ws(j)?;
         let (k, v) = expr(cx, 0, k)?;
         values.push(v);
-        let (k, _) = ws(k)?;
-        match punct(b',')(k) {
-            Ok((k, _)) => j = k,
-            Err(_) => return Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values)))),
+        match next_item(k) {
+            Some(k) => j = k,
+            None => return Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values)))),
         }
     }
 }

@@ -16,11 +16,14 @@ pub struct Symbol<'f> {
     pub var: &'f DeclVar,
 }
 
+/// Upper-cased array name and the element's indices.
+type ElementKey = (Vec<u8>, Vec<i64>);
+
 /// Declarations and array-element initialisers of a set of files (earlier files win).
 #[derive(Debug, Default)]
 pub struct Symbols<'f> {
     names: HashMap<Vec<u8>, Symbol<'f>>,
-    elements: HashMap<(Vec<u8>, Vec<i64>), (&'f SourceFile, &'f Expr)>,
+    elements: HashMap<ElementKey, (&'f SourceFile, &'f Expr)>,
 }
 
 fn key(name: &[u8]) -> Vec<u8> {

@@ -6,14 +6,17 @@
 
 use super::decl::{Decl, RoutineHeader};
 use super::error::{ParseError, Problem};
+use super::expr::{Aggregate, Expr, Member, Number};
 use super::fold::{Fold, FoldId, FoldTracker, Ilf};
 use super::lex::Cx;
 use super::motion::Motion;
+use super::nodes::{AggregateId, MotionId, Nodes};
 use super::span::{LineIndex, Span};
 use super::stmt::{self, Arm, ArmKind, BlockKind, Clause, Line, Stmt, StmtKind};
 use super::trivia::split_line;
 use crate::diagnostic::Diagnostic;
 use std::borrow::Cow;
+use std::cell::RefCell;
 use std::path::Path;
 
 /// Which kind of KRL file.
@@ -48,6 +51,7 @@ pub struct SourceFile {
     folds: Vec<Fold>,
     problems: Vec<Problem>,
     lines: LineIndex,
+    nodes: Nodes,
 }
 
 /// Counts of what a file holds (what `robopost check` prints).
@@ -99,30 +103,18 @@ pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
             trailing: Span::default(),
             folds: Vec::new(),
             problems,
+            nodes: Nodes::default(),
         };
     }
-    let built = build(&src, kind);
-    SourceFile {
-        src,
-        kind,
-        body: built.body,
-        trailing: built.trailing,
-        folds: built.folds,
-        problems: built.problems,
-        lines: built.lines,
-    }
+    let mut file = build(&src, kind);
+    file.src = src;
+    file
 }
 
-struct Built {
-    body: Vec<Stmt>,
-    trailing: Span,
-    folds: Vec<Fold>,
-    problems: Vec<Problem>,
-    lines: LineIndex,
-}
-
-fn build(src: &[u8], kind: FileKind) -> Built {
-    let cx = Cx::new(src);
+/// Parses `src` into a file whose `src` field is left empty (the caller moves the bytes in).
+fn build(src: &[u8], kind: FileKind) -> SourceFile {
+    let nodes = RefCell::new(Nodes::default());
+    let cx = Cx::new(src, &nodes);
     let mut b = Builder::default();
     let mut folds = FoldTracker::default();
     let mut starts = Vec::with_capacity(src.len() / 32 + 1);
@@ -149,8 +141,8 @@ fn build(src: &[u8], kind: FileKind) -> Built {
                             let at = cx.off(e.at).min(l.code_end);
                             let mut p = Problem::error(
                                 Span::new(at, (at + 1).min(l.code_end).max(at)),
-                                e.label,
-                                e.help,
+                                e.label(),
+                                e.help(),
                             );
                             if p.message.is_empty() {
                                 p.message = "malformed statement".into();
@@ -175,12 +167,17 @@ fn build(src: &[u8], kind: FileKind) -> Built {
     let (folds, fold_problems) = folds.finish();
     problems.extend(fold_problems);
     problems.sort_by_key(|p| (p.span.start, p.severity));
-    Built {
+    let mut nodes = nodes.into_inner();
+    nodes.finish();
+    SourceFile {
+        src: Vec::new(),
+        kind,
         body,
         trailing: Span::new(pending, src.len()),
         folds,
         problems,
         lines: LineIndex::from_starts(starts, src.len()),
+        nodes,
     }
 }
 
@@ -200,8 +197,8 @@ struct Builder {
 fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<FoldId>) -> Stmt {
     Stmt {
         leading,
-        span: head,
         head,
+        end: head.end,
         line,
         fold,
         kind,
@@ -234,13 +231,11 @@ impl Builder {
                     self.close_all();
                 }
                 if self.stack.len() >= MAX_BLOCK_DEPTH {
-                    self.problems.push(Problem::warning(
-                        head,
-                        "blocks nested too deeply; this line is kept but not followed",
+                    self.stray(
+                        "blocks nested too deeply; this line is kept but not followed".into(),
                         "split the routine",
-                    ));
-                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                    self.body().push(s);
+                        simple(StmtKind::Opaque, leading, head, line, fold),
+                    );
                     return;
                 }
                 let mut s = simple(kind, leading, head, line, fold);
@@ -262,26 +257,20 @@ impl Builder {
                             body: Vec::new(),
                         });
                     }
-                    _ => {
-                        self.problems.push(Problem::warning(
-                            head,
-                            format!("this line belongs inside {} … {}", bk.opener(), bk.closer()),
-                            "check the block structure around this line",
-                        ));
-                        let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                        self.body().push(s);
-                    }
+                    _ => self.stray(
+                        format!("this line belongs inside {} … {}", bk.opener(), bk.closer()),
+                        "check the block structure around this line",
+                        simple(StmtKind::Opaque, leading, head, line, fold),
+                    ),
                 }
             }
             Line::Close(bk, until) => {
                 let Some(at) = self.stack.iter().rposition(|f| f.kind == bk) else {
-                    self.problems.push(Problem::warning(
-                        head,
+                    self.stray(
                         format!("`{}` without an open `{}`", bk.closer(), bk.opener()),
                         "remove it or add the line that opens the block",
-                    ));
-                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                    self.body().push(s);
+                        simple(StmtKind::Opaque, leading, head, line, fold),
+                    );
                     return;
                 };
                 while self.stack.len() > at + 1 {
@@ -297,10 +286,16 @@ impl Builder {
                     span: head,
                     line,
                 });
-                f.stmt.span = f.stmt.head.to(head);
+                f.stmt.end = head.end;
                 self.body().push(f.stmt);
             }
         }
+    }
+
+    /// A line kept as opaque with a warning about the block structure.
+    fn stray(&mut self, message: String, help: &'static str, s: Stmt) {
+        self.problems.push(Problem::warning(s.head, message, help));
+        self.body().push(s);
     }
 
     /// Closes the innermost block without its closer (a warning says so).
@@ -316,8 +311,7 @@ impl Builder {
             ),
             "add the closing line where the block ends",
         ));
-        let end = last_end(&f.stmt);
-        f.stmt.span = Span::new(f.stmt.head.start as usize, end);
+        f.stmt.end = last_end(&f.stmt) as u32;
         self.body().push(f.stmt);
     }
 
@@ -348,12 +342,12 @@ fn last_end(s: &Stmt) -> usize {
     let mut end = s.head.end;
     if let Some(b) = &s.block {
         if let Some(last) = b.body.last() {
-            end = end.max(last.span.end);
+            end = end.max(last.end);
         }
         for a in &b.arms {
             end = end.max(a.clause.span.end);
             if let Some(last) = a.body.last() {
-                end = end.max(last.span.end);
+                end = end.max(last.end);
             }
         }
         if let Some(e) = &b.end {
@@ -429,7 +423,67 @@ impl SourceFile {
     /// Every motion statement with its motion, in source order.
     pub fn motions(&self) -> impl Iterator<Item = (&Stmt, &Motion)> {
         self.statements()
-            .filter_map(|s| s.as_motion().map(|m| (s, m)))
+            .filter_map(|s| s.as_motion().map(|m| (s, self.motion(m))))
+    }
+
+    /// The motion of a motion statement.
+    pub fn motion(&self, id: MotionId) -> &Motion {
+        &self.nodes.motions[id.0 as usize]
+    }
+
+    /// The motion of `stmt`, if it is a motion statement.
+    pub fn motion_of(&self, stmt: &Stmt) -> Option<&Motion> {
+        stmt.as_motion().map(|m| self.motion(m))
+    }
+
+    pub fn aggregate(&self, id: AggregateId) -> &Aggregate {
+        &self.nodes.aggregates[id.0 as usize]
+    }
+
+    /// The aggregate an expression is, if it is one.
+    pub fn aggregate_of(&self, e: &Expr) -> Option<&Aggregate> {
+        e.as_aggregate().map(|id| self.aggregate(id))
+    }
+
+    /// The members of an aggregate, in order.
+    pub fn members(&self, a: &Aggregate) -> &[Member] {
+        self.nodes.members_of(a)
+    }
+
+    /// The member called `name` (case-insensitive).
+    pub fn member(&self, a: &Aggregate, name: &str) -> Option<&Member> {
+        self.members(a).iter().find(|m| self.is_named(m.name, name))
+    }
+
+    /// The `[]` right after an array member's name (`POINT2[] " "`), if any.
+    pub fn member_index(&self, m: &Member) -> Option<Span> {
+        let at = m.name.end as usize;
+        if self.src.get(at) != Some(&b'[') {
+            return None;
+        }
+        let close = self.src[at..].iter().position(|&b| b == b']')?;
+        Some(Span::new(at, at + close + 1))
+    }
+
+    /// The number of member `name` when it is a plain (possibly signed) literal.
+    pub fn member_number(&self, a: &Aggregate, name: &str) -> Option<&Number> {
+        self.member(a, name)?.value.as_number()
+    }
+
+    /// Calls `f` on `e` and every sub-expression (aggregate members included), parents first.
+    pub fn visit_expr(&self, e: &Expr, f: &mut impl FnMut(&Expr)) {
+        e.visit(&self.nodes, f);
+    }
+
+    /// Every numeric literal in `e`, in source order.
+    pub fn numbers(&self, e: &Expr) -> Vec<Number> {
+        let mut out = Vec::new();
+        self.visit_expr(e, &mut |x| {
+            if let Expr::Number(n) = x {
+                out.push(*n);
+            }
+        });
+        out
     }
 
     /// Every declaration statement, in source order.
@@ -499,9 +553,18 @@ impl SourceFile {
         out
     }
 
-    /// Appends the file's bytes, tile by tile, to `out`.
+    /// Appends the file's bytes, tile by tile, to `out` (adjacent tiles are copied together).
     pub fn emit_into(&self, out: &mut Vec<u8>) {
-        self.for_each_tile(&mut |span, _| out.extend_from_slice(&self.src[span.range()]));
+        let mut run = Span::default();
+        self.for_each_tile(&mut |span, _| {
+            if span.start == run.end {
+                run.end = span.end;
+            } else {
+                out.extend_from_slice(&self.src[run.range()]);
+                run = span;
+            }
+        });
+        out.extend_from_slice(&self.src[run.range()]);
     }
 
     /// Every tile (trivia or code) of the file in order; together they cover it exactly.

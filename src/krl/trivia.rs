@@ -23,6 +23,15 @@ pub(crate) struct RawLine {
 
 const BOM: &[u8] = b"\xEF\xBB\xBF";
 
+/// Non-zero when some byte of `x` equals `b` (the classic SWAR zero-byte test on `x ^ b…b`;
+/// exact: no false positives for the "has a zero byte" form used here).
+fn has_byte(x: u64, b: u8) -> u64 {
+    const LO: u64 = 0x0101_0101_0101_0101;
+    const HI: u64 = 0x8080_8080_8080_8080;
+    let y = x ^ (LO * u64::from(b));
+    y.wrapping_sub(LO) & !y & HI
+}
+
 /// Cuts the line starting at `start`.
 pub(crate) fn split_line(src: &[u8], start: usize) -> RawLine {
     let mut p = start;
@@ -35,6 +44,14 @@ pub(crate) fn split_line(src: &[u8], start: usize) -> RawLine {
     let code_start = p;
     let mut in_string = false;
     let mut comment_at = None;
+    // Skip eight bytes at a time while none of them is `\n`, `;` or `"`.
+    while p + 8 <= src.len() {
+        let chunk = u64::from_le_bytes(src[p..p + 8].try_into().expect("eight bytes"));
+        if has_byte(chunk, b'\n') | has_byte(chunk, b';') | has_byte(chunk, b'"') != 0 {
+            break;
+        }
+        p += 8;
+    }
     while p < src.len() {
         match src[p] {
             b'\n' => break,
@@ -90,6 +107,22 @@ mod tests {
         let l = split_line(src, 16);
         assert_eq!(&src[l.code_start..l.code_end], b"END");
         assert_eq!((l.newline, l.next), (19, 19));
+    }
+
+    #[test]
+    fn byte_search_matches_a_plain_scan() {
+        for b in 0..=255u8 {
+            for pos in 0..8 {
+                let mut x = [0x41u8; 8];
+                x[pos] = b;
+                let found = has_byte(u64::from_le_bytes(x), b'"') != 0;
+                assert_eq!(found, x.contains(&b'"'));
+            }
+        }
+        let long = b"LIN {X 1.000,Y 2.000,Z 3.000,A 0.000,B 90.000,C 0.000} C_DIS ; here\r\nEND";
+        let l = split_line(long, 0);
+        assert_eq!(&long[l.code_start..l.code_end], &long[..60]);
+        assert_eq!(l.comment.map(|(a, b)| &long[a..b]), Some(&b"; here"[..]));
     }
 
     #[test]

@@ -32,8 +32,8 @@ fn every_fixture_round_trips_byte_for_byte() {
 
 fn check_numbers(file: &krl::SourceFile, e: &Expr, path: &std::path::Path) -> usize {
     let mut n = 0;
-    for num in e.numbers() {
-        let text = std::str::from_utf8(file.text(num.span)).unwrap();
+    for num in file.numbers(e) {
+        let text = std::str::from_utf8(file.text(num.span())).unwrap();
         let want: f64 = text.parse().unwrap();
         assert_eq!(
             num.value.to_bits(),
@@ -52,9 +52,9 @@ fn every_number_of_every_position_reads_back_exactly() {
     for path in files_under("programs") {
         let (_, file) = load(&path);
         for s in file.statements() {
-            if let Some(m) = s.as_motion() {
+            if let Some(m) = file.motion_of(s) {
                 total += check_numbers(&file, &m.target, &path);
-                if let Some(a) = &m.aux {
+                if let Some(a) = m.aux() {
                     total += check_numbers(&file, a, &path);
                 }
             }
@@ -99,9 +99,9 @@ fn dumps_of_what_was_understood() {
 #[test]
 fn spans_nest() {
     fn walk(s: &Stmt) {
-        assert!(s.span.contains(s.head));
+        assert!(s.span().contains(s.head));
         for c in s.children() {
-            assert!(s.span.contains(c.span), "{:?} {:?}", s.span, c.span);
+            assert!(s.span().contains(c.span()), "{:?} {:?}", s.span(), c.span());
             walk(c);
         }
     }

@@ -49,15 +49,12 @@ proptest! {
             .motions()
             .map(|(_, m)| Gen {
                 kind: m.kind,
-                members: m
-                    .target
-                    .as_aggregate()
-                    .unwrap()
-                    .members
+                members: f
+                    .members(f.aggregate_of(&m.target).unwrap())
                     .iter()
                     .map(|mem| {
                         let n = mem.value.as_number().unwrap();
-                        (f.text(mem.name).to_ascii_uppercase(), f.text(n.span).to_vec(), n.value)
+                        (f.text(mem.name).to_ascii_uppercase(), f.text(n.span()).to_vec(), n.value)
                     })
                     .collect(),
             })

@@ -96,19 +96,19 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     assert_eq!(x, b"XP1");
     let sym = syms.get(&x).expect("XP1 declared in the .dat");
     assert_eq!(sym.decl.ty.kind, TypeKind::E6Pos);
-    let agg = sym.var.init.as_ref().unwrap().as_aggregate().unwrap();
-    let xn = agg.number(dat.source(), "X").unwrap();
-    assert_eq!((xn.value, dat.text(xn.span)), (812.441, &b"812.441"[..]));
-    assert_eq!(agg.number(dat.source(), "A").unwrap().value, -172.25);
+    let agg = dat.aggregate_of(sym.var.init.as_ref().unwrap()).unwrap();
+    let xn = dat.member_number(agg, "X").unwrap();
+    assert_eq!((xn.value, dat.text(xn.span())), (812.441, &b"812.441"[..]));
+    assert_eq!(dat.member_number(agg, "A").unwrap().value, -172.25);
     let pd = syms
         .get(&im.motion_data_var(src.source()).unwrap())
         .unwrap();
     assert_eq!(pd.decl.ty.kind, TypeKind::Pdat);
     let fd = syms.get(&im.frame_data_var(src.source()).unwrap()).unwrap();
-    let fa = fd.var.init.as_ref().unwrap().as_aggregate().unwrap();
-    assert_eq!(fa.number(dat.source(), "BASE_NO").unwrap().value, 2.0);
+    let fa = dat.aggregate_of(fd.var.init.as_ref().unwrap()).unwrap();
+    assert_eq!(dat.member_number(fa, "BASE_NO").unwrap().value, 2.0);
     assert!(matches!(
-        fa.member(dat.source(), "IPO_FRAME").unwrap().value,
+        dat.member(fa, "IPO_FRAME").unwrap().value,
         Expr::Enum(_)
     ));
     // LIN P2 Vel=0.5 m/s CPDAT1: path motion data is LDAT L + name.
@@ -119,7 +119,7 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     assert!(syms.get(b"lcpdat1").is_some(), "names are case-insensitive");
     // CIRC P4 P5: auxiliary point and target.
     let (s4, circ) = ms[4];
-    assert_eq!(path_text(&src, circ.aux.as_ref().unwrap()), "XP4");
+    assert_eq!(path_text(&src, circ.aux().unwrap()), "XP4");
     assert_eq!(circ.approx.len(), 2);
     let im4 = src.inline_form(s4).unwrap().1.motion.as_ref().unwrap();
     let pts: Vec<String> = im4.points.iter().map(|p| text(&src, *p)).collect();
@@ -153,15 +153,12 @@ fn spline_inline_forms_with_parameter_folds() {
     use MotionKind::*;
     assert_eq!(kinds, [Sptp, Sptp, Slin, Scirc, Sptp]);
     let (s, sc) = ms[3];
-    assert_eq!(path_text(&src, sc.aux.as_ref().unwrap()), "XS3");
+    assert_eq!(path_text(&src, sc.aux().unwrap()), "XS3");
     assert_eq!(path_text(&src, &sc.target), "XS4");
-    assert_eq!(
-        sc.angle.as_ref().unwrap().value.as_number().unwrap().value,
-        180.0
-    );
+    assert_eq!(sc.angle().unwrap().value.as_number().unwrap().value, 180.0);
     assert_eq!(sc.approx[0].kind, ApproxKind::Spl);
-    assert_eq!(sc.with.len(), 12);
-    let vel = &sc.with[0];
+    assert_eq!(sc.with().len(), 12);
+    let vel = &sc.with()[0];
     assert_eq!(path_text(&src, &vel.lhs), "$VEL");
     let Expr::Call(c) = &vel.value else { panic!() };
     assert_eq!(text(&src, c.name), "SVEL_CP");
@@ -210,7 +207,7 @@ fn cam_frame_array_driven_by_a_for_loop() {
     assert_eq!(path_text(&src, &f.to), "NPTS");
     let body: Vec<_> = for_stmt.children().collect();
     assert_eq!(body.len(), 1);
-    let m = body[0].as_motion().unwrap();
+    let m = src.motion_of(body[0]).unwrap();
     let p = m.target.as_path().unwrap();
     assert_eq!(text(&src, p.root), "CNC1");
     let Access::Index { items, .. } = &p.access[0] else {
@@ -221,7 +218,7 @@ fn cam_frame_array_driven_by_a_for_loop() {
     let decl = syms.get(b"CNC1").unwrap();
     assert_eq!(decl.decl.ty.kind, TypeKind::Frame);
     let (file, e) = syms.element(b"cnc1", &[17]).unwrap();
-    let a = e.as_aggregate().unwrap();
+    let a = file.aggregate_of(e).unwrap();
     let t = 2.0 * std::f64::consts::PI * 16.0 / 240.0;
     let want = [
         ("X", 400.0 + 150.0 * t.cos() + 12.0 * (5.0 * t).cos()),
@@ -232,7 +229,7 @@ fn cam_frame_array_driven_by_a_for_loop() {
         ("C", 180.0 - 10.0 * t.cos()),
     ];
     for (name, v) in want {
-        let got = a.number(file.source(), name).unwrap().value;
+        let got = file.member_number(a, name).unwrap().value;
         assert!((got - v).abs() <= 0.5e-4 + 1e-12, "{name}: {got} vs {v}");
     }
     assert!(syms.element(b"CNC1", &[241]).is_none());
@@ -258,10 +255,10 @@ fn generated_cam_program_has_every_lin() {
     // b = 90 + 4.5 cos 0 = 94.5, c = 2 sin 0 = 0.
     let first = motions(&f)
         .into_iter()
-        .filter_map(|m| m.target.as_aggregate())
+        .filter_map(|m| f.aggregate_of(&m.target))
         .nth(2)
         .unwrap();
-    let v = |n| first.number(f.source(), n).unwrap().value;
+    let v = |n| f.member_number(first, n).unwrap().value;
     assert_eq!(
         (v("X"), v("Y"), v("Z"), v("B"), v("C")),
         (0.0, 0.0, -1.0, 94.5, 0.0)
@@ -287,22 +284,19 @@ fn robodk_style_split_program() {
             _ => None,
         })
         .unwrap();
-    let agg = base.rhs.as_aggregate().unwrap();
+    let agg = p1.aggregate_of(&base.rhs).unwrap();
     assert_eq!(text(&p1, agg.type_name.unwrap()), "FRAME");
-    assert_eq!(agg.number(p1.source(), "X").unwrap().value, 1200.0);
+    assert_eq!(p1.member_number(agg, "X").unwrap().value, 1200.0);
     let ms = motions(&p1);
     assert_eq!(ms.len(), 7);
-    let axis = ms[1].target.as_aggregate().unwrap();
+    let axis = p1.aggregate_of(&ms[1].target).unwrap();
     assert_eq!(text(&p1, axis.type_name.unwrap()), "AXIS");
-    assert_eq!(axis.number(p1.source(), "A2").unwrap().value, -78.4);
+    assert_eq!(p1.member_number(axis, "A2").unwrap().value, -78.4);
     assert_eq!(ms[6].approx[0].kind, ApproxKind::Dis);
-    let z = ms[4]
-        .target
-        .as_aggregate()
-        .unwrap()
-        .number(p1.source(), "Z")
+    let z = p1
+        .member_number(p1.aggregate_of(&ms[4].target).unwrap(), "Z")
         .unwrap();
-    assert_eq!((z.value, p1.text(z.span)), (-12.5, &b"-12.500"[..]));
+    assert_eq!((z.value, p1.text(z.span())), (-12.5, &b"-12.500"[..]));
 }
 
 #[test]
@@ -359,14 +353,11 @@ fn every_language_construct() {
             "LIN_REL", "PTP_REL", "CIRC_REL", "LIN", "PTP", "LIN"
         ]
     );
-    let e6 = ms[2].target.as_aggregate().unwrap();
+    let e6 = f.aggregate_of(&ms[2].target).unwrap();
     assert_eq!(text(&f, e6.type_name.unwrap()), "E6POS");
-    assert_eq!(e6.number(f.source(), "Y").unwrap().value, -25.0);
-    assert_eq!(e6.number(f.source(), "Z").unwrap().value, 0.25);
-    assert!(matches!(
-        e6.member(f.source(), "S").unwrap().value,
-        Expr::Bits(_)
-    ));
+    assert_eq!(f.member_number(e6, "Y").unwrap().value, -25.0);
+    assert_eq!(f.member_number(e6, "Z").unwrap().value, 0.25);
+    assert!(matches!(f.member(e6, "S").unwrap().value, Expr::Bits(_)));
     assert_eq!(ms[3].approx[0].kind, ApproxKind::Vel);
     let Expr::Binary(g) = &ms[4].target else {
         panic!()
@@ -382,29 +373,15 @@ fn every_language_construct() {
     };
     assert_eq!(items.len(), 2);
     assert_eq!(
-        ms[8]
-            .angle
-            .as_ref()
-            .unwrap()
-            .value
-            .as_number()
-            .unwrap()
-            .value,
+        ms[8].angle().unwrap().value.as_number().unwrap().value,
         90.0
     );
-    assert!(ms[9].angle.is_none());
+    assert!(ms[9].angle().is_none());
     assert_eq!(ms[10].frame.unwrap().kind, RelFrameKind::Tool);
     assert_eq!(ms[11].frame.unwrap().kind, RelFrameKind::Base);
     assert_eq!(ms[11].approx[0].kind, ApproxKind::Dis);
     assert_eq!(
-        ms[13]
-            .angle
-            .as_ref()
-            .unwrap()
-            .value
-            .as_number()
-            .unwrap()
-            .value,
+        ms[13].angle().unwrap().value.as_number().unwrap().value,
         -45.5
     );
     assert_eq!(ms[15].approx[0].kind, ApproxKind::Ptp);
@@ -523,27 +500,16 @@ fn data_list_declarations() {
     assert!(syms.get(b"TOLERANCE").unwrap().decl.constant.is_some());
     assert!(syms.get(b"P_ARRAY").unwrap().decl.global.is_some());
     let (_, e) = syms.element(b"P_TABLE", &[1, 2]).unwrap();
-    assert_eq!(e.as_aggregate().unwrap().members.len(), 3);
-    let job = syms
-        .get(b"job")
-        .unwrap()
-        .var
-        .init
-        .as_ref()
-        .unwrap()
-        .as_aggregate()
+    assert_eq!(d.members(d.aggregate_of(e).unwrap()).len(), 3);
+    let job = d
+        .aggregate_of(syms.get(b"job").unwrap().var.init.as_ref().unwrap())
         .unwrap();
-    let inner = job
-        .member(d.source(), "fCnC")
-        .unwrap()
-        .value
-        .as_aggregate()
+    let inner = d
+        .aggregate_of(&d.member(job, "fCnC").unwrap().value)
         .unwrap();
-    assert_eq!(inner.number(d.source(), "Z").unwrap().value, 3.5);
+    assert_eq!(d.member_number(inner, "Z").unwrap().value, 3.5);
     assert_eq!(
-        job.member(d.source(), "sName")
-            .unwrap()
-            .index
+        d.member_index(d.member(job, "sName").unwrap())
             .map(|s| d.text(s)),
         Some(&b"[]"[..])
     );
@@ -605,35 +571,20 @@ fn long_data_lines() {
     let (bytes, d) = fixture("long_lines/weld_table.dat");
     assert!(bytes.split(|&b| b == b'\n').any(|l| l.len() > 1300));
     let syms = Symbols::new(&[&d]);
-    let wtab = syms
-        .get(b"WTAB")
-        .unwrap()
-        .var
-        .init
-        .as_ref()
-        .unwrap()
-        .as_aggregate()
+    let wtab = d
+        .aggregate_of(syms.get(b"WTAB").unwrap().var.init.as_ref().unwrap())
         .unwrap();
-    assert_eq!(wtab.members.len(), 39);
-    let w39 = wtab
-        .member(d.source(), "W39")
-        .unwrap()
-        .value
-        .as_aggregate()
+    assert_eq!(wtab.len(), 39);
+    let w39 = d
+        .aggregate_of(&d.member(wtab, "W39").unwrap().value)
         .unwrap();
     // Generator: CUR 100+i .5, VOLT 18 + i%7 .25 → i = 39: 139.5, 22.25.
-    assert_eq!(w39.number(d.source(), "CUR").unwrap().value, 139.5);
-    assert_eq!(w39.number(d.source(), "VOLT").unwrap().value, 22.25);
-    let p = syms
-        .get(b"XSEAM_START")
-        .unwrap()
-        .var
-        .init
-        .as_ref()
-        .unwrap()
-        .as_aggregate()
+    assert_eq!(d.member_number(w39, "CUR").unwrap().value, 139.5);
+    assert_eq!(d.member_number(w39, "VOLT").unwrap().value, 22.25);
+    let p = d
+        .aggregate_of(syms.get(b"XSEAM_START").unwrap().var.init.as_ref().unwrap())
         .unwrap();
-    assert_eq!(p.number(d.source(), "C").unwrap().value, 179.9999);
+    assert_eq!(d.member_number(p, "C").unwrap().value, 179.9999);
 }
 
 #[test]
@@ -653,7 +604,7 @@ fn spline_blocks() {
         .0
         .children()
         .map(|s| match &s.kind {
-            StmtKind::Motion(m) => m.kind.keyword().to_string(),
+            StmtKind::Motion(m) => f.motion(*m).kind.keyword().to_string(),
             StmtKind::Trigger(t) => format!(
                 "TRIGGER {:?}{}",
                 t.when,
@@ -682,7 +633,7 @@ fn spline_blocks() {
         .find(|m| matches!(m.target, Expr::Binary(_)) && m.kind == MotionKind::Slin)
         .unwrap();
     assert_eq!(chained.approx[0].kind, ApproxKind::Spl, "lower-case c_spl");
-    assert_eq!(chained.with.len(), 1);
+    assert_eq!(chained.with().len(), 1);
     assert_eq!(path_text(&f, &ms.last().unwrap().target), "$AXIS_ACT");
     assert!(f.problems().is_empty(), "{:?}", f.problems());
 }
@@ -693,9 +644,9 @@ fn rewriting_every_number_of_the_cam_program_changes_nothing_else() {
     let mut edits = krl::Edits::new();
     let mut want = Vec::new();
     for (_, m) in f.motions() {
-        for n in m.target.numbers() {
+        for n in f.numbers(&m.target) {
             let new = n.value + 0.0125;
-            edits.replace(n.span, krl::number::format_like(f.text(n.span), new, 3));
+            edits.replace(n.span(), krl::number::format_like(f.text(n.span()), new, 3));
             want.push(new);
         }
     }
@@ -703,7 +654,7 @@ fn rewriting_every_number_of_the_cam_program_changes_nothing_else() {
     let g = krl::parse(&out, krl::FileKind::Src).unwrap();
     let got: Vec<f64> = g
         .motions()
-        .flat_map(|(_, m)| m.target.numbers())
+        .flat_map(|(_, m)| g.numbers(&m.target))
         .map(|n| n.value)
         .collect();
     assert_eq!(got.len(), want.len());
@@ -714,8 +665,8 @@ fn rewriting_every_number_of_the_cam_program_changes_nothing_else() {
     let skeleton = |file: &SourceFile| {
         let mut e = krl::Edits::new();
         for (_, m) in file.motions() {
-            for n in m.target.numbers() {
-                e.replace(n.span, "#");
+            for n in file.numbers(&m.target) {
+                e.replace(n.span(), "#");
             }
         }
         e.apply(file.source()).unwrap()

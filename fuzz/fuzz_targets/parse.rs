@@ -1,0 +1,33 @@
+//! Fuzz target for the KRL parser: any bytes, as a program and as a data list, must parse
+//! without panicking, emit back byte for byte, be covered exactly by the tree's tiles, keep
+//! every number's text readable as its value, and render every problem.
+
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use robopost::krl::{self, FileKind};
+
+fuzz_target!(|data: &[u8]| {
+    for kind in [FileKind::Src, FileKind::Dat] {
+        let f = krl::parse_recovering(data, kind);
+        assert_eq!(f.emit(), data);
+        let mut at = 0;
+        for (span, _) in f.tiles() {
+            assert_eq!(span.start as usize, at);
+            at = span.end as usize;
+        }
+        assert_eq!(at, data.len());
+        for (_, m) in f.motions() {
+            for n in f.numbers(&m.target) {
+                let text = std::str::from_utf8(f.text(n.span())).expect("numbers are ASCII");
+                let want: f64 = text.parse().expect("a number's text is a number");
+                assert_eq!(want.to_bits(), n.value.to_bits(), "{text}");
+            }
+        }
+        for p in f.problems() {
+            let _ = f.diagnostic(p, "fuzz.src").render();
+        }
+        let _ = krl::dump::dump(&f);
+        let _ = f.stats();
+    }
+});

@@ -1,0 +1,81 @@
+//! Per-file pools for the nodes a program has by the million — motions, aggregates and their
+//! members — referred to by typed ids. A CAM program of a million `LIN {…}` lines would
+//! otherwise make several million small heap allocations (and as many frees); pooled, parsing
+//! stays at memory speed. `SourceFile` gives access through `motion(id)`, `aggregate(id)` and
+//! `members(aggregate)`.
+
+use super::expr::{Aggregate, Member};
+use super::motion::Motion;
+
+/// A motion statement's data in its file (`SourceFile::motion`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct MotionId(pub u32);
+
+/// An aggregate in its file (`SourceFile::aggregate`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct AggregateId(pub u32);
+
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Nodes {
+    pub motions: Vec<Motion>,
+    pub aggregates: Vec<Aggregate>,
+    /// Members of outermost aggregates, written in place as they are parsed.
+    pub members: Vec<Member>,
+    /// Members of aggregates nested in another one (each run moved here from `scratch` when
+    /// its aggregate closes, so runs stay contiguous while the parent's run grows).
+    pub nested_members: Vec<Member>,
+    pub scratch: Vec<Member>,
+    /// Aggregates open on the current line (reset per line: a failure may leave it high,
+    /// which only sends later aggregates of that line down the nested path).
+    pub agg_depth: u32,
+}
+
+/// Pool sizes before a line was parsed, to drop what a failed line left behind.
+#[derive(Clone, Copy)]
+pub(crate) struct Mark {
+    motions: usize,
+    aggregates: usize,
+    members: usize,
+    nested_members: usize,
+}
+
+impl Nodes {
+    pub fn mark(&self) -> Mark {
+        Mark {
+            motions: self.motions.len(),
+            aggregates: self.aggregates.len(),
+            members: self.members.len(),
+            nested_members: self.nested_members.len(),
+        }
+    }
+
+    pub fn reset(&mut self, m: Mark) {
+        self.motions.truncate(m.motions);
+        self.aggregates.truncate(m.aggregates);
+        self.members.truncate(m.members);
+        self.nested_members.truncate(m.nested_members);
+        self.scratch.clear();
+        self.agg_depth = 0;
+    }
+
+    /// Starts a line: nothing is open.
+    pub fn new_line(&mut self) {
+        self.scratch.clear();
+        self.agg_depth = 0;
+    }
+
+    /// The members of an aggregate.
+    pub fn members_of(&self, a: &Aggregate) -> &[Member] {
+        let pool = if a.nested {
+            &self.nested_members
+        } else {
+            &self.members
+        };
+        &pool[a.range()]
+    }
+
+    /// Releases spare capacity and the scratch buffer once the file is parsed.
+    pub fn finish(&mut self) {
+        self.scratch = Vec::new();
+    }
+}
