@@ -10,8 +10,8 @@ mod cpu_time;
 
 use std::path::Path;
 
-use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use cpu_time::ThreadCpuTime;
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use robopost::compensate::{self, files, program, Calibrated};
 
 const PROGRAM: &str = "fixtures/programs/cam/pocket_milling.src";
@@ -55,9 +55,22 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
             ))
         })
     });
-    let outcomes = compensate::compensate(&model, &sim.frames, &targets, [Default::default(); 6], &serial);
+    let outcomes = compensate::compensate(
+        &model,
+        &sim.frames,
+        &targets,
+        [Default::default(); 6],
+        &serial,
+    );
     g.bench_function("rewrite", |b| {
-        b.iter(|| black_box(compensate::rewrite::rewrite(&ws, &sim, &outcomes, &model.robot)))
+        b.iter(|| {
+            black_box(compensate::rewrite::rewrite(
+                &ws,
+                &sim,
+                &outcomes,
+                &model.robot,
+            ))
+        })
     });
     g.bench_function("whole program in process (1 thread)", |b| {
         b.iter(|| black_box(compensate::compensate_program(&ws, &calibrated, &options)))

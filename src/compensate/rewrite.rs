@@ -106,9 +106,9 @@ fn new_values(
 /// The literal a member's value is written with: (span to replace, literal text).
 fn literal_span(e: &Expr) -> Option<(Span, Span)> {
     match e {
-        Expr::Number(n) => Some((n.span, n.span)),
+        Expr::Number(n) => Some((n.span(), n.span())),
         Expr::Unary(u) => match &u.operand {
-            Expr::Number(n) => Some((u.span, n.span)),
+            Expr::Number(n) => Some((u.span, n.span())),
             _ => None,
         },
         Expr::Paren(p) => literal_span(&p.inner).map(|(_, lit)| (p.span, lit)),
@@ -122,20 +122,21 @@ fn file_separator(file: &SourceFile) -> Vec<u8> {
     for st in file.statements() {
         let mut found = None;
         let mut look = |e: &Expr| {
-            if let (None, Expr::Aggregate(a)) = (&found, e) {
-                if let Some(w) = a.members.windows(2).next() {
-                    found = Some(src[w[0].span.end as usize..w[1].span.start as usize].to_vec());
+            if let (None, Expr::Aggregate(_, id)) = (&found, e) {
+                if let Some(w) = file.members(file.aggregate(*id)).windows(2).next() {
+                    found =
+                        Some(src[w[0].span().end as usize..w[1].span().start as usize].to_vec());
                 }
             }
         };
         match &st.kind {
-            krl::StmtKind::Motion(m) => m.target.visit(&mut look),
-            krl::StmtKind::Assign(a) => a.rhs.visit(&mut look),
+            krl::StmtKind::Motion(m) => file.visit_expr(&file.motion(*m).target, &mut look),
+            krl::StmtKind::Assign(a) => file.visit_expr(&a.rhs, &mut look),
             krl::StmtKind::Decl(d) => d
                 .vars
                 .iter()
                 .filter_map(|v| v.init.as_ref())
-                .for_each(|e| e.visit(&mut look)),
+                .for_each(|e| file.visit_expr(e, &mut look)),
             _ => {}
         }
         if let Some(sep) = found {
@@ -148,14 +149,13 @@ fn file_separator(file: &SourceFile) -> Vec<u8> {
 /// The text between two members (`, `) and between a name and its value (` `).
 fn separators(file: &SourceFile, agg: &Aggregate) -> (Vec<u8>, Vec<u8>) {
     let src = file.source();
-    let sep = agg
-        .members
+    let members = file.members(agg);
+    let sep = members
         .windows(2)
         .next()
-        .map(|w| src[w[0].span.end as usize..w[1].span.start as usize].to_vec())
+        .map(|w| src[w[0].span().end as usize..w[1].span().start as usize].to_vec())
         .unwrap_or_else(|| file_separator(file));
-    let nv = agg
-        .members
+    let nv = members
         .first()
         .map(|m| src[m.name.end as usize..m.value.span().start as usize].to_vec())
         .filter(|v| !v.is_empty())
@@ -175,7 +175,7 @@ fn aggregate_edits(
     let src = file.source();
     let names = if axis { AXIS_NAMES } else { CARTESIAN_NAMES };
     let mut present: [Option<&krl::Member>; 6] = [None; 6];
-    for m in &agg.members {
+    for m in file.members(agg) {
         if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
             if is_axis == axis {
                 present[k] = Some(m);
@@ -245,14 +245,14 @@ fn aggregate_edits(
                 if let Some(next) = (k + 1..6).find_map(|j| present[j]) {
                     entry.extend_from_slice(&sep);
                     edits.push(Edit {
-                        range: next.span.start as usize..next.span.start as usize,
+                        range: next.span().start as usize..next.span().start as usize,
                         bytes: entry,
                     });
                 } else if let Some(prev) = (0..k).rev().find_map(|j| present[j]) {
                     let mut text = sep.clone();
                     text.extend_from_slice(&entry);
                     edits.push(Edit {
-                        range: prev.span.end as usize..prev.span.end as usize,
+                        range: prev.span().end as usize..prev.span().end as usize,
                         bytes: text,
                     });
                 } else {
@@ -344,7 +344,7 @@ fn literal_decimals(text: &[u8]) -> usize {
 pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
     let src = file.source();
     let mut own = [None; 6];
-    for m in &agg.members {
+    for m in file.members(agg) {
         if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
             if is_axis == axis {
                 own[k] = literal_span(&m.value).map(|(_, lit)| literal_decimals(file.text(lit)));
@@ -359,7 +359,7 @@ pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
 fn original_values(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<f64>; 6] {
     let src = file.source();
     let mut out = [None; 6];
-    for m in &agg.members {
+    for m in file.members(agg) {
         if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
             if is_axis == axis {
                 out[k] = value::literal(&m.value);
@@ -678,7 +678,7 @@ fn copy_declaration(
 fn ilf_of(file: &SourceFile, site: Span) -> Option<(Span, Vec<u8>)> {
     let stmt = file
         .motions()
-        .find(|(s, _)| s.span.contains(site))
+        .find(|(s, _)| s.span().contains(site))
         .map(|(s, _)| s)?;
     let (fold, ilf) = file.inline_form(stmt)?;
     let m = ilf.motion.as_ref()?;
@@ -688,7 +688,7 @@ fn ilf_of(file: &SourceFile, site: Span) -> Option<(Span, Vec<u8>)> {
         .iter()
         .map(|p| file.text(*p))
         .find(|p| name.len() == p.len() + 1 && name[1..].eq_ignore_ascii_case(p))?;
-    let end = fold.close.map_or(stmt.span.end, |c| c.end);
+    let end = fold.close.map_or(stmt.span().end, |c| c.end);
     Some((
         Span {
             start: fold.open.start,
@@ -754,17 +754,17 @@ fn rename_in_fold(
         };
         match &st.kind {
             krl::StmtKind::Assign(a) => {
-                a.lhs.visit(&mut visit);
-                a.rhs.visit(&mut visit);
+                f.visit_expr(&a.lhs, &mut visit);
+                f.visit_expr(&a.rhs, &mut visit);
             }
             krl::StmtKind::Motion(m) => {
-                for w in &m.with {
-                    w.value.visit(&mut visit);
+                for w in f.motion(*m).with() {
+                    f.visit_expr(&w.value, &mut visit);
                 }
             }
             krl::StmtKind::Call(c) => {
                 for a in c.args.iter().flatten() {
-                    a.visit(&mut visit);
+                    f.visit_expr(a, &mut visit);
                 }
             }
             _ => {}

@@ -415,7 +415,8 @@ impl<'f> Simulator<'f> {
             return Flow::Return;
         }
         match &s.kind {
-            StmtKind::Motion(m) => {
+            StmtKind::Motion(id) => {
+                let m = self.src(file).motion(*id);
                 self.motion(file, s, m, scope);
                 Flow::Next
             }
@@ -877,8 +878,8 @@ impl<'f> Simulator<'f> {
             let name = upper(self.src(file).text(p.root));
             let fake = Stmt {
                 leading: w.span,
-                span: w.span,
                 head: w.span,
+                end: w.span.end,
                 line: 0,
                 fold: None,
                 kind: StmtKind::Opaque,
@@ -927,7 +928,9 @@ impl<'f> Simulator<'f> {
                 None => Value::Unknown("a bit literal".into()),
             },
             Expr::Str(_) => Value::Unknown("a string".into()),
-            Expr::Aggregate(a) => value::aggregate(src, file, a, |e| self.eval(file, e, scope)),
+            Expr::Aggregate(_, id) => {
+                value::aggregate(src, file, src.aggregate(*id), |e| self.eval(file, e, scope))
+            }
             Expr::Path(p) => self.path(file, p, scope),
             Expr::Paren(p) => self.eval(file, &p.inner, scope),
             Expr::Unary(u) => {
@@ -1314,7 +1317,7 @@ impl<'f> Simulator<'f> {
     }
 
     fn motion(&mut self, file: FileId, s: &'f Stmt, m: &'f Motion, scope: &mut Scope<'f>) {
-        let saved = self.apply_with(file, &m.with, scope);
+        let saved = self.apply_with(file, m.with(), scope);
         self.motion_inner(file, s, m, scope);
         if let Some(saved) = saved {
             self.restore(saved);
@@ -1352,7 +1355,7 @@ impl<'f> Simulator<'f> {
             }
         });
         // An axis target of a PTP needs no frame (the tool only weighs orientation errors).
-        let needs_frames = !pos.axis || !m.kind.is_joint() || m.aux.is_some();
+        let needs_frames = !pos.axis || !m.kind.is_joint() || m.aux().is_some();
         let (base, tool) = if needs_frames {
             match self.motion_frames(file, s) {
                 Some(f) => f,
@@ -1384,7 +1387,7 @@ impl<'f> Simulator<'f> {
         // Circular motions: the auxiliary point first.
         let mut aux_stop = None;
         let mut circle = None;
-        if let Some(aux_expr) = &m.aux {
+        if let Some(aux_expr) = m.aux() {
             let aux = self.eval(file, aux_expr, scope);
             let Value::Pos(aux) = aux else {
                 let why = reason(&aux, "the auxiliary point");
@@ -1479,7 +1482,7 @@ impl<'f> Simulator<'f> {
                 origin: aux.origin,
                 reference: aux_ref,
                 prev: cur.stop,
-                compensable: aux.origin.is_some() && m.angle.is_none(),
+                compensable: aux.origin.is_some() && m.angle().is_none(),
             });
             aux_stop = Some((self.out.stops.len() - 1) as u32);
             circle = Some(cart);
@@ -1534,7 +1537,7 @@ impl<'f> Simulator<'f> {
         };
         // `CA`: the motion ends on the circle at that angle (orientation of the target), not at
         // the target; the stops are kept for the directions but left unchanged.
-        if let (Some(ca), Some(cart), Some(cur)) = (&m.angle, &circle, current) {
+        if let (Some(ca), Some(cart), Some(cur)) = (m.angle(), &circle, current) {
             let angle = self.eval(file, &ca.value, scope).as_f64();
             let ended = angle.and_then(|a| cart.with_arc_angle(a, &goal.rotation));
             let Some(arc) = ended else {
@@ -1635,7 +1638,7 @@ impl<'f> Simulator<'f> {
             .is_some_and(|o| self.ws.get(o.file).role == super::workspace::Role::Config);
         let compensable = pos.origin.is_some()
             && !in_config
-            && m.angle.is_none()
+            && m.angle().is_none()
             && (!pos.axis || robot.within_limits(&q));
         if pos.origin.is_none() {
             self.warn(

@@ -163,7 +163,7 @@ pub fn aggregate<'f>(
     };
     let mut fdat = Fdat::default();
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
-    for m in &agg.members {
+    for m in file.members(agg) {
         let name = &src[m.name.range()];
         let is = |word: &str| name.eq_ignore_ascii_case(word.as_bytes());
         match () {

@@ -470,4 +470,3 @@ fn one_step_versus_iteration() {
         }
     }
 }
-
