@@ -208,11 +208,17 @@ pub fn run(args: Args) -> Exit {
             return Exit::Usage;
         }
     } else {
+        if std::env::var_os("ROBOPOST_TIMING").is_some() {
+            eprintln!("compensated: {:.3} s", t0.elapsed().as_secs_f64());
+        }
         let outputs = files::outputs(&ws, &result.files, &args.out);
         if let Err(e) = files::write_atomic(&outputs) {
             eprintln!("error: writing {}: {e}", args.out.display());
             return Exit::Usage;
         }
+    }
+    if std::env::var_os("ROBOPOST_TIMING").is_some() {
+        eprintln!("written: {:.3} s", t0.elapsed().as_secs_f64());
     }
     if let Some(path) = &args.report {
         let json = serde_json::to_string_pretty(&result.report).unwrap_or_default() + "\n";

@@ -97,8 +97,9 @@ pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
         let mut tmp = tempfile::Builder::new()
             .prefix(".robopost-")
             .tempfile_in(dir)?;
+        // No fsync: like `cp`, durability against power loss is the file system's business;
+        // the rename still guarantees that a reader sees the old file or the whole new one.
         tmp.write_all(bytes)?;
-        tmp.as_file().sync_all()?;
         staged.push((tmp, path));
     }
     for (tmp, path) in staged {

@@ -424,44 +424,88 @@ pub fn rewrite(
             None => Some(Err(Skip::NotLiteral(i))),
         }
     };
-    let computed: Vec<Option<Result<Use, Skip>>> = (0..sim.stops.len())
+    // Which aggregates are written by more than one execution: sort the (origin, stop)
+    // keys; an origin used once (every target of a CAM program) takes the fast path.
+    let mut keys: Vec<(FileId, u32, u32)> = (0..sim.stops.len())
+        .into_par_iter()
+        .with_min_len(4096)
+        .filter_map(|i| {
+            let (stop, o) = (&sim.stops[i], &outcomes[i]);
+            let origin = stop.origin?;
+            (stop.compensable && o.changed && o.error.is_none()).then_some((
+                origin.file,
+                origin.agg.span.start,
+                i as u32,
+            ))
+        })
+        .collect();
+    keys.par_sort_unstable();
+    let shared = |k: usize| {
+        let same = |j: usize| keys[j].0 == keys[k].0 && keys[j].1 == keys[k].1;
+        (k > 0 && same(k - 1)) || (k + 1 < keys.len() && same(k + 1))
+    };
+    let mut skips: Vec<Skip> = Vec::new();
+    let report = |skip: Skip, out: &mut Rewrite| match skip {
+        Skip::Relative(i) => {
+            let stop = &sim.stops[i];
+            out.diagnostics.push(ws.diagnostic(
+                Severity::Warning,
+                stop.file,
+                stop.stmt.head,
+                "a relative target after an unknown position cannot be rewritten: left unchanged",
+            ));
+        }
+        Skip::NotLiteral(i) => {
+            let origin = sim.stops[i].origin.expect("skipped for its origin");
+            out.diagnostics.push(ws.diagnostic(
+                Severity::Warning,
+                origin.file,
+                origin.agg.span,
+                "this position's numbers are not plain literals: left unchanged",
+            ));
+        }
+    };
+    // Fast path, in parallel: the edits straight into one list per file.
+    type Chunk = (Vec<(FileId, Edit)>, Vec<Skip>);
+    let single: Vec<Chunk> = (0..keys.len())
         .into_par_iter()
         .with_min_len(1024)
-        .map(per_stop)
+        .filter(|&k| !shared(k))
+        .fold(
+            || (Vec::new(), Vec::new()),
+            |(mut edits, mut skips), k| {
+                match per_stop(keys[k].2 as usize) {
+                    Some(Ok(u)) => edits.extend(u.edits.into_iter().map(|e| (keys[k].0, e))),
+                    Some(Err(s)) => skips.push(s),
+                    None => {}
+                }
+                (edits, skips)
+            },
+        )
         .collect();
-    let mut all: Vec<Use> = Vec::with_capacity(computed.len());
-    for c in computed.into_iter().flatten() {
-        match c {
-            Ok(u) => all.push(u),
-            Err(Skip::Relative(i)) => {
-                let stop = &sim.stops[i];
-                out.diagnostics.push(ws.diagnostic(
-                    Severity::Warning,
-                    stop.file,
-                    stop.stmt.head,
-                    "a relative target after an unknown position cannot be rewritten: left unchanged",
-                ));
+    for (edits, s) in single {
+        for (file, e) in edits {
+            out.edits.entry(file).or_default().push(e);
+        }
+        skips.extend(s);
+    }
+    // Shared origins, grouped, in execution order.
+    let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
+    for k in (0..keys.len()).filter(|&k| shared(k)) {
+        match per_stop(keys[k].2 as usize) {
+            Some(Ok(u)) => {
+                let key = (keys[k].0, keys[k].1);
+                match uses.last_mut() {
+                    Some((last, list)) if *last == key => list.push(u),
+                    _ => uses.push((key, vec![u])),
+                }
             }
-            Err(Skip::NotLiteral(i)) => {
-                let origin = sim.stops[i].origin.expect("skipped for its origin");
-                out.diagnostics.push(ws.diagnostic(
-                    Severity::Warning,
-                    origin.file,
-                    origin.agg.span,
-                    "this position's numbers are not plain literals: left unchanged",
-                ));
-            }
+            Some(Err(s)) => skips.push(s),
+            None => {}
         }
     }
-    // Group the uses of each origin (file, aggregate start), keeping execution order.
-    let key = |u: &Use| (u.origin.file, u.origin.agg.span.start);
-    all.par_sort_by_key(|u| (key(u), u.stop));
-    let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
-    for u in all {
-        match uses.last_mut() {
-            Some((k, list)) if *k == key(&u) => list.push(u),
-            _ => uses.push((key(&u), vec![u])),
-        }
+    for s in skips {
+        report(s, &mut out);
     }
     let mut taken: HashSet<Vec<u8>> = HashSet::new();
     for ((file, _), list) in uses {

@@ -549,7 +549,7 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
         state = outcomes[k].directions;
     }
     if std::env::var_os("ROBOPOST_TIMING").is_some() {
-        eprintln!("recheck: {n_expected} re-solved for the compensated state, {n_actual} for the compensated motion");
+        eprintln!("  re-solved: {n_expected} for the compensated state, {n_actual} for the compensated motion");
     }
 }
 

@@ -223,6 +223,16 @@ pub struct Arrival {
     pub end: [f64; 6],
 }
 
+/// Whether a straight segment is short enough to need no samples inside it (the arrival rate
+/// at its end then depends on its two ends only, so it can be computed later, in parallel).
+pub fn lin_needs_no_samples(start: &Frame, end: &Frame) -> bool {
+    let length = (end.position - start.position).norm();
+    let turn = frame::log_so3(&(end.rotation * start.rotation.transpose()))
+        .norm()
+        .to_degrees();
+    length <= PITCH_MM && turn <= PITCH_DEG
+}
+
 /// How every axis arrives at the end of a segment from `start` to `end` (TCP, axes).
 pub fn arrival(
     robot: &RobotDescription,

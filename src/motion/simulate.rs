@@ -89,6 +89,8 @@ pub struct Stop<'f> {
     pub prev: Option<u32>,
     /// False when the target must be left as written (a warning says why).
     pub compensable: bool,
+    /// The arrival is computed after the walk (short LIN segment, see `simulate`).
+    deferred: bool,
 }
 
 /// The simulated program.
@@ -163,7 +165,47 @@ pub fn simulate<'f>(
     let motions: usize = ws.files.iter().map(|f| f.file.motions().count()).sum();
     sim.out.stops.reserve(motions);
     sim.run();
-    sim.out
+    let mut out = sim.out;
+    finish(&mut out, robot);
+    out
+}
+
+/// The deferred arrival rates of short LIN segments, in parallel: each needs only its own end
+/// and the start the walk recorded (the previous stop's axes).
+fn finish(sim: &mut Simulation, robot: &RobotDescription) {
+    use rayon::prelude::*;
+    let rates: Vec<Option<[f64; 6]>> = (0..sim.stops.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|k| {
+            let stop = &sim.stops[k];
+            if !stop.deferred {
+                return None;
+            }
+            let prev = &sim.stops[stop.prev? as usize];
+            let tool = &sim.frames[stop.tool as usize];
+            let start = Nominal(robot).tcp(&prev.nominal_axes, tool);
+            let cart = Cartesian::new(&start, &stop.goal, &Path::Lin).ok()?;
+            let a = interpolate::arrival_along(
+                robot,
+                tool,
+                &cart,
+                1.0,
+                &prev.nominal_axes,
+                &stop.nominal_axes,
+            );
+            Some(match a {
+                Ok(a) => a.rate,
+                Err(_) => std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
+            })
+        })
+        .collect();
+    for (stop, rate) in sim.stops.iter_mut().zip(rates) {
+        if stop.deferred {
+            stop.arrival = rate;
+            stop.deferred = false;
+        }
+    }
 }
 
 struct Simulator<'f> {
@@ -1371,7 +1413,18 @@ impl<'f> Simulator<'f> {
             )
         };
         let current = self.state.current;
-        let start_tcp = current.map(|c| Nominal(&self.robot).tcp(&c.axes, &tool));
+        // Where the TCP starts: the previous target's goal when it was reached with the same
+        // tool (the controller's axes there reproduce it), else the FK of the axes.
+        let start_tcp = current.map(|c| {
+            let same_tool = c
+                .stop
+                .map(|i| &self.out.stops[i as usize])
+                .filter(|p| p.role == Role::Target && self.out.frames[p.tool as usize] == tool);
+            match same_tool {
+                Some(p) if p.nominal_axes == c.axes => p.goal,
+                _ => Nominal(&self.robot).tcp(&c.axes, &tool),
+            }
+        });
         // The programmed position, completed as the controller does.
         let Some((programmed, goal, s_t)) =
             self.complete(&pos, rel, current, &base, &tool, start_tcp.as_ref())
@@ -1483,6 +1536,7 @@ impl<'f> Simulator<'f> {
                 reference: aux_ref,
                 prev: cur.stop,
                 compensable: aux.origin.is_some() && m.angle().is_none(),
+                deferred: false,
             });
             aux_stop = Some((self.out.stops.len() - 1) as u32);
             circle = Some(cart);
@@ -1600,6 +1654,7 @@ impl<'f> Simulator<'f> {
                 reference: None,
                 prev: aux_stop,
                 compensable: false,
+                deferred: false,
             });
             let idx = (self.out.stops.len() - 1) as u32;
             self.state.current = Some(Current {
@@ -1618,7 +1673,16 @@ impl<'f> Simulator<'f> {
             Path::Lin
         };
         let mut q = q;
+        let mut deferred = false;
         let arrival = match (current, start_tcp) {
+            // A short straight segment: its arrival rate is computed after the walk, in
+            // parallel with all the others (`finish`).
+            (Some(_), Some(start))
+                if path == Path::Lin && interpolate::lin_needs_no_samples(&start, &goal) =>
+            {
+                deferred = true;
+                None
+            }
             (Some(cur), Some(start)) => {
                 match interpolate::arrival(&robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
                     Ok(a) => {
@@ -1675,6 +1739,7 @@ impl<'f> Simulator<'f> {
             reference,
             prev: aux_stop.or(current.and_then(|c| c.stop)),
             compensable,
+            deferred,
         });
         let idx = (self.out.stops.len() - 1) as u32;
         if !pos.axis && rel.is_none() {
