@@ -10,6 +10,7 @@
 pub mod calibration;
 pub mod cli;
 pub mod compare;
+pub mod compensate;
 pub mod diagnose;
 pub mod diagnostic;
 pub mod identify;
@@ -17,6 +18,7 @@ pub mod kinematics;
 pub mod krl;
 pub mod measure;
 pub mod model;
+pub mod motion;
 pub mod report;
 pub mod simulate;
 pub mod stats;

@@ -19,6 +19,8 @@ pub struct Args {
     /// Calibration: also simulate the motion and report unreachable or near-singular targets.
     #[arg(short = 'c', long = "cal")]
     pub cal: Option<PathBuf>,
+    #[command(flatten)]
+    pub program: super::compensate::ProgramArgs,
 }
 
 pub fn run(args: Args) -> Exit {
@@ -52,15 +54,10 @@ pub fn run(args: Args) -> Exit {
         }
     }
     if let Some(cal) = &args.cal {
-        // HOOK(compensation): simulate `programs` with the calibration at `cal` here (motion
-        // simulation: joint angles and rotation directions at every target) and report
-        // unreachable or near-singular targets; merge its exit status with `exit`.
-        let _ = &programs;
-        eprintln!(
-            "error: `check -c {}`: motion simulation is not available in this build yet",
-            cal.display()
-        );
-        return worse(exit, Exit::Usage);
+        // Simulate and compensate in memory: unreachable, out-of-limit and near-singular
+        // targets, nothing written.
+        let sim = super::compensate::check_programs(&args.files, cal, &args.program);
+        exit = worse(exit, sim);
     }
     exit
 }

@@ -6,6 +6,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod batch;
 pub mod check;
 pub mod compare;
 pub mod compensate;
@@ -15,7 +16,7 @@ pub mod kin;
 pub mod simulate;
 
 /// Exit status per `../shared/CONTRACTS.md`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Exit {
     /// The job ran and every input was accepted.
     Success = 0,
@@ -40,6 +41,8 @@ pub struct Cli {
 pub enum Command {
     /// Compensate one program (the default: `robopost IN.src -c CAL.json -o OUT.src`).
     Compensate(compensate::Args),
+    /// Compensate a library of programs in parallel into a mirrored tree.
+    Batch(batch::Args),
     /// Parse (and with -c simulate) programs and report problems; writes nothing.
     Check(check::Args),
     /// Flange pose of axis angles, nominal or as the calibrated model predicts.
@@ -97,6 +100,7 @@ pub fn main() -> i32 {
     };
     let exit = match cli.command {
         Command::Compensate(a) => compensate::run(a),
+        Command::Batch(a) => batch::run(a),
         Command::Check(a) => check::run(a),
         Command::Fk(a) => kin::run_fk(a),
         Command::Ik(a) => kin::run_ik(a),

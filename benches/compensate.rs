@@ -1,0 +1,89 @@
+//! Compensation cost per phase on the CAM fixture `fixtures/programs/cam/pocket_milling.src`
+//! (22 506 LIN targets, the paper's full model from `calibrations/kr30ha-handset.json`):
+//! parse + load, motion simulation, the compensation itself (one thread), rewrite, and the
+//! whole program in process. CPU time of the benchmark thread (the machine is shared). The
+//! end-to-end runs on a generated 1 000 000-point program and a 1000 × 1000 batch are in
+//! `scripts/bench_compensate.sh` (wall time and peak memory with /usr/bin/time).
+
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
+
+use std::path::Path;
+
+use cpu_time::ThreadCpuTime;
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use robopost::compensate::{self, files, program, Calibrated};
+
+const PROGRAM: &str = "fixtures/programs/cam/pocket_milling.src";
+const CAL: &str = "calibrations/kr30ha-handset.json";
+
+fn phases(c: &mut Criterion<ThreadCpuTime>) {
+    let cal_bytes = std::fs::read(CAL).expect("calibration");
+    let cal = robopost::calibration::parse(&String::from_utf8_lossy(&cal_bytes), Path::new(CAL))
+        .expect("valid calibration");
+    let model = cal.model();
+    let calibrated = Calibrated::new(&model, "kr30ha-handset.json", &cal_bytes);
+    let bytes = std::fs::read(PROGRAM).expect("fixture");
+    let ws = files::load_program(Some(Path::new(PROGRAM)), &bytes, None).expect("parses");
+    let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
+    let targets = program::targets(&ws, &sim);
+    let n = targets.len();
+    let serial = compensate::Options {
+        method: compensate::Method::Iterate,
+        parallel: false,
+    };
+    let options = program::Options {
+        parallel: false,
+        ..Default::default()
+    };
+    let mut g = c.benchmark_group(format!("pocket_milling ({n} targets)"));
+    g.sample_size(10);
+    g.bench_function("load (parse .src)", |b| {
+        b.iter(|| black_box(files::load_program(Some(Path::new(PROGRAM)), &bytes, None).unwrap()))
+    });
+    g.bench_function("simulate", |b| {
+        b.iter(|| black_box(robopost::motion::simulate(&ws, &model.robot, &[])))
+    });
+    g.bench_function("compensate targets (1 thread)", |b| {
+        b.iter(|| {
+            black_box(compensate::compensate(
+                &model,
+                &sim.frames,
+                &targets,
+                [Default::default(); 6],
+                &serial,
+            ))
+        })
+    });
+    let outcomes = compensate::compensate(
+        &model,
+        &sim.frames,
+        &targets,
+        [Default::default(); 6],
+        &serial,
+    );
+    g.bench_function("rewrite", |b| {
+        b.iter(|| {
+            black_box(compensate::rewrite::rewrite(
+                &ws,
+                &sim,
+                &outcomes,
+                &model.robot,
+            ))
+        })
+    });
+    g.bench_function("whole program in process (1 thread)", |b| {
+        b.iter(|| black_box(compensate::compensate_program(&ws, &calibrated, &options)))
+    });
+    g.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .with_measurement(ThreadCpuTime::new())
+        .measurement_time(std::time::Duration::from_secs(8))
+        .warm_up_time(std::time::Duration::from_secs(1));
+    targets = phases
+}
+criterion_main!(benches);

@@ -1,0 +1,195 @@
+//! `robopost batch IN_DIR... -c CAL.json -o OUT_DIR [--jobs N]`: compensate a library of
+//! programs in parallel into a mirrored tree; a progress bar on a terminal, a summary at the
+//! end, every failure reported without stopping the others.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use rayon::prelude::*;
+
+use super::compensate::{calibrated, load_calibration, ProgramArgs};
+use super::Exit;
+use crate::compensate::batch::{self, Done};
+use crate::compensate::files;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Directories (searched recursively) or single programs.
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// Calibration file.
+    #[arg(short = 'c', long = "cal")]
+    pub cal: PathBuf,
+    /// Output directory: the input tree is mirrored under it.
+    #[arg(short = 'o', long = "out")]
+    pub out: PathBuf,
+    /// Worker threads (default: one per core).
+    #[arg(short = 'j', long = "jobs")]
+    pub jobs: Option<usize>,
+    /// Write a JSON summary of every program (per-program report without the point list).
+    #[arg(long = "report", value_name = "FILE.json")]
+    pub report: Option<PathBuf>,
+    #[command(flatten)]
+    pub program: ProgramArgs,
+}
+
+pub fn run(args: Args) -> Exit {
+    let (cal, cal_bytes) = match load_calibration(&args.cal) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Exit::Usage;
+        }
+    };
+    for input in &args.inputs {
+        if !input.exists() {
+            eprintln!("error: {}: no such file or directory", input.display());
+            return Exit::Usage;
+        }
+        let overlap = files::same_file(input, &args.out)
+            || args
+                .out
+                .canonicalize()
+                .ok()
+                .zip(input.canonicalize().ok())
+                .is_some_and(|(o, i)| o.starts_with(&i) && i.is_dir());
+        if overlap {
+            eprintln!(
+                "error: the output directory {} is inside the input {}: choose another output",
+                args.out.display(),
+                input.display()
+            );
+            return Exit::Usage;
+        }
+    }
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .num_threads(args.jobs.unwrap_or(0))
+        .build()
+    {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: --jobs: {e}");
+            return Exit::Usage;
+        }
+    };
+    pool.install(|| run_in_pool(&args, &cal, &cal_bytes))
+}
+
+fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[u8]) -> Exit {
+    let plan = match batch::plan(&args.inputs, &args.out) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: reading the inputs: {e}");
+            return Exit::Usage;
+        }
+    };
+    let calibrated = calibrated(cal, &args.cal, cal_bytes);
+    let options = args.program.options(true, false);
+    let config = args.program.config.as_deref();
+    let bar = if std::io::stderr().is_terminal() {
+        let b = indicatif::ProgressBar::new((plan.jobs.len() + plan.copies.len()) as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} programs  {elapsed_precise}  {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let failed_count = AtomicUsize::new(0);
+    let done: Vec<(PathBuf, Done)> = plan
+        .jobs
+        .par_iter()
+        .map(|job| {
+            let d = batch::run_job(job, &calibrated, &options, config);
+            if matches!(d, Done::Failed { .. }) {
+                let n = failed_count.fetch_add(1, Ordering::Relaxed) + 1;
+                bar.set_message(format!("{n} failed"));
+            }
+            bar.inc(1);
+            (job.src.clone(), d)
+        })
+        .collect();
+    let copy_errors: Vec<String> = plan
+        .copies
+        .par_iter()
+        .filter_map(|(from, to)| {
+            let r = batch::copy(from, to).err();
+            bar.inc(1);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+    // Summary.
+    let mut exit = super::Exit::Success;
+    let (mut written, mut targets, mut compensated, mut target_errors, mut warnings) =
+        (0, 0, 0, 0, 0);
+    let mut max_um: f64 = 0.0;
+    let mut reports = Vec::new();
+    for (path, d) in &done {
+        match d {
+            Done::Written {
+                report,
+                target_errors: te,
+                warnings: w,
+            } => {
+                written += 1;
+                targets += report.targets;
+                compensated += report.compensated;
+                target_errors += te;
+                warnings += w;
+                max_um = max_um.max(report.correction.position_um.max);
+                if *te > 0 {
+                    eprintln!(
+                        "{}: {te} target(s) left unchanged by an error (see `robopost check`)",
+                        path.display()
+                    );
+                    exit = super::Exit::Rejected;
+                }
+                reports.push(report.as_ref());
+            }
+            Done::Failed { message } => {
+                eprintln!("{}: failed, nothing written\n{message}", path.display());
+                exit = super::Exit::Rejected;
+            }
+        }
+    }
+    for (path, e) in &plan.unreadable {
+        eprintln!("{}: unreadable: {e}", path.display());
+        exit = super::Exit::Rejected;
+    }
+    for e in &copy_errors {
+        eprintln!("error: {e}");
+        exit = super::Exit::Rejected;
+    }
+    let failed = done.len() - written + plan.unreadable.len();
+    eprintln!(
+        "batch: {written} of {} programs written, {failed} failed, {} other files copied; {compensated} of {targets} targets compensated (max correction {max_um:.1} µm), {target_errors} targets rejected, {warnings} warnings",
+        done.len() + plan.unreadable.len(),
+        plan.copies.len() - copy_errors.len(),
+    );
+    if let Some(path) = &args.report {
+        let json = serde_json::json!({
+            "programs": done.len() + plan.unreadable.len(),
+            "written": written,
+            "failed": failed,
+            "targets": targets,
+            "compensated": compensated,
+            "rejected_targets": target_errors,
+            "reports": reports,
+            "failures": done.iter().filter_map(|(p, d)| match d {
+                Done::Failed { message } => Some(serde_json::json!({ "program": p.display().to_string(), "message": message })),
+                _ => None,
+            }).collect::<Vec<_>>(),
+        });
+        let text = serde_json::to_string_pretty(&json).unwrap_or_default() + "\n";
+        if let Err(e) = files::write_atomic(&[(path.clone(), text.as_bytes())]) {
+            eprintln!("error: writing {}: {e}", path.display());
+            return super::Exit::Usage;
+        }
+    }
+    exit
+}

@@ -1,0 +1,218 @@
+//! A library of programs: find the programs under some directories, compensate them in
+//! parallel (rayon over programs, and over targets inside large ones), write each program's
+//! files atomically into a mirrored tree, and collect every failure without stopping the
+//! others — the shape of `sd`: transform in parallel, then write atomically, report all.
+//!
+//! A `.src` whose routine is called by another program of its directory is a module (RoboDK
+//! numbered files): it is compensated as part of its caller, not on its own. KRL files that
+//! belong to no program (a lone `.dat`, an uncalled `.sub`) are copied unchanged so that the
+//! output tree is a complete library.
+
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::diagnostic::Severity;
+use crate::krl::{self, FileKind, StmtKind};
+
+use super::files;
+use super::program::{self, Calibrated, Report};
+
+/// One program of the library and where its files go.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// The `.src` (its `.dat` and modules are found beside it).
+    pub src: PathBuf,
+    /// Output path of the `.src`.
+    pub out: PathBuf,
+}
+
+/// What happened to one program.
+#[derive(Debug)]
+pub enum Done {
+    /// Written; `target_errors` targets were left unchanged by an error of their own.
+    Written {
+        report: Box<Report>,
+        target_errors: usize,
+        warnings: usize,
+    },
+    /// Rejected (parse error, unknown frame, …) or not readable/writable: nothing written.
+    Failed { message: String },
+}
+
+/// The plan of a batch: programs to compensate and files to copy as they are.
+#[derive(Debug, Default)]
+pub struct Plan {
+    pub jobs: Vec<Job>,
+    pub copies: Vec<(PathBuf, PathBuf)>,
+    /// Files that could not be read while planning.
+    pub unreadable: Vec<(PathBuf, String)>,
+}
+
+fn is_krl(p: &Path) -> bool {
+    p.extension().is_some_and(|e| {
+        ["src", "dat", "sub"]
+            .iter()
+            .any(|k| e.eq_ignore_ascii_case(k))
+    })
+}
+
+fn is_src(p: &Path) -> bool {
+    p.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("src") || e.eq_ignore_ascii_case("sub"))
+}
+
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            walk(&p, out)?;
+        } else if is_krl(&p) {
+            out.push(p);
+        }
+    }
+    Ok(())
+}
+
+/// Routine names a program calls (upper case), or why it could not be read.
+type Called = Result<HashSet<Vec<u8>>, String>;
+
+/// Routine names called by a `.src` (upper case), if it parses.
+fn calls(path: &Path) -> Result<HashSet<Vec<u8>>, String> {
+    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+    let file = krl::parse_recovering(&bytes, FileKind::Src);
+    let mut out = HashSet::new();
+    for st in file.statements() {
+        if let StmtKind::Call(c) = &st.kind {
+            out.insert(file.text(c.name).to_ascii_uppercase());
+        }
+    }
+    Ok(out)
+}
+
+/// Finds the programs under `inputs` (directories or single `.src` files), mirrored under
+/// `out_dir`.
+pub fn plan(inputs: &[PathBuf], out_dir: &Path) -> std::io::Result<Plan> {
+    let mut plan = Plan::default();
+    for input in inputs {
+        let (root, found) = if input.is_dir() {
+            let mut v = Vec::new();
+            walk(input, &mut v)?;
+            (input.clone(), v)
+        } else {
+            let parent = input.parent().map(Path::to_path_buf).unwrap_or_default();
+            let mut v = vec![input.clone()];
+            if let Some(d) = krl::companion_dat(input) {
+                v.push(d);
+            }
+            (parent, v)
+        };
+        let srcs: Vec<&PathBuf> = found.iter().filter(|p| is_src(p)).collect();
+        let called: Vec<(PathBuf, Called)> =
+            srcs.par_iter().map(|p| ((*p).clone(), calls(p))).collect();
+        // Names called per directory.
+        let mut by_dir: HashMap<PathBuf, HashSet<Vec<u8>>> = HashMap::new();
+        for (p, c) in &called {
+            match c {
+                Ok(names) => by_dir
+                    .entry(p.parent().map(Path::to_path_buf).unwrap_or_default())
+                    .or_default()
+                    .extend(names.iter().cloned()),
+                Err(e) => plan.unreadable.push((p.clone(), e.clone())),
+            }
+        }
+        let mirrored = |p: &Path| out_dir.join(p.strip_prefix(&root).unwrap_or(p));
+        let mut taken: HashSet<PathBuf> = HashSet::new();
+        for p in &srcs {
+            let dir = p.parent().map(Path::to_path_buf).unwrap_or_default();
+            let stem = p
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_ascii_uppercase().into_bytes())
+                .unwrap_or_default();
+            let module = by_dir.get(&dir).is_some_and(|n| n.contains(&stem));
+            if module || plan.unreadable.iter().any(|(u, _)| u == *p) {
+                continue;
+            }
+            plan.jobs.push(Job {
+                src: (*p).clone(),
+                out: mirrored(p),
+            });
+            taken.insert((*p).clone());
+            if let Some(d) = krl::companion_dat(p) {
+                taken.insert(d);
+            }
+        }
+        // Modules are written by their callers; anything else is copied.
+        for p in &found {
+            if taken.contains(p) {
+                continue;
+            }
+            let stem_called =
+                is_src(p) || p.extension().is_some_and(|e| e.eq_ignore_ascii_case("dat"));
+            let dir = p.parent().map(Path::to_path_buf).unwrap_or_default();
+            let stem = p
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_ascii_uppercase().into_bytes())
+                .unwrap_or_default();
+            if stem_called && by_dir.get(&dir).is_some_and(|n| n.contains(&stem)) {
+                continue;
+            }
+            plan.copies.push((p.clone(), mirrored(p)));
+        }
+    }
+    Ok(plan)
+}
+
+/// Compensates one program and writes its files atomically.
+pub fn run_job(
+    job: &Job,
+    cal: &Calibrated,
+    options: &program::Options,
+    config: Option<&Path>,
+) -> Done {
+    let failed = |message: String| Done::Failed { message };
+    let bytes = match std::fs::read(&job.src) {
+        Ok(b) => b,
+        Err(e) => return failed(format!("{}: {e}", job.src.display())),
+    };
+    let ws = match files::load_program(Some(&job.src), &bytes, config) {
+        Ok(ws) => ws,
+        Err(e) => return failed(e.to_string()),
+    };
+    drop(bytes);
+    let result = program::compensate_program(&ws, cal, options);
+    let warnings = result
+        .diagnostics
+        .iter()
+        .filter(|d| d.severity == Severity::Warning)
+        .count();
+    if result.rejected {
+        let text: Vec<String> = result
+            .diagnostics
+            .iter()
+            .filter(|d| d.severity == Severity::Error)
+            .map(|d| d.render())
+            .collect();
+        return failed(text.join("\n"));
+    }
+    let outputs = files::outputs(&ws, &result.files, &job.out);
+    if let Err(e) = files::write_atomic(&outputs) {
+        return failed(format!("writing {}: {e}", job.out.display()));
+    }
+    Done::Written {
+        report: Box::new(result.report),
+        target_errors: result.target_errors,
+        warnings,
+    }
+}
+
+/// Copies a file atomically.
+pub fn copy(from: &Path, to: &Path) -> Result<(), String> {
+    let bytes = std::fs::read(from).map_err(|e| format!("{}: {e}", from.display()))?;
+    files::write_atomic(&[(to.to_path_buf(), bytes.as_slice())])
+        .map_err(|e| format!("writing {}: {e}", to.display()))
+}

@@ -1,0 +1,127 @@
+//! Reading a program from disk (the `.src`, the `.dat` beside it) into a [`Workspace`], where
+//! each of its files goes on output, and writing them atomically: every file to a temporary
+//! file in its target directory first, then all renamed, so a failure leaves no half-written
+//! program (and never touches an input).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::krl;
+use crate::motion::workspace::{LoadError, Role};
+use crate::motion::{FileId, Workspace};
+
+use super::program::FileOutput;
+
+/// Loads the program at `path` (or `bytes` read from standard input when `path` is `None`)
+/// with its `.dat` and the `$config.dat`.
+pub fn load_program(
+    path: Option<&Path>,
+    bytes: &[u8],
+    config: Option<&Path>,
+) -> Result<Workspace, LoadError> {
+    let name = path.map_or_else(|| "<stdin>".to_string(), |p| p.display().to_string());
+    let dat = match path.and_then(krl::companion_dat) {
+        Some(d) => {
+            let shown = d.display().to_string();
+            let b = std::fs::read(&d).map_err(|source| LoadError::Io {
+                name: shown.clone(),
+                source,
+            })?;
+            Some((b, d, shown))
+        }
+        None => None,
+    };
+    Workspace::load(
+        (bytes, path, &name),
+        dat.as_ref()
+            .map(|(b, d, s)| (b.as_slice(), d.as_path(), s.as_str())),
+        config,
+    )
+}
+
+/// Where each output file goes when the main program is written to `out`: its `.dat` beside
+/// it with the same stem, called modules beside it under their own names.
+pub fn output_paths(ws: &Workspace, out: &Path) -> Vec<(FileId, PathBuf)> {
+    let dir = out.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut v = Vec::new();
+    for (i, f) in ws.files.iter().enumerate() {
+        let id = i as FileId;
+        let path = match f.role {
+            Role::Config => continue,
+            Role::Main if id == ws.main => out.to_path_buf(),
+            Role::Main => {
+                let ext = f
+                    .path
+                    .as_deref()
+                    .and_then(Path::extension)
+                    .map_or("dat".into(), |e| e.to_string_lossy().into_owned());
+                out.with_extension(ext)
+            }
+            Role::Module => match f.path.as_deref().and_then(Path::file_name) {
+                Some(name) => dir.join(name),
+                None => continue,
+            },
+        };
+        v.push((id, path));
+    }
+    v
+}
+
+/// Whether two paths name the same file (the second may not exist yet).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let canon = |p: &Path| -> Option<PathBuf> {
+        if let Ok(c) = p.canonicalize() {
+            return Some(c);
+        }
+        let parent = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        Some(parent.canonicalize().ok()?.join(p.file_name()?))
+    };
+    match (canon(a), canon(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// Writes every `(path, bytes)` atomically: all temporary files first, then the renames.
+pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
+    let mut staged = Vec::with_capacity(files.len());
+    for (path, bytes) in files {
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir)?;
+        let mut tmp = tempfile::Builder::new()
+            .prefix(".robopost-")
+            .tempfile_in(dir)?;
+        // No fsync: like `cp`, durability against power loss is the file system's business;
+        // the rename still guarantees that a reader sees the old file or the whole new one.
+        tmp.write_all(bytes)?;
+        staged.push((tmp, path));
+    }
+    for (tmp, path) in staged {
+        tmp.persist(path).map_err(|e| e.error)?;
+    }
+    Ok(())
+}
+
+/// The files of a compensated program with their output paths.
+pub fn outputs<'a>(
+    ws: &Workspace,
+    files: &'a [FileOutput],
+    out: &Path,
+) -> Vec<(PathBuf, &'a [u8])> {
+    let paths = output_paths(ws, out);
+    files
+        .iter()
+        .filter_map(|f| {
+            paths
+                .iter()
+                .find(|(id, _)| *id == f.file)
+                .map(|(_, p)| (p.clone(), f.bytes.as_slice()))
+        })
+        .collect()
+}

@@ -1,0 +1,23 @@
+//! Compensation: for every target of a simulated program, the command for which the error
+//! model predicts the programmed TCP pose, with the rotation directions of the compensated
+//! motion. This module owns the solver ([`solve`]: the paper's equation (3) iterated to a
+//! fixed point, or one step of it), the sequence logic ([`sequence`]: nominal directions,
+//! parallel solving, the sequential direction re-check and the resolution of backlash-branch
+//! oscillation). It knows nothing of KRL: its
+//! input is a list of goal poses with nominal axes and arrival motions (from `motion`), its
+//! output the command axes per target (turned into KRL edits by `rewrite`).
+
+pub mod batch;
+pub mod files;
+pub mod program;
+pub mod rewrite;
+pub mod sequence;
+pub mod solve;
+
+pub use crate::motion::frame::{self as pose, Frame};
+pub use program::{compensate_program, Calibrated, ProgramResult, Report};
+pub use sequence::{
+    compensate, nominal_directions, Interp, Keep, Options, Outcome, Resolution, Target,
+    TargetError, REST_DEG,
+};
+pub use solve::{Method, SolveError, TOL_POSITION_MM, TOL_ROTATION_RAD};

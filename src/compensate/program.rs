@@ -1,0 +1,589 @@
+//! One program end to end: simulate its motion, compensate every target, rewrite the files,
+//! and summarise what happened in a report. Input is a loaded [`Workspace`]; output the new
+//! bytes of every file that belongs to the program (main `.src`/`.dat` and called modules),
+//! the report and the diagnostics. Writing files is the caller's business.
+
+use serde::Serialize;
+
+use crate::diagnostic::{Diagnostic, Severity};
+use crate::kinematics::RobotDescription;
+use crate::krl::{self, StmtKind};
+use crate::model::{Direction, Model};
+use crate::motion::frame::{self, Frame};
+use crate::motion::nominal::{Arm, Nominal};
+use crate::motion::workspace::Role as FileRole;
+use crate::motion::{self, FileId, GivenFrame, Role, Simulation, Workspace};
+
+use super::rewrite::{self, Rewrite};
+use super::sequence::{self, Interp, Keep, Outcome, Quantum, Resolution, Target};
+use super::solve::Method;
+
+/// The first words of the header comment robopost writes; a file carrying it was compensated.
+pub const HEADER_MARK: &str = "; robopost: compensated with ";
+
+/// The calibration as the output names it.
+#[derive(Clone, Debug)]
+pub struct Calibrated<'a> {
+    pub model: &'a Model,
+    /// File name shown in the header comment.
+    pub name: String,
+    /// SHA-256 of the calibration file, hex.
+    pub sha256: String,
+}
+
+impl<'a> Calibrated<'a> {
+    /// `name` and checksum of calibration file bytes `bytes`.
+    pub fn new(model: &'a Model, name: &str, bytes: &[u8]) -> Calibrated<'a> {
+        use sha2::Digest;
+        let digest = sha2::Sha256::digest(bytes);
+        Calibrated {
+            model,
+            name: name.to_string(),
+            sha256: digest.iter().map(|b| format!("{b:02x}")).collect(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    pub method: Method,
+    /// Solve targets on rayon's pool.
+    pub parallel: bool,
+    /// `BASE_DATA[n]`/`TOOL_DATA[n]` given on the command line.
+    pub frames: Vec<GivenFrame>,
+    /// List every target in the report (`--report`); the summary is always filled.
+    pub points: bool,
+}
+
+/// The new contents of one file of the program.
+#[derive(Clone, Debug)]
+pub struct FileOutput {
+    pub file: FileId,
+    pub bytes: Vec<u8>,
+    pub changed: bool,
+}
+
+/// What compensating a program produced.
+#[derive(Debug)]
+pub struct ProgramResult {
+    /// Every file of the program (not `$config.dat`), changed or not.
+    pub files: Vec<FileOutput>,
+    pub report: Report,
+    pub diagnostics: Vec<Diagnostic>,
+    /// An error rejects the whole program: write nothing.
+    pub rejected: bool,
+    /// Targets rejected (left unchanged) by an error of their own.
+    pub target_errors: usize,
+}
+
+/// Statistics of one quantity over the targets.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct MaxMean {
+    pub max: f64,
+    pub mean: f64,
+}
+
+impl MaxMean {
+    fn of(values: impl Iterator<Item = f64>) -> MaxMean {
+        let (mut max, mut sum, mut n) = (0.0f64, 0.0, 0usize);
+        for v in values {
+            max = max.max(v);
+            sum += v;
+            n += 1;
+        }
+        MaxMean {
+            max,
+            mean: if n > 0 { sum / n as f64 } else { 0.0 },
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct PoseStats {
+    pub position_um: MaxMean,
+    pub orientation_mdeg: MaxMean,
+}
+
+/// One target in the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct PointReport {
+    pub file: String,
+    pub line: u32,
+    pub motion: &'static str,
+    pub role: &'static str,
+    /// Command change at the TCP: µm and mdeg.
+    pub correction_um: f64,
+    pub correction_mdeg: f64,
+    /// Predicted TCP error of the original command, and left at the new one.
+    pub before_um: f64,
+    pub residual_um: f64,
+    pub residual_mdeg: f64,
+    pub iterations: u32,
+    /// `+`, `-` or `0` (unknown) per axis on arrival, compensated motion.
+    pub directions: String,
+    /// Axes whose direction differs from the nominal motion's.
+    pub flipped: Vec<String>,
+    /// `consistent`, `rebranched`, `held:A1,A4`, `branch`.
+    pub resolution: String,
+    pub compensated: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// The per-program report (`--report FILE.json`).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Report {
+    pub program: String,
+    pub calibration: CalibrationRef,
+    pub method: &'static str,
+    /// Motion targets simulated (auxiliary points included).
+    pub targets: usize,
+    /// Targets whose numbers changed.
+    pub compensated: usize,
+    pub rejected: usize,
+    pub correction: PoseStats,
+    pub predicted_before: PoseStats,
+    pub predicted_after: PoseStats,
+    /// Targets where an axis's compensated direction differs from the nominal one.
+    pub direction_flips: usize,
+    /// Targets resolved by holding an axis or choosing a branch (backlash oscillation).
+    pub oscillations_resolved: usize,
+    pub split_points: Vec<SplitReport>,
+    pub warnings: Vec<String>,
+    pub errors: Vec<String>,
+    pub points: Vec<PointReport>,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct CalibrationRef {
+    pub file: String,
+    pub sha256: String,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SplitReport {
+    pub point: String,
+    pub copies: Vec<String>,
+}
+
+fn dir_char(d: Direction) -> char {
+    match d {
+        Direction::Positive => '+',
+        Direction::Negative => '-',
+        Direction::Unknown => '0',
+    }
+}
+
+fn axes_list(mask: &[bool; 6]) -> Vec<String> {
+    (0..6)
+        .filter(|&i| mask[i])
+        .map(|i| format!("A{}", i + 1))
+        .collect()
+}
+
+/// The compensation targets of a simulation.
+pub fn targets(ws: &Workspace, sim: &Simulation) -> Vec<Target> {
+    sim.stops
+        .iter()
+        .map(|s| Target {
+            goal: s.goal,
+            tool: s.tool,
+            nominal_axes: s.nominal_axes,
+            arrival: s.arrival,
+            interp: match (s.kind.is_joint(), s.kind.is_circular(), s.role) {
+                (true, _, _) => Interp::Joint,
+                (false, true, Role::Aux) => Interp::CircAux,
+                (false, true, Role::Target) => Interp::CircEnd,
+                (false, false, _) => Interp::Line,
+            },
+            compensate: s.compensable,
+            quantum: s.origin.filter(|_| s.compensable).map(|o| Quantum {
+                base: s.base,
+                axis: s.axis,
+                decimals: rewrite::decimals(&ws.get(o.file).file, o.agg, s.axis),
+            }),
+            keep: Keep {
+                s: s.keep_s,
+                t: s.keep_t,
+            },
+        })
+        .collect()
+}
+
+/// Whether a file already carries robopost's header.
+fn already_compensated(file: &krl::SourceFile) -> Option<usize> {
+    let src = file.source();
+    let mark = HEADER_MARK.as_bytes();
+    src.windows(mark.len())
+        .position(|w| w.eq_ignore_ascii_case(mark))
+}
+
+/// The header comment line and where it goes: after the `&ACCESS`-style directives.
+fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, Vec<u8>) {
+    let src = file.source();
+    let newline: &[u8] = if src.windows(2).any(|w| w == b"\r\n") {
+        b"\r\n"
+    } else {
+        b"\n"
+    };
+    let directives = file
+        .body()
+        .iter()
+        .any(|s| matches!(s.kind, StmtKind::Directive { .. }));
+    let first = file
+        .body()
+        .iter()
+        .find(|s| !matches!(s.kind, StmtKind::Directive { .. }))
+        .map_or(src.len(), |s| s.leading.start as usize);
+    // After the directives' last line ending (the controller wants `&…` lines first).
+    let at = if directives {
+        src[first..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(src.len(), |p| first + p + 1)
+    } else {
+        0
+    };
+    let mut text = format!(
+        "{HEADER_MARK}{} (sha256 {}){}, do not compensate this file again",
+        cal.name,
+        cal.sha256,
+        if method == Method::OneStep {
+            ", one step"
+        } else {
+            ""
+        }
+    )
+    .into_bytes();
+    // A file whose directives end without a line ending needs one first.
+    let mut bytes = Vec::new();
+    if at > 0 && src[at - 1] != b'\n' {
+        bytes.extend_from_slice(newline);
+    }
+    bytes.append(&mut text);
+    bytes.extend_from_slice(newline);
+    (at, bytes)
+}
+
+/// Compensates the main program of `ws`.
+pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -> ProgramResult {
+    let main = ws.get(ws.main);
+    let mut report = Report {
+        program: main.name.clone(),
+        calibration: CalibrationRef {
+            file: cal.name.clone(),
+            sha256: cal.sha256.clone(),
+        },
+        method: match options.method {
+            Method::Iterate => "iterate",
+            Method::OneStep => "one-step",
+        },
+        ..Report::default()
+    };
+    let mut diagnostics = Vec::new();
+    for (i, f) in ws.files.iter().enumerate() {
+        if f.role == FileRole::Config {
+            continue;
+        }
+        if let Some(at) = already_compensated(&f.file) {
+            diagnostics.push(
+                ws.diagnostic(
+                    Severity::Error,
+                    i as FileId,
+                    krl::Span::new(at, at + HEADER_MARK.len()),
+                    "this file was already compensated by robopost: compensating it again would apply the correction twice",
+                )
+                .with_help("compensate the original program"),
+            );
+        }
+    }
+    let unchanged = |ws: &Workspace| {
+        ws.files
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.role != FileRole::Config)
+            .map(|(i, f)| FileOutput {
+                file: i as FileId,
+                bytes: f.file.source().to_vec(),
+                changed: false,
+            })
+            .collect::<Vec<_>>()
+    };
+    if !diagnostics.is_empty() {
+        report.errors = diagnostics.iter().map(|d| d.render()).collect();
+        return ProgramResult {
+            files: unchanged(ws),
+            report,
+            diagnostics,
+            rejected: true,
+            target_errors: 0,
+        };
+    }
+    let model = cal.model;
+    let timing = std::env::var_os("ROBOPOST_TIMING").is_some();
+    let t0 = std::time::Instant::now();
+    let lap = |what: &str| {
+        if timing {
+            eprintln!("{what}: {:.3} s", t0.elapsed().as_secs_f64());
+        }
+    };
+    let sim = motion::simulate(ws, &model.robot, &options.frames);
+    lap("simulate");
+    diagnostics.extend(sim.diagnostics.iter().cloned());
+    if sim.rejected() {
+        report.errors = diagnostics
+            .iter()
+            .filter(|d| d.severity == Severity::Error)
+            .map(|d| d.render())
+            .collect();
+        return ProgramResult {
+            files: unchanged(ws),
+            report,
+            diagnostics,
+            rejected: true,
+            target_errors: 0,
+        };
+    }
+    let targets = targets(ws, &sim);
+    let outcomes = sequence::compensate(
+        model,
+        &sim.frames,
+        &targets,
+        [Direction::Unknown; 6],
+        &sequence::Options {
+            method: options.method,
+            parallel: options.parallel,
+        },
+    );
+    lap("compensate");
+    let mut target_errors = sim.unreachable;
+    // Near-singular targets: the compensation there is least squares, and small Cartesian
+    // changes turn axes a lot.
+    let robot = &model.robot;
+    let mut seen = std::collections::HashSet::new();
+    for stop in &sim.stops {
+        if let Some(sing) = crate::kinematics::singularity(robot, &stop.nominal_axes) {
+            if stop.compensable && seen.insert((stop.file, stop.stmt.head.start)) {
+                diagnostics.push(ws.diagnostic(
+                    Severity::Warning,
+                    stop.file,
+                    stop.stmt.head,
+                    format!("the target is near a singularity ({sing}): compensated in the least-squares sense where the pose cannot be reached exactly"),
+                ));
+            }
+        }
+    }
+    for (stop, o) in sim.stops.iter().zip(&outcomes) {
+        if let Some(e) = &o.error {
+            target_errors += 1;
+            diagnostics.push(
+                ws.diagnostic(
+                    Severity::Error,
+                    stop.file,
+                    stop.stmt.head,
+                    format!("target not compensated: {e}"),
+                )
+                .with_help(
+                    "the target is left as written; move it away from the limit or singularity",
+                ),
+            );
+        }
+    }
+    drop(targets);
+    let mut rw = rewrite::rewrite(ws, &sim, &outcomes, &model.robot);
+    lap("rewrite");
+    diagnostics.extend(rw.diagnostics.iter().cloned());
+    let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
+        Ok(files) => files,
+        Err(d) => {
+            diagnostics.push(*d);
+            report.errors = diagnostics
+                .iter()
+                .filter(|d| d.severity == Severity::Error)
+                .map(|d| d.render())
+                .collect();
+            return ProgramResult {
+                files: unchanged(ws),
+                report,
+                diagnostics,
+                rejected: true,
+                target_errors,
+            };
+        }
+    };
+    lap("apply");
+    fill_report(
+        &mut report,
+        ws,
+        &sim,
+        &outcomes,
+        &model.robot,
+        &rw,
+        &diagnostics,
+        options.points,
+    );
+    lap("report");
+    ProgramResult {
+        files,
+        report,
+        diagnostics,
+        rejected: false,
+        target_errors,
+    }
+}
+
+fn apply(
+    ws: &Workspace,
+    edits: std::collections::BTreeMap<FileId, Vec<krl::Edit>>,
+    cal: &Calibrated,
+    method: Method,
+) -> Result<Vec<FileOutput>, Box<Diagnostic>> {
+    let mut edits = edits;
+    ws.files
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.role != FileRole::Config)
+        .map(|(i, f)| {
+            let id = i as FileId;
+            let src = f.file.source();
+            match edits.remove(&id) {
+                Some(list) if !list.is_empty() => {
+                    // The header first: insertions at one offset keep their order.
+                    let (at, text) = header(&f.file, cal, method);
+                    let mut all = Vec::with_capacity(list.len() + 1);
+                    all.push(krl::Edit {
+                        range: at..at,
+                        bytes: text,
+                    });
+                    all.extend(list);
+                    match krl::apply(src, &all) {
+                        Ok(bytes) => Ok(FileOutput {
+                            file: id,
+                            bytes,
+                            changed: true,
+                        }),
+                        Err(e) => Err(Box::new(Diagnostic::new(
+                            Severity::Error,
+                            &f.name,
+                            format!("internal error, nothing written: the rewrite produced {e}; please report this program"),
+                        ))),
+                    }
+                }
+                _ => Ok(FileOutput {
+                    file: id,
+                    bytes: src.to_vec(),
+                    changed: false,
+                }),
+            }
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn fill_report(
+    report: &mut Report,
+    ws: &Workspace,
+    sim: &Simulation,
+    outcomes: &[Outcome],
+    robot: &RobotDescription,
+    rw: &Rewrite,
+    diagnostics: &[Diagnostic],
+    points: bool,
+) {
+    use rayon::prelude::*;
+    let arm = Nominal(robot);
+    let compensated =
+        |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && sim.stops[i].compensable;
+    // Command change at the TCP, µm and mdeg.
+    let corr: Vec<(f64, f64)> = (0..outcomes.len())
+        .into_par_iter()
+        .with_min_len(4096)
+        .map(|i| {
+            let (stop, o) = (&sim.stops[i], &outcomes[i]);
+            if !o.changed {
+                return (0.0, 0.0);
+            }
+            let tool: &Frame = &sim.frames[stop.tool as usize];
+            let cmd = arm.tcp(&o.axes_deg, tool);
+            let nominal = arm.tcp(&stop.nominal_axes, tool);
+            let (cp, cr) = frame::norms(&frame::error(&cmd, &nominal));
+            (cp * 1e3, cr.to_degrees() * 1e3)
+        })
+        .collect();
+    if points {
+        for (i, (stop, o)) in sim.stops.iter().zip(outcomes).enumerate() {
+            let (bp, _) = frame::norms(&o.before);
+            let (rp, rr) = frame::norms(&o.residual);
+            let flipped = o.flipped();
+            report.points.push(PointReport {
+                file: ws.get(stop.file).name.clone(),
+                line: stop.stmt.line,
+                motion: stop.kind.keyword(),
+                role: match stop.role {
+                    Role::Target => "target",
+                    Role::Aux => "aux",
+                },
+                correction_um: corr[i].0,
+                correction_mdeg: corr[i].1,
+                before_um: bp * 1e3,
+                residual_um: rp * 1e3,
+                residual_mdeg: rr.to_degrees() * 1e3,
+                iterations: o.iterations,
+                directions: o.directions.iter().map(|d| dir_char(*d)).collect(),
+                flipped: axes_list(&flipped),
+                resolution: match o.resolution {
+                    Resolution::Consistent => "consistent".into(),
+                    Resolution::Rebranched => "rebranched".into(),
+                    Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
+                    Resolution::Branch => "branch".into(),
+                } + &if o.turn_held.iter().any(|&h| h) {
+                    format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
+                } else {
+                    String::new()
+                },
+                compensated: compensated(i),
+                error: o.error.map(|e| e.to_string()),
+            });
+        }
+    }
+    report.targets = outcomes.len();
+    let idx: Vec<usize> = (0..outcomes.len()).filter(|&i| compensated(i)).collect();
+    report.compensated = idx.len();
+    report.rejected = outcomes.iter().filter(|o| o.error.is_some()).count();
+    report.correction = PoseStats {
+        position_um: MaxMean::of(idx.iter().map(|&i| corr[i].0)),
+        orientation_mdeg: MaxMean::of(idx.iter().map(|&i| corr[i].1)),
+    };
+    let stats = |f: &dyn Fn(&Outcome) -> nalgebra::Vector6<f64>| PoseStats {
+        position_um: MaxMean::of(idx.iter().map(|&i| frame::norms(&f(&outcomes[i])).0 * 1e3)),
+        orientation_mdeg: MaxMean::of(
+            idx.iter()
+                .map(|&i| frame::norms(&f(&outcomes[i])).1.to_degrees() * 1e3),
+        ),
+    };
+    report.predicted_before = stats(&|o| o.before);
+    report.predicted_after = stats(&|o| o.residual);
+    report.direction_flips = outcomes
+        .iter()
+        .filter(|o| o.flipped().iter().any(|&f| f))
+        .count();
+    report.oscillations_resolved = outcomes
+        .iter()
+        .filter(|o| matches!(o.resolution, Resolution::Held(_) | Resolution::Branch))
+        .count();
+    report.split_points = rw
+        .splits
+        .iter()
+        .map(|(p, c)| SplitReport {
+            point: p.clone(),
+            copies: c.clone(),
+        })
+        .collect();
+    for d in diagnostics {
+        let line = format!("{}:{}:{}: {}", d.file, d.line, d.col, d.message);
+        match d.severity {
+            Severity::Warning => report.warnings.push(line),
+            Severity::Error => report.errors.push(line),
+        }
+    }
+}

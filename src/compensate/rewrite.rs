@@ -1,0 +1,831 @@
+//! Turning compensated commands back into KRL: for each target, the new numbers of its
+//! aggregate as byte edits on the untouched source, in the original's style (decimals kept,
+//! never fewer than 3 in mm and 4 in degrees), completing a partial aggregate when its
+//! target changed (missing components would otherwise come from the *compensated* previous
+//! position); relative targets rewritten relative to the compensated previous command;
+//! auxiliary points in position only (the controller ignores their orientation). A number
+//! whose rounded value does not change keeps its bytes. An aggregate executed several times
+//! with different commands (reached with different rotation directions) is split when it is
+//! a declared point named at several places — a copy with a new name declared next to the
+//! original, and the place renamed (inline forms included) — otherwise written for its last
+//! execution, with a warning.
+
+use std::collections::{BTreeMap, HashSet};
+
+use rayon::prelude::*;
+
+use crate::diagnostic::{Diagnostic, Severity};
+use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, SourceFile, Span};
+use crate::motion::frame::Frame;
+use crate::motion::nominal::{Arm, Nominal};
+use crate::motion::value::{self, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
+use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
+
+use super::sequence::Outcome;
+
+/// Fewest decimals written for millimetres and degrees.
+pub const MIN_DECIMALS_MM: usize = 3;
+pub const MIN_DECIMALS_DEG: usize = 4;
+/// KRL names are at most 24 characters.
+const MAX_NAME: usize = 24;
+
+/// Edits per file, and what the rewrite has to say.
+#[derive(Debug, Default)]
+pub struct Rewrite {
+    pub edits: BTreeMap<FileId, Vec<Edit>>,
+    pub diagnostics: Vec<Diagnostic>,
+    /// Declared points split into copies (original name, new names).
+    pub splits: Vec<(String, Vec<String>)>,
+}
+
+/// The edits of one target's aggregate: replacements of member values and insertions of
+/// missing members (`offset`, text), in source order.
+type TargetEdits = Vec<Edit>;
+
+fn min_decimals(axis: bool, k: usize) -> usize {
+    if axis || k >= 3 {
+        MIN_DECIMALS_DEG
+    } else {
+        MIN_DECIMALS_MM
+    }
+}
+
+/// The new component values of `stop` commanded at `axes` (`None`: nothing can be written).
+fn new_values(
+    sim: &Simulation,
+    outcomes: &[Outcome],
+    stop: &Stop,
+    axes: &[f64; 6],
+    original: &[Option<f64>; 6],
+    robot: &crate::kinematics::RobotDescription,
+) -> Option<[f64; 6]> {
+    let prev_cmd = stop.prev.map(|p| outcomes[p as usize].axes_deg);
+    if stop.axis {
+        return match stop.rel {
+            Some(_) => {
+                let prev = prev_cmd?;
+                Some(std::array::from_fn(|i| axes[i] - prev[i]))
+            }
+            None => Some(*axes),
+        };
+    }
+    let tool = &sim.frames[stop.tool as usize];
+    let base = &sim.frames[stop.base as usize];
+    let arm = Nominal(robot);
+    let p_c = base.inverse().compose(&arm.tcp(axes, tool));
+    let near = |k: usize| original[k].unwrap_or(0.0);
+    let abc_near = [near(3), near(4), near(5)];
+    match stop.rel {
+        None => {
+            let p = match stop.origin.as_ref().and_then(|o| o.prefix.as_ref()) {
+                Some(prefix) => prefix.inverse().compose(&p_c),
+                None => p_c,
+            };
+            let near_abc = [
+                original[3].unwrap_or(stop.programmed[3]),
+                original[4].unwrap_or(stop.programmed[4]),
+                original[5].unwrap_or(stop.programmed[5]),
+            ];
+            Some(p.to_kuka_near(&near_abc))
+        }
+        Some(Rel::Tool) => {
+            let start = base.inverse().compose(&arm.tcp(&prev_cmd?, tool));
+            Some(start.inverse().compose(&p_c).to_kuka_near(&abc_near))
+        }
+        Some(_) => {
+            let start = base.inverse().compose(&arm.tcp(&prev_cmd?, tool));
+            let rel = Frame {
+                rotation: p_c.rotation * start.rotation.transpose(),
+                position: p_c.position - start.position,
+            };
+            Some(rel.to_kuka_near(&abc_near))
+        }
+    }
+}
+
+/// The literal a member's value is written with: (span to replace, literal text).
+fn literal_span(e: &Expr) -> Option<(Span, Span)> {
+    match e {
+        Expr::Number(n) => Some((n.span(), n.span())),
+        Expr::Unary(u) => match &u.operand {
+            Expr::Number(n) => Some((u.span, n.span())),
+            _ => None,
+        },
+        Expr::Paren(p) => literal_span(&p.inner).map(|(_, lit)| (p.span, lit)),
+        _ => None,
+    }
+}
+
+/// The text between members of the file's first aggregate with several (`,` or `, `).
+fn file_separator(file: &SourceFile) -> Vec<u8> {
+    let src = file.source();
+    for st in file.statements() {
+        let mut found = None;
+        let mut look = |e: &Expr| {
+            if let (None, Expr::Aggregate(_, id)) = (&found, e) {
+                if let Some(w) = file.members(file.aggregate(*id)).windows(2).next() {
+                    found =
+                        Some(src[w[0].span().end as usize..w[1].span().start as usize].to_vec());
+                }
+            }
+        };
+        match &st.kind {
+            krl::StmtKind::Motion(m) => file.visit_expr(&file.motion(*m).target, &mut look),
+            krl::StmtKind::Assign(a) => file.visit_expr(&a.rhs, &mut look),
+            krl::StmtKind::Decl(d) => d
+                .vars
+                .iter()
+                .filter_map(|v| v.init.as_ref())
+                .for_each(|e| file.visit_expr(e, &mut look)),
+            _ => {}
+        }
+        if let Some(sep) = found {
+            return sep;
+        }
+    }
+    b", ".to_vec()
+}
+
+/// The text between two members (`, `) and between a name and its value (` `).
+fn separators(file: &SourceFile, agg: &Aggregate) -> (Vec<u8>, Vec<u8>) {
+    let src = file.source();
+    let members = file.members(agg);
+    let sep = members
+        .windows(2)
+        .next()
+        .map(|w| src[w[0].span().end as usize..w[1].span().start as usize].to_vec())
+        .unwrap_or_else(|| file_separator(file));
+    let nv = members
+        .first()
+        .map(|m| src[m.name.end as usize..m.value.span().start as usize].to_vec())
+        .filter(|v| !v.is_empty())
+        .unwrap_or_else(|| b" ".to_vec());
+    (sep, nv)
+}
+
+/// Edits of `agg` (in `file`) writing `values` for the components in `write`.
+fn aggregate_edits(
+    file: &SourceFile,
+    agg: &Aggregate,
+    axis: bool,
+    values: &[f64; 6],
+    write: [bool; 6],
+    relative: bool,
+) -> Option<TargetEdits> {
+    let src = file.source();
+    let names = if axis { AXIS_NAMES } else { CARTESIAN_NAMES };
+    let mut present: [Option<&krl::Member>; 6] = [None; 6];
+    for m in file.members(agg) {
+        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
+            if is_axis == axis {
+                present[k] = Some(m);
+            }
+        }
+    }
+    // Decimals of inserted numbers: as many as the aggregate's most precise number.
+    let decimals = |k: usize| {
+        let most = present
+            .iter()
+            .flatten()
+            .filter_map(|m| literal_span(&m.value))
+            .map(|(_, lit)| {
+                let t = file.text(lit);
+                t.iter().position(|&b| b == b'.').map_or(0, |p| {
+                    t[p + 1..].iter().take_while(|b| b.is_ascii_digit()).count()
+                })
+            })
+            .max()
+            .unwrap_or(0);
+        most.max(min_decimals(axis, k))
+    };
+    let mut edits = Vec::new();
+    let mut any = false;
+    for k in 0..6 {
+        if !write[k] {
+            continue;
+        }
+        match present[k] {
+            Some(m) => {
+                let (replace, lit) = literal_span(&m.value)?;
+                let orig_value = value::literal(&m.value)?;
+                let Some(new) =
+                    replacement(file.text(lit), orig_value, values[k], min_decimals(axis, k))
+                else {
+                    continue;
+                };
+                any = true;
+                edits.push(Edit {
+                    range: replace.range(),
+                    bytes: new.into_bytes(),
+                });
+            }
+            None => {
+                let text = match units(values[k], decimals(k)) {
+                    Some(u) => plain_text(u, decimals(k)),
+                    None => format!("{:.*}", decimals(k), values[k]),
+                };
+                let zero = text.bytes().all(|b| b == b'0' || b == b'.' || b == b'-');
+                // A relative motion's missing components are zero: write only those that
+                // are not.
+                if relative && zero {
+                    continue;
+                }
+                any = true;
+                let (sep, nv) = separators(file, agg);
+                let text = if zero {
+                    text.trim_start_matches('-').to_string()
+                } else {
+                    text
+                };
+                let mut entry = names[k].as_bytes().to_vec();
+                entry.extend_from_slice(&nv);
+                entry.extend_from_slice(text.as_bytes());
+                // Before the first present component that follows in X..C order, else after
+                // the last present one.
+                if let Some(next) = (k + 1..6).find_map(|j| present[j]) {
+                    entry.extend_from_slice(&sep);
+                    edits.push(Edit {
+                        range: next.span().start as usize..next.span().start as usize,
+                        bytes: entry,
+                    });
+                } else if let Some(prev) = (0..k).rev().find_map(|j| present[j]) {
+                    let mut text = sep.clone();
+                    text.extend_from_slice(&entry);
+                    edits.push(Edit {
+                        range: prev.span().end as usize..prev.span().end as usize,
+                        bytes: text,
+                    });
+                } else {
+                    return None;
+                }
+            }
+        }
+    }
+    if !any {
+        return Some(Vec::new());
+    }
+    // Insertions at one offset must keep X..C order: they were pushed in that order.
+    edits.sort_by_key(|e| e.range.start);
+    Some(edits)
+}
+
+/// Whether a literal is written plainly: `-?digits[.digits]` (no exponent, sign `+` or leading
+/// dot), the style of nearly every program; those are formatted here without allocation
+/// beyond the result, the others by `format_like`.
+fn plain_literal(text: &[u8]) -> bool {
+    let body = text.strip_prefix(b"-").unwrap_or(text);
+    let int = body.iter().take_while(|b| b.is_ascii_digit()).count();
+    if int == 0 {
+        return false;
+    }
+    match &body[int..] {
+        [] => true,
+        [b'.', rest @ ..] => rest.iter().all(u8::is_ascii_digit),
+        _ => false,
+    }
+}
+
+/// `value` rounded to `decimals` as an integer count of units, the way the compensation's
+/// direction check rounds commands (`sequence::Quantum`).
+fn units(value: f64, decimals: usize) -> Option<i64> {
+    let scaled = (value * 10f64.powi(decimals as i32)).round();
+    (scaled.abs() < 9.0e15).then_some(scaled as i64)
+}
+
+/// A plain literal of `units` at `decimals` (`-0.000` written `0.000`).
+fn plain_text(units: i64, decimals: usize) -> String {
+    let digits = units.unsigned_abs().to_string();
+    let mut out = String::with_capacity(digits.len() + decimals + 3);
+    if units < 0 {
+        out.push('-');
+    }
+    if decimals == 0 {
+        out.push_str(&digits);
+        return out;
+    }
+    if digits.len() <= decimals {
+        out.push_str("0.");
+        out.push_str(&"0".repeat(decimals - digits.len()));
+        out.push_str(&digits);
+    } else {
+        let (int, frac) = digits.split_at(digits.len() - decimals);
+        out.push_str(int);
+        out.push('.');
+        out.push_str(frac);
+    }
+    out
+}
+
+/// The new text of a literal `orig_text` (value `orig`) for `value`, or `None` when the
+/// written number would not change.
+fn replacement(orig_text: &[u8], orig: f64, value: f64, min: usize) -> Option<String> {
+    let decimals = literal_decimals(orig_text).max(min);
+    if plain_literal(orig_text) {
+        if let (Some(new), Some(old)) = (units(value, decimals), units(orig, decimals)) {
+            return (new != old).then(|| plain_text(new, decimals));
+        }
+    }
+    let new = format_like(orig_text, value, min);
+    (new != format_like(orig_text, orig, min)).then_some(new)
+}
+
+/// Decimals a literal is written with.
+fn literal_decimals(text: &[u8]) -> usize {
+    text.iter().position(|&b| b == b'.').map_or(0, |p| {
+        text[p + 1..]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count()
+    })
+}
+
+/// The decimals each component of `agg` will be written with: its own literal's (never fewer
+/// than 3 in mm and 4 in degrees), or for a missing one the aggregate's most precise.
+pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
+    let src = file.source();
+    let mut own = [None; 6];
+    for m in file.members(agg) {
+        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
+            if is_axis == axis {
+                own[k] = literal_span(&m.value).map(|(_, lit)| literal_decimals(file.text(lit)));
+            }
+        }
+    }
+    let most = own.iter().flatten().copied().max().unwrap_or(0);
+    std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
+}
+
+/// The original component values of an aggregate (`None` where not given).
+fn original_values(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<f64>; 6] {
+    let src = file.source();
+    let mut out = [None; 6];
+    for m in file.members(agg) {
+        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
+            if is_axis == axis {
+                out[k] = value::literal(&m.value);
+            }
+        }
+    }
+    out
+}
+
+/// The place a point is named from: file and name span.
+type Site = (FileId, Option<Span>);
+
+/// One execution's edits of an origin.
+struct Use<'f> {
+    stop: usize,
+    edits: TargetEdits,
+    site: (FileId, Option<Span>),
+    origin: Origin<'f>,
+}
+
+/// Computes the edits of every compensated target.
+pub fn rewrite(
+    ws: &Workspace,
+    sim: &Simulation,
+    outcomes: &[Outcome],
+    robot: &crate::kinematics::RobotDescription,
+) -> Rewrite {
+    let mut out = Rewrite::default();
+    // Each compensated target's edits, in parallel.
+    /// Why a target's numbers cannot be written (the diagnostic is built afterwards: a
+    /// `Diagnostic` per slot would cost a few hundred bytes for each of a million targets).
+    enum Skip {
+        Relative(usize),
+        NotLiteral(usize),
+    }
+    let per_stop = |i: usize| -> Option<Result<Use, Skip>> {
+        let (stop, o) = (&sim.stops[i], &outcomes[i]);
+        let origin = stop.origin?;
+        if !stop.compensable || !o.changed || o.error.is_some() {
+            return None;
+        }
+        let file = &ws.get(origin.file).file;
+        let original = original_values(file, origin.agg, stop.axis);
+        let Some(values) = new_values(sim, outcomes, stop, &o.axes_deg, &original, robot) else {
+            return Some(Err(Skip::Relative(i)));
+        };
+        let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
+        match aggregate_edits(
+            file,
+            origin.agg,
+            stop.axis,
+            &values,
+            write,
+            stop.rel.is_some(),
+        ) {
+            Some(edits) => Some(Ok(Use {
+                stop: i,
+                edits,
+                site: (stop.file, stop.reference),
+                origin,
+            })),
+            None => Some(Err(Skip::NotLiteral(i))),
+        }
+    };
+    // Which aggregates are written by more than one execution: sort the (origin, stop)
+    // keys; an origin used once (every target of a CAM program) takes the fast path.
+    let mut keys: Vec<(FileId, u32, u32)> = (0..sim.stops.len())
+        .into_par_iter()
+        .with_min_len(4096)
+        .filter_map(|i| {
+            let (stop, o) = (&sim.stops[i], &outcomes[i]);
+            let origin = stop.origin?;
+            (stop.compensable && o.changed && o.error.is_none()).then_some((
+                origin.file,
+                origin.agg.span.start,
+                i as u32,
+            ))
+        })
+        .collect();
+    keys.par_sort_unstable();
+    let shared = |k: usize| {
+        let same = |j: usize| keys[j].0 == keys[k].0 && keys[j].1 == keys[k].1;
+        (k > 0 && same(k - 1)) || (k + 1 < keys.len() && same(k + 1))
+    };
+    let mut skips: Vec<Skip> = Vec::new();
+    let report = |skip: Skip, out: &mut Rewrite| match skip {
+        Skip::Relative(i) => {
+            let stop = &sim.stops[i];
+            out.diagnostics.push(ws.diagnostic(
+                Severity::Warning,
+                stop.file,
+                stop.stmt.head,
+                "a relative target after an unknown position cannot be rewritten: left unchanged",
+            ));
+        }
+        Skip::NotLiteral(i) => {
+            let origin = sim.stops[i].origin.expect("skipped for its origin");
+            out.diagnostics.push(ws.diagnostic(
+                Severity::Warning,
+                origin.file,
+                origin.agg.span,
+                "this position's numbers are not plain literals: left unchanged",
+            ));
+        }
+    };
+    // Fast path, in parallel: the edits straight into one list per file.
+    type Chunk = (Vec<(FileId, Edit)>, Vec<Skip>);
+    let single: Vec<Chunk> = (0..keys.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .filter(|&k| !shared(k))
+        .fold(
+            || (Vec::new(), Vec::new()),
+            |(mut edits, mut skips), k| {
+                match per_stop(keys[k].2 as usize) {
+                    Some(Ok(u)) => edits.extend(u.edits.into_iter().map(|e| (keys[k].0, e))),
+                    Some(Err(s)) => skips.push(s),
+                    None => {}
+                }
+                (edits, skips)
+            },
+        )
+        .collect();
+    for (edits, s) in single {
+        for (file, e) in edits {
+            out.edits.entry(file).or_default().push(e);
+        }
+        skips.extend(s);
+    }
+    // Shared origins, grouped, in execution order.
+    let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
+    for k in (0..keys.len()).filter(|&k| shared(k)) {
+        match per_stop(keys[k].2 as usize) {
+            Some(Ok(u)) => {
+                let key = (keys[k].0, keys[k].1);
+                match uses.last_mut() {
+                    Some((last, list)) if *last == key => list.push(u),
+                    _ => uses.push((key, vec![u])),
+                }
+            }
+            Some(Err(s)) => skips.push(s),
+            None => {}
+        }
+    }
+    for s in skips {
+        report(s, &mut out);
+    }
+    let mut taken: HashSet<Vec<u8>> = HashSet::new();
+    for ((file, _), list) in uses {
+        let distinct = {
+            let mut v: Vec<&TargetEdits> = Vec::new();
+            for u in &list {
+                if !v.contains(&&u.edits) {
+                    v.push(&u.edits);
+                }
+            }
+            v.len()
+        };
+        let origin = list[0].origin;
+        if distinct == 1 {
+            let first = list.into_iter().next().expect("non-empty");
+            out.edits.entry(file).or_default().extend(first.edits);
+            continue;
+        }
+        // Group by the place that names the point.
+        let mut sites: Vec<(Site, Vec<&Use>)> = Vec::new();
+        for u in &list {
+            match sites.iter_mut().find(|(s, _)| *s == u.site) {
+                Some((_, v)) => v.push(u),
+                None => sites.push((u.site, vec![u])),
+            }
+        }
+        let splittable = origin.var.is_some_and(|v| !v.element)
+            && sites.len() > 1
+            && sites.iter().all(|(s, _)| s.1.is_some());
+        if !splittable {
+            let last = list.last().expect("non-empty");
+            out.edits
+                .entry(file)
+                .or_default()
+                .extend(last.edits.iter().cloned());
+            let stop = &sim.stops[last.stop];
+            out.diagnostics.push(ws.diagnostic(
+                Severity::Warning,
+                origin.file,
+                origin.agg.span,
+                format!(
+                    "this position is reached {} times with different rotation directions, so its compensations differ; it is written for its last use (line {}) — give each use its own point to compensate all",
+                    list.len(),
+                    stop.stmt.line
+                ),
+            ));
+            continue;
+        }
+        let var = origin.var.expect("checked");
+        let mut new_names = Vec::new();
+        for (n, ((site_file, site_span), group)) in sites.iter().enumerate() {
+            let chosen = group.last().expect("non-empty");
+            if group.iter().any(|u| u.edits != chosen.edits) {
+                out.diagnostics.push(ws.diagnostic(
+                    Severity::Warning,
+                    *site_file,
+                    site_span.unwrap_or_default(),
+                    "this use of the point is executed several times with different rotation directions; written for its last execution",
+                ));
+            }
+            if n == 0 {
+                out.edits
+                    .entry(file)
+                    .or_default()
+                    .extend(chosen.edits.iter().cloned());
+                continue;
+            }
+            let name = split(
+                ws,
+                sim,
+                &var,
+                &chosen.edits,
+                *site_file,
+                site_span.expect("checked"),
+                &mut taken,
+                &mut out,
+            );
+            new_names.push(name);
+        }
+        let old = String::from_utf8_lossy(ws.get(var.file).file.text(var.name)).into_owned();
+        out.splits.push((old, new_names));
+    }
+    out
+}
+
+/// A name not used by any loaded file nor taken before: `base_2`, `base_3`, …
+fn fresh_name(ws: &Workspace, base: &[u8], taken: &mut HashSet<Vec<u8>>) -> Vec<u8> {
+    let exists = |name: &[u8]| {
+        let up = name.to_ascii_uppercase();
+        taken.contains(&up)
+            || ws.files.iter().any(|f| {
+                f.file.declarations().any(|(_, d)| {
+                    d.vars
+                        .iter()
+                        .any(|v| f.file.text(v.name).eq_ignore_ascii_case(name))
+                })
+            })
+    };
+    for k in 2.. {
+        let suffix = format!("_{k}");
+        let keep = base.len().min(MAX_NAME - suffix.len());
+        let mut name = base[..keep].to_vec();
+        name.extend_from_slice(suffix.as_bytes());
+        if !exists(&name) {
+            taken.insert(name.to_ascii_uppercase());
+            return name;
+        }
+    }
+    unreachable!("some suffix is free")
+}
+
+/// Declares a copy of point `var` with this use's numbers next to the original, and renames
+/// the use (and its inline form) to it. Returns the new name.
+#[allow(clippy::too_many_arguments)]
+fn split(
+    ws: &Workspace,
+    sim: &Simulation,
+    var: &VarRef,
+    edits: &[Edit],
+    site_file: FileId,
+    site: Span,
+    taken: &mut HashSet<Vec<u8>>,
+    out: &mut Rewrite,
+) -> String {
+    let _ = sim;
+    let decl_file = &ws.get(var.file).file;
+    let old = decl_file.text(var.name).to_vec();
+    // Inline forms name the point `P1` and its position `XP1`: keep that pairing.
+    let use_file = &ws.get(site_file).file;
+    let ilf = ilf_of(use_file, site);
+    let new = match &ilf {
+        Some((_, point)) => {
+            let point_new = fresh_name(ws, point, taken);
+            let mut n = b"X".to_vec();
+            n.extend_from_slice(&point_new);
+            taken.insert(n.to_ascii_uppercase());
+            n
+        }
+        None => fresh_name(ws, &old, taken),
+    };
+    copy_declaration(ws, var.file, var.name, var.stmt, &new, edits, out);
+    out.edits.entry(site_file).or_default().push(Edit {
+        range: site.range(),
+        bytes: new.clone(),
+    });
+    if let Some((fold_span, point)) = ilf {
+        let point_new = &new[1..];
+        rename_in_fold(ws, site_file, fold_span, &point, point_new, out);
+    }
+    String::from_utf8_lossy(&new).into_owned()
+}
+
+/// Copies the declaration line of `name` (declared at `stmt` in `file`) under `new`, with
+/// `edits` applied, inserted after the original line.
+fn copy_declaration(
+    ws: &Workspace,
+    file: FileId,
+    name: Span,
+    stmt: Span,
+    new: &[u8],
+    edits: &[Edit],
+    out: &mut Rewrite,
+) {
+    let f = &ws.get(file).file;
+    let src = f.source();
+    let lines = f.line_index();
+    let (line, _) = lines.line_col(stmt.start as usize);
+    let line_span = lines.line_span(src, line);
+    let start = line_span.start as usize;
+    let mut end = line_span.end as usize;
+    while end > start && (src[end - 1] == b'\n' || src[end - 1] == b'\r') {
+        end -= 1;
+    }
+    let mut local: Vec<Edit> = edits
+        .iter()
+        .filter(|e| e.range.start >= start && e.range.end <= end)
+        .map(|e| Edit {
+            range: e.range.start - start..e.range.end - start,
+            bytes: e.bytes.clone(),
+        })
+        .collect();
+    local.push(Edit {
+        range: name.start as usize - start..name.end as usize - start,
+        bytes: new.to_vec(),
+    });
+    let Ok(mut text) = krl::apply(&src[start..end], &local) else {
+        return;
+    };
+    let newline: &[u8] = if src.windows(2).any(|w| w == b"\r\n") {
+        b"\r\n"
+    } else {
+        b"\n"
+    };
+    // Insert after the original line's ending (or add one at the end of the file).
+    let after = src[end..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(src.len(), |p| end + p + 1);
+    let mut bytes = Vec::new();
+    if after == src.len() && !src.ends_with(b"\n") {
+        bytes.extend_from_slice(newline);
+        bytes.append(&mut text);
+    } else {
+        bytes.append(&mut text);
+        bytes.extend_from_slice(newline);
+    }
+    out.edits.entry(file).or_default().push(Edit {
+        range: after..after,
+        bytes,
+    });
+}
+
+/// The inline form around the motion naming `site`, with its point name (`P1` for `XP1`).
+fn ilf_of(file: &SourceFile, site: Span) -> Option<(Span, Vec<u8>)> {
+    let stmt = file
+        .motions()
+        .find(|(s, _)| s.span().contains(site))
+        .map(|(s, _)| s)?;
+    let (fold, ilf) = file.inline_form(stmt)?;
+    let m = ilf.motion.as_ref()?;
+    let name = file.text(site);
+    let point = m
+        .points
+        .iter()
+        .map(|p| file.text(*p))
+        .find(|p| name.len() == p.len() + 1 && name[1..].eq_ignore_ascii_case(p))?;
+    let end = fold.close.map_or(stmt.span().end, |c| c.end);
+    Some((
+        Span {
+            start: fold.open.start,
+            end,
+        },
+        point.to_vec(),
+    ))
+}
+
+/// Renames point `old` to `new` in an inline form: the fold title and parameters, and the
+/// frame data `F<old>` (declared anew as a copy) named inside the fold.
+fn rename_in_fold(
+    ws: &Workspace,
+    file: FileId,
+    fold: Span,
+    old: &[u8],
+    new: &[u8],
+    out: &mut Rewrite,
+) {
+    let f = &ws.get(file).file;
+    let Some(folded) = f.folds().iter().find(|x| x.open.start == fold.start) else {
+        return;
+    };
+    let mut edits = Vec::new();
+    if let Some(ilf) = &folded.ilf {
+        let mut spans: Vec<Span> = ilf
+            .motion
+            .iter()
+            .flat_map(|m| m.points.iter().copied())
+            .chain(ilf.params.iter().map(|(_, s)| *s))
+            .chain(ilf.settings.iter().map(|(_, s)| *s))
+            .filter(|s| f.text(*s).eq_ignore_ascii_case(old))
+            .collect();
+        spans.sort();
+        spans.dedup();
+        for s in spans {
+            edits.push(Edit {
+                range: s.range(),
+                bytes: new.to_vec(),
+            });
+        }
+    }
+    // Frame data `F<old>` used inside the fold: point it at a copy `F<new>`.
+    let mut fold_old = b"F".to_vec();
+    fold_old.extend_from_slice(old);
+    let mut fold_new = b"F".to_vec();
+    fold_new.extend_from_slice(new);
+    let mut used = false;
+    for st in f.statements() {
+        if !fold.contains(st.head) {
+            continue;
+        }
+        let mut visit = |e: &Expr| {
+            if let Expr::Path(p) = e {
+                if f.text(p.root).eq_ignore_ascii_case(&fold_old) {
+                    edits.push(Edit {
+                        range: p.root.range(),
+                        bytes: fold_new.clone(),
+                    });
+                    used = true;
+                }
+            }
+        };
+        match &st.kind {
+            krl::StmtKind::Assign(a) => {
+                f.visit_expr(&a.lhs, &mut visit);
+                f.visit_expr(&a.rhs, &mut visit);
+            }
+            krl::StmtKind::Motion(m) => {
+                for w in f.motion(*m).with() {
+                    f.visit_expr(&w.value, &mut visit);
+                }
+            }
+            krl::StmtKind::Call(c) => {
+                for a in c.args.iter().flatten() {
+                    f.visit_expr(a, &mut visit);
+                }
+            }
+            _ => {}
+        }
+    }
+    out.edits.entry(file).or_default().extend(edits);
+    if used {
+        // Declare F<new> next to F<old>.
+        for (id, loaded) in ws.files.iter().enumerate() {
+            for (_, d) in loaded.file.declarations() {
+                for v in &d.vars {
+                    if loaded.file.text(v.name).eq_ignore_ascii_case(&fold_old) {
+                        copy_declaration(ws, id as FileId, v.name, v.span, &fold_new, &[], out);
+                        return;
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,663 @@
+//! Compensation of a sequence of targets with the rotation directions of the compensated
+//! motion.
+//!
+//! Directions depend on the previous target, so the work runs in three passes: (1) the
+//! nominal directions from the simulated nominal motion (sequential, cheap); (2) every target
+//! solved with its nominal directions, in parallel (rayon); (3) a sequential re-check of the
+//! directions of the *compensated* motion. An axis whose compensated motion reverses the
+//! assumed direction is re-solved on the other backlash branch; when that flips it back again
+//! (the axis moves less than the correction difference, e.g. A1 on a vertical segment: the
+//! iteration would oscillate between branches with no consistent solution) the target is
+//! resolved deliberately by the candidate predicting the smaller error: hold the axis still
+//! (its direction then stays the previous one, consistent by construction; the other axes
+//! solve the pose in the least-squares sense) or accept one branch and evaluate it with the
+//! direction its motion really has.
+//!
+//! The compensated motion's direction of axis i on arrival at target k is the sign of
+//! `v = arrival_i + (c_k,i − c_k−1,i)`, `c = command − nominal`: exact for PTP (interpolated
+//! linearly in axis space, `arrival` is the nominal step) and to first order in the
+//! correction for LIN/CIRC (whose joint path moves by the interpolated correction).
+
+use nalgebra::Vector6;
+use rayon::prelude::*;
+
+use super::solve::{self, weighted_norm, Method, Problem, SolveError};
+use crate::kinematics::status_turn;
+use crate::model::{Direction, Model};
+use crate::motion::frame::Frame;
+use crate::motion::interpolate::{Cartesian, Path};
+use crate::motion::nominal::{Arm, Nominal};
+
+pub use crate::motion::interpolate::REST_DEG;
+
+/// Status bits a target must keep after compensation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Keep {
+    /// The configuration S (Cartesian targets; the controller's IK chooses the branch by it).
+    pub s: bool,
+    /// The turn T (PTP Cartesian targets with an explicit T: the controller picks ±360° by it).
+    pub t: bool,
+}
+
+/// One target of the simulated program.
+#[derive(Clone, Copy, Debug)]
+pub struct Target {
+    /// The programmed TCP pose in the robot base frame.
+    pub goal: Frame,
+    /// Index of the tool (flange → TCP) in the tool table passed alongside.
+    pub tool: u32,
+    /// The nominal command axes (what the controller computes for the programmed target).
+    pub nominal_axes: [f64; 6],
+    /// Nominal motion of each axis on arrival, deg per segment (the step for PTP, the arrival
+    /// velocity `dq/du` at the end for LIN/CIRC; 0 when the axis rests); `None` when the
+    /// motion comes from an unknown place (first motion, unresolved target before).
+    pub arrival: Option<[f64; 6]>,
+    /// How the controller interpolates the motion reaching it.
+    pub interp: Interp,
+    /// How its command will be written (rounded), when it is written: the directions of the
+    /// compensated motion are those of the rounded commands.
+    pub quantum: Option<Quantum>,
+    /// Whether to compensate (false: the target still moves the robot, its command stays).
+    pub compensate: bool,
+    pub keep: Keep,
+}
+
+/// The rounding of a written command: decimals of `X Y Z A B C` in the base (index into the
+/// frame table), or of `A1..A6`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Quantum {
+    pub base: u32,
+    pub axis: bool,
+    pub decimals: [u8; 6],
+}
+
+fn round_to(v: f64, decimals: u8) -> f64 {
+    let scale = 10f64.powi(decimals as i32);
+    (v * scale).round() / scale
+}
+
+/// How the controller interpolates the motion reaching a target (from the previous one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Interp {
+    /// PTP: linear in axis space.
+    #[default]
+    Joint,
+    /// LIN (and spline segments, approximated): straight line, orientation slerp.
+    Line,
+    /// The auxiliary point of a CIRC (the arc continues to the next target).
+    CircAux,
+    /// The end of a CIRC (its auxiliary point is the previous target).
+    CircEnd,
+}
+
+/// How a target's directions were settled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Resolution {
+    /// The nominal directions held for the compensated motion.
+    #[default]
+    Consistent,
+    /// Some axis's direction came out reversed; re-solved on that branch, which is consistent.
+    Rebranched,
+    /// Oscillation between branches: these axes were held still.
+    Held([bool; 6]),
+    /// Oscillation between branches: one branch accepted (it predicted the smaller error).
+    Branch,
+}
+
+impl From<SolveError> for TargetError {
+    fn from(e: SolveError) -> TargetError {
+        TargetError::NotConverged {
+            position_um: e.position_um,
+            rotation_urad: e.rotation_urad,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum TargetError {
+    #[error("the compensation did not converge (left {position_um:.3} µm, {rotation_urad:.3} µrad; near-singular pose?)")]
+    NotConverged {
+        position_um: f64,
+        rotation_urad: f64,
+    },
+    #[error("the compensated A{axis} = {value:.4}° leaves its limits [{lo}, {hi}]")]
+    OutOfLimits {
+        axis: u8,
+        value: f64,
+        lo: f64,
+        hi: f64,
+    },
+    #[error("compensation changes the configuration: S {s_from} T {t_from} → S {s_to} T {t_to}")]
+    Configuration {
+        s_from: u8,
+        t_from: u8,
+        s_to: u8,
+        t_to: u8,
+    },
+}
+
+/// The result for one target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Outcome {
+    /// The command axes (compensated, or nominal when not compensated or rejected).
+    pub axes_deg: [f64; 6],
+    /// Directions of the commanded motion on arrival.
+    pub directions: [Direction; 6],
+    /// Directions of the nominal motion on arrival.
+    pub nominal_directions: [Direction; 6],
+    /// Predicted TCP error of the uncompensated command `[mm; rad]`.
+    pub before: Vector6<f64>,
+    /// Predicted TCP error at the command.
+    pub residual: Vector6<f64>,
+    pub iterations: u32,
+    pub resolution: Resolution,
+    pub error: Option<TargetError>,
+    /// Whether the command differs from the nominal one.
+    pub changed: bool,
+    /// Axes held at 0° to keep the program's turn T.
+    pub turn_held: [bool; 6],
+}
+
+impl Outcome {
+    /// Axes whose compensated motion arrives in the opposite direction to the nominal one
+    /// (a direction becoming known where the nominal axis rests is not a flip).
+    pub fn flipped(&self) -> [bool; 6] {
+        use Direction::{Negative, Positive};
+        std::array::from_fn(|i| {
+            matches!(
+                (self.directions[i], self.nominal_directions[i]),
+                (Positive, Negative) | (Negative, Positive)
+            )
+        })
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Options {
+    pub method: Method,
+    /// Solve the targets on rayon's pool (else on the calling thread).
+    pub parallel: bool,
+}
+
+/// The direction state after arriving with motion `v` from state `before`.
+fn arrive(before: &[Direction; 6], v: Option<[f64; 6]>) -> [Direction; 6] {
+    match v {
+        None => [Direction::Unknown; 6],
+        Some(v) => std::array::from_fn(|i| {
+            if v[i].abs() < REST_DEG {
+                before[i]
+            } else {
+                Direction::from_sign(if v[i] > 0.0 { 1 } else { -1 })
+            }
+        }),
+    }
+}
+
+/// Directions of the nominal motion at every target, from the directions before the first.
+pub fn nominal_directions(targets: &[Target], start: [Direction; 6]) -> Vec<[Direction; 6]> {
+    let mut state = start;
+    targets
+        .iter()
+        .map(|t| {
+            state = arrive(&state, t.arrival);
+            state
+        })
+        .collect()
+}
+
+/// Compensates `targets` (tools indexed by `Target::tool`), directions before the first
+/// target given by `start`.
+pub fn compensate(
+    model: &Model,
+    tools: &[Frame],
+    targets: &[Target],
+    start: [Direction; 6],
+    options: &Options,
+) -> Vec<Outcome> {
+    let nominal = nominal_directions(targets, start);
+    let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
+    let mut outcomes: Vec<Outcome> = if options.parallel {
+        (0..targets.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(first)
+            .collect()
+    } else {
+        (0..targets.len()).map(first).collect()
+    };
+    let ctx = Ctx {
+        model,
+        tools,
+        targets,
+        method: options.method,
+    };
+    // Arrival rates of the first-pass commands (each needs its neighbours' written TCPs,
+    // computed once).
+    let cmd = |j: usize| outcomes[j].axes_deg;
+    let tcp = |k: usize| ctx.tcp(k, &outcomes[k].axes_deg);
+    let tcps: Vec<Frame> = if options.parallel {
+        (0..targets.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(tcp)
+            .collect()
+    } else {
+        (0..targets.len()).map(tcp).collect()
+    };
+    let rate = |k: usize| ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some(&tcps));
+    let rates: Vec<Option<[f64; 6]>> = if options.parallel {
+        (0..targets.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(rate)
+            .collect()
+    } else {
+        (0..targets.len()).map(rate).collect()
+    };
+    drop(tcps);
+    recheck(&ctx, start, &mut outcomes, &rates);
+    outcomes
+}
+
+fn tcp_error(
+    model: &Model,
+    tool: &Frame,
+    axes: &[f64; 6],
+    dirs: &[Direction; 6],
+    goal: &Frame,
+) -> Vector6<f64> {
+    solve::predicted_error(model, dirs, axes, tool, goal)
+}
+
+/// Solves one target with given directions and holds, checking limits and configuration.
+/// An axis that the correction moves across 0° where the program's turn T fixes its sign
+/// (typically A4 or A6 at exactly 0°) is held at 0° on its side — the rest of the pose
+/// solved in the least-squares sense — rather than rejecting the target. Returns the axes
+/// held so.
+#[allow(clippy::too_many_arguments)]
+fn solve_target(
+    model: &Model,
+    tool: &Frame,
+    target: &Target,
+    directions: &[Direction; 6],
+    start: [f64; 6],
+    hold: [bool; 6],
+    method: Method,
+) -> Result<(solve::Solution, [bool; 6]), TargetError> {
+    // Equation (3) is taken at the programmed (nominal) command, whatever the start.
+    let start = if method == Method::OneStep && !hold.iter().any(|&h| h) {
+        target.nominal_axes
+    } else {
+        start
+    };
+    let problem = Problem {
+        goal: target.goal,
+        tool,
+        start,
+        directions: *directions,
+        hold,
+    };
+    let robot = &model.robot;
+    // Near a singularity the goal may be out of reach in one direction: take the least-squares
+    // command there (reported by its residual) rather than rejecting the target.
+    let near_singular = crate::kinematics::singularity(robot, &target.nominal_axes).is_some();
+    let solve_or_best = |p: &Problem, m: Method| match solve::solve(model, p, m) {
+        Ok(s) => Ok(s),
+        Err(e) if near_singular => Ok(*e.best),
+        Err(e) => Err(e),
+    };
+    let mut sol = solve_or_best(&problem, method)?;
+    let mut turn_held = [false; 6];
+    let (s0, t0) = status_turn(robot, &target.nominal_axes);
+    let (mut s1, mut t1) = status_turn(robot, &sol.axes_deg);
+    if target.keep.t && t0 != t1 && s0 == s1 {
+        let mut start = sol.axes_deg;
+        let mut hold = hold;
+        for i in 0..6 {
+            if (t0 ^ t1) >> i & 1 == 1 {
+                turn_held[i] = true;
+                hold[i] = true;
+                start[i] = if t0 >> i & 1 == 1 { -1e-9 } else { 0.0 };
+            }
+        }
+        let retry = Problem {
+            start,
+            hold,
+            ..problem
+        };
+        sol = solve_or_best(&retry, Method::Iterate)?;
+        (s1, t1) = status_turn(robot, &sol.axes_deg);
+    }
+    for (n, (a, [lo, hi])) in sol.axes_deg.iter().zip(robot.limits_deg.iter()).enumerate() {
+        if a < lo || a > hi {
+            return Err(TargetError::OutOfLimits {
+                axis: n as u8 + 1,
+                value: *a,
+                lo: *lo,
+                hi: *hi,
+            });
+        }
+    }
+    let s_bad = target.keep.s && s0 != s1;
+    let t_bad = target.keep.t && t0 != t1;
+    if s_bad || t_bad {
+        return Err(TargetError::Configuration {
+            s_from: s0,
+            t_from: t0,
+            s_to: s1,
+            t_to: t1,
+        });
+    }
+    Ok((sol, turn_held))
+}
+
+fn first_pass(
+    model: &Model,
+    tools: &[Frame],
+    target: &Target,
+    directions: &[Direction; 6],
+    method: Method,
+) -> Outcome {
+    let tool = &tools[target.tool as usize];
+    let mut out = Outcome {
+        axes_deg: target.nominal_axes,
+        directions: *directions,
+        nominal_directions: *directions,
+        before: Vector6::zeros(),
+        residual: Vector6::zeros(),
+        iterations: 0,
+        resolution: Resolution::Consistent,
+        error: None,
+        changed: false,
+        turn_held: [false; 6],
+    };
+    if !target.compensate {
+        out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
+        out.residual = out.before;
+        return out;
+    }
+    match solve_target(
+        model,
+        tool,
+        target,
+        directions,
+        target.nominal_axes,
+        [false; 6],
+        method,
+    ) {
+        Ok((sol, turn_held)) => {
+            out.changed = sol.axes_deg != target.nominal_axes;
+            out.axes_deg = sol.axes_deg;
+            out.residual = sol.residual;
+            out.iterations = sol.iterations;
+            out.turn_held = turn_held;
+            // The error at the nominal command (the start, unless a turn was kept by holding).
+            out.before = if turn_held.iter().any(|&h| h) {
+                tcp_error(model, tool, &target.nominal_axes, directions, &target.goal)
+            } else {
+                sol.initial
+            };
+        }
+        Err(e) => {
+            out.error = Some(e);
+            out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
+            out.residual = out.before;
+        }
+    }
+    out
+}
+
+/// What the re-check needs besides the outcomes.
+struct Ctx<'a> {
+    model: &'a Model,
+    tools: &'a [Frame],
+    targets: &'a [Target],
+    method: Method,
+}
+
+impl Ctx<'_> {
+    fn tool(&self, k: usize) -> &Frame {
+        &self.tools[self.targets[k].tool as usize]
+    }
+
+    /// The TCP commanded at target `k` with `axes`, as written (rounded) when it is written.
+    fn tcp(&self, k: usize, axes: &[f64; 6]) -> Frame {
+        let arm = Nominal(&self.model.robot);
+        let tool = self.tool(k);
+        match self.targets[k].quantum {
+            Some(q) if q.axis => {
+                let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], q.decimals[i]));
+                arm.tcp(&r, tool)
+            }
+            Some(q) => {
+                let base = &self.tools[q.base as usize];
+                let p = base
+                    .inverse()
+                    .compose(&arm.tcp(axes, tool))
+                    .to_kuka_near(&[0.0; 3]);
+                let r: [f64; 6] = std::array::from_fn(|i| round_to(p[i], q.decimals[i]));
+                base.compose(&Frame::from_kuka(&r))
+            }
+            None => arm.tcp(axes, tool),
+        }
+    }
+
+    /// How the commanded motion arrives at target `k` commanded at `axes`, the other targets
+    /// at `cmd(j)`: the controller's interpolation between the commands, exactly as
+    /// `motion::interpolate` computes the nominal arrival (`dq/du` at the end).
+    fn rate(
+        &self,
+        k: usize,
+        axes: &[f64; 6],
+        cmd: &dyn Fn(usize) -> [f64; 6],
+        cache: Option<&[Frame]>,
+    ) -> Option<[f64; 6]> {
+        let t = &self.targets[k];
+        let nominal = t.arrival?;
+        if k == 0 {
+            return Some(nominal);
+        }
+        // The written (rounded) TCP of target j: from the cache of first-pass commands, or
+        // computed (target k itself is evaluated at `axes`).
+        let tcp = |j: usize| match cache {
+            Some(c) => c[j],
+            None if j == k => self.tcp(k, axes),
+            None => self.tcp(j, &cmd(j)),
+        };
+        let prev = cmd(k - 1);
+        let step: [f64; 6] = std::array::from_fn(|i| axes[i] - prev[i]);
+        let twist = match t.interp {
+            Interp::Joint => return Some(step),
+            Interp::Line => {
+                let (a, b) = (tcp(k - 1), tcp(k));
+                let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
+                let v = b.position - a.position;
+                nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+            }
+            Interp::CircEnd if k >= 2 => {
+                let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
+                match Cartesian::new(&start, &end, &Path::Circ { aux }) {
+                    Ok(c) => c.twist(1.0),
+                    Err(_) => return Some(step),
+                }
+            }
+            Interp::CircAux if k + 1 < self.targets.len() => {
+                let (start, aux, end) = (tcp(k - 1), tcp(k).position, tcp(k + 1));
+                match Cartesian::new(&start, &end, &Path::Circ { aux }) {
+                    Ok(c) => {
+                        let u = c.fraction_at(&aux);
+                        c.twist(u) * u
+                    }
+                    Err(_) => return Some(step),
+                }
+            }
+            _ => return Some(step),
+        };
+        let (_, j) = Nominal(&self.model.robot).tcp_jacobian(axes, self.tool(k));
+        let rate = j.lu().solve(&twist);
+        Some(std::array::from_fn(|i| match rate {
+            Some(r) if r[i].is_finite() && r[i].abs() >= REST_DEG => r[i],
+            // A turning point right at the target: the sign of the whole step.
+            _ => step[i],
+        }))
+    }
+}
+
+/// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
+/// they were solved with. `rates[k]` is the arrival rate at k computed with the first-pass
+/// commands; it is recomputed when a command it depends on changed since.
+fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[Option<[f64; 6]>]) {
+    let mut state = start;
+    let mut resolved = vec![false; ctx.targets.len()];
+    let (mut n_expected, mut n_actual) = (0usize, 0usize);
+    for k in 0..ctx.targets.len() {
+        let target = &ctx.targets[k];
+        let tool = ctx.tool(k);
+        let fixed = !target.compensate || outcomes[k].error.is_some();
+        // The nominal motion's signs, but resting axes keep the *compensated* state: after an
+        // earlier flip this differs from the nominal directions the first pass assumed.
+        let expected = arrive(&state, target.arrival);
+        if expected != outcomes[k].directions && !fixed {
+            let mut o = first_pass(ctx.model, ctx.tools, target, &expected, ctx.method);
+            o.nominal_directions = outcomes[k].nominal_directions;
+            outcomes[k] = o;
+            resolved[k] = true;
+            n_expected += 1;
+        }
+        let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
+        let rate = if stale {
+            let snapshot = |j: usize| outcomes[j].axes_deg;
+            ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None)
+        } else {
+            rates[k]
+        };
+        let actual = arrive(&state, rate);
+        if actual != outcomes[k].directions {
+            n_actual += 1;
+            outcomes[k] = if fixed || outcomes[k].error.is_some() {
+                // The command is the nominal one: only the prediction changes.
+                let mut o = outcomes[k];
+                o.directions = actual;
+                o.before = tcp_error(ctx.model, tool, &target.nominal_axes, &actual, &target.goal);
+                o.residual = o.before;
+                o
+            } else {
+                resolved[k] = true;
+                resettle(ctx, k, outcomes, &state, actual)
+            };
+        }
+        state = outcomes[k].directions;
+    }
+    if std::env::var_os("ROBOPOST_TIMING").is_some() {
+        eprintln!("  re-solved: {n_expected} for the compensated state, {n_actual} for the compensated motion");
+    }
+}
+
+/// Candidate command of a target with its true directions and predicted error.
+struct Candidate {
+    axes: [f64; 6],
+    directions: [Direction; 6],
+    error: Vector6<f64>,
+    iterations: u32,
+    resolution: Resolution,
+}
+
+/// Re-solves target k whose compensated motion arrives with `actual` directions instead of the
+/// ones it was solved with.
+fn resettle(
+    ctx: &Ctx,
+    k: usize,
+    outcomes: &[Outcome],
+    state: &[Direction; 6],
+    actual: [Direction; 6],
+) -> Outcome {
+    let (model, method) = (ctx.model, ctx.method);
+    let target = &ctx.targets[k];
+    let tool = ctx.tool(k);
+    let first = &outcomes[k];
+    let cmd = |j: usize| outcomes[j].axes_deg;
+    let directions_at = |axes: &[f64; 6]| arrive(state, ctx.rate(k, axes, &cmd, None));
+    let mut out = *first;
+    // The first solution, evaluated with the direction its motion really has.
+    let mut candidates = vec![Candidate {
+        axes: first.axes_deg,
+        directions: actual,
+        error: tcp_error(model, tool, &first.axes_deg, &actual, &target.goal),
+        iterations: first.iterations,
+        resolution: Resolution::Branch,
+    }];
+    let mut oscillating = [false; 6];
+    match solve_target(
+        model,
+        tool,
+        target,
+        &actual,
+        first.axes_deg,
+        [false; 6],
+        method,
+    ) {
+        Ok((sol, turn_held)) => {
+            let again = directions_at(&sol.axes_deg);
+            if again == actual {
+                out.axes_deg = sol.axes_deg;
+                out.directions = actual;
+                out.residual = sol.residual;
+                out.iterations += sol.iterations;
+                out.resolution = Resolution::Rebranched;
+                out.changed = sol.axes_deg != target.nominal_axes;
+                out.turn_held = turn_held;
+                return out;
+            }
+            for i in 0..6 {
+                oscillating[i] = again[i] != actual[i];
+            }
+            candidates.push(Candidate {
+                axes: sol.axes_deg,
+                directions: again,
+                error: tcp_error(model, tool, &sol.axes_deg, &again, &target.goal),
+                iterations: sol.iterations,
+                resolution: Resolution::Branch,
+            });
+        }
+        Err(_) => {
+            for i in 0..6 {
+                oscillating[i] = actual[i] != first.directions[i];
+            }
+        }
+    }
+    // Hold the oscillating axes still — the same command as at the previous target — so that
+    // they rest and keep `state` (exactly for PTP; along a Cartesian path up to the path's
+    // own second-order motion, which the evaluation below takes into account).
+    if k > 0 && target.arrival.is_some() && oscillating.iter().any(|&o| o) {
+        let mut start = first.axes_deg;
+        let prev = cmd(k - 1);
+        let mut dirs = actual;
+        for i in 0..6 {
+            if oscillating[i] {
+                start[i] = prev[i];
+                dirs[i] = state[i];
+            }
+        }
+        if let Ok((sol, _)) = solve_target(model, tool, target, &dirs, start, oscillating, method) {
+            let really = directions_at(&sol.axes_deg);
+            candidates.push(Candidate {
+                axes: sol.axes_deg,
+                directions: really,
+                error: tcp_error(model, tool, &sol.axes_deg, &really, &target.goal),
+                iterations: sol.iterations,
+                resolution: Resolution::Held(oscillating),
+            });
+        }
+    }
+    let best = candidates
+        .into_iter()
+        .min_by(|a, b| weighted_norm(&a.error).total_cmp(&weighted_norm(&b.error)))
+        .expect("the first solution is always a candidate");
+    out.axes_deg = best.axes;
+    out.directions = best.directions;
+    out.residual = best.error;
+    out.iterations += best.iterations;
+    out.resolution = best.resolution;
+    out.changed = best.axes != target.nominal_axes;
+    out
+}

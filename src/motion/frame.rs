@@ -1,0 +1,226 @@
+//! Pose arithmetic shared by motion simulation and compensation: a rigid frame as rotation
+//! matrix + position (cheaper than quaternions in inner loops), pose errors as six-vectors
+//! `[Δp (mm); Δr (rad)]` with the rotation error as the rotation vector of `R_actual · R_goalᵀ`
+//! (a world-frame error, the frame in which the paper writes `p̂ − p*`), and its inverse, the
+//! exponential; conversions to and from KUKA X/Y/Z/A/B/C.
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+use crate::kinematics::{abc_to_matrix, matrix_to_abc};
+
+/// A rigid frame: `x ↦ rotation · x + position`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    pub rotation: Matrix3<f64>,
+    pub position: Vector3<f64>,
+}
+
+impl Frame {
+    pub fn identity() -> Frame {
+        Frame {
+            rotation: Matrix3::identity(),
+            position: Vector3::zeros(),
+        }
+    }
+
+    pub fn from_isometry(iso: &Isometry3<f64>) -> Frame {
+        Frame {
+            rotation: *iso.rotation.to_rotation_matrix().matrix(),
+            position: iso.translation.vector,
+        }
+    }
+
+    pub fn to_isometry(&self) -> Isometry3<f64> {
+        // Direct (Shepperd) conversion: the matrix is orthonormal to rounding.
+        let q =
+            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(self.rotation));
+        Isometry3::from_parts(Translation3::from(self.position), q)
+    }
+
+    /// A KUKA frame: X, Y, Z in mm, R = Rz(A)·Ry(B)·Rx(C) in degrees.
+    pub fn from_kuka(xyzabc: &[f64; 6]) -> Frame {
+        let [x, y, z, a, b, c] = *xyzabc;
+        Frame {
+            rotation: abc_to_matrix(a, b, c),
+            position: Vector3::new(x, y, z),
+        }
+    }
+
+    /// X, Y, Z, A, B, C of this frame, the angles chosen nearest to `near` (A, B, C of the
+    /// value being replaced): of the two Euler triples of a rotation and their ±360° copies,
+    /// the one a user would expect next to the original; at B = ±90° (where only A∓C is
+    /// defined) C is kept.
+    pub fn to_kuka_near(&self, near: &[f64; 3]) -> [f64; 6] {
+        let p = self.position;
+        let [a, b, c] = abc_near(&self.rotation, near);
+        [p.x, p.y, p.z, a, b, c]
+    }
+
+    /// `self · other`.
+    pub fn compose(&self, other: &Frame) -> Frame {
+        Frame {
+            rotation: self.rotation * other.rotation,
+            position: self.position + self.rotation * other.position,
+        }
+    }
+
+    pub fn inverse(&self) -> Frame {
+        let rt = self.rotation.transpose();
+        Frame {
+            rotation: rt,
+            position: -(rt * self.position),
+        }
+    }
+
+    /// The frame moved by the world-frame error `e` (`[Δp; Δr]`): position `p + Δp`,
+    /// rotation `exp(Δr) · R`.
+    pub fn moved_by(&self, e: &Vector6<f64>) -> Frame {
+        Frame {
+            rotation: exp_so3(&Vector3::new(e[3], e[4], e[5])) * self.rotation,
+            position: self.position + Vector3::new(e[0], e[1], e[2]),
+        }
+    }
+}
+
+/// The nearest representation to `near` (see [`Frame::to_kuka_near`]).
+pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
+    let wrap = |x: f64, to: f64| x - 360.0 * ((x - to) / 360.0).round();
+    let cb = r[(0, 0)].hypot(r[(1, 0)]);
+    if cb < 1e-9 {
+        // Gimbal lock: keep C; R·Rx(C)ᵀ = Rz(A)·Ry(±90°) has r01 = −sin A, r11 = cos A.
+        let b = if r[(2, 0)] < 0.0 { 90.0 } else { -90.0 };
+        let c = near[2];
+        let rc = r * abc_to_matrix(0.0, 0.0, c).transpose();
+        let a = (-rc[(0, 1)]).atan2(rc[(1, 1)]).to_degrees();
+        return [wrap(a, near[0]), b, c];
+    }
+    let [a, b, c] = matrix_to_abc(r);
+    let first = [wrap(a, near[0]), wrap(b, near[1]), wrap(c, near[2])];
+    let second = [
+        wrap(a + 180.0, near[0]),
+        wrap(180.0 - b, near[1]),
+        wrap(c + 180.0, near[2]),
+    ];
+    let dist = |t: &[f64; 3]| -> f64 { t.iter().zip(near).map(|(x, y)| (x - y).abs()).sum() };
+    if dist(&second) < dist(&first) {
+        second
+    } else {
+        first
+    }
+}
+
+/// `actual − goal` as a world-frame six-vector: `[p_a − p_g; log(R_a · R_gᵀ)]`.
+pub fn error(actual: &Frame, goal: &Frame) -> Vector6<f64> {
+    let dp = actual.position - goal.position;
+    let dr = log_so3(&(actual.rotation * goal.rotation.transpose()));
+    Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+}
+
+/// Position (mm) and rotation (rad) norms of a pose error.
+pub fn norms(e: &Vector6<f64>) -> (f64, f64) {
+    (
+        (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt(),
+        (e[3] * e[3] + e[4] * e[4] + e[5] * e[5]).sqrt(),
+    )
+}
+
+/// The rotation vector of `r`. Uses `atan2(|v|, (tr − 1)/2)` with `v` the axial vector of the
+/// skew part, exact for the micro-radian angles of compensation where `acos` of the trace
+/// loses half the digits.
+pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
+    let v = Vector3::new(
+        r[(2, 1)] - r[(1, 2)],
+        r[(0, 2)] - r[(2, 0)],
+        r[(1, 0)] - r[(0, 1)],
+    ) * 0.5;
+    let s = v.norm();
+    let c = (r.trace() - 1.0) * 0.5;
+    if s < 1e-300 {
+        if c > 0.0 {
+            return Vector3::zeros();
+        }
+        // Half-turn: axis from the symmetric part.
+        let b = (r + Matrix3::identity()) * 0.5;
+        let i = (0..3)
+            .max_by(|&i, &j| b[(i, i)].total_cmp(&b[(j, j)]))
+            .unwrap_or(0);
+        let axis = b.column(i) / b[(i, i)].max(1e-300).sqrt();
+        return axis.normalize() * std::f64::consts::PI;
+    }
+    let angle = s.atan2(c);
+    v * (angle / s)
+}
+
+/// Rodrigues' formula: the rotation by `w` (rad).
+pub fn exp_so3(w: &Vector3<f64>) -> Matrix3<f64> {
+    let theta2 = w.norm_squared();
+    let (a, b) = if theta2 < 1e-12 {
+        // sin θ/θ and (1 − cos θ)/θ² to well below an ulp at θ < 1e-6.
+        (1.0 - theta2 / 6.0, 0.5 - theta2 / 24.0)
+    } else {
+        let theta = theta2.sqrt();
+        (theta.sin() / theta, (1.0 - theta.cos()) / theta2)
+    };
+    let k = w.cross_matrix();
+    Matrix3::identity() + k * a + k * k * b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn log_exp_round_trip_small_and_large() {
+        for w in [
+            Vector3::new(1e-9, -2e-9, 3e-9),
+            Vector3::new(0.3, -0.2, 0.1),
+            Vector3::new(0.0, 3.0, 0.0),
+        ] {
+            let r = exp_so3(&w);
+            assert_relative_eq!(log_so3(&r), w, epsilon = 1e-15, max_relative = 1e-12);
+            // Against nalgebra's own exponential.
+            let r2 = Rotation3::from_scaled_axis(w);
+            assert_relative_eq!(r, *r2.matrix(), epsilon = 1e-15);
+        }
+    }
+
+    #[test]
+    fn kuka_angles_nearest_the_original() {
+        for (abc, near) in [
+            ([10.0, 20.0, 30.0], [10.0, 20.0, 30.0]),
+            ([180.0, 0.0, 180.0], [-180.0, 0.0, -180.0]),
+            ([-179.9999, 45.0, 0.0], [180.0, 45.0, 0.0]),
+            ([30.0, 90.0, 40.0], [30.0, 90.0, 40.0]),
+            ([30.0, -90.0, -40.0], [30.0, -90.0, -40.0]),
+            ([0.0, 0.0, 350.0], [0.0, 0.0, 350.0]),
+        ] {
+            let f = Frame::from_kuka(&[1.0, 2.0, 3.0, abc[0], abc[1], abc[2]]);
+            let out = f.to_kuka_near(&near);
+            for i in 0..3 {
+                assert!((out[3 + i] - near[i]).abs() < 1e-3, "{abc:?} → {out:?}");
+            }
+            let back = Frame::from_kuka(&out);
+            assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn error_of_moved_frame_is_the_move() {
+        let f = Frame::from_isometry(&Isometry3::new(
+            Vector3::new(1000.0, -200.0, 800.0),
+            Vector3::new(0.2, 1.0, -0.4),
+        ));
+        let e = Vector6::new(0.01, -0.02, 0.003, 1e-5, -3e-6, 2e-6);
+        let g = f.moved_by(&e);
+        assert_relative_eq!(error(&g, &f), e, epsilon = 1e-12);
+        let back = f.compose(&f.inverse());
+        assert_relative_eq!(back.rotation, Matrix3::identity(), epsilon = 1e-15);
+        assert_relative_eq!(back.position, Vector3::zeros(), epsilon = 1e-12);
+        assert_relative_eq!(
+            Frame::from_isometry(&f.to_isometry()).rotation,
+            f.rotation,
+            epsilon = 1e-15
+        );
+    }
+}

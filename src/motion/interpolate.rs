@@ -1,0 +1,472 @@
+//! The controller's interpolation between two targets, sampled to find how every axis arrives
+//! at the end: PTP is linear in axis space (no axis can reverse inside it), LIN a straight
+//! line with the orientation turning at a constant rate about a fixed axis (slerp), CIRC the
+//! arc through the auxiliary point with the same orientation law. A Cartesian segment is
+//! walked with local IK at a pitch fine enough for the axes to move nearly linearly between
+//! samples (so that a reversal inside it shows as a sign change of the differences), the end
+//! is checked against the controller's end axes (a mismatch means the path crosses a
+//! singularity), and the arrival rate `dq/du` at the end is exact: `J⁻¹·ẋ(1)` with `ẋ` the
+//! path's twist per unit of the segment parameter. An axis with no motion at the end (a
+//! turning point right at the target) takes the sign of its last sampled motion; one that
+//! does not move at all rests.
+
+use nalgebra::{Vector3, Vector6};
+
+use super::frame::{self, exp_so3, Frame};
+use super::nominal::{self, Arm, Nominal};
+use crate::kinematics::RobotDescription;
+
+/// An axis whose arrival rate is below this (degrees per segment) is at rest: it keeps its
+/// direction. 10⁻⁴° is the resolution of the numbers a program is written with (1 µm and
+/// 0.1 mdeg move an axis by about that much), far below any backlash: a motion the program
+/// cannot even express does not decide which branch a gear sits on.
+pub const REST_DEG: f64 = 1e-4;
+/// Sample pitch of Cartesian paths: a sample every this many mm of TCP travel …
+const PITCH_MM: f64 = 20.0;
+/// … and every this many degrees of orientation change.
+const PITCH_DEG: f64 = 5.0;
+/// At most this many samples per segment.
+const MAX_SAMPLES: usize = 2000;
+/// The walked end may differ from the controller's end axes by this much (deg).
+const END_MATCH_DEG: f64 = 1e-6;
+
+/// The geometric path of one motion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Path {
+    /// Linear in axis space.
+    Ptp,
+    /// Straight line, orientation by slerp.
+    Lin,
+    /// Arc through the auxiliary TCP position (robot base frame), orientation by slerp.
+    Circ { aux: Vector3<f64> },
+}
+
+/// Why a path could not be followed.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum PathError {
+    #[error("the path cannot be followed near u = {at:.3}: {reason}")]
+    Lost { at: f64, reason: &'static str },
+    #[error("the path reaches the target with other axis angles than the controller's (A{axis} differs by {by_deg:.4}°): it crosses a singularity or changes configuration")]
+    EndMismatch { axis: u8, by_deg: f64 },
+    #[error("the auxiliary point lies on the line through start and end: no circle")]
+    DegenerateCircle,
+}
+
+/// A TCP pose along a Cartesian path, `u ∈ [0, 1]`.
+#[derive(Clone, Copy, Debug)]
+pub struct Cartesian {
+    start: Frame,
+    /// World rotation vector from the start to the end orientation.
+    omega: Vector3<f64>,
+    shape: Shape,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Shape {
+    Line {
+        from: Vector3<f64>,
+        delta: Vector3<f64>,
+    },
+    Arc {
+        centre: Vector3<f64>,
+        axis: Vector3<f64>,
+        radius0: Vector3<f64>,
+        angle: f64,
+    },
+}
+
+impl Cartesian {
+    pub fn new(start: &Frame, end: &Frame, path: &Path) -> Result<Cartesian, PathError> {
+        let omega = frame::log_so3(&(end.rotation * start.rotation.transpose()));
+        let shape = match path {
+            Path::Ptp | Path::Lin => Shape::Line {
+                from: start.position,
+                delta: end.position - start.position,
+            },
+            Path::Circ { aux } => arc(&start.position, aux, &end.position)?,
+        };
+        Ok(Cartesian {
+            start: *start,
+            omega,
+            shape,
+        })
+    }
+
+    pub fn pose(&self, u: f64) -> Frame {
+        let rotation = exp_so3(&(self.omega * u)) * self.start.rotation;
+        let position = match self.shape {
+            Shape::Line { from, delta } => from + delta * u,
+            Shape::Arc {
+                centre,
+                axis,
+                radius0,
+                angle,
+            } => centre + exp_so3(&(axis * (angle * u))) * radius0,
+        };
+        Frame { rotation, position }
+    }
+
+    /// d(pose)/du at `u`: `[dp/du; ω]`.
+    pub fn twist(&self, u: f64) -> Vector6<f64> {
+        let v = match self.shape {
+            Shape::Line { delta, .. } => delta,
+            Shape::Arc {
+                axis,
+                radius0,
+                angle,
+                ..
+            } => (axis * angle).cross(&(exp_so3(&(axis * (angle * u))) * radius0)),
+        };
+        let w = self.omega;
+        Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+    }
+
+    /// The arc from the same start about the same centre turned by `angle_deg` (a circular
+    /// motion with `CA`: it ends there, with the end orientation `rotation`); `None` for a line.
+    pub fn with_arc_angle(
+        &self,
+        angle_deg: f64,
+        rotation: &nalgebra::Matrix3<f64>,
+    ) -> Option<Cartesian> {
+        match self.shape {
+            Shape::Line { .. } => None,
+            Shape::Arc {
+                centre,
+                axis,
+                radius0,
+                ..
+            } => Some(Cartesian {
+                start: self.start,
+                omega: frame::log_so3(&(rotation * self.start.rotation.transpose())),
+                shape: Shape::Arc {
+                    centre,
+                    axis,
+                    radius0,
+                    angle: angle_deg.to_radians(),
+                },
+            }),
+        }
+    }
+
+    /// The path parameter at which an arc passes `point` (its angle from the start over the
+    /// arc's angle); for a line, the projection onto it.
+    pub fn fraction_at(&self, point: &Vector3<f64>) -> f64 {
+        match self.shape {
+            Shape::Line { from, delta } => {
+                let l2 = delta.norm_squared();
+                if l2 == 0.0 {
+                    0.0
+                } else {
+                    (point - from).dot(&delta) / l2
+                }
+            }
+            Shape::Arc {
+                centre,
+                axis,
+                radius0,
+                angle,
+            } => {
+                let r = point - centre;
+                let mut a = axis.dot(&radius0.cross(&r)).atan2(radius0.dot(&r));
+                if a < 0.0 {
+                    a += 2.0 * std::f64::consts::PI;
+                }
+                a / angle
+            }
+        }
+    }
+
+    /// TCP travel (mm) and orientation change (deg).
+    pub fn extent(&self) -> (f64, f64) {
+        let length = match self.shape {
+            Shape::Line { delta, .. } => delta.norm(),
+            Shape::Arc { radius0, angle, .. } => radius0.norm() * angle.abs(),
+        };
+        (length, self.omega.norm().to_degrees())
+    }
+}
+
+/// The circle through `a`, `b`, `c` traversed a → b → c.
+fn arc(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Result<Shape, PathError> {
+    let ab = b - a;
+    let ac = c - a;
+    let n = ab.cross(&ac);
+    let n2 = n.norm_squared();
+    if n2 <= 1e-12 * ab.norm_squared() * ac.norm_squared() || n2 == 0.0 {
+        return Err(PathError::DegenerateCircle);
+    }
+    let centre =
+        a + (n.cross(&ab) * ac.norm_squared() + ac.cross(&n) * ab.norm_squared()) / (2.0 * n2);
+    let axis = n / n2.sqrt();
+    let r0 = a - centre;
+    let r1 = c - centre;
+    let mut angle = axis.dot(&r0.cross(&r1)).atan2(r0.dot(&r1));
+    if angle <= 0.0 {
+        angle += 2.0 * std::f64::consts::PI;
+    }
+    Ok(Shape::Arc {
+        centre,
+        axis,
+        radius0: r0,
+        angle,
+    })
+}
+
+/// How a segment arrives at its end.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arrival {
+    /// `dq/du` at the end in degrees per segment (the whole step for PTP), 0 for an axis at
+    /// rest.
+    pub rate: [f64; 6],
+    /// The end axes the controller reaches by following the path: the given ones, or their
+    /// ±360° variant where the path turns an axis past the nearest one (continuity).
+    pub end: [f64; 6],
+}
+
+/// Whether a straight segment is short enough to need no samples inside it (the arrival rate
+/// at its end then depends on its two ends only, so it can be computed later, in parallel).
+pub fn lin_needs_no_samples(start: &Frame, end: &Frame) -> bool {
+    let length = (end.position - start.position).norm();
+    let turn = frame::log_so3(&(end.rotation * start.rotation.transpose()))
+        .norm()
+        .to_degrees();
+    length <= PITCH_MM && turn <= PITCH_DEG
+}
+
+/// How every axis arrives at the end of a segment from `start` to `end` (TCP, axes).
+pub fn arrival(
+    robot: &RobotDescription,
+    tool: &Frame,
+    path: &Path,
+    start: (&Frame, &[f64; 6]),
+    end: (&Frame, &[f64; 6]),
+) -> Result<Arrival, PathError> {
+    let (q0, q1) = (start.1, end.1);
+    if *path == Path::Ptp {
+        return Ok(Arrival {
+            rate: std::array::from_fn(|i| rest(q1[i] - q0[i])),
+            end: *q1,
+        });
+    }
+    let cart = Cartesian::new(start.0, end.0, path)?;
+    arrival_along(robot, tool, &cart, 1.0, q0, q1)
+}
+
+/// How every axis arrives at parameter `u_end` of `cart` (whose start the robot leaves at
+/// axes `q0`), reaching axes `q1` there: `dq/du` scaled to the sub-segment `[0, u_end]`.
+pub fn arrival_along(
+    robot: &RobotDescription,
+    tool: &Frame,
+    cart: &Cartesian,
+    u_end: f64,
+    q0: &[f64; 6],
+    q1: &[f64; 6],
+) -> Result<Arrival, PathError> {
+    let mut q1 = *q1;
+    let (length, turn) = cart.extent();
+    let n = ((length * u_end / PITCH_MM)
+        .max(turn * u_end / PITCH_DEG)
+        .ceil() as usize)
+        .clamp(1, MAX_SAMPLES);
+    // Walk the path; keep the last sample at which each axis still differed from its end.
+    let mut q = *q0;
+    let mut samples = Vec::with_capacity(n);
+    samples.push((*q0, 0.0));
+    for j in 1..n {
+        let u = u_end * j as f64 / n as f64;
+        q = nominal::local_ik(robot, &cart.pose(u), tool, &q)
+            .map_err(|_| PathError::Lost {
+                at: u,
+                reason: "no nearby axis solution (singularity or out of reach)",
+            })?
+            .axes_deg;
+        samples.push((q, u / u_end));
+    }
+    if n > 1 {
+        let walked = nominal::local_ik(robot, &cart.pose(u_end), tool, &q)
+            .map_err(|_| PathError::Lost {
+                at: u_end,
+                reason: "no nearby axis solution at the end",
+            })?
+            .axes_deg;
+        for i in 0..6 {
+            let d = walked[i] - q1[i];
+            let turns = (d / 360.0).round();
+            if (d - 360.0 * turns).abs() > END_MATCH_DEG {
+                return Err(PathError::EndMismatch {
+                    axis: i as u8 + 1,
+                    by_deg: d.abs(),
+                });
+            }
+            q1[i] += 360.0 * turns;
+        }
+    }
+    let q1 = &q1;
+    let mut last_moving: [Option<([f64; 6], f64)>; 6] = [None; 6];
+    for (qs, u) in samples.iter().rev() {
+        for i in 0..6 {
+            if last_moving[i].is_none() && (q1[i] - qs[i]).abs() >= REST_DEG {
+                last_moving[i] = Some((*qs, *u));
+            }
+        }
+    }
+    // The exact rate at the end, where the Jacobian is regular.
+    let (_, jac) = Nominal(robot).tcp_jacobian(q1, tool);
+    let rate = jac.lu().solve(&(cart.twist(u_end) * u_end));
+    Ok(Arrival {
+        rate: std::array::from_fn(|i| {
+            let r = rate.map_or(0.0, |r| r[i]);
+            if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
+                return r;
+            }
+            match last_moving[i] {
+                Some((qs, u)) => rest((q1[i] - qs[i]) / (1.0 - u)),
+                None => 0.0,
+            }
+        }),
+        end: *q1,
+    })
+}
+
+fn rest(d: f64) -> f64 {
+    if d.abs() < REST_DEG {
+        0.0
+    } else {
+        d
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::{inverse, Select};
+    use approx::assert_relative_eq;
+
+    fn robot() -> RobotDescription {
+        RobotDescription::kr30ha()
+    }
+
+    fn fk(q: &[f64; 6]) -> Frame {
+        Nominal(&robot()).tcp(q, &Frame::identity())
+    }
+
+    #[test]
+    fn arc_passes_through_its_three_points() {
+        let a = Vector3::new(1000.0, 0.0, 1000.0);
+        let b = Vector3::new(1100.0, 100.0, 1000.0);
+        let c = Vector3::new(1200.0, 0.0, 1000.0);
+        let f = |p: Vector3<f64>| Frame {
+            rotation: nalgebra::Matrix3::identity(),
+            position: p,
+        };
+        let cart = Cartesian::new(&f(a), &f(c), &Path::Circ { aux: b }).unwrap();
+        assert_relative_eq!(cart.pose(0.0).position, a, epsilon = 1e-9);
+        assert_relative_eq!(cart.pose(1.0).position, c, epsilon = 1e-9);
+        // Half circle of radius 100 about (1100, 0): b at the middle.
+        assert_relative_eq!(cart.pose(0.5).position, b, epsilon = 1e-9);
+        assert_relative_eq!(
+            cart.extent().0,
+            100.0 * std::f64::consts::PI,
+            epsilon = 1e-9
+        );
+        // Tangent at the end points along −X … (c → beyond, turning about −Z).
+        let t = cart.twist(1.0);
+        assert!(t[0].abs() < 1e-9 && t[1] < 0.0);
+        assert!(Cartesian::new(&f(a), &f(c), &Path::Circ { aux: (a + c) / 2.0 }).is_err());
+    }
+
+    #[test]
+    fn lin_arrival_matches_finite_differences_and_rests() {
+        let r = robot();
+        let tool = Frame::identity();
+        let q0 = [10.0, -80.0, 100.0, 20.0, 50.0, -30.0];
+        let start = fk(&q0);
+        let mut end = start;
+        end.position += Vector3::new(-150.0, 80.0, -60.0);
+        end.rotation = exp_so3(&Vector3::new(0.1, -0.05, 0.2)) * end.rotation;
+        let q1 = inverse(
+            &r,
+            &end.to_isometry(),
+            Select::StatusNearest { s: 2, near: q0 },
+        )
+        .unwrap()
+        .axes_deg;
+        let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&end, &q1))
+            .unwrap()
+            .rate;
+        // Independent: nominal IK a little before the end, by the closed form.
+        let cart = Cartesian::new(&start, &end, &Path::Lin).unwrap();
+        let h = 1e-5;
+        let qh = inverse(
+            &r,
+            &cart.pose(1.0 - h).to_isometry(),
+            Select::StatusNearest { s: 2, near: q1 },
+        )
+        .unwrap()
+        .axes_deg;
+        for i in 0..6 {
+            assert_relative_eq!(
+                v[i],
+                (q1[i] - qh[i]) / h,
+                max_relative = 1e-3,
+                epsilon = 1e-3
+            );
+        }
+        // A vertical line at fixed orientation: A1 rests.
+        let mut down = start;
+        down.position.z -= 200.0;
+        let qd = inverse(
+            &r,
+            &down.to_isometry(),
+            Select::StatusNearest { s: 2, near: q0 },
+        )
+        .unwrap()
+        .axes_deg;
+        let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&down, &qd))
+            .unwrap()
+            .rate;
+        assert_eq!(v[0], 0.0);
+        assert!(v[1].abs() > 1.0 && v[2].abs() > 1.0);
+    }
+
+    #[test]
+    fn reversal_inside_a_segment_gives_the_last_direction() {
+        // A LIN passing the A1 axis's nearest point: A1 turns one way, the line continues …
+        // Here: a line along Y in front of the robot, A1 moves monotonically; and a circle
+        // whose tangent at the end reverses A2 relative to its net step.
+        let r = robot();
+        let tool = Frame::identity();
+        let q0 = [0.0, -60.0, 80.0, 0.0, 70.0, 0.0];
+        let start = fk(&q0);
+        // Arc going up and coming back down: net Z change 0, A2 first up then down.
+        let mut end = start;
+        end.position.x += 200.0;
+        let aux = start.position + Vector3::new(100.0, 0.0, 100.0);
+        let q1 = inverse(
+            &r,
+            &end.to_isometry(),
+            Select::StatusNearest { s: 2, near: q0 },
+        )
+        .unwrap()
+        .axes_deg;
+        let v = arrival(&r, &tool, &Path::Circ { aux }, (&start, &q0), (&end, &q1))
+            .unwrap()
+            .rate;
+        // On arrival the TCP moves down and forward (the arc's far side): compare with the
+        // sign of the nominal motion over the last 10⁻⁶ of the arc by closed-form IK.
+        let cart = Cartesian::new(&start, &end, &Path::Circ { aux }).unwrap();
+        let qh = inverse(
+            &r,
+            &cart.pose(1.0 - 1e-6).to_isometry(),
+            Select::StatusNearest { s: 2, near: q1 },
+        )
+        .unwrap()
+        .axes_deg;
+        for i in [1, 2, 4] {
+            assert_eq!(v[i] > 0.0, q1[i] > qh[i], "A{}", i + 1);
+        }
+        // A2's net step and its arrival direction differ somewhere among A2, A3, A5: the
+        // arc's reversal is caught.
+        assert!((0..6).any(|i| (q1[i] - q0[i]).abs() > 0.01 && (q1[i] - q0[i]) * v[i] < 0.0));
+    }
+}

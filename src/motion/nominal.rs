@@ -1,0 +1,285 @@
+//! Local (Newton) inverse kinematics on a kinematic chain: the axis angles near a starting set
+//! whose TCP reaches a goal pose. The chain is anything that gives its TCP and the TCP's
+//! Jacobian with respect to the axes ([`Arm`]): the nominal robot here (the controller's view,
+//! for sampling interpolated paths), the calibrated error model in `compensate`.
+//!
+//! The Jacobian column of axis n is `[ω_n × (p − o_n); ω_n]` per degree, `ω_n` the world axis
+//! of a positive KUKA rotation and `o_n` its centre (from the chain's frames). The first
+//! Jacobian serves several steps (linear convergence at the rate of how much it changes, tiny
+//! for the small corrections and path steps solved here); a step larger than
+//! [`MAX_STEP_DEG`] means a near-singular Jacobian and is damped. With held axes the solve is
+//! weighted least squares over the free axes: position in mm, orientation in rad × [`LEVER_MM`].
+
+use nalgebra::{Matrix6, Vector6};
+
+use super::frame::{self, Frame};
+use crate::kinematics::RobotDescription;
+use crate::model::chain::{self, a6_to_flange, ChainFrames};
+use crate::model::ChainErrors;
+
+/// Orientation weight of least-squares solves and of error comparisons: 1 rad ≙ 100 mm (a
+/// tool's length), so 1 mrad of tilt counts like 0.1 mm of displacement at the TCP.
+pub const LEVER_MM: f64 = 100.0;
+/// Iterations before giving up.
+const MAX_ITERATIONS: u32 = 40;
+/// A Newton step larger than this (deg, any axis) means a near-singular Jacobian: damp it.
+pub const MAX_STEP_DEG: f64 = 2.0;
+
+/// A kinematic chain as the solver sees it.
+pub trait Arm {
+    /// The TCP (flange · tool) in the robot base frame.
+    fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame;
+    /// The TCP and d(TCP)/d(axes) per degree.
+    fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>);
+}
+
+/// The TCP of a chain evaluated with `errors`.
+pub fn tcp_of(
+    robot: &RobotDescription,
+    axes: &[f64; 6],
+    errors: &ChainErrors,
+    tool: &Frame,
+) -> Frame {
+    let (r6, p6) = chain::a6_frame(robot, axes, errors);
+    let rf = r6 * a6_to_flange();
+    Frame {
+        rotation: rf * tool.rotation,
+        position: p6 + rf * tool.position,
+    }
+}
+
+/// The TCP and its axis Jacobian of a chain evaluated with `errors`.
+pub fn tcp_jacobian_of(
+    robot: &RobotDescription,
+    axes: &[f64; 6],
+    errors: &ChainErrors,
+    tool: &Frame,
+) -> (Frame, Matrix6<f64>) {
+    let frames = ChainFrames::new(robot, axes, errors);
+    let rf = frames.flange_rotation();
+    let tcp = Frame {
+        rotation: rf * tool.rotation,
+        position: frames.flange_position() + rf * tool.position,
+    };
+    let mut j = Matrix6::zeros();
+    for n in 1..=6 {
+        let w = frames.joint_axis(n) * std::f64::consts::PI / 180.0;
+        let v = w.cross(&(tcp.position - frames.axis_origin(n)));
+        j.set_column(n - 1, &Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z));
+    }
+    (tcp, j)
+}
+
+/// The nominal robot (the controller's kinematics).
+#[derive(Clone, Copy, Debug)]
+pub struct Nominal<'a>(pub &'a RobotDescription);
+
+impl Arm for Nominal<'_> {
+    fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
+        tcp_of(self.0, axes, &ChainErrors::default(), tool)
+    }
+    fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>) {
+        tcp_jacobian_of(self.0, axes, &ChainErrors::default(), tool)
+    }
+}
+
+/// One goal for [`newton`].
+#[derive(Clone, Copy, Debug)]
+pub struct Goal<'a> {
+    /// The TCP pose to reach, robot base frame.
+    pub pose: Frame,
+    /// Flange → TCP.
+    pub tool: &'a Frame,
+    /// Starting axes (held axes carry their held value).
+    pub start: [f64; 6],
+    /// Axes kept at their `start` value (least squares over the others).
+    pub hold: [bool; 6],
+    /// Stop when the position error (mm) and rotation error (rad) are both below these.
+    pub tol_mm: f64,
+    pub tol_rad: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Solution {
+    pub axes_deg: [f64; 6],
+    /// TCP error left at the solution, `[Δp (mm); Δr (rad)]`.
+    pub residual: Vector6<f64>,
+    pub iterations: u32,
+    /// TCP error at the start.
+    pub initial: Vector6<f64>,
+}
+
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("did not converge (left {position_um:.3} µm, {rotation_urad:.3} µrad after {iterations} iterations; near-singular pose?)")]
+pub struct NotConverged {
+    pub position_um: f64,
+    pub rotation_urad: f64,
+    pub iterations: u32,
+    /// The best solution found (least squares where the goal cannot be reached exactly).
+    pub best: Box<Solution>,
+}
+
+fn within(e: &Vector6<f64>, tol_p: f64, tol_r: f64) -> bool {
+    let (p, r) = frame::norms(e);
+    p < tol_p && r < tol_r
+}
+
+/// Newton iteration `q ← q − J⁻¹·(tcp(q) − goal)` from `goal.start`.
+pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
+    let mut q = goal.start;
+    // The Jacobian comes with the first evaluation: one chain evaluation for both.
+    let (tcp0, mut j) = arm.tcp_jacobian(&q, goal.tool);
+    let mut e = frame::error(&tcp0, &goal.pose);
+    let initial = e;
+    if within(&e, goal.tol_mm, goal.tol_rad) {
+        return Ok(Solution {
+            axes_deg: q,
+            residual: e,
+            iterations: 0,
+            initial,
+        });
+    }
+    let weighted = |e: &Vector6<f64>| {
+        let (p, r) = frame::norms(e);
+        p + LEVER_MM * r
+    };
+    let mut best = Solution {
+        axes_deg: q,
+        residual: e,
+        iterations: 0,
+        initial,
+    };
+    let least_squares = goal.hold.iter().any(|&h| h);
+    let mut stepper = Stepper::new(&j, &goal.hold);
+    let mut it = 0;
+    while it < MAX_ITERATIONS {
+        it += 1;
+        let dq = stepper.step(&j, &e, &goal.hold);
+        for (a, d) in q.iter_mut().zip(dq.iter()) {
+            *a += d;
+        }
+        e = frame::error(&arm.tcp(&q, goal.tool), &goal.pose);
+        if weighted(&e) < weighted(&best.residual) {
+            best = Solution {
+                axes_deg: q,
+                residual: e,
+                iterations: it,
+                initial,
+            };
+        }
+        let still = dq.iter().all(|d| d.abs() < 1e-11);
+        if within(&e, goal.tol_mm, goal.tol_rad) || (least_squares && still) {
+            return Ok(Solution {
+                axes_deg: q,
+                residual: e,
+                iterations: it,
+                initial,
+            });
+        }
+        if still {
+            // Stalled short of the goal: a singular direction (least squares reached).
+            break;
+        }
+        // Refresh the Jacobian when progress is slow (large steps, strong table slopes).
+        if it % 3 == 0 {
+            j = arm.tcp_jacobian(&q, goal.tool).1;
+            stepper = Stepper::new(&j, &goal.hold);
+        }
+    }
+    let (p, r) = frame::norms(&best.residual);
+    Err(NotConverged {
+        position_um: p * 1e3,
+        rotation_urad: r * 1e6,
+        iterations: it,
+        best: Box::new(best),
+    })
+}
+
+/// Nominal IK near `start`: the axes whose nominal TCP is `goal`, to 1 pm / 1 prad.
+pub fn local_ik(
+    robot: &RobotDescription,
+    goal: &Frame,
+    tool: &Frame,
+    start: &[f64; 6],
+) -> Result<Solution, NotConverged> {
+    newton(
+        &Nominal(robot),
+        &Goal {
+            pose: *goal,
+            tool,
+            start: *start,
+            hold: [false; 6],
+            tol_mm: 1e-9,
+            tol_rad: 1e-12,
+        },
+    )
+}
+
+/// Solves `J·dq = −e` (all axes free: LU, damped when near-singular) or the weighted least
+/// squares over the free axes.
+enum Stepper {
+    Lu(Box<nalgebra::LU<f64, nalgebra::U6, nalgebra::U6>>),
+    Damped,
+}
+
+impl Stepper {
+    fn new(j: &Matrix6<f64>, hold: &[bool; 6]) -> Stepper {
+        if hold.iter().any(|&h| h) {
+            return Stepper::Damped;
+        }
+        let lu = j.lu();
+        if lu.is_invertible() {
+            Stepper::Lu(Box::new(lu))
+        } else {
+            Stepper::Damped
+        }
+    }
+
+    fn step(&self, j: &Matrix6<f64>, e: &Vector6<f64>, hold: &[bool; 6]) -> [f64; 6] {
+        if let Stepper::Lu(lu) = self {
+            if let Some(dq) = lu.solve(&-e) {
+                if dq.iter().all(|d| d.is_finite() && d.abs() <= MAX_STEP_DEG) {
+                    return dq.into();
+                }
+            }
+        }
+        damped_least_squares(j, e, hold)
+    }
+}
+
+/// `min ‖W(J·dq + e)‖² + λ‖dq‖²` over the free axes, `W = diag(1,1,1,L,L,L)`; λ = 10⁻⁶ of
+/// the largest diagonal entry, negligible for a regular Jacobian (whose squared singular
+/// values are 10⁻³ of it or more) but enough to keep a singular wrist (A4 ∥ A6) from
+/// producing a huge step; a step still larger than [`MAX_STEP_DEG`] is shortened.
+#[allow(clippy::needless_range_loop)] // three arrays indexed alike
+fn damped_least_squares(j: &Matrix6<f64>, e: &Vector6<f64>, hold: &[bool; 6]) -> [f64; 6] {
+    let w = Vector6::new(1.0, 1.0, 1.0, LEVER_MM, LEVER_MM, LEVER_MM);
+    let mut a = Matrix6::zeros();
+    for c in 0..6 {
+        if !hold[c] {
+            a.set_column(c, &j.column(c).component_mul(&w));
+        }
+    }
+    let b = -e.component_mul(&w);
+    let mut n = a.transpose() * a;
+    let scale = n.diagonal().max().max(1e-30);
+    for c in 0..6 {
+        n[(c, c)] += if hold[c] { 1.0 } else { 1e-6 * scale };
+    }
+    let rhs = a.transpose() * b;
+    let dq = n
+        .cholesky()
+        .map(|ch| ch.solve(&rhs))
+        .unwrap_or_else(Vector6::zeros);
+    let mut out: [f64; 6] = dq.into();
+    for c in 0..6 {
+        if hold[c] || !out[c].is_finite() {
+            out[c] = 0.0;
+        }
+    }
+    let largest = out.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    if largest > MAX_STEP_DEG {
+        out.iter_mut().for_each(|d| *d *= MAX_STEP_DEG / largest);
+    }
+    out
+}

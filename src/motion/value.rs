@@ -1,0 +1,259 @@
+//! Values of KRL expressions as far as they can be known before run time: integers, reals,
+//! booleans, enum literals, frame data (`FDAT`) and positions (`FRAME POS E6POS AXIS E6AXIS`,
+//! possibly partial), each position remembering the aggregate its numbers were read from so
+//! that compensation can write them back. Anything that depends on run time (inputs, sensor
+//! values, unknown functions) is `Unknown` with the reason.
+
+use crate::krl::{Aggregate, Expr, SourceFile, Span};
+
+use super::frame::Frame;
+use super::workspace::FileId;
+
+/// Where a position's numbers are written.
+#[derive(Clone, Copy, Debug)]
+pub struct Origin<'f> {
+    pub file: FileId,
+    pub agg: &'f Aggregate,
+    /// The declared variable (or array element) holding the aggregate, if any.
+    pub var: Option<VarRef>,
+    /// A geometric-operator prefix: the motion's position is `prefix : this`.
+    pub prefix: Option<Frame>,
+}
+
+/// A declared variable (name span in its file) or one initialised array element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VarRef {
+    pub file: FileId,
+    /// The name in the declaration (or the array element's assignment).
+    pub name: Span,
+    /// The statement (line) that declares / initialises it.
+    pub stmt: Span,
+    pub element: bool,
+}
+
+/// A (possibly partial) position.
+#[derive(Clone, Copy, Debug)]
+pub struct Pos<'f> {
+    /// Axis angles (`A1`..`A6`) rather than a Cartesian pose.
+    pub axis: bool,
+    /// `X Y Z A B C` or `A1..A6`; `None` when not given.
+    pub v: [Option<f64>; 6],
+    pub s: Option<u8>,
+    pub t: Option<u8>,
+    pub origin: Option<Origin<'f>>,
+}
+
+impl Pos<'_> {
+    pub fn is_complete(&self) -> bool {
+        self.v.iter().all(Option::is_some)
+    }
+}
+
+/// `FDAT`: the tool, base and interpolation frame of an inline form's point.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Fdat {
+    pub tool_no: Option<i64>,
+    pub base_no: Option<i64>,
+    /// `IPO_FRAME #TCP` (external TCP).
+    pub external_tcp: bool,
+}
+
+// Positions dominate the values a program moves with: boxing them would allocate per motion.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum Value<'f> {
+    Int(i64),
+    Real(f64),
+    Bool(bool),
+    /// `#NAME`, upper case, without `#`.
+    Enum(Vec<u8>),
+    Pos(Pos<'f>),
+    Fdat(Fdat),
+    /// Not known before run time, and why.
+    Unknown(String),
+}
+
+impl<'f> Value<'f> {
+    pub fn as_f64(&self) -> Option<f64> {
+        match self {
+            Value::Int(i) => Some(*i as f64),
+            Value::Real(r) => Some(*r),
+            _ => None,
+        }
+    }
+
+    pub fn as_int(&self) -> Option<i64> {
+        match self {
+            Value::Int(i) => Some(*i),
+            Value::Real(r) if r.fract() == 0.0 && r.abs() < 9e15 => Some(*r as i64),
+            _ => None,
+        }
+    }
+
+    pub fn is_unknown(&self) -> bool {
+        matches!(self, Value::Unknown(_))
+    }
+}
+
+/// The value of a bit literal `'B010'`, `'H1F'` (decimal otherwise).
+pub fn bits_value(text: &[u8]) -> Option<i64> {
+    let inner = text.strip_prefix(b"'")?.strip_suffix(b"'")?;
+    let (radix, digits) = match inner.first()? {
+        b'B' | b'b' => (2, &inner[1..]),
+        b'H' | b'h' => (16, &inner[1..]),
+        _ => (10, inner),
+    };
+    i64::from_str_radix(std::str::from_utf8(digits).ok()?, radix).ok()
+}
+
+/// Component index of an aggregate member name: Cartesian `X Y Z A B C`, or axis `A1..A6`.
+pub fn component(name: &[u8]) -> Option<(bool, usize)> {
+    Some(match name {
+        [c] => match c.to_ascii_uppercase() {
+            b'X' => (false, 0),
+            b'Y' => (false, 1),
+            b'Z' => (false, 2),
+            b'A' => (false, 3),
+            b'B' => (false, 4),
+            b'C' => (false, 5),
+            _ => return None,
+        },
+        [a, d @ b'1'..=b'6'] if a.eq_ignore_ascii_case(&b'A') => (true, (d - b'1') as usize),
+        _ => return None,
+    })
+}
+
+/// The member names of a position's components.
+pub const CARTESIAN_NAMES: [&str; 6] = ["X", "Y", "Z", "A", "B", "C"];
+pub const AXIS_NAMES: [&str; 6] = ["A1", "A2", "A3", "A4", "A5", "A6"];
+
+/// The number a member's value expression stands for when it is a literal (or a negated one).
+pub fn literal(e: &Expr) -> Option<f64> {
+    match e {
+        Expr::Number(n) => Some(n.value),
+        Expr::Unary(u) => match (&u.op, &u.operand) {
+            (crate::krl::UnOp::Neg, Expr::Number(n)) => Some(-n.value),
+            (crate::krl::UnOp::Plus, Expr::Number(n)) => Some(n.value),
+            _ => None,
+        },
+        Expr::Paren(p) => literal(&p.inner),
+        _ => None,
+    }
+}
+
+/// Reads an aggregate as a position or frame data, evaluating member values with `eval`.
+pub fn aggregate<'f>(
+    file: &'f SourceFile,
+    id: FileId,
+    agg: &'f Aggregate,
+    mut eval: impl FnMut(&'f Expr) -> Value<'f>,
+) -> Value<'f> {
+    let src = file.source();
+    let mut pos = Pos {
+        axis: false,
+        v: [None; 6],
+        s: None,
+        t: None,
+        origin: Some(Origin {
+            file: id,
+            agg,
+            var: None,
+            prefix: None,
+        }),
+    };
+    let mut fdat = Fdat::default();
+    let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
+    for m in file.members(agg) {
+        let name = &src[m.name.range()];
+        let is = |word: &str| name.eq_ignore_ascii_case(word.as_bytes());
+        match () {
+            _ if is("S") || is("T") => {
+                let v = match &m.value {
+                    Expr::Bits(s) => bits_value(file.text(*s)),
+                    e => eval(e).as_int(),
+                };
+                let Some(v) = v else {
+                    return Value::Unknown(format!(
+                        "{} is not a constant",
+                        String::from_utf8_lossy(name)
+                    ));
+                };
+                if is("S") {
+                    pos.s = Some(v as u8);
+                } else {
+                    pos.t = Some(v as u8);
+                }
+                cartesian = true;
+            }
+            _ if is("TOOL_NO") => {
+                is_fdat = true;
+                fdat.tool_no = eval(&m.value).as_int();
+            }
+            _ if is("BASE_NO") => {
+                is_fdat = true;
+                fdat.base_no = eval(&m.value).as_int();
+            }
+            _ if is("IPO_FRAME") => {
+                is_fdat = true;
+                fdat.external_tcp = matches!(&m.value, Expr::Enum(s) if file.text(*s).eq_ignore_ascii_case(b"#TCP"));
+            }
+            _ => {
+                if let Some((is_axis, k)) = component(name) {
+                    let v = match literal(&m.value) {
+                        Some(v) => v,
+                        None => match eval(&m.value).as_f64() {
+                            Some(v) => {
+                                // Computed: the number cannot be written back in place.
+                                pos.origin = None;
+                                v
+                            }
+                            None => {
+                                return Value::Unknown(format!(
+                                    "{} of the position is computed at run time",
+                                    String::from_utf8_lossy(name)
+                                ))
+                            }
+                        },
+                    };
+                    pos.v[k] = Some(v);
+                    if is_axis {
+                        axis = true;
+                    } else {
+                        cartesian = true;
+                    }
+                }
+                // E1..E6 and other members are carried unchanged.
+            }
+        }
+    }
+    if is_fdat {
+        return Value::Fdat(fdat);
+    }
+    if axis && cartesian {
+        return Value::Unknown("an aggregate mixing axis angles and Cartesian values".into());
+    }
+    pos.axis = axis;
+    Value::Pos(pos)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_literals() {
+        assert_eq!(bits_value(b"'B010'"), Some(2));
+        assert_eq!(bits_value(b"'B110101'"), Some(53));
+        assert_eq!(bits_value(b"'H1F'"), Some(31));
+        assert_eq!(bits_value(b"'x'"), None);
+    }
+
+    #[test]
+    fn component_names() {
+        assert_eq!(component(b"x"), Some((false, 0)));
+        assert_eq!(component(b"C"), Some((false, 5)));
+        assert_eq!(component(b"A6"), Some((true, 5)));
+        assert_eq!(component(b"E1"), None);
+        assert_eq!(component(b"A7"), None);
+    }
+}

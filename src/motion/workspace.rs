@@ -1,0 +1,227 @@
+//! The files a program run touches: the program (`.src`) and its data list (`.dat`), the
+//! sibling modules it calls (found beside it by routine name, as RoboDK's numbered files
+//! called from a main), and the robot's `$config.dat` with `BASE_DATA`/`TOOL_DATA`. Each file
+//! is parsed once; modules are loaded until every called routine is found or known missing.
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+use crate::diagnostic::{Diagnostic, Severity};
+use crate::krl::{self, FileKind, SourceFile, StmtKind};
+
+/// Index of a file in [`Workspace::files`].
+pub type FileId = u32;
+
+/// One parsed file.
+#[derive(Debug)]
+pub struct Loaded {
+    /// Where it was read from (`None` for standard input).
+    pub path: Option<PathBuf>,
+    /// The name used in messages.
+    pub name: String,
+    pub file: SourceFile,
+    /// The `.src` this `.dat` belongs to, or the `.dat` of this `.src`.
+    pub partner: Option<FileId>,
+    pub role: Role,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// The program being compensated (and its `.dat`).
+    Main,
+    /// A module it calls (and its `.dat`).
+    Module,
+    /// The robot's `$config.dat`.
+    Config,
+}
+
+/// Every file of one program run.
+#[derive(Debug, Default)]
+pub struct Workspace {
+    pub files: Vec<Loaded>,
+    /// The main `.src`.
+    pub main: FileId,
+}
+
+/// A file that could not be read or parsed: the program is rejected.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    #[error("{name}: {source}")]
+    Io {
+        name: String,
+        source: std::io::Error,
+    },
+    #[error("{}", .diagnostics.iter().map(|d| d.render()).collect::<Vec<_>>().join("\n"))]
+    Parse { diagnostics: Vec<Diagnostic> },
+}
+
+fn parse(bytes: &[u8], kind: FileKind, name: &str) -> Result<SourceFile, LoadError> {
+    krl::parse(bytes, kind).map_err(|e| LoadError::Parse {
+        diagnostics: e.diagnostics(name),
+    })
+}
+
+fn read(path: &Path, name: &str) -> Result<Vec<u8>, LoadError> {
+    std::fs::read(path).map_err(|source| LoadError::Io {
+        name: name.to_string(),
+        source,
+    })
+}
+
+impl Workspace {
+    /// The program `src` (read from `path`, or from standard input when `path` is `None`),
+    /// with `dat` beside it when given, and `$config.dat` when given.
+    pub fn load(
+        src: (&[u8], Option<&Path>, &str),
+        dat: Option<(&[u8], &Path, &str)>,
+        config: Option<&Path>,
+    ) -> Result<Workspace, LoadError> {
+        let mut ws = Workspace::default();
+        let (bytes, path, name) = src;
+        ws.files.push(Loaded {
+            path: path.map(Path::to_path_buf),
+            name: name.to_string(),
+            file: parse(bytes, FileKind::Src, name)?,
+            partner: None,
+            role: Role::Main,
+        });
+        if let Some((bytes, path, name)) = dat {
+            ws.push_pair_dat(0, bytes, path, name, Role::Main)?;
+        }
+        if let Some(path) = config {
+            let name = path.display().to_string();
+            let bytes = read(path, &name)?;
+            ws.files.push(Loaded {
+                path: Some(path.to_path_buf()),
+                name: name.clone(),
+                file: parse(&bytes, FileKind::Dat, &name)?,
+                partner: None,
+                role: Role::Config,
+            });
+        }
+        if let Some(dir) = path.and_then(Path::parent) {
+            ws.load_modules(dir)?;
+        }
+        Ok(ws)
+    }
+
+    fn push_pair_dat(
+        &mut self,
+        src: FileId,
+        bytes: &[u8],
+        path: &Path,
+        name: &str,
+        role: Role,
+    ) -> Result<(), LoadError> {
+        let id = self.files.len() as FileId;
+        self.files.push(Loaded {
+            path: Some(path.to_path_buf()),
+            name: name.to_string(),
+            file: parse(bytes, FileKind::Dat, name)?,
+            partner: Some(src),
+            role,
+        });
+        self.files[src as usize].partner = Some(id);
+        Ok(())
+    }
+
+    /// Loads sibling modules in `dir` named like routines that are called but not defined,
+    /// until nothing new is found.
+    fn load_modules(&mut self, dir: &Path) -> Result<(), LoadError> {
+        let mut tried: HashSet<Vec<u8>> = HashSet::new();
+        loop {
+            let defined = self.defined_routines();
+            let mut wanted: Vec<Vec<u8>> = Vec::new();
+            for f in &self.files {
+                for st in f.file.statements() {
+                    if let StmtKind::Call(c) = &st.kind {
+                        let name = f.file.text(c.name).to_ascii_uppercase();
+                        if !defined.contains(&name) && tried.insert(name.clone()) {
+                            wanted.push(name);
+                        }
+                    }
+                }
+            }
+            if wanted.is_empty() {
+                return Ok(());
+            }
+            let entries: Vec<PathBuf> = std::fs::read_dir(dir)
+                .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
+                .unwrap_or_default();
+            let mut any = false;
+            for name in wanted {
+                let Some(path) = entries.iter().find(|p| {
+                    p.extension().is_some_and(|e| {
+                        e.eq_ignore_ascii_case("src") || e.eq_ignore_ascii_case("sub")
+                    }) && p
+                        .file_stem()
+                        .is_some_and(|s| s.to_string_lossy().as_bytes().eq_ignore_ascii_case(&name))
+                }) else {
+                    continue;
+                };
+                if self.files.iter().any(|f| f.path.as_deref() == Some(path)) {
+                    continue;
+                }
+                let shown = path.display().to_string();
+                let bytes = read(path, &shown)?;
+                let id = self.files.len() as FileId;
+                self.files.push(Loaded {
+                    path: Some(path.clone()),
+                    name: shown,
+                    file: parse(&bytes, FileKind::Src, &path.display().to_string())?,
+                    partner: None,
+                    role: Role::Module,
+                });
+                if let Some(dat) = krl::companion_dat(path) {
+                    let shown = dat.display().to_string();
+                    let bytes = read(&dat, &shown)?;
+                    self.push_pair_dat(id, &bytes, &dat, &shown, Role::Module)?;
+                }
+                any = true;
+            }
+            if !any {
+                return Ok(());
+            }
+        }
+    }
+
+    fn defined_routines(&self) -> HashSet<Vec<u8>> {
+        self.files
+            .iter()
+            .flat_map(|f| {
+                f.file
+                    .routines()
+                    .map(|(_, h)| f.file.text(h.name).to_ascii_uppercase())
+            })
+            .collect()
+    }
+
+    pub fn get(&self, id: FileId) -> &Loaded {
+        &self.files[id as usize]
+    }
+
+    /// The main program's `.dat`, if any.
+    pub fn main_dat(&self) -> Option<FileId> {
+        self.files[self.main as usize].partner
+    }
+
+    /// The `$config.dat`, if any.
+    pub fn config(&self) -> Option<FileId> {
+        self.files
+            .iter()
+            .position(|f| f.role == Role::Config)
+            .map(|i| i as FileId)
+    }
+
+    /// A located message about bytes `span` of file `id`.
+    pub fn diagnostic(
+        &self,
+        severity: Severity,
+        id: FileId,
+        span: krl::Span,
+        message: impl Into<String>,
+    ) -> Diagnostic {
+        let f = self.get(id);
+        Diagnostic::at_bytes(severity, &f.name, f.file.source(), span.range(), message)
+    }
+}

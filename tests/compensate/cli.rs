@@ -1,0 +1,253 @@
+//! The command line on temporary copies: the main job, `-` for stdin/stdout, refusals,
+//! `batch` with a broken file, `check -c`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+fn robopost() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_robopost"))
+}
+
+fn copy_fixture(dir: &Path, name: &str) -> PathBuf {
+    let src = Path::new("fixtures/programs").join(name);
+    let to = dir.join(src.file_name().unwrap());
+    std::fs::copy(&src, &to).unwrap();
+    if let Some(dat) = robopost::krl::companion_dat(&src) {
+        std::fs::copy(&dat, to.with_extension("dat")).unwrap();
+    }
+    to
+}
+
+const CAL: &str = "calibrations/kr30ha-handset.json";
+
+#[test]
+fn main_job_writes_src_dat_and_report_and_leaves_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = copy_fixture(dir.path(), "paper_path2.src");
+    let before = std::fs::read(&input).unwrap();
+    let dat_before = std::fs::read(input.with_extension("dat")).unwrap();
+    let out = dir.path().join("out/p2.src");
+    let report = dir.path().join("p2.json");
+    let st = robopost()
+        .args([
+            input.to_str().unwrap(),
+            "-c",
+            CAL,
+            "-o",
+            out.to_str().unwrap(),
+            "--report",
+        ])
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert_eq!(
+        st.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert_eq!(std::fs::read(&input).unwrap(), before, "input untouched");
+    assert_eq!(
+        std::fs::read(input.with_extension("dat")).unwrap(),
+        dat_before
+    );
+    let dat_out = std::fs::read_to_string(dir.path().join("out/p2.dat")).unwrap();
+    assert!(dat_out.contains("; robopost: compensated with kr30ha-handset.json (sha256 "));
+    assert_ne!(dat_out.as_bytes(), dat_before.as_slice());
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    for key in [
+        "targets",
+        "compensated",
+        "correction",
+        "direction_flips",
+        "warnings",
+        "points",
+    ] {
+        assert!(r.get(key).is_some(), "report key {key}");
+    }
+    assert!(r["correction"]["position_um"]["max"].as_f64().unwrap() > 100.0);
+    assert_eq!(
+        r["points"].as_array().unwrap().len(),
+        r["targets"].as_u64().unwrap() as usize
+    );
+    // No temporary files left behind.
+    let left: Vec<_> = std::fs::read_dir(dir.path().join("out")).unwrap().collect();
+    assert_eq!(left.len(), 2);
+}
+
+#[test]
+fn stdin_to_stdout() {
+    let src = std::fs::read("fixtures/programs/vertical_segment.src").unwrap();
+    let mut child = robopost()
+        .args(["-", "-c", CAL, "-o", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child.stdin.take().unwrap().write_all(&src).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The same as through files.
+    let dir = tempfile::tempdir().unwrap();
+    let input = copy_fixture(dir.path(), "vertical_segment.src");
+    let o = dir.path().join("o.src");
+    let st = robopost()
+        .args([
+            input.to_str().unwrap(),
+            "-c",
+            CAL,
+            "-o",
+            o.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(0));
+    assert_eq!(out.stdout, std::fs::read(&o).unwrap());
+}
+
+#[test]
+fn refusals_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = copy_fixture(dir.path(), "paper_path1.src");
+    let before = std::fs::read(&input).unwrap();
+    // Output onto the input.
+    let st = robopost()
+        .args([
+            input.to_str().unwrap(),
+            "-c",
+            CAL,
+            "-o",
+            input.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+    // Unreadable calibration.
+    let out = dir.path().join("x.src");
+    let st = robopost()
+        .args([
+            input.to_str().unwrap(),
+            "-c",
+            "nope.json",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    assert!(!out.exists());
+    // A rejected program (external TCP).
+    let tcp = dir.path().join("tcp.src");
+    std::fs::write(&tcp, "DEF tcp( )\n$IPO_MODE = #TCP\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 30, A6 0}\nLIN {X 1000, Y 0, Z 900, A 0, B 0, C 180}\nEND\n").unwrap();
+    let st = robopost()
+        .args([
+            tcp.to_str().unwrap(),
+            "-c",
+            CAL,
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("tcp.src:2:1") && err.contains("#TCP"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn batch_mirrors_the_tree_and_survives_a_broken_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let lib = dir.path().join("lib");
+    std::fs::create_dir_all(lib.join("cell_a")).unwrap();
+    std::fs::create_dir_all(lib.join("cell_b/robodk")).unwrap();
+    copy_fixture(&lib.join("cell_a"), "paper_path1.src");
+    copy_fixture(&lib.join("cell_a"), "paper_path3.src");
+    for f in [
+        "drill_cell.src",
+        "drill_cell1.src",
+        "drill_cell2.src",
+        "drill_cell3.src",
+    ] {
+        copy_fixture(&lib.join("cell_b/robodk"), &format!("robodk/{f}"));
+    }
+    std::fs::write(
+        lib.join("cell_b/broken.src"),
+        "DEF broken( )\nLIN {X 1, Y\nEND\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let st = robopost()
+        .args([
+            "batch",
+            lib.to_str().unwrap(),
+            "-c",
+            CAL,
+            "-o",
+            out.to_str().unwrap(),
+            "--jobs",
+            "2",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("broken.src") && err.contains("failed"),
+        "{err}"
+    );
+    assert!(
+        err.contains("batch: 3 of 4 programs written, 1 failed"),
+        "{err}"
+    );
+    for f in [
+        "cell_a/paper_path1.src",
+        "cell_a/paper_path1.dat",
+        "cell_a/paper_path3.src",
+        "cell_a/paper_path3.dat",
+        "cell_b/robodk/drill_cell.src",
+        "cell_b/robodk/drill_cell1.src",
+        "cell_b/robodk/drill_cell3.src",
+    ] {
+        assert!(out.join(f).is_file(), "{f} written");
+    }
+    assert!(!out.join("cell_b/broken.src").exists());
+    // The module is compensated as part of its caller.
+    let m = std::fs::read_to_string(out.join("cell_b/robodk/drill_cell1.src")).unwrap();
+    assert!(m.starts_with("; robopost: compensated with"));
+    // No progress bar when stderr is not a terminal.
+    assert!(!err.contains('\u{2588}') && !err.contains("\r"));
+}
+
+#[test]
+fn check_reports_without_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = copy_fixture(dir.path(), "encodings/palletize_cp1252.src");
+    let st = robopost()
+        .args(["check", input.to_str().unwrap(), "-c", CAL])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(
+        err.contains("cannot be reached") && err.contains("palletize_cp1252.src:9:3"),
+        "{err}"
+    );
+    let files: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(files.len(), 1, "nothing written");
+    let ok = robopost()
+        .args(["check", "fixtures/programs/paper_path1.src", "-c", CAL])
+        .output()
+        .unwrap();
+    assert_eq!(ok.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("53 targets simulated"));
+}

@@ -1,0 +1,369 @@
+//! The solver and the sequence logic on targets built from axis angles (no KRL).
+
+use approx::assert_relative_eq;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use robopost::compensate::{
+    compensate, Frame, Interp, Keep, Method, Options, Resolution, Target, TOL_POSITION_MM,
+    TOL_ROTATION_RAD,
+};
+use robopost::kinematics::Payload;
+use robopost::model::{AxisState, Direction, Model};
+use robopost::motion::nominal::local_ik;
+
+use super::{handset, nominal};
+
+fn tool() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(12.0, -5.0, 180.0),
+        UnitQuaternion::from_euler_angles(0.0, 0.3, 0.1),
+    )
+}
+
+/// The nominal TCP of `axes`, through the model API with no effects (a path independent of
+/// the solver's own chain evaluation).
+fn nominal_tcp(model: &Model, axes: [f64; 6]) -> Isometry3<f64> {
+    let bare = Model::new(model.robot, Payload::default(), Vector3::zeros());
+    bare.flange_pose(&AxisState::new(axes)) * tool()
+}
+
+fn predicted_tcp(model: &Model, axes: [f64; 6], dirs: [Direction; 6]) -> Isometry3<f64> {
+    model.flange_pose(&AxisState {
+        axes_deg: axes,
+        directions: dirs,
+        time_s: 0.0,
+    }) * tool()
+}
+
+fn pose_gap(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
+    let dp = (a.translation.vector - b.translation.vector).norm();
+    let dr = (a.rotation * b.rotation.inverse()).angle();
+    (dp, dr)
+}
+
+fn target(model: &Model, axes: [f64; 6], arrival: Option<[f64; 6]>) -> Target {
+    Target {
+        goal: Frame::from_isometry(&nominal_tcp(model, axes)),
+        tool: 0,
+        nominal_axes: axes,
+        arrival,
+        interp: Interp::Joint,
+        quantum: None,
+        compensate: true,
+        keep: Keep::default(),
+    }
+}
+
+fn dir(positive: bool) -> Direction {
+    if positive {
+        Direction::Positive
+    } else {
+        Direction::Negative
+    }
+}
+
+const ITERATE: Options = Options {
+    method: Method::Iterate,
+    parallel: false,
+};
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// The model predicts the programmed TCP at the compensated command, checked through
+    /// `Model::flange_pose` (quaternion path) rather than the solver's own evaluation.
+    #[test]
+    fn iterated_command_reaches_the_goal(
+        a1 in -150.0..150.0f64, a2 in -120.0..-20.0f64, a3 in 20.0..130.0f64,
+        a4 in -150.0..150.0f64, a5 in prop_oneof![-100.0..-15.0f64, 15.0..100.0f64],
+        a6 in -300.0..300.0f64, signs in prop::array::uniform6(any::<bool>()),
+    ) {
+        let model = handset();
+        let axes = [a1, a2, a3, a4, a5, a6];
+        let arrival: [f64; 6] = std::array::from_fn(|i| if signs[i] { 1.0 } else { -1.0 });
+        let tools = [Frame::from_isometry(&tool())];
+        let out = compensate(&model, &tools, &[target(&model, axes, Some(arrival))],
+            [Direction::Unknown; 6], &ITERATE);
+        let o = &out[0];
+        prop_assert!(o.error.is_none(), "{:?}", o.error);
+        let dirs: [Direction; 6] = std::array::from_fn(|i| dir(signs[i]));
+        prop_assert_eq!(o.directions, dirs);
+        let goal = nominal_tcp(&model, axes);
+        let (p0, _) = pose_gap(&predicted_tcp(&model, axes, dirs), &goal);
+        prop_assume!(p0 > 1e-3, "the hand-set model moves the TCP here");
+        let (dp, dr) = pose_gap(&predicted_tcp(&model, o.axes_deg, dirs), &goal);
+        prop_assert!(dp < TOL_POSITION_MM && dr < TOL_ROTATION_RAD, "{dp} mm {dr} rad");
+        prop_assert!(o.iterations <= 6, "{} iterations", o.iterations);
+    }
+}
+
+#[test]
+fn one_step_is_equation_3() {
+    let model = handset();
+    let axes = [30.0, -60.0, 100.0, 20.0, 40.0, -50.0];
+    let dirs = [Direction::Positive; 6];
+    let tools = [Frame::from_isometry(&tool())];
+    let t = target(&model, axes, Some([1.0; 6]));
+    let one = compensate(
+        &model,
+        &tools,
+        &[t],
+        [Direction::Unknown; 6],
+        &Options {
+            method: Method::OneStep,
+            parallel: false,
+        },
+    )[0];
+    let goal = nominal_tcp(&model, axes);
+    let predicted = predicted_tcp(&model, axes, dirs);
+    // p_c = p* − (p̂ − p*), R_c = (R̂ R*⁻¹)⁻¹ R*, computed here with isometries.
+    let p_c = goal.translation.vector * 2.0 - predicted.translation.vector;
+    let r_c = (predicted.rotation * goal.rotation.inverse()).inverse() * goal.rotation;
+    let command = nominal_tcp(&model, one.axes_deg);
+    assert_relative_eq!(command.translation.vector, p_c, epsilon = 1e-8);
+    assert!((command.rotation * r_c.inverse()).angle() < 1e-11);
+    // One step leaves a second-order error, the iteration none.
+    let (before, _) = pose_gap(&predicted, &goal);
+    let (after, _) = pose_gap(&predicted_tcp(&model, one.axes_deg, dirs), &goal);
+    assert!(after < before / 50.0, "{before} → {after}");
+    assert!(
+        after > TOL_POSITION_MM / 100.0,
+        "one step is not already exact here: {after}"
+    );
+    let it = compensate(&model, &tools, &[t], [Direction::Unknown; 6], &ITERATE)[0];
+    let (iterated, _) = pose_gap(&predicted_tcp(&model, it.axes_deg, dirs), &goal);
+    assert!(iterated < TOL_POSITION_MM && iterated < after);
+}
+
+#[test]
+fn nominal_calibration_changes_nothing() {
+    let model = nominal();
+    let tools = [Frame::from_isometry(&tool())];
+    let targets: Vec<Target> = (0..50)
+        .map(|i| {
+            let t = i as f64;
+            target(
+                &model,
+                [
+                    t - 25.0,
+                    -80.0 + t * 0.5,
+                    70.0 + t,
+                    10.0,
+                    30.0 + t * 0.3,
+                    -20.0,
+                ],
+                Some([1.0, 0.5, 1.0, 0.0, 0.3, 0.0]),
+            )
+        })
+        .collect();
+    for o in compensate(&model, &tools, &targets, [Direction::Unknown; 6], &ITERATE) {
+        assert!(!o.changed && o.error.is_none() && o.iterations == 0);
+    }
+}
+
+#[test]
+fn leaving_the_limits_is_an_error_for_that_target() {
+    let model = handset();
+    let tools = [Frame::identity()];
+    // A2 at its lower limit: any negative correction of A2 leaves the limits.
+    let at_limit = [0.0, -135.0, 100.0, 0.0, 40.0, 0.0];
+    let mut t = target(&model, at_limit, Some([0.0, -1.0, 0.0, 0.0, 0.0, 0.0]));
+    t.goal = Frame::from_isometry(
+        &(Model::new(model.robot, Payload::default(), Vector3::zeros())
+            .flange_pose(&AxisState::new(at_limit))),
+    );
+    let o = compensate(&model, &tools, &[t], [Direction::Unknown; 6], &ITERATE)[0];
+    let moved = predicted_tcp(&model, at_limit, o.directions);
+    let _ = moved;
+    match o.error {
+        Some(robopost::compensate::TargetError::OutOfLimits { axis: 2, .. }) => {
+            assert_eq!(o.axes_deg, at_limit, "a rejected target keeps its command")
+        }
+        other => {
+            // The correction of A2 may be positive at this pose; then the target is fine.
+            assert!(other.is_none());
+            assert!(o.axes_deg[1] >= -135.0);
+        }
+    }
+}
+
+/// The hand-set model with its backlash tables' signs reversed (the output leading the motor
+/// after a move): the case where a tiny reversal has no consistent branch.
+fn leading_backlash() -> Model {
+    let text = std::fs::read_to_string("calibrations/kr30ha-handset.json").unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    for e in v["effects"].as_array_mut().unwrap() {
+        if e["name"].as_str().unwrap().starts_with("backlash") {
+            for x in e["table"]["values_deg"].as_array_mut().unwrap() {
+                *x = serde_json::json!(-x.as_f64().unwrap());
+            }
+        }
+    }
+    robopost::calibration::parse(&v.to_string(), std::path::Path::new("leading.json"))
+        .unwrap()
+        .model()
+}
+
+/// Targets on a vertical LIN line below (or above) `top`, flange pointing down, with the LIN
+/// arrival motions `dq/du` (finite difference of the nominal IK along the line).
+fn vertical_line(model: &Model, step_mm: f64) -> Vec<Target> {
+    let tools = [Frame::identity()];
+    let bare = Model::new(model.robot, Payload::default(), Vector3::zeros());
+    let top = [20.0, -75.0, 95.0, 0.0, 70.0, 10.0];
+    let top_pose = Frame::from_isometry(&bare.flange_pose(&AxisState::new(top)));
+    let mut targets = vec![target(model, top, Some([1.0, 1.0, -1.0, 0.0, 1.0, 1.0]))];
+    targets[0].goal = top_pose;
+    let mut previous = top;
+    for k in 1..15 {
+        let mut goal = top_pose;
+        goal.position.z += step_mm * k as f64;
+        let q = local_ik(&model.robot, &goal, &tools[0], &previous)
+            .expect("reachable")
+            .axes_deg;
+        let mut near = goal;
+        near.position.z -= step_mm * 1e-4;
+        let qn = local_ik(&model.robot, &near, &tools[0], &q)
+            .unwrap()
+            .axes_deg;
+        let arrival: [f64; 6] = std::array::from_fn(|i| {
+            let v = (q[i] - qn[i]) / 1e-4;
+            if v.abs() < 1e-6 {
+                0.0
+            } else {
+                v
+            }
+        });
+        assert_eq!(arrival[0], 0.0, "A1 rests on a vertical line");
+        let mut t = target(model, q, Some(arrival));
+        t.goal = goal;
+        t.interp = Interp::Line;
+        targets.push(t);
+        previous = q;
+    }
+    targets
+}
+
+/// Checks every target's directions against the compensated motion, re-derived here by a
+/// finite difference of the nominal IK along the commanded straight line (tool = flange).
+#[allow(clippy::needless_range_loop)] // axis i of three arrays
+fn assert_consistent(out: &[robopost::compensate::Outcome]) {
+    use robopost::motion::interpolate::{Cartesian, Path};
+    let robot = robopost::kinematics::RobotDescription::kr30ha();
+    let bare = Model::new(robot, Payload::default(), Vector3::zeros());
+    let tcp = |q: &[f64; 6]| Frame::from_isometry(&bare.flange_pose(&AxisState::new(*q)));
+    for k in 1..out.len() {
+        let o = &out[k];
+        assert!(o.error.is_none(), "{k}: {:?}", o.error);
+        let line =
+            Cartesian::new(&tcp(&out[k - 1].axes_deg), &tcp(&o.axes_deg), &Path::Lin).unwrap();
+        let h = 1e-3;
+        let qh = local_ik(&robot, &line.pose(1.0 - h), &Frame::identity(), &o.axes_deg)
+            .unwrap()
+            .axes_deg;
+        for i in 0..6 {
+            let rate = (o.axes_deg[i] - qh[i]) / h;
+            let expect = if rate.abs() < robopost::compensate::REST_DEG {
+                out[k - 1].directions[i]
+            } else {
+                dir(rate > 0.0)
+            };
+            // Within the finite difference's own error of a decided sign.
+            if rate.abs() > 2.0 * robopost::compensate::REST_DEG
+                || rate.abs() < 0.5 * robopost::compensate::REST_DEG
+            {
+                assert_eq!(o.directions[i], expect, "target {k} A{} rate {rate}", i + 1);
+            }
+        }
+        if matches!(
+            o.resolution,
+            Resolution::Consistent | Resolution::Rebranched
+        ) {
+            let (p, r) = robopost::compensate::pose::norms(&o.residual);
+            assert!(
+                p < TOL_POSITION_MM && r < TOL_ROTATION_RAD,
+                "target {k}: {p} mm"
+            );
+        }
+    }
+}
+
+/// A vertical LIN segment: the TCP goes straight down (or up) at fixed orientation, so A1
+/// (and here A4, A6) do not move in the nominal motion and keep their directions. The
+/// model's corrections change with height, so the compensated resting axes move a little,
+/// sometimes against their kept direction. With the physical backlash sign (output lagging)
+/// the other branch is then consistent: the target is re-solved on it, exactly.
+#[test]
+fn vertical_segment_lagging_backlash_rebranches() {
+    let model = handset();
+    let tools = [Frame::identity()];
+    let mut rebranched = 0;
+    for step_mm in [-40.0, 40.0] {
+        let targets = vertical_line(&model, step_mm);
+        let out = compensate(&model, &tools, &targets, [Direction::Unknown; 6], &ITERATE);
+        assert_consistent(&out);
+        for o in &out {
+            assert!(!matches!(
+                o.resolution,
+                Resolution::Held(_) | Resolution::Branch
+            ));
+            if o.resolution == Resolution::Rebranched {
+                rebranched += 1;
+                assert!(
+                    o.flipped().iter().any(|&f| f),
+                    "a re-branched target reports its flip"
+                );
+            }
+        }
+    }
+    assert!(
+        rebranched > 0,
+        "the corrections do reverse some resting axis"
+    );
+}
+
+/// With the output leading the motor the reversed branch moves the axis back again: the
+/// fixed point oscillates. Each such target must be resolved by holding the axis still
+/// (zero correction change, so it keeps its direction) or by the better branch, and its
+/// error stays bounded by the backlash it could not avoid.
+#[test]
+fn vertical_segment_oscillation_is_resolved() {
+    let model = leading_backlash();
+    let tools = [Frame::identity()];
+    let mut held_axes = [false; 6];
+    for step_mm in [-40.0, 40.0] {
+        let targets = vertical_line(&model, step_mm);
+        let out = compensate(&model, &tools, &targets, [Direction::Unknown; 6], &ITERATE);
+        assert_consistent(&out);
+        for (k, o) in out.iter().enumerate() {
+            if let Resolution::Held(axes) = o.resolution {
+                for i in (0..6).filter(|&i| axes[i]) {
+                    held_axes[i] = true;
+                    assert!(
+                        targets[k].arrival.unwrap()[i] == 0.0,
+                        "only resting axes oscillate"
+                    );
+                    assert_eq!(
+                        o.axes_deg[i],
+                        out[k - 1].axes_deg[i],
+                        "held still: the same command as before"
+                    );
+                }
+            }
+            if matches!(o.resolution, Resolution::Held(_) | Resolution::Branch) {
+                // Better than not compensating, and within what the avoided branch switch
+                // (2 × 0.0072° at most in the table, over a 2 m lever) would cost.
+                let (p, _) = robopost::compensate::pose::norms(&o.residual);
+                let (p0, _) = robopost::compensate::pose::norms(&o.before);
+                assert!(p < p0, "target {k}: {p} mm after, {p0} mm before");
+                assert!(
+                    p < 2.0 * 0.0072f64.to_radians() * 2000.0,
+                    "target {k}: {p} mm"
+                );
+            }
+        }
+    }
+    assert!(
+        held_axes[0],
+        "A1 oscillates on the vertical line and is held"
+    );
+}
