@@ -80,6 +80,9 @@ proptest! {
     ) {
         let model = handset();
         let axes = [a1, a2, a3, a4, a5, a6];
+        // Near a singularity the solver returns the least-squares command and reports its
+        // residual (sequence.rs); the exact-reach property holds away from them.
+        prop_assume!(robopost::kinematics::singularity(&model.robot, &axes).is_none());
         let arrival: [f64; 6] = std::array::from_fn(|i| if signs[i] { 1.0 } else { -1.0 });
         let tools = [Frame::from_isometry(&tool())];
         let out = compensate(&model, &tools, &[target(&model, axes, Some(arrival))],
