@@ -42,6 +42,14 @@ fn zero_model(list: &str, stops: &[Stop]) -> Model {
 
 /// The paper's effects of the virtual KR 30 HA sampled on the identification grids, so the
 /// identified model can represent the truth exactly.
+/// The campaign measured without tracker noise on `model`.
+fn measure_exact(model: &Model, plan: &[PlannedStop]) -> Vec<Stop> {
+    VirtualRobot::new(model.clone())
+        .with_noise(TrackerNoise::NONE)
+        .measure(plan)
+        .unwrap()
+}
+
 fn truth_on_grids(list: &str, stops: &[Stop]) -> Model {
     let mut m = zero_model(list, stops);
     let reference = paper::truth_model(false);
@@ -182,15 +190,9 @@ fn circle_fit_recovers_an_analytic_circle() {
 #[test]
 fn refinement_recovers_the_paper_model_within_its_standard_errors() {
     let plan = campaign();
-    let exact = VirtualRobot::new(empty_model())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact = measure_exact(&empty_model(), &plan);
     let truth = truth_on_grids(PAPER, &exact);
-    let exact = VirtualRobot::new(truth.clone())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact = measure_exact(&truth, &plan);
     let noisy = VirtualRobot::new(truth.clone())
         .with_seed(11)
         .measure(&plan)
@@ -218,10 +220,7 @@ fn refinement_recovers_the_paper_model_within_its_standard_errors() {
 #[test]
 fn tracker_frame_registration_is_recovered() {
     let plan = campaign();
-    let exact = VirtualRobot::new(empty_model())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact = measure_exact(&empty_model(), &plan);
     let list = "geometric,map:A1..A6";
     let truth = truth_on_grids(list, &exact);
     let frame = robopost::calibration::KukaFrame {
@@ -280,10 +279,7 @@ fn tracker_frame_registration_is_recovered() {
 #[test]
 fn only_the_free_parameters_move() {
     let plan = campaign();
-    let exact = VirtualRobot::new(empty_model())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact = measure_exact(&empty_model(), &plan);
     let truth = truth_on_grids(PAPER, &exact);
     let data = VirtualRobot::new(truth.clone())
         .with_seed(3)
@@ -384,20 +380,14 @@ fn arbitrary_poses_identify_through_the_refinement_alone() {
         map_pitch_deg: 10.0,
         ..setup::GridChoice::default()
     };
-    let exact0 = VirtualRobot::new(empty_model())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact0 = measure_exact(&empty_model(), &plan);
     let mut truth = empty_model();
     setup::add_effects(&mut truth, &expand_list(list).unwrap(), &exact0, &grid).unwrap();
     let v: Vec<f64> = (0..truth.n_parameters())
         .map(|i| 0.004 * ((i as f64) * 1.7).sin() + if i < 21 { 0.02 } else { 0.0 })
         .collect();
     truth.set_values(&v);
-    let exact = VirtualRobot::new(truth.clone())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact = measure_exact(&truth, &plan);
     let noisy = VirtualRobot::new(truth.clone())
         .with_seed(9)
         .measure(&plan)
@@ -614,15 +604,9 @@ fn adding_an_effect_to_a_calibration_reidentifies() {
 #[test]
 fn direct_method_reads_axis_lines_and_backlash_off_the_circles() {
     let plan = campaign();
-    let exact0 = VirtualRobot::new(empty_model())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact0 = measure_exact(&empty_model(), &plan);
     let truth = truth_on_grids(PAPER, &exact0);
-    let exact = VirtualRobot::new(truth.clone())
-        .with_noise(TrackerNoise::NONE)
-        .measure(&plan)
-        .unwrap();
+    let exact = measure_exact(&truth, &plan);
     let mut model = zero_model(PAPER, &exact);
     let result = direct::direct_method(&mut model, &exact).unwrap();
     assert_eq!(result.lines.len(), 10);

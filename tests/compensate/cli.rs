@@ -8,6 +8,20 @@ fn robopost() -> Command {
     Command::new(env!("CARGO_BIN_EXE_robopost"))
 }
 
+/// `robopost IN -c CAL -o OUT`, the main job.
+fn main_job(input: &Path, cal: &str, out: &Path) -> std::process::Output {
+    robopost()
+        .args([
+            input.to_str().unwrap(),
+            "-c",
+            cal,
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap()
+}
+
 fn copy_fixture(dir: &Path, name: &str) -> PathBuf {
     let src = Path::new("fixtures/programs").join(name);
     let to = dir.join(src.file_name().unwrap());
@@ -99,16 +113,7 @@ fn stdin_to_stdout() {
     let dir = tempfile::tempdir().unwrap();
     let input = copy_fixture(dir.path(), "vertical_segment.src");
     let o = dir.path().join("o.src");
-    let st = robopost()
-        .args([
-            input.to_str().unwrap(),
-            "-c",
-            CAL,
-            "-o",
-            o.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let st = main_job(&input, CAL, &o);
     assert_eq!(st.status.code(), Some(0));
     assert_eq!(out.stdout, std::fs::read(&o).unwrap());
 }
@@ -119,45 +124,18 @@ fn refusals_write_nothing() {
     let input = copy_fixture(dir.path(), "paper_path1.src");
     let before = std::fs::read(&input).unwrap();
     // Output onto the input.
-    let st = robopost()
-        .args([
-            input.to_str().unwrap(),
-            "-c",
-            CAL,
-            "-o",
-            input.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let st = main_job(&input, CAL, &input);
     assert_eq!(st.status.code(), Some(2));
     assert_eq!(std::fs::read(&input).unwrap(), before);
     // Unreadable calibration.
     let out = dir.path().join("x.src");
-    let st = robopost()
-        .args([
-            input.to_str().unwrap(),
-            "-c",
-            "nope.json",
-            "-o",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let st = main_job(&input, "nope.json", &out);
     assert_eq!(st.status.code(), Some(2));
     assert!(!out.exists());
     // A rejected program (external TCP).
     let tcp = dir.path().join("tcp.src");
     std::fs::write(&tcp, "DEF tcp( )\n$IPO_MODE = #TCP\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 30, A6 0}\nLIN {X 1000, Y 0, Z 900, A 0, B 0, C 180}\nEND\n").unwrap();
-    let st = robopost()
-        .args([
-            tcp.to_str().unwrap(),
-            "-c",
-            CAL,
-            "-o",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let st = main_job(&tcp, CAL, &out);
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("tcp.src:2:1") && err.contains("#TCP"), "{err}");
