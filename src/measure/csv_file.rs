@@ -22,28 +22,22 @@ pub struct MeasureError {
 }
 
 impl MeasureError {
-    /// The message with the source line and a caret under the column.
+    /// The message with the source line and a caret under the column (the shared
+    /// [`Diagnostic`](crate::diagnostic::Diagnostic) rendering; no location for a whole-file
+    /// error such as a missing file).
     pub fn render(&self) -> String {
-        let mut out = format!(
-            "error: {}\n --> {}:{}:{}\n",
-            self.message, self.file, self.line, self.col
-        );
-        if !self.source_line.is_empty() {
-            let gutter = self.line.to_string().len();
-            out += &format!(
-                "{:w$} |\n{} | {}\n{:w$} | {}^\n",
-                "",
-                self.line,
-                self.source_line,
-                "",
-                " ".repeat(self.col.saturating_sub(1)),
-                w = gutter
-            );
+        crate::diagnostic::Diagnostic {
+            line: self.line,
+            col: self.col,
+            source_line: self.source_line.clone(),
+            help: self.help.clone(),
+            ..crate::diagnostic::Diagnostic::new(
+                crate::diagnostic::Severity::Error,
+                &self.file,
+                self.message.clone(),
+            )
         }
-        if let Some(h) = &self.help {
-            out += &format!("help: {h}\n");
-        }
-        out
+        .render()
     }
 }
 
