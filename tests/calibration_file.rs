@@ -225,6 +225,13 @@ fn bad_files_name_key_expected_and_found() {
             "sense_not_unit",
             with_robot(|d| d["senses"][3] = serde_json::json!(0.5)),
         ),
+        (
+            "table_on_compliance",
+            with_effects(
+                r#"[{"name": "compliance:A2", "parameters": {"c": 0.004},
+                    "table": {"grid_deg": [0], "values_deg": [0]}}]"#,
+            ),
+        ),
         ("compliance_without_mass_data", {
             let text = with_robot(|d| {
                 d.as_object_mut().unwrap().remove("gravity");

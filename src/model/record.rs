@@ -81,8 +81,16 @@ impl EffectRecord {
     }
 
     /// Named parameters checked against `names`: unknown names and non-finite values are
-    /// errors, missing names are zero.
+    /// errors, missing names are zero. An effect of named parameters has no table: one beside
+    /// them would be silently ignored, so it is an error.
     pub fn named_values(&self, names: &[String]) -> Result<Vec<f64>, RecordError> {
+        if self.table.is_some() {
+            return Err(RecordError::new(
+                "table",
+                "named parameters only",
+                "a table",
+            ));
+        }
         let mut values = vec![0.0; names.len()];
         for (key, &value) in self.parameters.iter().flatten() {
             let Some(i) = names.iter().position(|n| n.eq_ignore_ascii_case(key)) else {

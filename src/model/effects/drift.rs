@@ -31,13 +31,6 @@ pub struct Drift {
 
 impl Drift {
     pub fn from_record(rec: &EffectRecord) -> Result<Self, RecordError> {
-        if rec.table.is_some() {
-            return Err(RecordError::new(
-                "table",
-                "named parameters only",
-                "a table",
-            ));
-        }
         let values = rec.named_values(&names())?;
         let mut d = Drift::default();
         d.rates_mm_per_h.copy_from_slice(&values);

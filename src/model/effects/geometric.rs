@@ -66,13 +66,6 @@ pub struct Geometric {
 
 impl Geometric {
     pub fn from_record(rec: &EffectRecord) -> Result<Self, RecordError> {
-        if rec.table.is_some() {
-            return Err(RecordError::new(
-                "table",
-                "named parameters only",
-                "a table",
-            ));
-        }
         let values = rec.named_values(&parameter_names())?;
         let mut g = Geometric::default();
         g.values.copy_from_slice(&values);

@@ -32,13 +32,6 @@ impl Tilt {
     }
 
     pub fn from_record(axis: u8, rec: &EffectRecord) -> Result<Self, RecordError> {
-        if rec.table.is_some() {
-            return Err(RecordError::new(
-                "table",
-                "named parameters only",
-                "a table",
-            ));
-        }
         let mut t = Tilt::zeros(axis);
         let values = rec.named_values(&t.local_names())?;
         t.values.copy_from_slice(&values);
