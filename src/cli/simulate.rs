@@ -228,8 +228,7 @@ fn run_program(
         Err(e) => return usage(&e.to_string()),
     };
     let stdin = path.as_os_str() == "-";
-    let ws = match files::load_program((!stdin).then_some(path), &bytes, frames.config.as_deref())
-    {
+    let ws = match files::load_program((!stdin).then_some(path), &bytes, frames.config.as_deref()) {
         Ok(ws) => ws,
         Err(e @ LoadError::Io { .. }) => return usage(&e.to_string()),
         Err(e) => {
@@ -241,7 +240,11 @@ fn run_program(
     for d in &sim.diagnostics {
         eprintln!("{}", d.render());
     }
-    if sim.diagnostics.iter().any(|d| d.severity == Severity::Error) {
+    if sim
+        .diagnostics
+        .iter()
+        .any(|d| d.severity == Severity::Error)
+    {
         eprintln!(
             "{}: rejected (the controller would stop), nothing written",
             ws.get(ws.main).name
@@ -254,8 +257,10 @@ fn run_program(
     let test = if stdin {
         "stdin".to_string()
     } else {
-        path.file_stem()
-            .map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned())
+        path.file_stem().map_or_else(
+            || path.display().to_string(),
+            |s| s.to_string_lossy().into_owned(),
+        )
     };
     let visits = program::program_visits(&sim, &test, dwell, speed);
     match robot.run_program(&visits) {

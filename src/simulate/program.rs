@@ -48,13 +48,10 @@ pub fn program_visits(
 ) -> Vec<ProgramVisit> {
     let states = program_states(sim);
     let stops = paced(
-        sim.stops.iter().zip(&states).map(|(s, state)| {
-            (
-                test.to_string(),
-                state.axes_deg,
-                s.role == Role::Target,
-            )
-        }),
+        sim.stops
+            .iter()
+            .zip(&states)
+            .map(|(s, state)| (test.to_string(), state.axes_deg, s.role == Role::Target)),
         dwell_s,
         axis_speed_deg_s,
     );
@@ -74,7 +71,11 @@ pub fn program_visits(
 
 /// A warning at the first measured motion of every tool that is not the measurement target
 /// `target_mm`, with both vectors: there the measured position is not the TCP's.
-pub fn tool_warnings(ws: &Workspace, sim: &Simulation, target_mm: &Vector3<f64>) -> Vec<Diagnostic> {
+pub fn tool_warnings(
+    ws: &Workspace,
+    sim: &Simulation,
+    target_mm: &Vector3<f64>,
+) -> Vec<Diagnostic> {
     let mut warned: Vec<u32> = Vec::new();
     let mut out = Vec::new();
     for s in &sim.stops {
