@@ -551,7 +551,7 @@ fn cli_simulate_and_identify_round_trip_and_bad_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("bad.csv:2:9"));
     assert!(!out_cal.exists());
-    // `+NAME` without -c is a usage error; so is a program run (no motion simulator yet).
+    // `+NAME` without -c is a usage error.
     let out = std::process::Command::new(exe)
         .arg("identify")
         .arg(&meas)

@@ -7,6 +7,7 @@
 //! robot measured by the same tracker with the same random draws).
 //!
 //! Run with `cargo test --release --test paper_experiment -- --nocapture` to see the table.
+//! The same run on the command line is `robopost simulate program`, tested here too.
 
 use std::path::Path;
 
@@ -213,4 +214,102 @@ fn paper_table_one_in_simulation() {
         with_ct.z_2sigma_um < without_ct.z_2sigma_um,
         "{with_ct:?} vs {without_ct:?}"
     );
+}
+
+/// `robopost simulate program`: the library's run on the command line; a tool that is not the
+/// tracker's target is a warning with both vectors; a program the controller would stop on is
+/// rejected with a located error, exit 1 and nothing written; an unreadable one exits 2.
+#[test]
+fn simulate_program_on_the_command_line() {
+    let exe = env!("CARGO_BIN_EXE_robopost");
+    let truth_path = root().join("fixtures/measurements/kr30ha-truth.json");
+    let dir = tempfile::tempdir().unwrap();
+    let simulate = |program: &Path, out: &Path| {
+        std::process::Command::new(exe)
+            .args(["simulate", "program", "--seed", "9", "--truth"])
+            .arg(&truth_path)
+            .arg(program)
+            .arg("-o")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+
+    let src = root().join("fixtures/programs/paper_path2.src");
+    let out = dir.path().join("path2.csv");
+    let run = simulate(&src, &out);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    let file = read_csv(&out).unwrap();
+    let ws = load(&src);
+    let truth = VirtualRobot::load(&truth_path).unwrap().with_seed(9);
+    let sim = motion::simulate(&ws, &truth.truth.robot, &[]);
+    let visits = program_visits(
+        &sim,
+        "paper_path2",
+        DEFAULT_DWELL_S,
+        DEFAULT_AXIS_SPEED_DEG_S,
+    );
+    let expected = truth.run_program(&visits).unwrap();
+    assert_eq!(file.stops.len(), expected.len());
+    for (row, e) in file.stops.iter().zip(&expected) {
+        assert_eq!(row.test, "paper_path2");
+        assert_eq!(row.state.directions, e.state.directions);
+        assert!((row.state.time_s - e.state.time_s).abs() < 0.051);
+        // Written to 1e-6° and 1e-4 mm.
+        for k in 0..6 {
+            assert!((row.state.axes_deg[k] - e.state.axes_deg[k]).abs() < 1e-6);
+        }
+        assert!((row.measured_mm.unwrap() - e.measured_mm.unwrap()).amax() < 1e-4);
+    }
+
+    // A tool on the flange's axis, not the target: measured anyway, with a warning naming both.
+    let text = std::fs::read_to_string(root().join("fixtures/programs/paper_path1.src")).unwrap();
+    let other_tool = dir.path().join("other_tool.src");
+    std::fs::write(
+        &other_tool,
+        text.replace(
+            "$TOOL={X -120.0,Y -80.0,Z 180.0,A 180.0",
+            "$TOOL={X 0.0,Y 0.0,Z 200.0,A 0.0",
+        )
+        .replace("T 2}", "T 34}"),
+    )
+    .unwrap();
+    let out = dir.path().join("other.csv");
+    let run = simulate(&other_tool, &out);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning")
+            && stderr.contains("(0.000, 0.000, 200.000)")
+            && stderr.contains("(-120.000, -80.000, 180.000)"),
+        "{stderr}"
+    );
+    assert_eq!(read_csv(&out).unwrap().stops.len(), 53);
+
+    // A target out of reach: rejected where it is written.
+    let unreachable = dir.path().join("unreachable.src");
+    std::fs::write(
+        &unreachable,
+        "DEF unreachable( )\n$BASE = {X 0, Y 0, Z 0}\n$TOOL = {X -120, Y -80, Z 180}\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 0, A6 0}\nLIN {X 5000, Y 0, Z 500, A 0, B 0, C 180}\nEND\n",
+    )
+    .unwrap();
+    let out = dir.path().join("never.csv");
+    let run = simulate(&unreachable, &out);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("unreachable.src:5:1"), "{stderr}");
+    assert!(stderr.contains("LIN {X 5000"), "{stderr}");
+    assert!(!out.exists());
+    // Syntax error: exit 1, located, nothing written.
+    let run = simulate(&root().join("fixtures/bad/motion_without_target.src"), &out);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("motion_without_target.src:2:"), "{stderr}");
+    assert!(!out.exists());
+    // Unreadable: exit 2.
+    let run = simulate(&dir.path().join("missing.src"), &out);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(!out.exists());
 }

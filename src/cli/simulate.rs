@@ -13,7 +13,7 @@ use crate::diagnostic::Severity;
 use crate::measure::{write_csv, Stop};
 use crate::motion::workspace::LoadError;
 use crate::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
-use crate::simulate::{paper, poses, program, Campaign, PlannedStop, VirtualRobot};
+use crate::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, VirtualRobot};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -265,7 +265,19 @@ fn run_program(
     let visits = program::program_visits(&sim, &test, dwell, speed);
     match robot.run_program(&visits) {
         Ok(measured) => write_measured(&measured, out),
-        Err(e) => usage(&e.to_string()),
+        Err(e) => {
+            let SimulateError::OutOfLimits { index, .. } = &e;
+            let s = &sim.stops[*index];
+            let d = ws.diagnostic(
+                Severity::Error,
+                s.file,
+                s.stmt.head,
+                format!("the robot would not go here: {e}"),
+            );
+            eprintln!("{}", d.render());
+            eprintln!("{}: rejected, nothing written", ws.get(ws.main).name);
+            Exit::Rejected
+        }
     }
 }
 
