@@ -4,14 +4,12 @@
 //! `simulate::paper::TARGET_MM` on the flange) commanded with the flange pointing down
 //! (A 180, B 0, C 180).
 //!
-//! Run: `cargo run --release --example validation_paths`
-//!
-// TODO(kinematics): replace `newton_ik` with `kinematics::inverse` (S/T selection and
-// continuity) once the kinematics branch has landed; the small Newton iteration on the nominal
-// chain below exists only to make these fixtures.
+//! Run: `cargo run --release --example validation_paths [OUT.csv]` (default: the fixture).
+//! The axes are the controller's: `kinematics::inverse` with S 2 (elbow up, wrist not
+//! flipped), each point nearest the previous one, as a LIN path continues.
 
-use nalgebra::{Isometry3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
-use robopost::kinematics::{Payload, RobotDescription};
+use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+use robopost::kinematics::{inverse, Payload, RobotDescription, Select};
 use robopost::model::{AxisState, Model};
 use robopost::simulate::paper::TARGET_MM;
 
@@ -56,34 +54,6 @@ fn error(model: &Model, axes: &[f64; 6], goal: &Isometry3<f64>) -> Vector6<f64> 
     )
 }
 
-/// Damped Newton iteration with a numerical Jacobian from `start`.
-fn newton_ik(model: &Model, goal: &Isometry3<f64>, start: [f64; 6]) -> [f64; 6] {
-    let mut q = start;
-    for _ in 0..500 {
-        let e = error(model, &q, goal);
-        if e.norm() < 1e-10 {
-            break;
-        }
-        let mut j = Matrix6::zeros();
-        for k in 0..6 {
-            let mut qp = q;
-            qp[k] += 1e-6;
-            let ep = error(model, &qp, goal);
-            j.set_column(k, &((e - ep) / 1e-6));
-        }
-        let jt = j.transpose();
-        let Some(step) = (jt * j + Matrix6::identity() * 1e-6).lu().solve(&(jt * e)) else {
-            panic!("no step at {q:?}, error {e}");
-        };
-        // At most 5° per iteration: Newton stays on the branch it started on.
-        let scale = (5.0 / step.amax()).min(1.0);
-        for k in 0..6 {
-            q[k] += scale * step[k];
-        }
-    }
-    q
-}
-
 fn main() {
     let robot = RobotDescription::kr30ha();
     let model = Model::new(robot, Payload::default(), Vector3::zeros());
@@ -91,34 +61,27 @@ fn main() {
     // Flange pointing down, its X towards −X: A 180, B 0, C 180 (R = Rz(A)·Ry(B)·Rx(C)).
     let pi = std::f64::consts::PI;
     let rotation = UnitQuaternion::from_euler_angles(pi, 0.0, pi);
-    let mut q = [0.0; 6];
+    let mut previous: Option<[f64; 6]> = None;
     let mut rows = String::from("test,a1,a2,a3,a4,a5,a6\n");
     for (label, points) in paths() {
         for p in points {
             // The TCP (target) at p: flange origin = p − R·tool.
             let goal = Isometry3::from_parts(Translation3::from(p - rotation * tool), rotation);
-            // The first point starts near its elbow-up, non-flipped solution; the rest continue
-            // from the previous one.
-            let starts: Vec<[f64; 6]> = if rows.lines().count() == 1 {
-                vec![[46.0, -58.0, 123.0, 0.0, 25.0, 46.0]]
-            } else {
-                vec![q]
-            };
-            q = starts
-                .into_iter()
-                .map(|s| newton_ik(&model, &goal, s))
-                .find(|q| error(&model, q, &goal).norm() < 1e-8)
-                .unwrap_or_else(|| {
-                    let q = newton_ik(&model, &goal, q);
-                    panic!(
-                        "{label} {p}: no IK solution; ended at {q:?}, error {}",
-                        error(&model, &q, &goal).transpose()
-                    )
-                });
+            // S 2: elbow up, wrist not flipped. The first point nearest the pose with A1 = A6
+            // turned towards it (A4 is 0 to rounding on these paths, so T would not decide).
+            let near = previous.unwrap_or([46.0, -58.0, 123.0, 0.0, 25.0, 46.0]);
+            let select = Select::StatusNearest { s: 2, near };
+            let q = inverse(&robot, &goal, select)
+                .unwrap_or_else(|e| panic!("{label} {p}: {e}"))
+                .axes_deg;
+            // Independent check: the model's forward kinematics puts the flange on the goal.
+            let e = error(&model, &q, &goal);
+            assert!(e.norm() < 1e-8, "{label} {p}: error {}", e.transpose());
             assert!(
                 robot.within_limits(&q),
                 "{label} {p}: {q:?} outside the limits"
             );
+            previous = Some(q);
             rows += &format!(
                 "{label},{}\n",
                 q.iter()
@@ -128,9 +91,16 @@ fn main() {
             );
         }
     }
-    let out = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures/measurements/validation-poses.csv");
-    std::fs::create_dir_all(out.parent().expect("dir")).expect("mkdir");
+    let out = std::env::args_os().nth(1).map_or_else(
+        || {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("fixtures/measurements/validation-poses.csv")
+        },
+        std::path::PathBuf::from,
+    );
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).expect("mkdir");
+    }
     std::fs::write(&out, rows).expect("write");
     println!("wrote {}", out.display());
 }

@@ -551,7 +551,7 @@ fn cli_simulate_and_identify_round_trip_and_bad_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("bad.csv:2:9"));
     assert!(!out_cal.exists());
-    // `+NAME` without -c is a usage error; so is a program run (no motion simulator yet).
+    // `+NAME` without -c is a usage error.
     let out = std::process::Command::new(exe)
         .arg("identify")
         .arg(&meas)
@@ -695,4 +695,96 @@ mod properties {
             prop_assert!(fit.rotation.angle_to(&truth.rotation) < 1e-9);
         }
     }
+}
+
+/// A 1° map identified from stops 2° apart, each 0.1° past an even degree: the odd cells are
+/// reached only through interpolation weights of 0.1, so without regularisation they carry
+/// ten times the noise of the even ones (the runaway); as thin cells they follow their
+/// neighbours and stay as close to the truth as the even cells.
+#[test]
+fn thin_cells_follow_their_neighbours_instead_of_running_away() {
+    let robot = RobotDescription::kr30ha();
+    let mut truth = empty_model();
+    let name = robopost::model::EffectName::parse("map:A1").unwrap();
+    let fine = robopost::model::GridOptions {
+        pitch_deg: Some(0.5),
+        range_deg: Some([-30.0, 30.0]),
+        ..Default::default()
+    };
+    let mut map = name.create(&fine, &robot).unwrap();
+    for (i, v) in map.values_mut().iter_mut().enumerate() {
+        *v = paper::map_deg(1, -30.0 + 0.5 * i as f64);
+    }
+    truth.push(map);
+    let plan: Vec<PlannedStop> = (0..4)
+        .flat_map(|_| -10..10)
+        .map(|k| PlannedStop {
+            test: "A1".into(),
+            axes_deg: [2.0 * k as f64 + 0.1, -60.0, 100.0, 0.0, 45.0, 0.0],
+            measured: true,
+            time_s: 0.0,
+        })
+        .collect();
+    let stops = VirtualRobot::new(truth)
+        .with_seed(11)
+        .measure(&plan)
+        .unwrap();
+    let [lo, _] = setup::data_range(&stops, 1, 1.0).unwrap();
+    // RMS error (degrees) of the identified even and odd cells against the truth.
+    let errors = |thin: f64| -> (f64, f64) {
+        let mut model = zero_model("map:A1", &stops);
+        refine(
+            &mut model,
+            &stops,
+            &RefineOptions {
+                thin,
+                ..RefineOptions::default()
+            },
+        )
+        .unwrap();
+        let (mut even, mut odd) = (Vec::new(), Vec::new());
+        for (i, v) in model.values().iter().enumerate() {
+            let a = lo + i as f64;
+            // Cells between two stops (the edges are reached from one side only).
+            if !(-19.0..=18.0).contains(&a) {
+                continue;
+            }
+            let e = (v - paper::map_deg(1, a)).powi(2);
+            if (a as i64).rem_euclid(2) == 0 {
+                even.push(e);
+            } else {
+                odd.push(e);
+            }
+        }
+        let rms = |v: &[f64]| (v.iter().sum::<f64>() / v.len() as f64).sqrt();
+        (rms(&even), rms(&odd))
+    };
+    let (even_before, odd_before) = errors(0.0);
+    let (even_after, odd_after) = errors(RefineOptions::default().thin);
+    println!(
+        "even/odd cell RMS error, mdeg: before {:.3}/{:.3}, after {:.3}/{:.3}",
+        even_before * 1e3,
+        odd_before * 1e3,
+        even_after * 1e3,
+        odd_after * 1e3
+    );
+    assert!(
+        odd_before > 4.0 * even_before,
+        "no runaway to fix: {odd_before} vs {even_before}"
+    );
+    // What 2° data can say about an odd cell at best: the truth halfway between its even
+    // neighbours (the map's 6° harmonic is not resolved by 2° data).
+    let halfway: Vec<f64> = (-9..9)
+        .map(|k| {
+            let a = 2.0 * k as f64 + 1.0;
+            let mid = 0.5 * (paper::map_deg(1, a - 1.0) + paper::map_deg(1, a + 1.0));
+            (mid - paper::map_deg(1, a)).powi(2)
+        })
+        .collect();
+    let resolution = (halfway.iter().sum::<f64>() / halfway.len() as f64).sqrt();
+    assert!(
+        odd_after < resolution + 2.0 * even_after,
+        "{odd_after} vs {resolution} + 2 × {even_after}"
+    );
+    assert!(odd_after < odd_before / 3.0);
 }

@@ -10,9 +10,10 @@ use crate::compensate::{self, files, program, Calibrated, Method};
 use crate::diagnostic::Severity;
 use crate::motion::GivenFrame;
 
-/// Options shared by the main job, `batch` and `check`.
+/// How a program's frames are found: shared by the main job, `batch`, `check` and
+/// `simulate program` (which runs a program as the main job reads it).
 #[derive(clap::Args, Debug, Clone)]
-pub struct ProgramArgs {
+pub struct FrameArgs {
     /// The robot's `$config.dat` (BASE_DATA, TOOL_DATA).
     #[arg(long = "config", value_name = "CONFIG.dat")]
     pub config: Option<PathBuf>,
@@ -22,13 +23,11 @@ pub struct ProgramArgs {
     /// A tool frame: `N=X,Y,Z,A,B,C` for TOOL_DATA[N] (repeatable).
     #[arg(long = "tool", value_name = "N=X,Y,Z,A,B,C", value_parser = parse_frame_arg, allow_hyphen_values = true)]
     pub tool: Vec<(i64, [f64; 6])>,
-    /// Apply the paper's equation (3) once instead of iterating to 0.1 µm (for comparison).
-    #[arg(long = "one-step")]
-    pub one_step: bool,
 }
 
-impl ProgramArgs {
-    pub fn options(&self, parallel: bool, points: bool) -> program::Options {
+impl FrameArgs {
+    /// The frames given on the command line.
+    pub fn given(&self) -> Vec<GivenFrame> {
         let mut frames = Vec::new();
         for (n, v) in &self.base {
             frames.push(GivenFrame {
@@ -44,6 +43,31 @@ impl ProgramArgs {
                 xyzabc: *v,
             });
         }
+        frames
+    }
+}
+
+/// Options shared by the main job, `batch` and `check`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ProgramArgs {
+    #[command(flatten)]
+    pub frames: FrameArgs,
+    /// Apply the paper's equation (3) once instead of iterating to 0.1 µm (for comparison).
+    #[arg(long = "one-step")]
+    pub one_step: bool,
+}
+
+/// `args.program.config` etc. read through to the frame options.
+impl std::ops::Deref for ProgramArgs {
+    type Target = FrameArgs;
+    fn deref(&self) -> &FrameArgs {
+        &self.frames
+    }
+}
+
+impl ProgramArgs {
+    pub fn options(&self, parallel: bool, points: bool) -> program::Options {
+        let frames = self.frames.given();
         program::Options {
             method: if self.one_step {
                 Method::OneStep

@@ -1,15 +1,19 @@
 //! `robopost simulate`: the virtual robot on the command line — write the built-in truth,
-//! run a measurement campaign or a list of poses on a truth file and write the measurement
-//! CSV. Thin: everything is in `crate::simulate`.
+//! run a measurement campaign, a list of poses or a KRL program on a truth file and write the
+//! measurement CSV. Thin: everything is in `crate::simulate`.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use super::compensate::FrameArgs;
 use super::Exit;
 use crate::calibration::{KukaFrame, MeasurementFrame};
-use crate::measure::write_csv;
+use crate::compensate::files;
+use crate::diagnostic::Severity;
+use crate::measure::{write_csv, Stop};
+use crate::motion::workspace::LoadError;
 use crate::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
-use crate::simulate::{paper, poses, virtual_robot, Campaign, PlannedStop, VirtualRobot};
+use crate::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, VirtualRobot};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -51,11 +55,23 @@ pub enum What {
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
     },
-    /// Run a KRL program on the virtual robot (needs the motion simulator; not yet built).
+    /// Run a KRL program on the virtual robot: every executed target a measured stop, with the
+    /// controller's axes and the directions of the simulated motion.
     Program {
         #[arg(long)]
         truth: PathBuf,
+        /// The program (.src; its .dat beside it is used too), or `-` for stdin.
         program: PathBuf,
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Dwell per stop, seconds.
+        #[arg(long, default_value_t = DEFAULT_DWELL_S)]
+        dwell: f64,
+        /// Axis speed between stops, degrees per second.
+        #[arg(long, default_value_t = DEFAULT_AXIS_SPEED_DEG_S)]
+        speed: f64,
+        #[command(flatten)]
+        frames: FrameArgs,
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
     },
@@ -114,7 +130,20 @@ pub fn run(args: Args) -> Exit {
                 }
             }
         }
-        What::Program { .. } => usage(virtual_robot::PROGRAM_RUNS_PENDING),
+        What::Program {
+            truth,
+            program,
+            seed,
+            dwell,
+            speed,
+            frames,
+            out,
+        } => {
+            if !(dwell >= 0.0 && speed > 0.0) {
+                return usage("--dwell must be ≥ 0 and --speed > 0");
+            }
+            run_program(&truth, &program, seed, (dwell, speed), &frames, &out)
+        }
         What::Truth {
             hidden,
             seed,
@@ -159,21 +188,102 @@ fn read_campaign(path: &Path) -> Result<Campaign, String> {
     Ok(campaign)
 }
 
-fn measure_and_write(truth: &Path, seed: Option<u64>, stops: &[PlannedStop], out: &Path) -> Exit {
-    let robot = match VirtualRobot::load(truth) {
-        Ok(r) => r,
-        Err(e) => return usage(&e.to_string()),
-    };
-    let robot = match seed {
+fn load_robot(truth: &Path, seed: Option<u64>) -> Result<VirtualRobot, Exit> {
+    let robot = VirtualRobot::load(truth).map_err(|e| usage(&e.to_string()))?;
+    Ok(match seed {
         Some(s) => robot.with_seed(s),
         None => robot,
+    })
+}
+
+fn measure_and_write(truth: &Path, seed: Option<u64>, stops: &[PlannedStop], out: &Path) -> Exit {
+    let robot = match load_robot(truth, seed) {
+        Ok(r) => r,
+        Err(exit) => return exit,
     };
-    let measured = match robot.measure(stops) {
-        Ok(m) => m,
+    match robot.measure(stops) {
+        Ok(measured) => write_measured(&measured, out),
+        Err(e) => usage(&e.to_string()),
+    }
+}
+
+/// `simulate program`: the program loaded and simulated as the main job does, its targets
+/// measured on the truth. A program the controller would stop on (a located error: syntax,
+/// unreachable target, unknown frame) is rejected with exit 1 and nothing written; a tool that
+/// is not the measurement target is a warning (see `simulate::program`).
+fn run_program(
+    truth: &Path,
+    path: &Path,
+    seed: Option<u64>,
+    (dwell, speed): (f64, f64),
+    frames: &FrameArgs,
+    out: &Path,
+) -> Exit {
+    let robot = match load_robot(truth, seed) {
+        Ok(r) => r,
+        Err(exit) => return exit,
+    };
+    let bytes = match crate::krl::program::read_bytes(path) {
+        Ok(b) => b,
         Err(e) => return usage(&e.to_string()),
     };
+    let stdin = path.as_os_str() == "-";
+    let ws = match files::load_program((!stdin).then_some(path), &bytes, frames.config.as_deref()) {
+        Ok(ws) => ws,
+        Err(e @ LoadError::Io { .. }) => return usage(&e.to_string()),
+        Err(e) => {
+            eprintln!("{e}");
+            return Exit::Rejected;
+        }
+    };
+    let sim = crate::motion::simulate(&ws, &robot.truth.robot, &frames.given());
+    for d in &sim.diagnostics {
+        eprintln!("{}", d.render());
+    }
+    if sim
+        .diagnostics
+        .iter()
+        .any(|d| d.severity == Severity::Error)
+    {
+        eprintln!(
+            "{}: rejected (the controller would stop), nothing written",
+            ws.get(ws.main).name
+        );
+        return Exit::Rejected;
+    }
+    for d in program::tool_warnings(&ws, &sim, &robot.truth.target_mm) {
+        eprintln!("{}", d.render());
+    }
+    let test = if stdin {
+        "stdin".to_string()
+    } else {
+        path.file_stem().map_or_else(
+            || path.display().to_string(),
+            |s| s.to_string_lossy().into_owned(),
+        )
+    };
+    let visits = program::program_visits(&sim, &test, dwell, speed);
+    match robot.run_program(&visits) {
+        Ok(measured) => write_measured(&measured, out),
+        Err(e) => {
+            let SimulateError::OutOfLimits { index, .. } = &e;
+            let s = &sim.stops[*index];
+            let d = ws.diagnostic(
+                Severity::Error,
+                s.file,
+                s.stmt.head,
+                format!("the robot would not go here: {e}"),
+            );
+            eprintln!("{}", d.render());
+            eprintln!("{}: rejected, nothing written", ws.get(ws.main).name);
+            Exit::Rejected
+        }
+    }
+}
+
+fn write_measured(measured: &[Stop], out: &Path) -> Exit {
     let mut bytes = Vec::new();
-    if let Err(e) = write_csv(&mut bytes, &measured) {
+    if let Err(e) = write_csv(&mut bytes, measured) {
         return usage(&e.to_string());
     }
     let exit = finish(write_output(out, &bytes), out);

@@ -647,6 +647,29 @@ fn resettle(
                 iterations: sol.iterations,
                 resolution: Resolution::Held(oscillating),
             });
+            // Along a Cartesian path a held axis still moves by the path's own second-order
+            // motion, which may flip its branch after all: then let the other axes make up
+            // for the branch it really arrives on (solved again with those directions).
+            if really != dirs {
+                if let Ok((again, _)) = solve_target(
+                    model,
+                    tool,
+                    target,
+                    &really,
+                    sol.axes_deg,
+                    oscillating,
+                    method,
+                ) {
+                    let really_again = directions_at(&again.axes_deg);
+                    candidates.push(Candidate {
+                        axes: again.axes_deg,
+                        directions: really_again,
+                        error: tcp_error(model, tool, &again.axes_deg, &really_again, &target.goal),
+                        iterations: sol.iterations + again.iterations,
+                        resolution: Resolution::Held(oscillating),
+                    });
+                }
+            }
         }
     }
     let best = candidates

@@ -32,6 +32,14 @@ pub struct Predicted<'a> {
 }
 
 impl Predicted<'_> {
+    /// The tool as the model has it: the measurement target carries its identified correction.
+    fn tool(&self, tool: &Frame, errors: &crate::model::ChainErrors) -> Frame {
+        Frame {
+            rotation: tool.rotation,
+            position: self.model.tool_as_identified(&tool.position, errors),
+        }
+    }
+
     fn state(&self, axes: &[f64; 6]) -> AxisState {
         AxisState {
             axes_deg: *axes,
@@ -44,11 +52,13 @@ impl Predicted<'_> {
 impl Arm for Predicted<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
         let errors = self.model.chain_errors(&self.state(axes));
-        nominal::tcp_of(&self.model.robot, axes, &errors, tool)
+        let tool = self.tool(tool, &errors);
+        nominal::tcp_of(&self.model.robot, axes, &errors, &tool)
     }
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>) {
         let errors = self.model.chain_errors(&self.state(axes));
-        nominal::tcp_jacobian_of(&self.model.robot, axes, &errors, tool)
+        let tool = self.tool(tool, &errors);
+        nominal::tcp_jacobian_of(&self.model.robot, axes, &errors, &tool)
     }
 }
 

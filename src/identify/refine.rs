@@ -18,8 +18,11 @@
 //! - **Unobserved cells** (no measured stop interpolates in them, e.g. backlash cells visited
 //!   only before the axis first moved) get smoothness rows (second differences, first at the
 //!   table edge) and nothing else: they follow their observed neighbours linearly, or hold the
-//!   edge value, and do not bias the observed cells. Effects that no measurement depends on at
-//!   all are held and reported.
+//!   edge value, and do not bias the observed cells. **Thin** cells (observed at under
+//!   [`RefineOptions::thin`] of their table's median strength, e.g. a 1° cell between stops
+//!   2° apart that only a small interpolation weight reaches) get the same rows, which then
+//!   outweigh their few data: otherwise they would carry those stops' noise magnified by the
+//!   inverse weight. Effects that no measurement depends on at all are held and reported.
 //! - **Identifiability.** At the solution, parameters whose VIF exceeds
 //!   [`RefineOptions::vif_limit`] are reported with the parameters they are correlated with
 //!   (from the columns of the inverse normal matrix); a floor on the damping keeps them at
@@ -78,6 +81,12 @@ pub struct RefineOptions {
     /// Weight of the smoothness rows of unobserved table cells, relative to the effect's
     /// typical column norm (the result does not depend on it; conditioning does).
     pub smoothing: f64,
+    /// A table cell whose column norm is below this fraction of its table's median (observed
+    /// cells) is *thin*: like an unobserved cell it gets smoothness rows and follows its
+    /// neighbours. A cell that a stop reaches only through a small interpolation weight (1°
+    /// tables on 2°-pitch data) would otherwise take the noise of that stop magnified by the
+    /// inverse weight. 0 turns this off.
+    pub thin: f64,
     /// VIF above which a parameter is reported unidentifiable.
     pub vif_limit: f64,
     /// Compute per-parameter standard errors (the inverse of the normal matrix).
@@ -94,6 +103,7 @@ impl Default for RefineOptions {
             max_iterations: 30,
             tolerance: 1e-10,
             smoothing: 1.0,
+            thin: 0.2,
             vif_limit: 1e6,
             standard_errors: true,
             progress: None,
@@ -110,6 +120,7 @@ impl std::fmt::Debug for RefineOptions {
             .field("max_iterations", &self.max_iterations)
             .field("tolerance", &self.tolerance)
             .field("smoothing", &self.smoothing)
+            .field("thin", &self.thin)
             .field("vif_limit", &self.vif_limit)
             .field("standard_errors", &self.standard_errors)
             .finish_non_exhaustive()
@@ -390,7 +401,9 @@ pub fn refine(
                     .map(|i| norms[i])
                     .collect();
                 typical.sort_by(f64::total_cmp);
-                let weight = options.smoothing * typical[typical.len() / 2];
+                let median = typical[typical.len() / 2];
+                let weight = options.smoothing * median;
+                let thin = |i: usize| norms[i] < options.thin * median;
                 let cell = |i: usize, j: usize| start + i * cols + j;
                 let line_observed = |fixed_col: Option<usize>, fixed_row: Option<usize>| match (
                     fixed_col, fixed_row,
@@ -402,7 +415,7 @@ pub fn refine(
                 for i in 0..rows {
                     for j in 0..cols {
                         let k = cell(i, j);
-                        if !free[k] || observed(k) {
+                        if !free[k] || (observed(k) && !thin(k)) {
                             continue;
                         }
                         let along_own = rows > 1 && line_observed(Some(j), None);

@@ -6,12 +6,16 @@
 
 use nalgebra::{Isometry3, Vector3, Vector6};
 
-use super::chain::{self, flange_to_a6, ChainFrames};
-use super::effect::{ChainErrors, Context, Parameter, Partial};
+use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
+use super::effect::{ChainErrors, Context, Parameter, Partial, Slot};
 use super::effects::{GridOptions, ModelEffect};
 use super::registry::EffectName;
 use super::AxisState;
 use crate::kinematics::{Payload, RobotDescription};
+
+/// A tool within this distance of the measurement target (mm) is the target: the rounding of
+/// a `$TOOL` written to the micrometre.
+pub const TOOL_MATCH_MM: f64 = 0.001;
 
 /// A robot with its error effects. `Send + Sync`: share one across rayon workers.
 #[derive(Clone, Debug)]
@@ -103,6 +107,19 @@ impl Model {
             &self.chain_errors(state),
             &self.target_a6(),
         )
+    }
+
+    /// The tool (flange → TCP, KUKA flange frame, mm) the robot really carries, for a tool
+    /// programmed as `tool_mm`: when the tool is the measurement target (within
+    /// [`TOOL_MATCH_MM`]), the identified target-vector correction (the paper's ⁶p, the
+    /// target slots of `errors`) is where the TCP really is; any other tool is taken as
+    /// programmed (the target's correction says nothing about it).
+    pub fn tool_as_identified(&self, tool_mm: &Vector3<f64>, errors: &ChainErrors) -> Vector3<f64> {
+        if (tool_mm - self.target_mm).norm() > TOOL_MATCH_MM {
+            return *tool_mm;
+        }
+        let t = Vector3::from_fn(|c, _| errors.get(Slot::Target { coord: c as u8 }));
+        tool_mm + a6_to_flange().transpose() * t
     }
 
     /// Whether any table effect held `state` at its edge.
@@ -236,4 +253,31 @@ where
         }
         same
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::effects::geometric::Geometric;
+
+    /// With the measurement target as the tool, the TCP the model predicts is the target
+    /// position it was identified on (⁶p included); any other tool is left as programmed.
+    #[test]
+    fn the_target_as_tool_carries_the_identified_target_vector() {
+        let target = Vector3::new(-120.0, -80.0, 180.0);
+        let mut model = Model::new(RobotDescription::kr30ha(), Payload::default(), target);
+        let mut g = Geometric::default();
+        let n = g.values.len();
+        g.values[n - 3..].copy_from_slice(&[0.024, -0.015, 0.018]);
+        model.push(Box::new(g));
+        let state = AxisState::new([20.0, -70.0, 110.0, 15.0, 40.0, -30.0]);
+        let errors = model.chain_errors(&state);
+        let tool = model.tool_as_identified(&target, &errors);
+        let tcp = model.flange_pose(&state) * nalgebra::Point3::from(tool);
+        assert!((tcp.coords - model.target_position(&state)).norm() < 1e-9);
+        // The correction is 0.034 mm, a real change.
+        assert!((tool - target).norm() > 0.03);
+        let other = Vector3::new(0.0, 0.0, 200.0);
+        assert_eq!(model.tool_as_identified(&other, &errors), other);
+    }
 }

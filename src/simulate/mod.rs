@@ -1,10 +1,11 @@
-//! The virtual robot: a truth model, a simulated laser tracker and the measurement campaigns
-//! of the paper's section 2.3, so that identification, compensation and diagnosis can be
-//! proven on data whose truth is known.
+//! The virtual robot: a truth model, a simulated laser tracker, the measurement campaigns of
+//! the paper's section 2.3 and runs of KRL programs, so that identification, compensation and
+//! diagnosis can be proven on data whose truth is known.
 
 pub mod campaign;
 pub mod paper;
 pub mod poses;
+pub mod program;
 pub mod truth;
 pub mod virtual_robot;
 

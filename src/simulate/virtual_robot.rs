@@ -12,6 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::campaign::PlannedStop;
+use super::program::ProgramVisit;
 use super::truth::{TrackerNoise, TruthFile};
 use crate::calibration::{CalError, MeasurementFrame};
 use crate::measure::{infer_directions, Stop};
@@ -116,6 +117,37 @@ impl VirtualRobot {
     /// true target position plus tracker noise, in the tracker's frame. A stop outside the
     /// joint limits is refused (a controller would not go there).
     pub fn measure(&self, stops: &[PlannedStop]) -> Result<Vec<Stop>, SimulateError> {
+        self.check_limits(stops)?;
+        let mut states: Vec<AxisState> = stops
+            .iter()
+            .map(|s| AxisState {
+                time_s: s.time_s,
+                ..AxisState::new(s.axes_deg)
+            })
+            .collect();
+        infer_directions(&mut states, &[]);
+        Ok(self.measure_states(stops, states))
+    }
+
+    /// Runs the stops of a program ([`program_visits`](super::program::program_visits)) and
+    /// measures them as [`measure`](Self::measure) does, with the rotation directions the
+    /// simulated motion arrives with instead of those inferred from the stops alone (a path
+    /// motion may reverse an axis between two targets).
+    pub fn run_program(&self, visits: &[ProgramVisit]) -> Result<Vec<Stop>, SimulateError> {
+        let stops: Vec<PlannedStop> = visits.iter().map(|v| v.stop.clone()).collect();
+        self.check_limits(&stops)?;
+        let states = visits
+            .iter()
+            .map(|v| AxisState {
+                axes_deg: v.stop.axes_deg,
+                directions: v.directions,
+                time_s: v.stop.time_s,
+            })
+            .collect();
+        Ok(self.measure_states(&stops, states))
+    }
+
+    fn check_limits(&self, stops: &[PlannedStop]) -> Result<(), SimulateError> {
         let robot = &self.truth.robot;
         for (index, s) in stops.iter().enumerate() {
             for (k, &angle) in s.axes_deg.iter().enumerate() {
@@ -132,16 +164,13 @@ impl VirtualRobot {
                 }
             }
         }
-        let mut states: Vec<AxisState> = stops
-            .iter()
-            .map(|s| AxisState {
-                time_s: s.time_s,
-                ..AxisState::new(s.axes_deg)
-            })
-            .collect();
-        infer_directions(&mut states, &[]);
+        Ok(())
+    }
+
+    /// The measured stops: `states` (one per stop) with noisy true positions where measured.
+    fn measure_states(&self, stops: &[PlannedStop], states: Vec<AxisState>) -> Vec<Stop> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
-        Ok(stops
+        stops
             .iter()
             .zip(states)
             .map(|(planned, state)| {
@@ -159,19 +188,9 @@ impl VirtualRobot {
                     line: 0,
                 }
             })
-            .collect())
+            .collect()
     }
 }
-
-/// Measuring the stops of a KRL program needs the motion simulator of the compensation work
-/// (nominal IK with S/T and continuity, LIN/CIRC interpolation, the stops' directions from the
-/// real sequence). Until it lands `robopost simulate program` reports this and exits 2.
-// TODO(compensate): plug the motion simulator here — turn the program's motion into
-// `PlannedStop`s (one per target, measured, paced by the programmed velocities) and call
-// `VirtualRobot::measure`.
-pub const PROGRAM_RUNS_PENDING: &str =
-    "measuring a KRL program needs the motion simulator, which is not in this build yet; \
-     convert the program's targets to axis angles and use `robopost simulate poses`";
 
 #[cfg(test)]
 mod tests {

@@ -212,8 +212,20 @@ fn compensated_paths_reach_the_programmed_poses() {
             let goal = o.goal.to_isometry();
             let dp = (predicted.translation.vector - goal.translation.vector).norm();
             let dr = (predicted.rotation * goal.rotation.inverse()).angle();
-            // XHOME (wrist singular) is compensated in the least-squares sense only.
-            if robopost::kinematics::singularity(&robot, &a.nominal_axes).is_none() {
+            // XHOME (wrist singular) is compensated in the least-squares sense only, and so is
+            // a target where an axis is held still to end a backlash oscillation (A6 on the
+            // vertical retract: with the TCP off the A6 axis, the rotation it cannot correct
+            // moves the TCP): there the re-simulated error must be the residual the
+            // compensation reported.
+            let point = &result.report.points[k];
+            if point.resolution.starts_with("held") {
+                assert!(
+                    (dp * 1000.0 - point.residual_um).abs() < 3.0,
+                    "{name} target {k} (line {}): {dp} mm, reported {} µm",
+                    a.stmt.line,
+                    point.residual_um
+                );
+            } else if robopost::kinematics::singularity(&robot, &a.nominal_axes).is_none() {
                 worst = worst.max(dp);
                 assert!(
                     dp < 3e-3,
@@ -452,9 +464,17 @@ fn one_step_versus_iteration() {
     let ws = load(Path::new("fixtures/programs/paper_path1.src"));
     let it = run(&ws, "kr30ha-handset.json", compensate::Method::Iterate);
     let one = run(&ws, "kr30ha-handset.json", compensate::Method::OneStep);
-    // Means: XHOME (wrist singular) keeps a least-squares residual in both.
-    let after = |r: &ProgramResult| r.report.predicted_after.position_um.mean;
-    let before = one.report.predicted_before.position_um.mean;
+    // Means over the targets compensated exactly: XHOME (wrist singular) and a target where
+    // A6 is held to end a backlash oscillation keep a least-squares residual in both.
+    let exact = |p: &&robopost::compensate::program::PointReport| {
+        p.resolution == "consistent" && p.line != 9 && p.line != 61
+    };
+    let mean = |r: &ProgramResult, f: fn(&robopost::compensate::program::PointReport) -> f64| {
+        let v: Vec<f64> = r.report.points.iter().filter(exact).map(f).collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let after = |r: &ProgramResult| mean(r, |p| p.residual_um);
+    let before = mean(&one, |p| p.before_um);
     assert!(after(&it) < 0.02, "{}", after(&it));
     assert!(
         after(&one) > 2.0 * after(&it),

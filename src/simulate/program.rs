@@ -1,0 +1,113 @@
+//! A KRL program as the virtual robot runs it: the motion simulation of the main job
+//! (`motion::simulate`, the controller's nominal IK with S/T and continuity, LIN/CIRC
+//! interpolation) turned into the robot's visiting sequence — one stop per executed target,
+//! the command axes the controller computes for it, the rotation directions its simulated
+//! motion arrives with, a clock paced as the campaign's — together with where each target was
+//! programmed, so that "measured − programmed" is the positioning error. The auxiliary points
+//! of circular motions are passed through, not stopped at: they are visited (their motion
+//! sets the directions) but not measured.
+//!
+//! The tracker measures the truth's measurement target (the SMR on the flange); the error is
+//! "measured − programmed" only where the program's TCP is that target. [`tool_warnings`]
+//! names every tool that is not (a warning, not an error: the CSV is still valid tracker data
+//! of the target, for `identify` and `compare`).
+
+use nalgebra::Vector3;
+
+use super::campaign::{paced, PlannedStop};
+use crate::diagnostic::{Diagnostic, Severity};
+use crate::model::Direction;
+use crate::motion::{program_states, Role, Simulation, Workspace};
+
+/// Tools within this distance of the measurement target (mm) are taken as the target: the
+/// rounding of a `$TOOL` written to the micrometre.
+pub const TOOL_MATCH_MM: f64 = 0.001;
+
+/// One executed target of a program, as the virtual robot visits it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProgramVisit {
+    /// Test label, command axes, measured (not on auxiliary points), time.
+    pub stop: PlannedStop,
+    /// Rotation directions the simulated motion arrives with.
+    pub directions: [Direction; 6],
+    /// The programmed TCP position in the robot base frame, mm.
+    pub programmed_mm: Vector3<f64>,
+    /// The tool of the motion: the TCP in the flange frame, mm.
+    pub tool_mm: Vector3<f64>,
+    /// 1-based source line of the motion statement.
+    pub line: u32,
+}
+
+/// The visits of a simulated program, one per stop of `sim` and in its order, labelled
+/// `test` and time-stamped at `dwell_s` per stop and `axis_speed_deg_s` between stops.
+pub fn program_visits(
+    sim: &Simulation,
+    test: &str,
+    dwell_s: f64,
+    axis_speed_deg_s: f64,
+) -> Vec<ProgramVisit> {
+    let states = program_states(sim);
+    let stops = paced(
+        sim.stops
+            .iter()
+            .zip(&states)
+            .map(|(s, state)| (test.to_string(), state.axes_deg, s.role == Role::Target)),
+        dwell_s,
+        axis_speed_deg_s,
+    );
+    stops
+        .into_iter()
+        .zip(states)
+        .zip(&sim.stops)
+        .map(|((stop, state), s)| ProgramVisit {
+            stop,
+            directions: state.directions,
+            programmed_mm: s.goal.position,
+            tool_mm: sim.frames[s.tool as usize].position,
+            line: s.stmt.line,
+        })
+        .collect()
+}
+
+/// A warning at the first measured motion of every tool that is not the measurement target
+/// `target_mm`, with both vectors: there the measured position is not the TCP's.
+pub fn tool_warnings(
+    ws: &Workspace,
+    sim: &Simulation,
+    target_mm: &Vector3<f64>,
+) -> Vec<Diagnostic> {
+    let mut warned: Vec<u32> = Vec::new();
+    let mut out = Vec::new();
+    for s in &sim.stops {
+        if s.role != Role::Target || warned.contains(&s.tool) {
+            continue;
+        }
+        let tool = sim.frames[s.tool as usize].position;
+        if (tool - target_mm).norm() <= TOOL_MATCH_MM {
+            continue;
+        }
+        warned.push(s.tool);
+        let v = |p: &Vector3<f64>| format!("({:.3}, {:.3}, {:.3})", p.x, p.y, p.z);
+        out.push(
+            ws.diagnostic(
+                Severity::Warning,
+                s.file,
+                s.stmt.head,
+                format!(
+                    "the TCP of this motion is {} on the flange (the tool's X, Y, Z), but the \
+                     tracker measures the truth's target at {}: for the motions with this tool \
+                     the measured positions are the target's, not the TCP's, so measured − \
+                     programmed is not their positioning error",
+                    v(&tool),
+                    v(target_mm)
+                ),
+            )
+            .with_help(format!(
+                "to measure the TCP, program the tool as the measurement target: \
+                 $TOOL = {{X {}, Y {}, Z {}, A 0, B 0, C 0}}",
+                target_mm.x, target_mm.y, target_mm.z
+            )),
+        );
+    }
+    out
+}
