@@ -297,8 +297,15 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             );
         }
     }
-    let unchanged = |ws: &Workspace| {
-        ws.files
+    // The program is refused: every file as it was, the report listing the errors.
+    let rejected = |mut report: Report, diagnostics: Vec<Diagnostic>, target_errors: usize| {
+        report.errors = diagnostics
+            .iter()
+            .filter(|d| d.severity == Severity::Error)
+            .map(|d| d.render())
+            .collect();
+        let files = ws
+            .files
             .iter()
             .enumerate()
             .filter(|(_, f)| f.role != FileRole::Config)
@@ -307,17 +314,17 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
                 bytes: f.file.source().to_vec(),
                 changed: false,
             })
-            .collect::<Vec<_>>()
-    };
-    if !diagnostics.is_empty() {
-        report.errors = diagnostics.iter().map(|d| d.render()).collect();
-        return ProgramResult {
-            files: unchanged(ws),
+            .collect();
+        ProgramResult {
+            files,
             report,
             diagnostics,
             rejected: true,
-            target_errors: 0,
-        };
+            target_errors,
+        }
+    };
+    if !diagnostics.is_empty() {
+        return rejected(report, diagnostics, 0);
     }
     let model = cal.model;
     let timing = std::env::var_os("ROBOPOST_TIMING").is_some();
@@ -331,18 +338,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     lap("simulate");
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
-        report.errors = diagnostics
-            .iter()
-            .filter(|d| d.severity == Severity::Error)
-            .map(|d| d.render())
-            .collect();
-        return ProgramResult {
-            files: unchanged(ws),
-            report,
-            diagnostics,
-            rejected: true,
-            target_errors: 0,
-        };
+        return rejected(report, diagnostics, 0);
     }
     let targets = targets(ws, &sim);
     let outcomes = sequence::compensate(
@@ -397,18 +393,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         Ok(files) => files,
         Err(d) => {
             diagnostics.push(*d);
-            report.errors = diagnostics
-                .iter()
-                .filter(|d| d.severity == Severity::Error)
-                .map(|d| d.render())
-                .collect();
-            return ProgramResult {
-                files: unchanged(ws),
-                report,
-                diagnostics,
-                rejected: true,
-                target_errors,
-            };
+            return rejected(report, diagnostics, target_errors);
         }
     };
     lap("apply");
