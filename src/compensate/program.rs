@@ -389,14 +389,9 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     let mut rw = rewrite::rewrite(ws, &sim, &outcomes, &model.robot);
     lap("rewrite");
     diagnostics.extend(rw.diagnostics.iter().cloned());
-    let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
-        Ok(files) => files,
-        Err(d) => {
-            diagnostics.push(*d);
-            return rejected(report, diagnostics, target_errors);
-        }
-    };
-    lap("apply");
+    // The report before applying the edits, so that the stops and outcomes are freed before
+    // the new bytes are built (the peak memory of a long program).
+    let unfilled = report.clone();
     fill_report(
         &mut report,
         ws,
@@ -408,6 +403,15 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         options.points,
     );
     lap("report");
+    drop((sim, outcomes));
+    let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
+        Ok(files) => files,
+        Err(d) => {
+            diagnostics.push(*d);
+            return rejected(unfilled, diagnostics, target_errors);
+        }
+    };
+    lap("apply");
     ProgramResult {
         files,
         report,
@@ -419,7 +423,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
 
 fn apply(
     ws: &Workspace,
-    edits: std::collections::BTreeMap<FileId, Vec<krl::Edit>>,
+    edits: std::collections::BTreeMap<FileId, super::edits::EditList>,
     cal: &Calibrated,
     method: Method,
 ) -> Result<Vec<FileOutput>, Box<Diagnostic>> {
@@ -435,13 +439,11 @@ fn apply(
                 Some(list) if !list.is_empty() => {
                     // The header first: insertions at one offset keep their order.
                     let (at, text) = header(&f.file, cal, method);
-                    let mut all = Vec::with_capacity(list.len() + 1);
-                    all.push(krl::Edit {
+                    let first = krl::Edit {
                         range: at..at,
                         bytes: text,
-                    });
-                    all.extend(list);
-                    match krl::apply(src, &all) {
+                    };
+                    match list.apply(src, &first) {
                         Ok(bytes) => Ok(FileOutput {
                             file: id,
                             bytes,

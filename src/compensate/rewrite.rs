@@ -16,11 +16,13 @@ use rayon::prelude::*;
 
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, SourceFile, Span};
+
 use crate::motion::frame::Frame;
 use crate::motion::nominal::{Arm, Nominal};
 use crate::motion::value::{self, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
 use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
 
+use super::edits::EditList;
 use super::sequence::Outcome;
 
 /// Fewest decimals written for millimetres and degrees.
@@ -32,7 +34,7 @@ const MAX_NAME: usize = 24;
 /// Edits per file, and what the rewrite has to say.
 #[derive(Debug, Default)]
 pub struct Rewrite {
-    pub edits: BTreeMap<FileId, Vec<Edit>>,
+    pub edits: BTreeMap<FileId, EditList>,
     pub diagnostics: Vec<Diagnostic>,
     /// Declared points split into copies (original name, new names).
     pub splits: Vec<(String, Vec<String>)>,
@@ -466,16 +468,24 @@ pub fn rewrite(
         }
     };
     // Fast path, in parallel: the edits straight into one list per file.
-    type Chunk = (Vec<(FileId, Edit)>, Vec<Skip>);
+    // (Keys are sorted by file: a chunk's edits are runs of one file each.)
+    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>);
     let single: Vec<Chunk> = (0..keys.len())
         .into_par_iter()
         .with_min_len(1024)
         .filter(|&k| !shared(k))
         .fold(
             || (Vec::new(), Vec::new()),
-            |(mut edits, mut skips), k| {
+            |(mut edits, mut skips): Chunk, k| {
                 match per_stop(keys[k].2 as usize) {
-                    Some(Ok(u)) => edits.extend(u.edits.into_iter().map(|e| (keys[k].0, e))),
+                    Some(Ok(u)) => {
+                        let file = keys[k].0;
+                        if edits.last().is_none_or(|(f, _)| *f != file) {
+                            edits.push((file, EditList::new()));
+                        }
+                        let list = &mut edits.last_mut().expect("pushed").1;
+                        list.extend(u.edits);
+                    }
                     Some(Err(s)) => skips.push(s),
                     None => {}
                 }
@@ -484,8 +494,8 @@ pub fn rewrite(
         )
         .collect();
     for (edits, s) in single {
-        for (file, e) in edits {
-            out.edits.entry(file).or_default().push(e);
+        for (file, mut list) in edits {
+            out.edits.entry(file).or_default().append(&mut list);
         }
         skips.extend(s);
     }
