@@ -54,11 +54,24 @@ impl EditList {
         self.replace(edit.range, &edit.bytes);
     }
 
+    /// Room for `edits` more edits with `text` more bytes of replacement text.
+    pub fn reserve(&mut self, edits: usize, text: usize) {
+        self.pieces.reserve(edits);
+        self.text.reserve(text);
+    }
+
+    /// Bytes of replacement text.
+    pub fn text_len(&self) -> usize {
+        self.text.len()
+    }
+
     /// Moves the edits of `other` to the end of this list.
     pub fn append(&mut self, other: &mut EditList) {
         let shift = self.text.len();
-        self.pieces
-            .extend(other.pieces.drain(..).map(|p| Piece { at: p.at + shift, ..p }));
+        self.pieces.extend(other.pieces.drain(..).map(|p| Piece {
+            at: p.at + shift,
+            ..p
+        }));
         self.text.append(&mut other.text);
     }
 
