@@ -480,7 +480,7 @@ pub fn rewrite(
                 match per_stop(keys[k].2 as usize) {
                     Some(Ok(u)) => {
                         let file = keys[k].0;
-                        if edits.last().is_none_or(|(f, _)| *f != file) {
+                        if edits.last().map_or(true, |(f, _)| *f != file) {
                             edits.push((file, EditList::new()));
                         }
                         let list = &mut edits.last_mut().expect("pushed").1;
