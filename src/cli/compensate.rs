@@ -147,7 +147,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     let input = (!stdin).then_some(args.input.as_path());
-    let t0 = std::time::Instant::now();
+    program::lap_start();
     let ws = match files::load_program(input, &bytes, args.program.config.as_deref()) {
         Ok(ws) => ws,
         Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
@@ -160,7 +160,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     drop(bytes);
-    program::lap("load", t0);
+    program::lap("load");
     let to_stdout = is_dash(&args.out);
     if !to_stdout {
         for f in &ws.files {
@@ -206,14 +206,14 @@ pub fn run(args: Args) -> Exit {
             return Exit::Usage;
         }
     } else {
-        program::lap("compensated", t0);
+        program::lap("compensated");
         let outputs = files::outputs(&ws, &result.files, &args.out);
         if let Err(e) = files::write_atomic(&outputs) {
             eprintln!("error: writing {}: {e}", args.out.display());
             return Exit::Usage;
         }
     }
-    program::lap("written", t0);
+    program::lap("written");
     if let Some(path) = &args.report {
         let json = serde_json::to_string_pretty(&result.report).unwrap_or_default() + "\n";
         if let Err(e) = files::write_atomic(&[(path.clone(), json.as_bytes())]) {

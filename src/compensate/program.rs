@@ -274,12 +274,21 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
     (at, bytes)
 }
 
-/// With `ROBOPOST_TIMING` set: prints the time since `t0` and the peak memory so far (Linux)
-/// after a phase of the main job.
-pub fn lap(what: &str, t0: std::time::Instant) {
+/// Where the phase laps count from: the first [`lap_start`] or [`lap`].
+static LAP_ORIGIN: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+
+/// Starts the clock of the phase laps (the CLI, before loading the program).
+pub fn lap_start() {
+    LAP_ORIGIN.get_or_init(std::time::Instant::now);
+}
+
+/// With `ROBOPOST_TIMING` set: prints the time since [`lap_start`] and the peak memory so far
+/// (Linux) after a phase of the main job.
+pub fn lap(what: &str) {
     if std::env::var_os("ROBOPOST_TIMING").is_none() {
         return;
     }
+    let t0 = *LAP_ORIGIN.get_or_init(std::time::Instant::now);
     let peak = std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
@@ -352,8 +361,6 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         return rejected(report, diagnostics, 0);
     }
     let model = cal.model;
-    let t0 = std::time::Instant::now();
-    let lap = |what: &str| lap(what, t0);
     let sim = motion::simulate(ws, &model.robot, &options.frames);
     lap("simulate");
     diagnostics.extend(sim.diagnostics.iter().cloned());
