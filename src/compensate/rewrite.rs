@@ -79,8 +79,8 @@ fn new_values(
     let abc_near = [near(3), near(4), near(5)];
     match stop.rel {
         None => {
-            let p = match stop.origin.as_ref().and_then(|o| o.prefix.as_ref()) {
-                Some(prefix) => prefix.inverse().compose(&p_c),
+            let p = match stop.origin.and_then(|o| o.prefix) {
+                Some(i) => sim.prefixes[i as usize].inverse().compose(&p_c),
                 None => p_c,
             };
             let near_abc = [

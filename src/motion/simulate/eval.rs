@@ -49,7 +49,7 @@ impl<'f> Simulator<'f> {
             Expr::Binary(b) => {
                 let l = self.eval(file, &b.lhs, scope);
                 let r = self.eval(file, &b.rhs, scope);
-                binary(b.op, l, r)
+                binary(b.op, l, r, &self.prefixes)
             }
             Expr::Call(c) => self.function(file, c, scope),
             Expr::Opaque(_) => Value::Unknown("an expression that was not understood".into()),
@@ -367,7 +367,13 @@ pub(super) fn reason(v: &Value, what: &str) -> String {
     }
 }
 
-pub(super) fn binary<'f>(op: BinOp, l: Value<'f>, r: Value<'f>) -> Value<'f> {
+/// `l op r`; a geometric operator's prefix frame goes into `prefixes`.
+pub(super) fn binary<'f>(
+    op: BinOp,
+    l: Value<'f>,
+    r: Value<'f>,
+    prefixes: &std::cell::RefCell<Vec<Frame>>,
+) -> Value<'f> {
     use Value::*;
     if let Unknown(_) = l {
         return l;
@@ -389,10 +395,13 @@ pub(super) fn binary<'f>(op: BinOp, l: Value<'f>, r: Value<'f>) -> Value<'f> {
                 let complete = b.is_complete();
                 match &mut b.origin {
                     Some(o) => {
-                        o.prefix = Some(match o.prefix {
-                            Some(p) => fa.compose(&p),
+                        let prefix = match o.prefix {
+                            Some(p) => fa.compose(&prefixes.borrow()[p as usize]),
                             None => fa,
-                        });
+                        };
+                        let mut table = prefixes.borrow_mut();
+                        table.push(prefix);
+                        o.prefix = Some((table.len() - 1) as u32);
                         Pos(b)
                     }
                     None if complete => {

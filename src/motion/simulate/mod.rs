@@ -102,6 +102,8 @@ pub struct Simulation<'f> {
     pub stops: Vec<Stop<'f>>,
     /// Tools and bases referred to by the stops.
     pub frames: Vec<Frame>,
+    /// Prefix frames of positions written as `prefix : position` (`Origin::prefix`).
+    pub prefixes: Vec<Frame>,
     pub diagnostics: Vec<Diagnostic>,
     /// An error rejects the whole program (unknown frame, external TCP, endless loop).
     pub fatal: bool,
@@ -169,6 +171,7 @@ pub fn simulate<'f>(
     sim.out.stops.reserve(motions);
     sim.run();
     let mut out = sim.out;
+    out.prefixes = sim.prefixes.into_inner();
     finish(&mut out, robot);
     out
 }
@@ -228,6 +231,8 @@ struct Simulator<'f> {
     depth: usize,
     steps: u64,
     warned_frames: bool,
+    /// Prefix frames of geometric operators (see `Origin::prefix`), filled while evaluating.
+    prefixes: std::cell::RefCell<Vec<Frame>>,
 }
 
 fn upper(b: &[u8]) -> Vec<u8> {
@@ -291,6 +296,7 @@ impl<'f> Simulator<'f> {
             depth: 0,
             steps: 0,
             warned_frames: false,
+            prefixes: Default::default(),
         }
     }
 

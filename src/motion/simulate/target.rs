@@ -551,8 +551,10 @@ impl<'f> Simulator<'f> {
                     std::array::from_fn(|i| pos.v[i].unwrap_or(here[i]))
                 };
                 let p = Frame::from_kuka(&v);
-                let goal = match pos.origin.as_ref().and_then(|o| o.prefix.as_ref()) {
-                    Some(prefix) => base.compose(prefix).compose(&p),
+                let goal = match pos.origin.and_then(|o| o.prefix) {
+                    Some(i) => base
+                        .compose(&self.prefixes.borrow()[i as usize])
+                        .compose(&p),
                     None => base.compose(&p),
                 };
                 Some((v, goal, st))
