@@ -3,7 +3,7 @@
 //! motion and records the [`Stop`]s of a motion (and of a circle's auxiliary point).
 
 use crate::kinematics::{self, status_turn, Select};
-use crate::krl::{Motion, RelFrameKind, Stmt};
+use crate::krl::{Expr, Motion, RelFrameKind, Stmt};
 
 use super::eval::reason;
 use super::*;
@@ -54,6 +54,30 @@ impl<'f> Simulator<'f> {
             prev: None,
             compensable: false,
             deferred: false,
+        }
+    }
+
+    /// The position `e` of motion `s`, or `None` (the motion lost, saying why) when it is not
+    /// known before run time.
+    fn position(
+        &mut self,
+        file: FileId,
+        s: &Stmt,
+        e: &'f Expr,
+        scope: &Scope<'f>,
+        what: &str,
+    ) -> Option<Pos<'f>> {
+        match self.eval(file, e, scope) {
+            Value::Pos(pos) => Some(pos),
+            other => {
+                let why = reason(&other, what);
+                self.lost(
+                    file,
+                    s,
+                    format!("{what} is not known before run time ({why})"),
+                );
+                None
+            }
         }
     }
 
@@ -148,14 +172,7 @@ impl<'f> Simulator<'f> {
             self.state.current = None;
             return;
         }
-        let target = self.eval(file, &m.target, scope);
-        let Value::Pos(pos) = target else {
-            let why = reason(&target, "the target");
-            self.lost(
-                file,
-                s,
-                format!("the target is not known before run time ({why})"),
-            );
+        let Some(pos) = self.position(file, s, &m.target, scope, "the target") else {
             return;
         };
         let reference = m.target.as_path().filter(|p| p.is_simple()).map(|p| p.root);
@@ -213,14 +230,7 @@ impl<'f> Simulator<'f> {
         let mut aux_stop = None;
         let mut circle = None;
         if let Some(aux_expr) = m.aux() {
-            let aux = self.eval(file, aux_expr, scope);
-            let Value::Pos(aux) = aux else {
-                let why = reason(&aux, "the auxiliary point");
-                self.lost(
-                    file,
-                    s,
-                    format!("the auxiliary point is not known before run time ({why})"),
-                );
+            let Some(aux) = self.position(file, s, aux_expr, scope, "the auxiliary point") else {
                 return;
             };
             let (Some(cur), Some(start)) = (current, start_tcp) else {
