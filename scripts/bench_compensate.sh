@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 W=${1:-/tmp/robopost-bench}
 CAL=calibrations/kr30ha-handset.json
 BIN=target/release/robopost
-cargo build --release --quiet
+[ -n "${NO_BUILD:-}" ] || cargo build --release --quiet
 mkdir -p "$W"
 if [ ! -f "$W/cam1m.src" ]; then
   python3 fixtures/gen/cam_program.py milling "$W/cam1m.src" --points 1000000 >/dev/null

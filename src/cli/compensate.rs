@@ -171,7 +171,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     let input = (!stdin).then_some(args.input.as_path());
-    let t0 = std::time::Instant::now();
+    program::lap_start();
     let ws = match files::load_program(input, &bytes, args.program.config.as_deref()) {
         Ok(ws) => ws,
         Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
@@ -184,9 +184,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     drop(bytes);
-    if std::env::var_os("ROBOPOST_TIMING").is_some() {
-        eprintln!("load: {:.3} s", t0.elapsed().as_secs_f64());
-    }
+    program::lap("load");
     let to_stdout = is_dash(&args.out);
     if !to_stdout {
         for f in &ws.files {
@@ -232,18 +230,14 @@ pub fn run(args: Args) -> Exit {
             return Exit::Usage;
         }
     } else {
-        if std::env::var_os("ROBOPOST_TIMING").is_some() {
-            eprintln!("compensated: {:.3} s", t0.elapsed().as_secs_f64());
-        }
+        program::lap("compensated");
         let outputs = files::outputs(&ws, &result.files, &args.out);
         if let Err(e) = files::write_atomic(&outputs) {
             eprintln!("error: writing {}: {e}", args.out.display());
             return Exit::Usage;
         }
     }
-    if std::env::var_os("ROBOPOST_TIMING").is_some() {
-        eprintln!("written: {:.3} s", t0.elapsed().as_secs_f64());
-    }
+    program::lap("written");
     if let Some(path) = &args.report {
         let json = serde_json::to_string_pretty(&result.report).unwrap_or_default() + "\n";
         if let Err(e) = files::write_atomic(&[(path.clone(), json.as_bytes())]) {

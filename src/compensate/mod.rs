@@ -8,6 +8,7 @@
 //! output the command axes per target (turned into KRL edits by `rewrite`).
 
 pub mod batch;
+pub mod edits;
 pub mod files;
 pub mod program;
 pub mod rewrite;

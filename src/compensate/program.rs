@@ -214,8 +214,17 @@ pub fn targets(ws: &Workspace, sim: &Simulation) -> Vec<Target> {
 fn already_compensated(file: &krl::SourceFile) -> Option<usize> {
     let src = file.source();
     let mark = HEADER_MARK.as_bytes();
-    src.windows(mark.len())
-        .position(|w| w.eq_ignore_ascii_case(mark))
+    // The mark starts with `;`: compare only there (a whole-file window scan costs 0.1 s on a
+    // 70 MB program).
+    src.iter()
+        .enumerate()
+        .filter(|&(_, &b)| b == b';')
+        .map(|(i, _)| i)
+        .find(|&i| {
+            src[i..]
+                .get(..mark.len())
+                .is_some_and(|w| w.eq_ignore_ascii_case(mark))
+        })
 }
 
 /// The header comment line and where it goes: after the `&ACCESS`-style directives.
@@ -265,6 +274,31 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
     (at, bytes)
 }
 
+/// Where the phase laps count from: the first [`lap_start`] or [`lap`].
+static LAP_ORIGIN: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+
+/// Starts the clock of the phase laps (the CLI, before loading the program).
+pub fn lap_start() {
+    LAP_ORIGIN.get_or_init(std::time::Instant::now);
+}
+
+/// With `ROBOPOST_TIMING` set: prints the time since [`lap_start`] and the peak memory so far
+/// (Linux) after a phase of the main job.
+pub fn lap(what: &str) {
+    if std::env::var_os("ROBOPOST_TIMING").is_none() {
+        return;
+    }
+    let t0 = *LAP_ORIGIN.get_or_init(std::time::Instant::now);
+    let peak = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+            line.split_whitespace().nth(1)?.parse::<f64>().ok()
+        })
+        .map_or(String::new(), |kb| format!(", peak {:.0} MB", kb / 1024.0));
+    eprintln!("{what}: {:.3} s{peak}", t0.elapsed().as_secs_f64());
+}
+
 /// Compensates the main program of `ws`.
 pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -> ProgramResult {
     let main = ws.get(ws.main);
@@ -297,8 +331,15 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             );
         }
     }
-    let unchanged = |ws: &Workspace| {
-        ws.files
+    // The program is refused: every file as it was, the report listing the errors.
+    let rejected = |mut report: Report, diagnostics: Vec<Diagnostic>, target_errors: usize| {
+        report.errors = diagnostics
+            .iter()
+            .filter(|d| d.severity == Severity::Error)
+            .map(|d| d.render())
+            .collect();
+        let files = ws
+            .files
             .iter()
             .enumerate()
             .filter(|(_, f)| f.role != FileRole::Config)
@@ -307,42 +348,24 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
                 bytes: f.file.source().to_vec(),
                 changed: false,
             })
-            .collect::<Vec<_>>()
-    };
-    if !diagnostics.is_empty() {
-        report.errors = diagnostics.iter().map(|d| d.render()).collect();
-        return ProgramResult {
-            files: unchanged(ws),
+            .collect();
+        ProgramResult {
+            files,
             report,
             diagnostics,
             rejected: true,
-            target_errors: 0,
-        };
-    }
-    let model = cal.model;
-    let timing = std::env::var_os("ROBOPOST_TIMING").is_some();
-    let t0 = std::time::Instant::now();
-    let lap = |what: &str| {
-        if timing {
-            eprintln!("{what}: {:.3} s", t0.elapsed().as_secs_f64());
+            target_errors,
         }
     };
+    if !diagnostics.is_empty() {
+        return rejected(report, diagnostics, 0);
+    }
+    let model = cal.model;
     let sim = motion::simulate(ws, &model.robot, &options.frames);
     lap("simulate");
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
-        report.errors = diagnostics
-            .iter()
-            .filter(|d| d.severity == Severity::Error)
-            .map(|d| d.render())
-            .collect();
-        return ProgramResult {
-            files: unchanged(ws),
-            report,
-            diagnostics,
-            rejected: true,
-            target_errors: 0,
-        };
+        return rejected(report, diagnostics, 0);
     }
     let targets = targets(ws, &sim);
     let outcomes = sequence::compensate(
@@ -355,6 +378,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             parallel: options.parallel,
         },
     );
+    drop(targets);
     lap("compensate");
     let mut target_errors = sim.unreachable;
     // Near-singular targets: the compensation there is least squares, and small Cartesian
@@ -389,29 +413,12 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             );
         }
     }
-    drop(targets);
     let mut rw = rewrite::rewrite(ws, &sim, &outcomes, &model.robot);
     lap("rewrite");
     diagnostics.extend(rw.diagnostics.iter().cloned());
-    let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
-        Ok(files) => files,
-        Err(d) => {
-            diagnostics.push(*d);
-            report.errors = diagnostics
-                .iter()
-                .filter(|d| d.severity == Severity::Error)
-                .map(|d| d.render())
-                .collect();
-            return ProgramResult {
-                files: unchanged(ws),
-                report,
-                diagnostics,
-                rejected: true,
-                target_errors,
-            };
-        }
-    };
-    lap("apply");
+    // The report before applying the edits, so that the stops and outcomes are freed before
+    // the new bytes are built (the peak memory of a long program).
+    let unfilled = report.clone();
     fill_report(
         &mut report,
         ws,
@@ -423,6 +430,15 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         options.points,
     );
     lap("report");
+    drop((sim, outcomes));
+    let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
+        Ok(files) => files,
+        Err(d) => {
+            diagnostics.push(*d);
+            return rejected(unfilled, diagnostics, target_errors);
+        }
+    };
+    lap("apply");
     ProgramResult {
         files,
         report,
@@ -434,7 +450,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
 
 fn apply(
     ws: &Workspace,
-    edits: std::collections::BTreeMap<FileId, Vec<krl::Edit>>,
+    edits: std::collections::BTreeMap<FileId, super::edits::EditList>,
     cal: &Calibrated,
     method: Method,
 ) -> Result<Vec<FileOutput>, Box<Diagnostic>> {
@@ -450,13 +466,11 @@ fn apply(
                 Some(list) if !list.is_empty() => {
                     // The header first: insertions at one offset keep their order.
                     let (at, text) = header(&f.file, cal, method);
-                    let mut all = Vec::with_capacity(list.len() + 1);
-                    all.push(krl::Edit {
+                    let first = krl::Edit {
                         range: at..at,
                         bytes: text,
-                    });
-                    all.extend(list);
-                    match krl::apply(src, &all) {
+                    };
+                    match list.apply(src, &first) {
                         Ok(bytes) => Ok(FileOutput {
                             file: id,
                             bytes,

@@ -16,11 +16,13 @@ use rayon::prelude::*;
 
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, SourceFile, Span};
+
 use crate::motion::frame::Frame;
 use crate::motion::nominal::{Arm, Nominal};
 use crate::motion::value::{self, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
 use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
 
+use super::edits::EditList;
 use super::sequence::Outcome;
 
 /// Fewest decimals written for millimetres and degrees.
@@ -32,7 +34,7 @@ const MAX_NAME: usize = 24;
 /// Edits per file, and what the rewrite has to say.
 #[derive(Debug, Default)]
 pub struct Rewrite {
-    pub edits: BTreeMap<FileId, Vec<Edit>>,
+    pub edits: BTreeMap<FileId, EditList>,
     pub diagnostics: Vec<Diagnostic>,
     /// Declared points split into copies (original name, new names).
     pub splits: Vec<(String, Vec<String>)>,
@@ -77,8 +79,8 @@ fn new_values(
     let abc_near = [near(3), near(4), near(5)];
     match stop.rel {
         None => {
-            let p = match stop.origin.as_ref().and_then(|o| o.prefix.as_ref()) {
-                Some(prefix) => prefix.inverse().compose(&p_c),
+            let p = match stop.origin.and_then(|o| o.prefix) {
+                Some(i) => sim.prefixes[i as usize].inverse().compose(&p_c),
                 None => p_c,
             };
             let near_abc = [
@@ -466,16 +468,24 @@ pub fn rewrite(
         }
     };
     // Fast path, in parallel: the edits straight into one list per file.
-    type Chunk = (Vec<(FileId, Edit)>, Vec<Skip>);
+    // (Keys are sorted by file: a chunk's edits are runs of one file each.)
+    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>);
     let single: Vec<Chunk> = (0..keys.len())
         .into_par_iter()
         .with_min_len(1024)
         .filter(|&k| !shared(k))
         .fold(
             || (Vec::new(), Vec::new()),
-            |(mut edits, mut skips), k| {
+            |(mut edits, mut skips): Chunk, k| {
                 match per_stop(keys[k].2 as usize) {
-                    Some(Ok(u)) => edits.extend(u.edits.into_iter().map(|e| (keys[k].0, e))),
+                    Some(Ok(u)) => {
+                        let file = keys[k].0;
+                        if edits.last().map_or(true, |(f, _)| *f != file) {
+                            edits.push((file, EditList::new()));
+                        }
+                        let list = &mut edits.last_mut().expect("pushed").1;
+                        list.extend(u.edits);
+                    }
                     Some(Err(s)) => skips.push(s),
                     None => {}
                 }
@@ -483,9 +493,20 @@ pub fn rewrite(
             },
         )
         .collect();
+    // Exact room first: growing a list of millions of edits by doubling would hold up to
+    // three times its size at once.
+    let mut room: BTreeMap<FileId, (usize, usize)> = BTreeMap::new();
+    for (file, list) in single.iter().flat_map(|(edits, _)| edits) {
+        let r = room.entry(*file).or_default();
+        r.0 += list.len();
+        r.1 += list.text_len();
+    }
+    for (file, (n, text)) in room {
+        out.edits.entry(file).or_default().reserve(n, text);
+    }
     for (edits, s) in single {
-        for (file, e) in edits {
-            out.edits.entry(file).or_default().push(e);
+        for (file, mut list) in edits {
+            out.edits.entry(file).or_default().append(&mut list);
         }
         skips.extend(s);
     }

@@ -179,16 +179,36 @@ pub struct Options {
     pub parallel: bool,
 }
 
+/// Targets per chunk of the parallel arrival-rate pass.
+const RATE_CHUNK: usize = 1024;
+
+/// What the direction logic uses of an arrival motion: per axis −1, +1, or 0 at rest.
+fn signs(v: Option<[f64; 6]>) -> Option<[i8; 6]> {
+    v.map(|v| {
+        v.map(|x| {
+            if x.abs() < REST_DEG {
+                0
+            } else if x > 0.0 {
+                1
+            } else {
+                -1
+            }
+        })
+    })
+}
+
 /// The direction state after arriving with motion `v` from state `before`.
 fn arrive(before: &[Direction; 6], v: Option<[f64; 6]>) -> [Direction; 6] {
+    arrive_signs(before, signs(v))
+}
+
+/// [`arrive`] from the motion's [`signs`].
+fn arrive_signs(before: &[Direction; 6], v: Option<[i8; 6]>) -> [Direction; 6] {
     match v {
         None => [Direction::Unknown; 6],
-        Some(v) => std::array::from_fn(|i| {
-            if v[i].abs() < REST_DEG {
-                before[i]
-            } else {
-                Direction::from_sign(if v[i] > 0.0 { 1 } else { -1 })
-            }
+        Some(v) => std::array::from_fn(|i| match v[i] {
+            0 => before[i],
+            x => Direction::from_sign(x as i32),
         }),
     }
 }
@@ -231,30 +251,27 @@ pub fn compensate(
         targets,
         method: options.method,
     };
-    // Arrival rates of the first-pass commands (each needs its neighbours' written TCPs,
-    // computed once).
+    // Arrival motions of the first-pass commands, chunk by chunk: each rate needs its
+    // neighbours' written TCPs, computed once per chunk (plus the few around its ends), and
+    // the re-check needs only the signs.
     let cmd = |j: usize| outcomes[j].axes_deg;
-    let tcp = |k: usize| ctx.tcp(k, &outcomes[k].axes_deg);
-    let tcps: Vec<Frame> = if options.parallel {
-        (0..targets.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .map(tcp)
+    let n = targets.len();
+    let chunk = |c: usize| -> Vec<Option<[i8; 6]>> {
+        let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
+        let from = a.saturating_sub(2);
+        let tcps: Vec<Frame> = (from..(b + 1).min(n))
+            .map(|k| ctx.tcp(k, &outcomes[k].axes_deg))
+            .collect();
+        (a..b)
+            .map(|k| signs(ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some((from, &tcps)))))
             .collect()
-    } else {
-        (0..targets.len()).map(tcp).collect()
     };
-    let rate = |k: usize| ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some(&tcps));
-    let rates: Vec<Option<[f64; 6]>> = if options.parallel {
-        (0..targets.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .map(rate)
-            .collect()
+    let chunks = n.div_ceil(RATE_CHUNK);
+    let rates: Vec<Option<[i8; 6]>> = if options.parallel {
+        (0..chunks).into_par_iter().flat_map_iter(chunk).collect()
     } else {
-        (0..targets.len()).map(rate).collect()
+        (0..chunks).flat_map(chunk).collect()
     };
-    drop(tcps);
     recheck(&ctx, start, &mut outcomes, &rates);
     outcomes
 }
@@ -450,7 +467,7 @@ impl Ctx<'_> {
         k: usize,
         axes: &[f64; 6],
         cmd: &dyn Fn(usize) -> [f64; 6],
-        cache: Option<&[Frame]>,
+        cache: Option<(usize, &[Frame])>,
     ) -> Option<[f64; 6]> {
         let t = &self.targets[k];
         let nominal = t.arrival?;
@@ -460,7 +477,7 @@ impl Ctx<'_> {
         // The written (rounded) TCP of target j: from the cache of first-pass commands, or
         // computed (target k itself is evaluated at `axes`).
         let tcp = |j: usize| match cache {
-            Some(c) => c[j],
+            Some((from, c)) => c[j - from],
             None if j == k => self.tcp(k, axes),
             None => self.tcp(j, &cmd(j)),
         };
@@ -504,9 +521,9 @@ impl Ctx<'_> {
 }
 
 /// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
-/// they were solved with. `rates[k]` is the arrival rate at k computed with the first-pass
+/// they were solved with. `rates[k]` is the arrival motion's signs at k with the first-pass
 /// commands; it is recomputed when a command it depends on changed since.
-fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[Option<[f64; 6]>]) {
+fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[Option<[i8; 6]>]) {
     let mut state = start;
     let mut resolved = vec![false; ctx.targets.len()];
     let (mut n_expected, mut n_actual) = (0usize, 0usize);
@@ -527,11 +544,11 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
         let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
         let rate = if stale {
             let snapshot = |j: usize| outcomes[j].axes_deg;
-            ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None)
+            signs(ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None))
         } else {
             rates[k]
         };
-        let actual = arrive(&state, rate);
+        let actual = arrive_signs(&state, rate);
         if actual != outcomes[k].directions {
             n_actual += 1;
             outcomes[k] = if fixed || outcomes[k].error.is_some() {

@@ -346,6 +346,17 @@ mod tests {
         RobotDescription::kr30ha()
     }
 
+    /// The nominal IK with S = 2 nearest to `near` (the independent closed form).
+    fn ik_near(pose: &Frame, near: [f64; 6]) -> [f64; 6] {
+        inverse(
+            &robot(),
+            &pose.to_isometry(),
+            Select::StatusNearest { s: 2, near },
+        )
+        .unwrap()
+        .axes_deg
+    }
+
     fn fk(q: &[f64; 6]) -> Frame {
         Nominal(&robot()).tcp(q, &Frame::identity())
     }
@@ -384,26 +395,14 @@ mod tests {
         let mut end = start;
         end.position += Vector3::new(-150.0, 80.0, -60.0);
         end.rotation = exp_so3(&Vector3::new(0.1, -0.05, 0.2)) * end.rotation;
-        let q1 = inverse(
-            &r,
-            &end.to_isometry(),
-            Select::StatusNearest { s: 2, near: q0 },
-        )
-        .unwrap()
-        .axes_deg;
+        let q1 = ik_near(&end, q0);
         let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&end, &q1))
             .unwrap()
             .rate;
         // Independent: nominal IK a little before the end, by the closed form.
         let cart = Cartesian::new(&start, &end, &Path::Lin).unwrap();
         let h = 1e-5;
-        let qh = inverse(
-            &r,
-            &cart.pose(1.0 - h).to_isometry(),
-            Select::StatusNearest { s: 2, near: q1 },
-        )
-        .unwrap()
-        .axes_deg;
+        let qh = ik_near(&cart.pose(1.0 - h), q1);
         for i in 0..6 {
             assert_relative_eq!(
                 v[i],
@@ -415,13 +414,7 @@ mod tests {
         // A vertical line at fixed orientation: A1 rests.
         let mut down = start;
         down.position.z -= 200.0;
-        let qd = inverse(
-            &r,
-            &down.to_isometry(),
-            Select::StatusNearest { s: 2, near: q0 },
-        )
-        .unwrap()
-        .axes_deg;
+        let qd = ik_near(&down, q0);
         let v = arrival(&r, &tool, &Path::Lin, (&start, &q0), (&down, &qd))
             .unwrap()
             .rate;
@@ -442,26 +435,14 @@ mod tests {
         let mut end = start;
         end.position.x += 200.0;
         let aux = start.position + Vector3::new(100.0, 0.0, 100.0);
-        let q1 = inverse(
-            &r,
-            &end.to_isometry(),
-            Select::StatusNearest { s: 2, near: q0 },
-        )
-        .unwrap()
-        .axes_deg;
+        let q1 = ik_near(&end, q0);
         let v = arrival(&r, &tool, &Path::Circ { aux }, (&start, &q0), (&end, &q1))
             .unwrap()
             .rate;
         // On arrival the TCP moves down and forward (the arc's far side): compare with the
         // sign of the nominal motion over the last 10⁻⁶ of the arc by closed-form IK.
         let cart = Cartesian::new(&start, &end, &Path::Circ { aux }).unwrap();
-        let qh = inverse(
-            &r,
-            &cart.pose(1.0 - 1e-6).to_isometry(),
-            Select::StatusNearest { s: 2, near: q1 },
-        )
-        .unwrap()
-        .axes_deg;
+        let qh = ik_near(&cart.pose(1.0 - 1e-6), q1);
         for i in [1, 2, 4] {
             assert_eq!(v[i] > 0.0, q1[i] > qh[i], "A{}", i + 1);
         }

@@ -6,7 +6,6 @@
 
 use crate::krl::{Aggregate, Expr, SourceFile, Span};
 
-use super::frame::Frame;
 use super::workspace::FileId;
 
 /// Where a position's numbers are written.
@@ -16,8 +15,10 @@ pub struct Origin<'f> {
     pub agg: &'f Aggregate,
     /// The declared variable (or array element) holding the aggregate, if any.
     pub var: Option<VarRef>,
-    /// A geometric-operator prefix: the motion's position is `prefix : this`.
-    pub prefix: Option<Frame>,
+    /// A geometric-operator prefix: the motion's position is `prefix : this`; an index into
+    /// [`Simulation::prefixes`](super::Simulation::prefixes) (a frame here would make every
+    /// stop of a million-target program 100 bytes larger).
+    pub prefix: Option<u32>,
 }
 
 /// A declared variable (name span in its file) or one initialised array element.

@@ -1,0 +1,375 @@
+//! The program walker: runs a KRL program as the controller would before run time — routines
+//! and calls (same file or sibling modules), `FOR` loops with known bounds, `IF`/`SWITCH`/
+//! `WHILE` with known conditions, variable and frame assignments (`$BASE`, `$TOOL`,
+//! `BASE_DATA[n]`, `FDAT_ACT` + `BAS(...)` of inline forms, `WITH` clauses) — and records every
+//! motion's target as a [`Stop`]: goal TCP pose in the robot base frame, the controller's
+//! nominal axes (IK with S/T, or by nearness and the start's S for path motions), and the
+//! arrival motion of every axis from the sampled interpolation. Whatever depends on run time
+//! (a branch on `$IN[…]`, a computed target) is reported with its line; the motions concerned
+//! are left out and the robot's position is unknown after them.
+
+use std::collections::{HashMap, HashSet};
+
+use crate::diagnostic::{Diagnostic, Severity};
+use crate::kinematics::RobotDescription;
+use crate::krl::{MotionKind, RoutineHeader, SourceFile, Span, Stmt, Symbols};
+
+use super::frame::Frame;
+use super::interpolate::{self, Cartesian, Path};
+use super::nominal::{Arm, Nominal};
+use super::value::{Fdat, Origin, Value};
+use super::workspace::{FileId, Workspace};
+
+mod assign;
+mod call;
+mod eval;
+mod flow;
+mod target;
+
+/// Calls nested deeper than this are not followed (recursion).
+const MAX_CALL_DEPTH: usize = 64;
+/// Statements executed before the simulation gives up (an endless loop).
+const MAX_STEPS: u64 = 200_000_000;
+/// KUKA HOME, the reference for choosing a branch when nothing else is known.
+const HOME: [f64; 6] = [0.0, -90.0, 90.0, 0.0, 0.0, 0.0];
+
+/// A frame given on the command line: `BASE_DATA[n]` or `TOOL_DATA[n]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GivenFrame {
+    pub base: bool,
+    pub index: i64,
+    /// X, Y, Z, A, B, C.
+    pub xyzabc: [f64; 6],
+}
+
+/// What the target of a stop is relative to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rel {
+    /// `_REL … #BASE` (the default): offset along the base axes, rotation about them.
+    Base,
+    /// `_REL … #TOOL`: `current · offset`.
+    Tool,
+    /// Axis-specific `PTP_REL {A1 …}`: added to the current axes.
+    Axis,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    Target,
+    /// The auxiliary point of a circular motion.
+    Aux,
+}
+
+/// One executed motion target.
+#[derive(Clone, Copy, Debug)]
+pub struct Stop<'f> {
+    pub file: FileId,
+    pub stmt: &'f Stmt,
+    pub kind: MotionKind,
+    pub role: Role,
+    /// The programmed TCP pose in the robot base frame.
+    pub goal: Frame,
+    /// Index in [`Simulation::frames`] of the tool (flange → TCP) and of the base.
+    pub tool: u32,
+    pub base: u32,
+    /// The controller's axes for the programmed target.
+    pub nominal_axes: [f64; 6],
+    /// Arrival motion of each axis (see `interpolate`); `None` after an unknown position.
+    pub arrival: Option<[f64; 6]>,
+    /// An axis target (`A1..A6`).
+    pub axis: bool,
+    /// The programmed values as the controller completes them (absolute: missing components
+    /// from the start; relative: missing ones zero), `X Y Z A B C` in the base or `A1..A6`.
+    pub programmed: [f64; 6],
+    pub keep_s: bool,
+    pub keep_t: bool,
+    pub rel: Option<Rel>,
+    /// Where the numbers are written.
+    pub origin: Option<Origin<'f>>,
+    /// The variable name in the motion statement, when the target is a plain variable.
+    pub reference: Option<Span>,
+    /// The stop this motion starts from.
+    pub prev: Option<u32>,
+    /// False when the target must be left as written (a warning says why).
+    pub compensable: bool,
+    /// The arrival is computed after the walk (short LIN segment, see `simulate`).
+    deferred: bool,
+}
+
+/// The simulated program.
+#[derive(Debug, Default)]
+pub struct Simulation<'f> {
+    pub stops: Vec<Stop<'f>>,
+    /// Tools and bases referred to by the stops.
+    pub frames: Vec<Frame>,
+    /// Prefix frames of positions written as `prefix : position` (`Origin::prefix`).
+    pub prefixes: Vec<Frame>,
+    pub diagnostics: Vec<Diagnostic>,
+    /// An error rejects the whole program (unknown frame, external TCP, endless loop).
+    pub fatal: bool,
+    /// Targets the robot cannot reach (errors of their own; the program goes on).
+    pub unreachable: usize,
+}
+
+impl Simulation<'_> {
+    /// Whether an error rejects the program.
+    pub fn rejected(&self) -> bool {
+        self.fatal
+    }
+}
+
+/// A frame variable's state.
+#[derive(Clone, Debug)]
+enum FrameState {
+    /// Never set in the program: the controller uses whatever is active; we assume
+    /// `$NULLFRAME` and say so.
+    Unset,
+    Known(Frame),
+    /// Set from something unknown: (file, span, why).
+    Unknown(FileId, Span, String),
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Current {
+    axes: [f64; 6],
+    stop: Option<u32>,
+}
+
+#[derive(Clone, Debug)]
+struct State {
+    base: FrameState,
+    tool: FrameState,
+    external_tcp: Option<(FileId, Span)>,
+    fdat: Option<Fdat>,
+    current: Option<Current>,
+    /// A, B, C of the last Cartesian target as written: the representation to stay near when
+    /// completing a partial position.
+    last_abc: [f64; 3],
+}
+
+#[derive(Default)]
+struct Scope<'f> {
+    vars: HashMap<Vec<u8>, Value<'f>>,
+    elements: HashMap<(Vec<u8>, Vec<i64>), Value<'f>>,
+}
+
+enum Flow {
+    Next,
+    Exit,
+    Return,
+}
+
+/// Simulates the main program of `ws`.
+pub fn simulate<'f>(
+    ws: &'f Workspace,
+    robot: &RobotDescription,
+    given: &[GivenFrame],
+) -> Simulation<'f> {
+    let mut sim = Simulator::new(ws, robot, given);
+    // At least one stop per motion statement (loops add more): no regrowth for CAM programs.
+    let motions: usize = ws.files.iter().map(|f| f.file.motions().count()).sum();
+    sim.out.stops.reserve(motions);
+    sim.run();
+    let mut out = sim.out;
+    out.prefixes = sim.prefixes.into_inner();
+    finish(&mut out, robot);
+    out
+}
+
+/// The deferred arrival rates of short LIN segments, in parallel: each needs only its own end
+/// and the start the walk recorded (the previous stop's axes).
+fn finish(sim: &mut Simulation, robot: &RobotDescription) {
+    use rayon::prelude::*;
+    let rates: Vec<Option<[f64; 6]>> = (0..sim.stops.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|k| {
+            let stop = &sim.stops[k];
+            if !stop.deferred {
+                return None;
+            }
+            let prev = &sim.stops[stop.prev? as usize];
+            let tool = &sim.frames[stop.tool as usize];
+            let start = Nominal(robot).tcp(&prev.nominal_axes, tool);
+            let cart = Cartesian::new(&start, &stop.goal, &Path::Lin).ok()?;
+            let a = interpolate::arrival_along(
+                robot,
+                tool,
+                &cart,
+                1.0,
+                &prev.nominal_axes,
+                &stop.nominal_axes,
+            );
+            Some(match a {
+                Ok(a) => a.rate,
+                Err(_) => std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
+            })
+        })
+        .collect();
+    for (stop, rate) in sim.stops.iter_mut().zip(rates) {
+        if stop.deferred {
+            stop.arrival = rate;
+            stop.deferred = false;
+        }
+    }
+}
+
+struct Simulator<'f> {
+    ws: &'f Workspace,
+    robot: RobotDescription,
+    given: Vec<GivenFrame>,
+    /// Per file: index into `symbols` of its module (the file and its partner).
+    module_of: Vec<usize>,
+    symbols: Vec<Symbols<'f>>,
+    config: Option<Symbols<'f>>,
+    routines: HashMap<Vec<u8>, (FileId, &'f Stmt, &'f RoutineHeader)>,
+    moves: HashMap<Vec<u8>, bool>,
+    globals: Scope<'f>,
+    state: State,
+    out: Simulation<'f>,
+    seen: HashSet<(FileId, u32, String)>,
+    depth: usize,
+    steps: u64,
+    warned_frames: bool,
+    /// Prefix frames of geometric operators (see `Origin::prefix`), filled while evaluating.
+    prefixes: std::cell::RefCell<Vec<Frame>>,
+}
+
+fn upper(b: &[u8]) -> Vec<u8> {
+    b.to_ascii_uppercase()
+}
+
+impl<'f> Simulator<'f> {
+    pub(super) fn new(
+        ws: &'f Workspace,
+        robot: &RobotDescription,
+        given: &[GivenFrame],
+    ) -> Simulator<'f> {
+        let mut module_of = vec![usize::MAX; ws.files.len()];
+        let mut symbols = Vec::new();
+        let mut config = None;
+        for (i, f) in ws.files.iter().enumerate() {
+            if f.role == super::workspace::Role::Config {
+                config = Some(Symbols::new(&[&f.file]));
+                continue;
+            }
+            if module_of[i] != usize::MAX {
+                continue;
+            }
+            let mut files = vec![&f.file];
+            if let Some(p) = f.partner {
+                // The data list first: its declarations are the module's.
+                files.insert(0, &ws.get(p).file);
+                module_of[p as usize] = symbols.len();
+            }
+            module_of[i] = symbols.len();
+            symbols.push(Symbols::new(&files));
+        }
+        let mut routines = HashMap::new();
+        for (i, f) in ws.files.iter().enumerate() {
+            for (stmt, h) in f.file.routines() {
+                routines
+                    .entry(upper(f.file.text(h.name)))
+                    .or_insert((i as FileId, stmt, h));
+            }
+        }
+        Simulator {
+            ws,
+            robot: *robot,
+            given: given.to_vec(),
+            module_of,
+            symbols,
+            config,
+            routines,
+            moves: HashMap::new(),
+            globals: Scope::default(),
+            state: State {
+                base: FrameState::Unset,
+                tool: FrameState::Unset,
+                external_tcp: None,
+                fdat: None,
+                current: None,
+                last_abc: [0.0; 3],
+            },
+            out: Simulation::default(),
+            seen: HashSet::new(),
+            depth: 0,
+            steps: 0,
+            warned_frames: false,
+            prefixes: Default::default(),
+        }
+    }
+
+    pub(super) fn src(&self, file: FileId) -> &'f SourceFile {
+        &self.ws.get(file).file
+    }
+
+    pub(super) fn id_of(&self, f: &SourceFile) -> FileId {
+        self.ws
+            .files
+            .iter()
+            .position(|l| std::ptr::eq(&l.file, f))
+            .unwrap_or(0) as FileId
+    }
+
+    pub(super) fn report(&mut self, severity: Severity, file: FileId, span: Span, message: String) {
+        if self.seen.insert((file, span.start, message.clone())) {
+            let d = self.ws.diagnostic(severity, file, span, message);
+            self.out.diagnostics.push(d);
+        }
+    }
+
+    pub(super) fn warn(&mut self, file: FileId, span: Span, message: impl Into<String>) {
+        self.report(Severity::Warning, file, span, message.into());
+    }
+
+    pub(super) fn error(&mut self, file: FileId, span: Span, message: impl Into<String>) {
+        self.out.fatal = true;
+        self.report(Severity::Error, file, span, message.into());
+    }
+
+    /// A target the robot cannot reach: an error of that target, the program goes on (its
+    /// position after it unknown).
+    pub(super) fn unreachable(&mut self, file: FileId, s: &Stmt, why: String) {
+        self.out.unreachable += 1;
+        self.report(
+            Severity::Error,
+            file,
+            s.head,
+            format!(
+                "{why}: this motion is left unchanged and the robot's position after it is unknown"
+            ),
+        );
+        self.state.current = None;
+    }
+
+    pub(super) fn run(&mut self) {
+        let main = self.ws.main;
+        let Some((stmt, _)) = self.src(main).routines().next() else {
+            self.out.diagnostics.push(Diagnostic::new(
+                Severity::Warning,
+                &self.ws.get(main).name,
+                "no routine (DEF … END) in the program: nothing to simulate",
+            ));
+            return;
+        };
+        let mut scope = Scope::default();
+        self.routine(main, stmt, &mut scope);
+    }
+
+    pub(super) fn routine(&mut self, file: FileId, stmt: &'f Stmt, scope: &mut Scope<'f>) {
+        if let Some(b) = &stmt.block {
+            self.block(file, &b.body, scope);
+        }
+    }
+
+    pub(super) fn block(&mut self, file: FileId, stmts: &'f [Stmt], scope: &mut Scope<'f>) -> Flow {
+        for s in stmts {
+            match self.stmt(file, s, scope) {
+                Flow::Next => {}
+                other => return other,
+            }
+        }
+        Flow::Next
+    }
+}

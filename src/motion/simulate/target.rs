@@ -1,0 +1,574 @@
+//! Motion targets: completes a programmed position as the controller does, chooses the
+//! controller's axes (IK with S/T or nearness), samples the interpolation for the arrival
+//! motion and records the [`Stop`]s of a motion (and of a circle's auxiliary point).
+
+use crate::kinematics::{self, status_turn, Select};
+use crate::krl::{Expr, Motion, RelFrameKind, Stmt};
+
+use super::eval::reason;
+use super::*;
+use crate::motion::frame::Frame;
+use crate::motion::interpolate::{self, Cartesian, Path};
+use crate::motion::nominal::Nominal;
+use crate::motion::value::{Pos, Value};
+use crate::motion::workspace::FileId;
+
+impl<'f> Simulator<'f> {
+    // ---- motions ---------------------------------------------------------------------------
+
+    pub(super) fn frames_index(&mut self, f: &Frame) -> u32 {
+        if let Some(i) = self.out.frames.iter().rposition(|g| g == f) {
+            return i as u32;
+        }
+        self.out.frames.push(*f);
+        (self.out.frames.len() - 1) as u32
+    }
+
+    /// A stop of motion statement `s` in the given base and tool (interned), as a target left
+    /// unchanged until the caller says otherwise.
+    fn stop_of(
+        &mut self,
+        file: FileId,
+        s: &'f Stmt,
+        kind: MotionKind,
+        rel: Option<Rel>,
+        (base, tool): (&Frame, &Frame),
+    ) -> Stop<'f> {
+        Stop {
+            file,
+            stmt: s,
+            kind,
+            role: Role::Target,
+            goal: Frame::identity(),
+            tool: self.frames_index(tool),
+            base: self.frames_index(base),
+            nominal_axes: [0.0; 6],
+            arrival: None,
+            axis: false,
+            programmed: [0.0; 6],
+            keep_s: true,
+            keep_t: false,
+            rel,
+            origin: None,
+            reference: None,
+            prev: None,
+            compensable: false,
+            deferred: false,
+        }
+    }
+
+    /// The position `e` of motion `s`, or `None` (the motion lost, saying why) when it is not
+    /// known before run time.
+    fn position(
+        &mut self,
+        file: FileId,
+        s: &Stmt,
+        e: &'f Expr,
+        scope: &Scope<'f>,
+        what: &str,
+    ) -> Option<Pos<'f>> {
+        match self.eval(file, e, scope) {
+            Value::Pos(pos) => Some(pos),
+            other => {
+                let why = reason(&other, what);
+                self.lost(
+                    file,
+                    s,
+                    format!("{what} is not known before run time ({why})"),
+                );
+                None
+            }
+        }
+    }
+
+    fn push_stop(&mut self, stop: Stop<'f>) -> u32 {
+        self.out.stops.push(stop);
+        (self.out.stops.len() - 1) as u32
+    }
+
+    /// The base and tool for a Cartesian motion, or an error naming where the frame was lost.
+    pub(super) fn motion_frames(&mut self, file: FileId, s: &Stmt) -> Option<(Frame, Frame)> {
+        let mut out = [Frame::identity(); 2];
+        for (k, st) in [self.state.base.clone(), self.state.tool.clone()]
+            .iter()
+            .enumerate()
+        {
+            match st {
+                FrameState::Known(f) => out[k] = *f,
+                FrameState::Unset => {
+                    if !self.warned_frames {
+                        self.warned_frames = true;
+                        self.warn(
+                            file,
+                            s.head,
+                            format!(
+                                "{} is not set before this motion: assuming $NULLFRAME (set it in the program, or the compensation uses the wrong TCP)",
+                                if k == 0 { "$BASE" } else { "$TOOL" }
+                            ),
+                        );
+                    }
+                }
+                FrameState::Unknown(f, span, why) => {
+                    let msg = if why.is_empty() {
+                        "unknown frame".to_string()
+                    } else {
+                        why.clone()
+                    };
+                    let (f, span) = if span.is_empty() && *f == 0 {
+                        (file, s.head)
+                    } else {
+                        (*f, *span)
+                    };
+                    self.error(
+                        f,
+                        span,
+                        format!("{msg}: give the robot's $config.dat with --config, or the frame with --base N=X,Y,Z,A,B,C / --tool N=X,Y,Z,A,B,C"),
+                    );
+                    return None;
+                }
+            }
+        }
+        Some((out[0], out[1]))
+    }
+
+    pub(super) fn lost(&mut self, file: FileId, s: &Stmt, why: String) {
+        self.warn(
+            file,
+            s.head,
+            format!(
+                "{why}: this motion is left unchanged and the robot's position after it is unknown"
+            ),
+        );
+        self.state.current = None;
+    }
+
+    pub(super) fn motion(
+        &mut self,
+        file: FileId,
+        s: &'f Stmt,
+        m: &'f Motion,
+        scope: &mut Scope<'f>,
+    ) {
+        let saved = self.apply_with(file, m.with(), scope);
+        self.motion_inner(file, s, m, scope);
+        if let Some(saved) = saved {
+            self.restore(saved);
+        }
+    }
+
+    pub(super) fn motion_inner(
+        &mut self,
+        file: FileId,
+        s: &'f Stmt,
+        m: &'f Motion,
+        scope: &mut Scope<'f>,
+    ) {
+        if let Some((f, span)) = self.state.external_tcp {
+            self.error(
+                f,
+                span,
+                "$IPO_MODE #TCP (external TCP, the workpiece carried by the robot) is not supported: the program is refused",
+            );
+            self.state.current = None;
+            return;
+        }
+        let Some(pos) = self.position(file, s, &m.target, scope, "the target") else {
+            return;
+        };
+        let reference = m.target.as_path().filter(|p| p.is_simple()).map(|p| p.root);
+        let rel = m.kind.is_relative().then(|| {
+            if pos.axis {
+                Rel::Axis
+            } else if m.frame.is_some_and(|f| f.kind == RelFrameKind::Tool) {
+                Rel::Tool
+            } else {
+                Rel::Base
+            }
+        });
+        // An axis target of a PTP needs no frame (the tool only weighs orientation errors).
+        let needs_frames = !pos.axis || !m.kind.is_joint() || m.aux().is_some();
+        let (base, tool) = if needs_frames {
+            match self.motion_frames(file, s) {
+                Some(f) => f,
+                None => {
+                    self.state.current = None;
+                    return;
+                }
+            }
+        } else {
+            (
+                self.known(&self.state.base).unwrap_or_else(Frame::identity),
+                self.known(&self.state.tool).unwrap_or_else(Frame::identity),
+            )
+        };
+        let current = self.state.current;
+        // Where the TCP starts: the previous target's goal when it was reached with the same
+        // tool (the controller's axes there reproduce it), else the FK of the axes.
+        let start_tcp = current.map(|c| {
+            let same_tool = c
+                .stop
+                .map(|i| &self.out.stops[i as usize])
+                .filter(|p| p.role == Role::Target && self.out.frames[p.tool as usize] == tool);
+            match same_tool {
+                Some(p) if p.nominal_axes == c.axes => p.goal,
+                _ => Nominal(&self.robot).tcp(&c.axes, &tool),
+            }
+        });
+        // The programmed position, completed as the controller does.
+        let Some((programmed, goal, s_t)) =
+            self.complete(&pos, rel, current, &base, &tool, start_tcp.as_ref())
+        else {
+            self.lost(
+                file,
+                s,
+                "a partial or relative position whose start is unknown".into(),
+            );
+            return;
+        };
+        let robot = self.robot;
+        // Circular motions: the auxiliary point first.
+        let mut aux_stop = None;
+        let mut circle = None;
+        if let Some(aux_expr) = m.aux() {
+            let Some(aux) = self.position(file, s, aux_expr, scope, "the auxiliary point") else {
+                return;
+            };
+            let (Some(cur), Some(start)) = (current, start_tcp) else {
+                self.lost(file, s, "a circular motion whose start is unknown".into());
+                return;
+            };
+            let Some((aux_prog, aux_goal, _)) =
+                self.complete(&aux, rel, current, &base, &tool, start_tcp.as_ref())
+            else {
+                self.lost(file, s, "an auxiliary point whose start is unknown".into());
+                return;
+            };
+            let cart = match Cartesian::new(
+                &start,
+                &goal,
+                &Path::Circ {
+                    aux: aux_goal.position,
+                },
+            ) {
+                Ok(c) => c,
+                Err(e) => {
+                    self.lost(file, s, e.to_string());
+                    return;
+                }
+            };
+            let u_aux = cart.fraction_at(&aux_goal.position);
+            let aux_pose = Frame {
+                rotation: cart.pose(u_aux).rotation,
+                position: aux_goal.position,
+            };
+            let s_cur = status_turn(&robot, &cur.axes).0;
+            let q_aux = match kinematics::inverse(
+                &robot,
+                &aux_pose.compose(&tool.inverse()).to_isometry(),
+                Select::StatusNearest {
+                    s: s_cur,
+                    near: cur.axes,
+                },
+            ) {
+                Ok(sol) => sol.axes_deg,
+                Err(e) => {
+                    self.unreachable(
+                        file,
+                        s,
+                        format!("the auxiliary point cannot be reached: {e}"),
+                    );
+                    return;
+                }
+            };
+            let mut q_aux = q_aux;
+            let arrival =
+                match interpolate::arrival_along(&robot, &tool, &cart, u_aux, &cur.axes, &q_aux) {
+                    Ok(a) => {
+                        q_aux = a.end;
+                        Some(a.rate)
+                    }
+                    Err(e) => {
+                        self.warn(
+                            file,
+                            s.head,
+                            format!("auxiliary point: {e}; directions from the axis steps"),
+                        );
+                        Some(std::array::from_fn(|i| q_aux[i] - cur.axes[i]))
+                    }
+                };
+            let aux_ref = aux_expr.as_path().filter(|p| p.is_simple()).map(|p| p.root);
+            let stop = Stop {
+                role: Role::Aux,
+                goal: aux_pose,
+                nominal_axes: q_aux,
+                arrival,
+                programmed: aux_prog,
+                origin: aux.origin,
+                reference: aux_ref,
+                prev: cur.stop,
+                compensable: aux.origin.is_some() && m.angle().is_none(),
+                ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
+            };
+            aux_stop = Some(self.push_stop(stop));
+            circle = Some(cart);
+        }
+        // The controller's axes for the target.
+        let q = if pos.axis {
+            programmed
+        } else {
+            let (s_given, t_given) = s_t;
+            let select = match (m.kind.is_joint(), current) {
+                (true, _) if s_given.is_some() && t_given.is_some() => Select::Status {
+                    s: s_given.unwrap_or(0),
+                    t: t_given,
+                },
+                (true, Some(c)) => Select::StatusNearest {
+                    s: s_given.unwrap_or_else(|| status_turn(&robot, &c.axes).0),
+                    near: c.axes,
+                },
+                (true, None) => match s_given {
+                    Some(s) => Select::Status { s, t: None },
+                    None => Select::Nearest(HOME),
+                },
+                (false, Some(c)) => Select::StatusNearest {
+                    s: status_turn(&robot, &c.axes).0,
+                    near: c.axes,
+                },
+                (false, None) => match s_given {
+                    Some(s) => Select::Status { s, t: t_given },
+                    None => Select::Nearest(HOME),
+                },
+            };
+            let flange = goal.compose(&tool.inverse());
+            match kinematics::inverse(&robot, &flange.to_isometry(), select) {
+                Ok(sol) => sol.axes_deg,
+                Err(e) => {
+                    self.unreachable(file, s, format!("the target cannot be reached: {e}"));
+                    return;
+                }
+            }
+        };
+        if pos.axis && !robot.within_limits(&q) {
+            self.warn(
+                file,
+                s.head,
+                "the axis target is outside the joint limits: left unchanged",
+            );
+        }
+        let goal = if pos.axis {
+            Nominal(&robot).tcp(&q, &tool)
+        } else {
+            goal
+        };
+        // `CA`: the motion ends on the circle at that angle (orientation of the target), not at
+        // the target; the stops are kept for the directions but left unchanged.
+        if let (Some(ca), Some(cart), Some(cur)) = (m.angle(), &circle, current) {
+            let angle = self.eval(file, &ca.value, scope).as_f64();
+            let ended = angle.and_then(|a| cart.with_arc_angle(a, &goal.rotation));
+            let Some(arc) = ended else {
+                self.lost(
+                    file,
+                    s,
+                    "a circular angle CA not known before run time".into(),
+                );
+                return;
+            };
+            let end = arc.pose(1.0);
+            let s_cur = status_turn(&robot, &cur.axes).0;
+            let flange = end.compose(&tool.inverse());
+            let select = Select::StatusNearest {
+                s: s_cur,
+                near: cur.axes,
+            };
+            let q_end = match kinematics::inverse(&robot, &flange.to_isometry(), select) {
+                Ok(sol) => sol.axes_deg,
+                Err(e) => {
+                    self.unreachable(
+                        file,
+                        s,
+                        format!("the end of the circle (CA) cannot be reached: {e}"),
+                    );
+                    return;
+                }
+            };
+            let walked = interpolate::arrival_along(&robot, &tool, &arc, 1.0, &cur.axes, &q_end);
+            let (q_end, arrival) = match walked {
+                Ok(a) => (a.end, Some(a.rate)),
+                Err(e) => {
+                    self.warn(file, s.head, format!("{e}; directions from the axis steps"));
+                    (q_end, Some(std::array::from_fn(|i| q_end[i] - cur.axes[i])))
+                }
+            };
+            self.warn(
+                file,
+                s.head,
+                "a circular motion with CA ends elsewhere than its target: left unchanged",
+            );
+            let stop = Stop {
+                goal: end,
+                nominal_axes: q_end,
+                arrival,
+                programmed,
+                prev: aux_stop,
+                ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
+            };
+            let idx = self.push_stop(stop);
+            self.state.current = Some(Current {
+                axes: q_end,
+                stop: Some(idx),
+            });
+            return;
+        }
+        let path = if m.kind.is_joint() {
+            Path::Ptp
+        } else if let (Some(_), Some(aux_i)) = (&circle, aux_stop) {
+            Path::Circ {
+                aux: self.out.stops[aux_i as usize].goal.position,
+            }
+        } else {
+            Path::Lin
+        };
+        let mut q = q;
+        let mut deferred = false;
+        let arrival = match (current, start_tcp) {
+            // A short straight segment: its arrival rate is computed after the walk, in
+            // parallel with all the others (`finish`).
+            (Some(_), Some(start))
+                if path == Path::Lin && interpolate::lin_needs_no_samples(&start, &goal) =>
+            {
+                deferred = true;
+                None
+            }
+            (Some(cur), Some(start)) => {
+                match interpolate::arrival(&robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
+                    Ok(a) => {
+                        q = a.end;
+                        Some(a.rate)
+                    }
+                    Err(e) => {
+                        self.warn(file, s.head, format!("{e}; directions from the axis steps"));
+                        Some(std::array::from_fn(|i| q[i] - cur.axes[i]))
+                    }
+                }
+            }
+            _ => None,
+        };
+        let in_config = pos
+            .origin
+            .is_some_and(|o| self.ws.get(o.file).role == crate::motion::workspace::Role::Config);
+        let compensable = pos.origin.is_some()
+            && !in_config
+            && m.angle().is_none()
+            && (!pos.axis || robot.within_limits(&q));
+        if pos.origin.is_none() {
+            self.warn(
+                file,
+                s.head,
+                "the target is computed in the program (not a literal position): left unchanged",
+            );
+        }
+        if in_config {
+            self.warn(
+                file,
+                s.head,
+                "the target is declared in $config.dat, which robopost does not rewrite (every program shares it): left unchanged",
+            );
+        }
+        let stop = Stop {
+            goal,
+            nominal_axes: q,
+            arrival,
+            axis: pos.axis,
+            programmed,
+            keep_s: !pos.axis,
+            keep_t: !pos.axis && m.kind.is_joint() && s_t.1.is_some(),
+            origin: pos.origin,
+            reference,
+            prev: aux_stop.or(current.and_then(|c| c.stop)),
+            compensable,
+            deferred,
+            ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
+        };
+        let idx = self.push_stop(stop);
+        if !pos.axis && rel.is_none() {
+            self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
+        }
+        self.state.current = Some(Current {
+            axes: q,
+            stop: Some(idx),
+        });
+    }
+
+    /// The absolute programmed values (in the base, or axes), the goal TCP in the robot base
+    /// and the given S/T; `None` when a missing component needs an unknown start.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn complete(
+        &self,
+        pos: &Pos<'f>,
+        rel: Option<Rel>,
+        current: Option<Current>,
+        base: &Frame,
+        tool: &Frame,
+        start_tcp: Option<&Frame>,
+    ) -> Option<([f64; 6], Frame, (Option<u8>, Option<u8>))> {
+        let st = (pos.s, pos.t);
+        if pos.axis {
+            let q: [f64; 6] = match rel {
+                Some(_) => {
+                    let c = current?;
+                    std::array::from_fn(|i| c.axes[i] + pos.v[i].unwrap_or(0.0))
+                }
+                None => {
+                    if pos.is_complete() {
+                        pos.v.map(|x| x.unwrap_or(0.0))
+                    } else {
+                        let c = current?;
+                        std::array::from_fn(|i| pos.v[i].unwrap_or(c.axes[i]))
+                    }
+                }
+            };
+            let goal = Nominal(&self.robot).tcp(&q, tool);
+            return Some((q, goal, st));
+        }
+        match rel {
+            Some(kind) => {
+                let start = start_tcp?;
+                let r = Frame::from_kuka(&pos.v.map(|x| x.unwrap_or(0.0)));
+                let start_in_base = base.inverse().compose(start);
+                let p = match kind {
+                    Rel::Tool => start_in_base.compose(&r),
+                    _ => Frame {
+                        rotation: r.rotation * start_in_base.rotation,
+                        position: start_in_base.position + r.position,
+                    },
+                };
+                let near = start_in_base.to_kuka_near(&self.state.last_abc);
+                let programmed = p.to_kuka_near(&[near[3], near[4], near[5]]);
+                Some((programmed, base.compose(&p), st))
+            }
+            None => {
+                let v: [f64; 6] = if pos.is_complete() {
+                    pos.v.map(|x| x.unwrap_or(0.0))
+                } else {
+                    let start = start_tcp?;
+                    let _ = current?;
+                    let last = self.state.last_abc;
+                    let here = base.inverse().compose(start).to_kuka_near(&[
+                        pos.v[3].unwrap_or(last[0]),
+                        pos.v[4].unwrap_or(last[1]),
+                        pos.v[5].unwrap_or(last[2]),
+                    ]);
+                    std::array::from_fn(|i| pos.v[i].unwrap_or(here[i]))
+                };
+                let p = Frame::from_kuka(&v);
+                let goal = match pos.origin.and_then(|o| o.prefix) {
+                    Some(i) => base
+                        .compose(&self.prefixes.borrow()[i as usize])
+                        .compose(&p),
+                    None => base.compose(&p),
+                };
+                Some((v, goal, st))
+            }
+        }
+    }
+}
