@@ -87,17 +87,20 @@ pub struct Call {
     pub close: Span,
 }
 
-/// `{TYPE: NAME value, …}`; its members are in the file (`SourceFile::members`).
+/// `{TYPE: NAME value, …}`; its members are in the file (`SourceFile::members`). Packed into
+/// 24 bytes: the type name as start and length (length 0: none), the pool flag in the top
+/// bit of the member count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Aggregate {
     pub span: Span,
-    /// `E6POS` in `{E6POS: …}`.
-    pub type_name: Option<Span>,
+    type_start: u32,
+    type_len: u32,
     pub(crate) first: u32,
-    pub(crate) len: u32,
-    /// Stored in the nested-members pool.
-    pub(crate) nested: bool,
+    /// Member count; the top bit says the members are in the nested-members pool.
+    len_nested: u32,
 }
+
+const NESTED_BIT: u32 = 1 << 31;
 
 /// `NAME value` inside an aggregate. An array member's `[]` (`POINT2[] " "`) follows the
 /// name directly: `SourceFile::member_index` gives its span.
@@ -304,17 +307,30 @@ impl Aggregate {
         }
     }
 
+    /// `E6POS` in `{E6POS: …}`.
+    pub fn type_name(&self) -> Option<Span> {
+        (self.type_len > 0).then_some(Span {
+            start: self.type_start,
+            end: self.type_start + self.type_len,
+        })
+    }
+
     /// Number of members.
     pub fn len(&self) -> usize {
-        self.len as usize
+        (self.len_nested & !NESTED_BIT) as usize
     }
 
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.len() == 0
+    }
+
+    /// Whether the members are in the nested-members pool.
+    pub(crate) fn nested(&self) -> bool {
+        self.len_nested & NESTED_BIT != 0
     }
 
     pub(crate) fn range(&self) -> std::ops::Range<usize> {
-        self.first as usize..(self.first + self.len) as usize
+        self.first as usize..self.first as usize + self.len()
     }
 }
 
@@ -735,12 +751,13 @@ fn close_aggregate(
     };
     n.agg_depth -= 1;
     let id = AggregateId(n.aggregates.len() as u32);
+    let ty = type_name.unwrap_or_default();
     n.aggregates.push(Aggregate {
         span,
-        type_name,
+        type_start: ty.start,
+        type_len: ty.len() as u32,
         first: first as u32,
-        len: len as u32,
-        nested,
+        len_nested: len as u32 | if nested { NESTED_BIT } else { 0 },
     });
     Expr::Aggregate(span, id)
 }
@@ -764,12 +781,19 @@ fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Member> {
             HELP_AGG,
         );
     }
-    // Fast path: a plain number followed by `,` or `}` (what CAM programs are made of).
-    if let Ok((r, Expr::Number(n))) = number(cx, k) {
+    // Fast path: a plain number followed by `,` or `}` (what CAM programs are made of), read
+    // in one pass; anything else (exponents, long mantissas, expressions) takes `expr`.
+    if let Some((len, value, integer)) = number::read_plain(k) {
+        let r = &k[len..];
         if matches!(ws(r)?.0.first(), Some(b',' | b'}')) {
             let member = Member {
                 name: cx.span_of(name),
-                value: Expr::Number(n),
+                value: Expr::Number(Number {
+                    value,
+                    start: cx.off(k) as u32,
+                    len: len as u16,
+                    integer,
+                }),
             };
             return Ok((r, member));
         }
@@ -827,7 +851,7 @@ mod tests {
         let (n, e, nodes) = parse(s);
         assert_eq!(&s[..n], &s[..s.len() - 6]);
         let a = nodes.aggregates[e.as_aggregate().unwrap().0 as usize];
-        assert_eq!(&s[a.type_name.unwrap().range()], b"E6POS");
+        assert_eq!(&s[a.type_name().unwrap().range()], b"E6POS");
         assert_eq!(a.len(), 6);
         let y = member(&nodes, s, &a, "y").value.as_number().unwrap();
         assert_eq!((&s[y.span().range()], y.value), (&b"-2.5E+01"[..], -25.0));

@@ -66,7 +66,7 @@ impl Nodes {
 
     /// The members of an aggregate.
     pub fn members_of(&self, a: &Aggregate) -> &[Member] {
-        let pool = if a.nested {
+        let pool = if a.nested() {
             &self.nested_members
         } else {
             &self.members
@@ -74,8 +74,24 @@ impl Nodes {
         &pool[a.range()]
     }
 
+    /// Pools sized for a file of `len` bytes, in the proportions of a CAM program (one
+    /// motion and aggregate per ~60 bytes, a member per ~10): reserving only claims address
+    /// space, pages are touched as nodes are written, and `finish` gives back what is unused.
+    pub fn for_input(len: usize) -> Nodes {
+        Nodes {
+            motions: Vec::with_capacity(len / 56),
+            aggregates: Vec::with_capacity(len / 56),
+            members: Vec::with_capacity(len / 9),
+            ..Nodes::default()
+        }
+    }
+
     /// Releases spare capacity and the scratch buffer once the file is parsed.
     pub fn finish(&mut self) {
         self.scratch = Vec::new();
+        self.motions.shrink_to_fit();
+        self.aggregates.shrink_to_fit();
+        self.members.shrink_to_fit();
+        self.nested_members.shrink_to_fit();
     }
 }

@@ -12,7 +12,7 @@ use super::lex::Cx;
 use super::motion::Motion;
 use super::nodes::{AggregateId, MotionId, Nodes};
 use super::span::{LineIndex, Span};
-use super::stmt::{self, Arm, ArmKind, BlockKind, Clause, Line, Stmt, StmtKind};
+use super::stmt::{self, Arm, ArmKind, Block, BlockKind, Clause, Line, Stmt, StmtKind};
 use super::trivia::split_line;
 use crate::diagnostic::Diagnostic;
 use std::borrow::Cow;
@@ -113,7 +113,7 @@ pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
 
 /// Parses `src` into a file whose `src` field is left empty (the caller moves the bytes in).
 fn build(src: &[u8], kind: FileKind) -> SourceFile {
-    let nodes = RefCell::new(Nodes::default());
+    let nodes = RefCell::new(Nodes::for_input(src.len()));
     let cx = Cx::new(src, &nodes);
     let mut b = Builder::default();
     let mut folds = FoldTracker::default();
@@ -177,6 +177,7 @@ fn build(src: &[u8], kind: FileKind) -> SourceFile {
         folds,
         problems,
         lines: LineIndex::from_starts(starts, src.len()),
+
         nodes,
     }
 }
@@ -287,6 +288,7 @@ impl Builder {
                     line,
                 });
                 f.stmt.end = head.end;
+                trim(block);
                 self.body().push(f.stmt);
             }
         }
@@ -312,6 +314,9 @@ impl Builder {
             "add the closing line where the block ends",
         ));
         f.stmt.end = last_end(&f.stmt) as u32;
+        if let Some(b) = f.stmt.block.as_mut() {
+            trim(b);
+        }
         self.body().push(f.stmt);
     }
 
@@ -323,7 +328,17 @@ impl Builder {
 
     fn finish(mut self) -> (Vec<Stmt>, Vec<Problem>) {
         self.close_all();
+        self.top.shrink_to_fit();
         (self.top, self.problems)
+    }
+}
+
+/// Gives back the spare capacity of a closed block's statement lists (a routine of a million
+/// lines would otherwise keep up to half as much again).
+fn trim(b: &mut Block) {
+    b.body.shrink_to_fit();
+    for a in &mut b.arms {
+        a.body.shrink_to_fit();
     }
 }
 
