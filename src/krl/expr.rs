@@ -4,8 +4,8 @@
 //! table. Every node keeps the byte span of its text so any number can be replaced in place.
 
 use super::lex::{
-    backtrack, bits, enum_literal, expecting, fail, ident, is_ident_char, keyword, number_literal,
-    punct, string, ws, Cx, Fails, PResult,
+    backtrack, bits, blanks, enum_literal, expecting, fail, ident, is_ident_char, is_ident_start,
+    keyword, number_literal, punct, string, ws, Cx, Fails, PResult,
 };
 use super::nodes::{AggregateId, Nodes};
 use super::number;
@@ -244,6 +244,23 @@ impl Expr {
     /// other expression is parsed fully or the line fails).
     pub fn is_opaque(&self) -> bool {
         matches!(self, Expr::Opaque(_))
+    }
+
+    /// Whether the expression owns heap memory (a boxed node); literals and aggregate ids
+    /// do not (the node pools skip visiting such nodes when they are dropped).
+    pub(crate) fn owns_heap(&self) -> bool {
+        match self {
+            Expr::Path(_) | Expr::Call(_) | Expr::Unary(_) | Expr::Binary(_) | Expr::Paren(_) => {
+                true
+            }
+            Expr::Number(_)
+            | Expr::Str(_)
+            | Expr::Bits(_)
+            | Expr::Enum(_)
+            | Expr::Bool(..)
+            | Expr::Aggregate(..)
+            | Expr::Opaque(_) => false,
+        }
     }
 
     /// Calls `f` on this expression and every sub-expression, parents first (aggregate
@@ -696,13 +713,33 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
         ));
     }
     loop {
+        // Fast path: a run of `NAME number` members (what CAM programs are made of), read
+        // without the general machinery; the first other member leaves it.
+        if !nested {
+            let mut n = cx.nodes.borrow_mut();
+            while let Some((k, m)) = plain_member(cx, j) {
+                n.push_member(m);
+                let k = &k[blanks(k)..];
+                if k[0] == b',' {
+                    j = &k[1..];
+                    j = &j[blanks(j)..];
+                    continue;
+                }
+                drop(n);
+                let k = &k[1..];
+                return Ok((
+                    k,
+                    close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
+                ));
+            }
+        }
         let (k, m) = expecting!("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
         {
             let mut n = cx.nodes.borrow_mut();
             if nested {
                 n.scratch.push(m);
             } else {
-                n.members.push(m);
+                n.push_member(m);
             }
         }
         let (k, _) = ws(k)?;
@@ -752,7 +789,7 @@ fn close_aggregate(
     n.agg_depth -= 1;
     let id = AggregateId(n.aggregates.len() as u32);
     let ty = type_name.unwrap_or_default();
-    n.aggregates.push(Aggregate {
+    n.push_aggregate(Aggregate {
         span,
         type_start: ty.start,
         type_len: ty.len() as u32,
@@ -760,6 +797,36 @@ fn close_aggregate(
         len_nested: len as u32 | if nested { NESTED_BIT } else { 0 },
     });
     Expr::Aggregate(span, id)
+}
+
+/// `NAME number` followed by blanks and `,` or `}` (not consumed), the number plain enough
+/// for `number::read_plain`; `None` sends the member to the general `member` parser, which
+/// reads these the same way.
+#[inline]
+fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Member)> {
+    if !is_ident_start(*i.first()?) {
+        return None;
+    }
+    let name_end = 1 + i[1..].iter().take_while(|&&b| is_ident_char(b)).count();
+    let at = name_end + blanks(&i[name_end..]);
+    let (len, value, integer) = number::read_plain(&i[at..])?;
+    let rest = &i[at + len..];
+    if !matches!(rest.get(blanks(rest)), Some(b',' | b'}')) {
+        return None;
+    }
+    let start = cx.off(i);
+    Some((
+        rest,
+        Member {
+            name: Span::new(start, start + name_end),
+            value: Expr::Number(Number {
+                value,
+                start: (start + at) as u32,
+                len: len as u16,
+                integer,
+            }),
+        },
+    ))
 }
 
 /// `NAME[[…]] value`.
@@ -772,31 +839,14 @@ fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Member> {
         },
         _ => j,
     };
-    let (k, blanks) = ws(j)?;
+    let (k, gap) = ws(j)?;
     // `X1` is one name, so a value glued to the name must start with a non-name byte.
-    if blanks.is_empty() && k.first().is_some_and(|&b| is_ident_char(b)) {
+    if gap.is_empty() && k.first().is_some_and(|&b| is_ident_char(b)) {
         return fail!(
             k,
             "expected a blank between the member name and its value",
             HELP_AGG,
         );
-    }
-    // Fast path: a plain number followed by `,` or `}` (what CAM programs are made of), read
-    // in one pass; anything else (exponents, long mantissas, expressions) takes `expr`.
-    if let Some((len, value, integer)) = number::read_plain(k) {
-        let r = &k[len..];
-        if matches!(ws(r)?.0.first(), Some(b',' | b'}')) {
-            let member = Member {
-                name: cx.span_of(name),
-                value: Expr::Number(Number {
-                    value,
-                    start: cx.off(k) as u32,
-                    len: len as u16,
-                    integer,
-                }),
-            };
-            return Ok((r, member));
-        }
     }
     let (rest, value) = expecting!("expected a value for the member", HELP_AGG, |x| {
         expr(cx, d + 1, x)

@@ -81,6 +81,7 @@ pub mod error;
 pub mod expr;
 pub mod fold;
 mod lex;
+mod memory;
 pub mod motion;
 mod nodes;
 pub mod number;

@@ -156,6 +156,11 @@ impl Motion {
     pub fn with(&self) -> &[WithItem] {
         self.extra.as_ref().map_or(&[], |e| &e.with)
     }
+
+    /// Whether the motion owns heap memory (see `Expr::owns_heap`).
+    pub(crate) fn owns_heap(&self) -> bool {
+        self.extra.is_some() || self.target.owns_heap()
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]

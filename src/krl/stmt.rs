@@ -397,7 +397,7 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
         let (r, m) = motion(cx, kind, i)?;
         let mut nodes = cx.nodes.borrow_mut();
         let id = MotionId(nodes.motions.len() as u32);
-        nodes.motions.push(m);
+        nodes.push_motion(m);
         return Ok((r, Line::Simple(K::Motion(id))));
     }
     if TypeKind::builtin(word).is_some() {

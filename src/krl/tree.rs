@@ -9,6 +9,7 @@ use super::error::{ParseError, Problem};
 use super::expr::{Aggregate, Expr, Member, Number};
 use super::fold::{Fold, FoldId, FoldTracker, Ilf};
 use super::lex::Cx;
+use super::memory::Ahead;
 use super::motion::Motion;
 use super::nodes::{AggregateId, MotionId, Nodes};
 use super::span::{LineIndex, Span};
@@ -87,7 +88,7 @@ pub fn parse(bytes: &[u8], kind: FileKind) -> Result<SourceFile, ParseError> {
 /// Parses a file, never failing: malformed lines become `StmtKind::Invalid` and are listed in
 /// `problems()` as errors.
 pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
-    let src = bytes.to_vec();
+    let src = super::memory::copy_of(bytes);
     if src.len() > u32::MAX as usize {
         let mut problems = vec![Problem::error(
             Span::at(0),
@@ -193,6 +194,8 @@ struct Builder {
     top: Vec<Stmt>,
     stack: Vec<Frame>,
     problems: Vec<Problem>,
+    /// Pages mapped ahead of the statement list being filled (see `memory`).
+    ahead: Ahead,
 }
 
 fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<FoldId>) -> Stmt {
@@ -225,7 +228,11 @@ impl Builder {
         match l {
             Line::Simple(kind) => {
                 let s = simple(kind, leading, head, line, fold);
-                self.body().push(s);
+                let mut ahead = self.ahead;
+                let body = self.body();
+                ahead.before_push(body);
+                body.push(s);
+                self.ahead = ahead;
             }
             Line::Open(kind, bk) => {
                 if matches!(bk, BlockKind::Routine | BlockKind::DefDat) {
@@ -564,6 +571,7 @@ impl SourceFile {
     /// The file again, byte for byte, from the tree's tiles.
     pub fn emit(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(self.src.len());
+        super::memory::map_spare(&mut out);
         self.emit_into(&mut out);
         out
     }
