@@ -213,6 +213,24 @@ pub(crate) fn next_item(i: &[u8]) -> Option<&[u8]> {
     (j.first() == Some(&b',')).then(|| &j[1 + skip(&j[1..])..])
 }
 
+/// `item {, item}`: a comma-separated list (separators read by `next_item`); the first
+/// failing item fails the list.
+pub(crate) fn list<'a, T>(
+    i: &'a [u8],
+    mut item: impl FnMut(&'a [u8]) -> PResult<'a, T>,
+) -> Fails<'a, Vec<T>> {
+    let mut items = Vec::new();
+    let mut j = i;
+    loop {
+        let (k, v) = item(j)?;
+        items.push(v);
+        match next_item(k) {
+            Some(n) => j = n,
+            None => return Ok((k, items)),
+        }
+    }
+}
+
 /// At least one blank, or the end of the code, or a punctuation byte (keywords end there).
 pub(crate) fn sep(i: &[u8]) -> PResult<'_, &[u8]> {
     match i.first() {

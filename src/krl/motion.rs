@@ -6,7 +6,7 @@
 //! silently skipped, because a missed target would be left uncompensated.
 
 use super::expr::{expr, path, Expr};
-use super::lex::{expecting, fail, ident, keyword, next_item, punct, sep, ws, Cx, PResult};
+use super::lex::{expecting, fail, ident, keyword, list, punct, sep, ws, Cx, PResult};
 use super::span::Span;
 
 /// Which motion instruction.
@@ -423,19 +423,13 @@ pub(crate) fn approximation<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Approx> 
 
 /// The assignments after `WITH` (the keyword already read): `item {, item}`.
 pub(crate) fn with_clause<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Vec<WithItem>> {
-    let mut items = Vec::new();
-    let (mut j, _) =
-        sep(i).or_else(|_| fail!(i, "expected an assignment after WITH", HELP_WITH))?;
-    loop {
-        let (k, item) = expecting!("expected an assignment after WITH", HELP_WITH, |x| {
+    let (j, _) = sep(i).or_else(|_| fail!(i, "expected an assignment after WITH", HELP_WITH))?;
+    list(
+        j,
+        expecting!("expected an assignment after WITH", HELP_WITH, |x| {
             with_item(cx, x)
-        })(j)?;
-        items.push(item);
-        match next_item(k) {
-            Some(k3) => j = k3,
-            None => return Ok((k, items)),
-        }
-    }
+        }),
+    )
 }
 
 /// `path = expr`.

@@ -11,8 +11,8 @@ use super::decl::{
 use super::expr::{call, expr, path, Call, Expr};
 use super::fold::FoldId;
 use super::lex::{
-    backtrack, fail, first_word, ident, is_ident_char, keyword, next_item, punct, sep, ws, Cx,
-    PErr, PResult,
+    backtrack, fail, first_word, ident, is_ident_char, keyword, list, punct, sep, ws, Cx, PErr,
+    PResult,
 };
 use super::motion::{motion, with_clause, MotionKind, WithItem};
 use super::nodes::MotionId;
@@ -589,17 +589,9 @@ fn if_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
 /// `CASE v {, v}`.
 fn case_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
     let (j, _) = keyword("CASE")(i)?;
-    let (mut j, _) = sep(j)?;
-    let mut values = Vec::new();
-    loop {
-        let (k, _) = ws(j)?;
-        let (k, v) = expr(cx, 0, k)?;
-        values.push(v);
-        match next_item(k) {
-            Some(k) => j = k,
-            None => return Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values)))),
-        }
-    }
+    let (j, _) = sep(j)?;
+    let (k, values) = list(j, |x| expr(cx, 0, x))?;
+    Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values))))
 }
 
 /// `FOR var = from TO to [STEP step]`; an unreadable header keeps the block.
