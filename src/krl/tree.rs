@@ -9,7 +9,7 @@ use super::error::{ParseError, Problem};
 use super::expr::{Aggregate, Expr, Member, Number};
 use super::fold::{Fold, FoldId, FoldTracker, Ilf};
 use super::lex::Cx;
-use super::memory::Ahead;
+use super::memory::{extend_mapped, Ahead};
 use super::motion::Motion;
 use super::nodes::{AggregateId, MotionId, Nodes};
 use super::span::{LineIndex, Span};
@@ -571,7 +571,6 @@ impl SourceFile {
     /// The file again, byte for byte, from the tree's tiles.
     pub fn emit(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(self.src.len());
-        super::memory::map_spare(&mut out);
         self.emit_into(&mut out);
         out
     }
@@ -579,15 +578,16 @@ impl SourceFile {
     /// Appends the file's bytes, tile by tile, to `out` (adjacent tiles are copied together).
     pub fn emit_into(&self, out: &mut Vec<u8>) {
         let mut run = Span::default();
+        let mut ahead = Ahead::default();
         self.for_each_tile(&mut |span, _| {
             if span.start == run.end {
                 run.end = span.end;
             } else {
-                out.extend_from_slice(&self.src[run.range()]);
+                extend_mapped(out, &mut ahead, &self.src[run.range()]);
                 run = span;
             }
         });
-        out.extend_from_slice(&self.src[run.range()]);
+        extend_mapped(out, &mut ahead, &self.src[run.range()]);
     }
 
     /// Every tile (trivia or code) of the file in order; together they cover it exactly.
