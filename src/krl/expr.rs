@@ -428,7 +428,9 @@ fn binary_op(i: &[u8]) -> PResult<'_, (BinOp, &[u8])> {
         [b'/', ..] => two(Div, 1),
         [b'+', ..] => two(Add, 1),
         [b'-', ..] => two(Sub, 1),
-        _ => {
+        // Word operators start with O, A, E or B: anything else (`C_DIS` after a motion
+        // target) is not one, without reading the word.
+        [b'o' | b'O' | b'a' | b'A' | b'e' | b'E' | b'b' | b'B', ..] => {
             let (rest, w) = ident(i)?;
             let op = match w.len() {
                 2 if w.eq_ignore_ascii_case(b"OR") => Or,
@@ -441,6 +443,7 @@ fn binary_op(i: &[u8]) -> PResult<'_, (BinOp, &[u8])> {
             };
             Ok((rest, (op, w)))
         }
+        _ => backtrack(i),
     }
 }
 
