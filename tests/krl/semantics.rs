@@ -632,7 +632,11 @@ fn spline_blocks() {
         .iter()
         .find(|m| matches!(m.target, Expr::Binary(_)) && m.kind == MotionKind::Slin)
         .unwrap();
-    assert_eq!(chained.approx().get(0).unwrap().kind, ApproxKind::Spl, "lower-case c_spl");
+    assert_eq!(
+        chained.approx().get(0).unwrap().kind,
+        ApproxKind::Spl,
+        "lower-case c_spl"
+    );
     assert_eq!(chained.with().len(), 1);
     assert_eq!(path_text(&f, &ms.last().unwrap().target), "$AXIS_ACT");
     assert!(f.problems().is_empty(), "{:?}", f.problems());
