@@ -88,7 +88,12 @@ pub fn parse(bytes: &[u8], kind: FileKind) -> Result<SourceFile, ParseError> {
 /// Parses a file, never failing: malformed lines become `StmtKind::Invalid` and are listed in
 /// `problems()` as errors.
 pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
-    let src = super::memory::copy_of(bytes);
+    parse_recovering_owned(super::memory::copy_of(bytes), kind)
+}
+
+/// `parse_recovering` of bytes the file then owns (no copy: a program loaded from disk is
+/// held once, not twice).
+pub fn parse_recovering_owned(src: Vec<u8>, kind: FileKind) -> SourceFile {
     if src.len() > u32::MAX as usize {
         let mut problems = vec![Problem::error(
             Span::at(0),
