@@ -298,8 +298,9 @@ pub(crate) type LineError<'a> = Option<PErr<'a>>;
 pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Line, LineError<'a>> {
     let mut buf = [0u8; 16];
     let word = first_word(code, &mut buf);
+    // Only asked when the line fails.
     let committed =
-        is_committed(word, code) || (file == FileKind::Dat && looks_like_user_decl(word, code));
+        || is_committed(word, code) || (file == FileKind::Dat && looks_like_user_decl(word, code));
     let mark = {
         let mut n = cx.nodes.borrow_mut();
         n.new_line();
@@ -313,7 +314,7 @@ pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Lin
     match result {
         Ok((b"", l)) => Ok(l),
         Ok((rest, _)) => {
-            if committed {
+            if committed() {
                 Err(Some(PErr {
                     at: rest,
                     msg: &super::lex::Msg {
@@ -325,7 +326,7 @@ pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Lin
                 Err(None)
             }
         }
-        Err(nom::Err::Failure(e)) if committed || is_hard(&e) => Err(Some(e)),
+        Err(nom::Err::Failure(e)) if committed() || is_hard(&e) => Err(Some(e)),
         Err(_) => Err(None),
     }
 }
