@@ -7,7 +7,8 @@
 
 use super::expr::{expr, Expr};
 use super::lex::{
-    expecting, fail, ident, is_ident_char, keyword, next_item, punct, sep, ws, Cx, PResult,
+    expecting, fail, ident, is_ident_char, keyword, list, next_item, punct, sep, ws, Cx, Fails,
+    PResult,
 };
 use super::span::Span;
 
@@ -312,15 +313,21 @@ fn dims_list<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Dims> {
     }
 }
 
-/// `[GLOBAL] STRUC name TYPE m {, m} {, TYPE m {, m}}`.
-pub(crate) fn struc<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Struc> {
+/// `[GLOBAL] WORD name` and the blanks after it: (rest, (`GLOBAL` span, name span)).
+fn named_head<'a>(cx: Cx<'a>, word: &'static str, i: &'a [u8]) -> Fails<'a, (Option<Span>, Span)> {
     let (j, global) = opt_word("GLOBAL", i);
-    let (j, _) = keyword("STRUC")(j)?;
+    let (j, _) = keyword(word)(j)?;
     let (j, _) = ws(j)?;
     let (j, name) = ident(j)?;
+    let (j, _) = ws(j)?;
+    Ok((j, (global.map(|g| cx.span_of(g)), cx.span_of(name))))
+}
+
+/// `[GLOBAL] STRUC name TYPE m {, m} {, TYPE m {, m}}`.
+pub(crate) fn struc<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Struc> {
+    let (j, (global, name)) = named_head(cx, "STRUC", i)?;
     let mut fields: Vec<(TypeRef, Vec<DeclVar>)> = Vec::new();
-    let mut j = ws(j)?.0;
-    loop {
+    let (j, _) = list(j, |j| {
         // `TYPE name` starts a new group; a lone `name` continues the current one.
         let (k, first) = ident(j)?;
         let (k2, blanks) = ws(k)?;
@@ -333,25 +340,21 @@ pub(crate) fn struc<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Struc> {
                 },
                 vec![v],
             ));
-            j = k3;
+            Ok((k3, ()))
         } else {
             let Some(last) = fields.last_mut() else {
                 return super::lex::backtrack(j);
             };
             let (k3, v) = decl_var(cx, j)?;
             last.1.push(v);
-            j = k3;
+            Ok((k3, ()))
         }
-        match next_item(j) {
-            Some(k) => j = k,
-            None => break,
-        }
-    }
+    })?;
     Ok((
         j,
         Struc {
-            global: global.map(|g| cx.span_of(g)),
-            name: cx.span_of(name),
+            global,
+            name,
             fields,
         },
     ))
@@ -359,26 +362,13 @@ pub(crate) fn struc<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Struc> {
 
 /// `[GLOBAL] ENUM name v {, v}`.
 pub(crate) fn enum_decl<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, EnumDecl> {
-    let (j, global) = opt_word("GLOBAL", i);
-    let (j, _) = keyword("ENUM")(j)?;
-    let (j, _) = ws(j)?;
-    let (j, name) = ident(j)?;
-    let (mut j, _) = ws(j)?;
-    let mut values = Vec::new();
-    loop {
-        let (k, v) = ident(j)?;
-        values.push(cx.span_of(v));
-        j = k;
-        match next_item(j) {
-            Some(k) => j = k,
-            None => break,
-        }
-    }
+    let (j, (global, name)) = named_head(cx, "ENUM", i)?;
+    let (j, values) = list(j, |x| ident(x).map(|(k, v)| (k, cx.span_of(v))))?;
     Ok((
         j,
         EnumDecl {
-            global: global.map(|g| cx.span_of(g)),
-            name: cx.span_of(name),
+            global,
+            name,
             values,
         },
     ))
@@ -386,11 +376,7 @@ pub(crate) fn enum_decl<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, EnumDecl> {
 
 /// `[GLOBAL] SIGNAL name expr [TO expr]`.
 pub(crate) fn signal<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Signal> {
-    let (j, global) = opt_word("GLOBAL", i);
-    let (j, _) = keyword("SIGNAL")(j)?;
-    let (j, _) = ws(j)?;
-    let (j, name) = ident(j)?;
-    let (j, _) = ws(j)?;
+    let (j, (global, name)) = named_head(cx, "SIGNAL", i)?;
     let (mut j, from) = expr(cx, 0, j)?;
     let mut to = None;
     let (k, _) = ws(j)?;
@@ -403,37 +389,45 @@ pub(crate) fn signal<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Signal> {
     Ok((
         j,
         Signal {
-            global: global.map(|g| cx.span_of(g)),
-            name: cx.span_of(name),
+            global,
+            name,
             from,
             to,
         },
     ))
 }
 
-/// `EXT name(…)` or `EXTFCT TYPE name(…)`.
-pub(crate) fn ext<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Ext> {
+/// `WORD name` or `FCT_WORD TYPE name` (`EXT`/`EXTFCT`, `DEF`/`DEFFCT`) and the blanks
+/// after the name: (rest, (is a function, return type, name)).
+fn callable_head<'a>(
+    cx: Cx<'a>,
+    word: &[u8],
+    fct_word: &[u8],
+    i: &'a [u8],
+) -> Fails<'a, (bool, Option<TypeRef>, &'a [u8])> {
     let (j, kw) = ident(i)?;
-    let function = kw.eq_ignore_ascii_case(b"EXTFCT");
-    if !function && !kw.eq_ignore_ascii_case(b"EXT") {
+    let function = kw.eq_ignore_ascii_case(fct_word);
+    if !function && !kw.eq_ignore_ascii_case(word) {
         return super::lex::backtrack(i);
     }
-    let (j, _) = ws(j)?;
-    let (j, ret) = if function {
-        let (j, t) = ident(j)?;
-        let (j, _) = ws(j)?;
-        (
-            j,
-            Some(TypeRef {
-                kind: TypeKind::of(t),
-                span: cx.span_of(t),
-            }),
-        )
-    } else {
-        (j, None)
-    };
+    let (mut j, _) = ws(j)?;
+    let mut ret = None;
+    if function {
+        let (k, t) = ident(j)?;
+        ret = Some(TypeRef {
+            kind: TypeKind::of(t),
+            span: cx.span_of(t),
+        });
+        j = ws(k)?.0;
+    }
     let (j, name) = ident(j)?;
     let (j, _) = ws(j)?;
+    Ok((j, (function, ret, name)))
+}
+
+/// `EXT name(…)` or `EXTFCT TYPE name(…)`.
+pub(crate) fn ext<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Ext> {
+    let (j, (function, ret, name)) = callable_head(cx, b"EXT", b"EXTFCT", i)?;
     let (rest, params) = paren_text(j)?;
     Ok((
         rest,
@@ -472,27 +466,7 @@ const HELP_DEF: &str = "routines start with DEF name(p1:IN, p2:OUT) or DEFFCT TY
 /// `[GLOBAL] DEF name ( params )` / `[GLOBAL] DEFFCT TYPE name ( params )`.
 pub(crate) fn routine_header<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, RoutineHeader> {
     let (j, global) = opt_word("GLOBAL", i);
-    let (j, kw) = ident(j)?;
-    let function = kw.eq_ignore_ascii_case(b"DEFFCT");
-    if !function && !kw.eq_ignore_ascii_case(b"DEF") {
-        return super::lex::backtrack(i);
-    }
-    let (j, _) = ws(j)?;
-    let (j, ret) = if function {
-        let (j, t) = ident(j)?;
-        let (j, _) = ws(j)?;
-        (
-            j,
-            Some(TypeRef {
-                kind: TypeKind::of(t),
-                span: cx.span_of(t),
-            }),
-        )
-    } else {
-        (j, None)
-    };
-    let (j, name) = ident(j)?;
-    let (j, _) = ws(j)?;
+    let (j, (function, ret, name)) = callable_head(cx, b"DEF", b"DEFFCT", j)?;
     let (mut j, _) = punct(b'(')(j)?;
     let mut params = Vec::new();
     let (k, _) = ws(j)?;

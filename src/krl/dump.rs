@@ -309,7 +309,7 @@ fn motion_text(f: &SourceFile, m: &Motion) -> String {
     if let Some(ca) = m.angle() {
         s += &format!(" CA={}", expr_text(f, &ca.value));
     }
-    for a in m.approx.iter() {
+    for a in m.approx().iter() {
         s += match a.kind {
             ApproxKind::Dis => " C_DIS",
             ApproxKind::Ptp => " C_PTP",
@@ -318,7 +318,7 @@ fn motion_text(f: &SourceFile, m: &Motion) -> String {
             ApproxKind::Spl => " C_SPL",
         };
     }
-    if let Some(fr) = &m.frame {
+    if let Some(fr) = m.frame() {
         s += match fr.kind {
             RelFrameKind::Base => " #BASE",
             RelFrameKind::Tool => " #TOOL",
@@ -440,7 +440,8 @@ pub fn expr_text(f: &SourceFile, e: &Expr) -> String {
                 .collect();
             format!(
                 "{{{}{}}}",
-                a.type_name.map_or(String::new(), |n| format!("{}: ", t(n))),
+                a.type_name()
+                    .map_or(String::new(), |n| format!("{}: ", t(n))),
                 members.join(", ")
             )
         }

@@ -4,8 +4,8 @@
 //! table. Every node keeps the byte span of its text so any number can be replaced in place.
 
 use super::lex::{
-    backtrack, bits, enum_literal, expecting, fail, ident, is_ident_char, keyword, number_literal,
-    punct, string, ws, Cx, Fails, PResult,
+    backtrack, bits, blanks, enum_literal, expecting, fail, ident, is_ident_char, is_ident_start,
+    keyword, number_literal, punct, string, ws, Cx, Fails, PResult,
 };
 use super::nodes::{AggregateId, Nodes};
 use super::number;
@@ -87,17 +87,20 @@ pub struct Call {
     pub close: Span,
 }
 
-/// `{TYPE: NAME value, …}`; its members are in the file (`SourceFile::members`).
+/// `{TYPE: NAME value, …}`; its members are in the file (`SourceFile::members`). Packed into
+/// 24 bytes: the type name as start and length (length 0: none), the pool flag in the top
+/// bit of the member count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Aggregate {
     pub span: Span,
-    /// `E6POS` in `{E6POS: …}`.
-    pub type_name: Option<Span>,
+    type_start: u32,
+    type_len: u32,
     pub(crate) first: u32,
-    pub(crate) len: u32,
-    /// Stored in the nested-members pool.
-    pub(crate) nested: bool,
+    /// Member count; the top bit says the members are in the nested-members pool.
+    len_nested: u32,
 }
+
+const NESTED_BIT: u32 = 1 << 31;
 
 /// `NAME value` inside an aggregate. An array member's `[]` (`POINT2[] " "`) follows the
 /// name directly: `SourceFile::member_index` gives its span.
@@ -243,6 +246,23 @@ impl Expr {
         matches!(self, Expr::Opaque(_))
     }
 
+    /// Whether the expression owns heap memory (a boxed node); literals and aggregate ids
+    /// do not (the node pools skip visiting such nodes when they are dropped).
+    pub(crate) fn owns_heap(&self) -> bool {
+        match self {
+            Expr::Path(_) | Expr::Call(_) | Expr::Unary(_) | Expr::Binary(_) | Expr::Paren(_) => {
+                true
+            }
+            Expr::Number(_)
+            | Expr::Str(_)
+            | Expr::Bits(_)
+            | Expr::Enum(_)
+            | Expr::Bool(..)
+            | Expr::Aggregate(..)
+            | Expr::Opaque(_) => false,
+        }
+    }
+
     /// Calls `f` on this expression and every sub-expression, parents first (aggregate
     /// members are looked up in `nodes`).
     pub(crate) fn visit(&self, nodes: &Nodes, f: &mut impl FnMut(&Expr)) {
@@ -304,17 +324,30 @@ impl Aggregate {
         }
     }
 
+    /// `E6POS` in `{E6POS: …}`.
+    pub fn type_name(&self) -> Option<Span> {
+        (self.type_len > 0).then_some(Span {
+            start: self.type_start,
+            end: self.type_start + self.type_len,
+        })
+    }
+
     /// Number of members.
     pub fn len(&self) -> usize {
-        self.len as usize
+        (self.len_nested & !NESTED_BIT) as usize
     }
 
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.len() == 0
+    }
+
+    /// Whether the members are in the nested-members pool.
+    pub(crate) fn nested(&self) -> bool {
+        self.len_nested & NESTED_BIT != 0
     }
 
     pub(crate) fn range(&self) -> std::ops::Range<usize> {
-        self.first as usize..(self.first + self.len) as usize
+        self.first as usize..self.first as usize + self.len()
     }
 }
 
@@ -395,7 +428,9 @@ fn binary_op(i: &[u8]) -> PResult<'_, (BinOp, &[u8])> {
         [b'/', ..] => two(Div, 1),
         [b'+', ..] => two(Add, 1),
         [b'-', ..] => two(Sub, 1),
-        _ => {
+        // Word operators start with O, A, E or B: anything else (`C_DIS` after a motion
+        // target) is not one, without reading the word.
+        [b'o' | b'O' | b'a' | b'A' | b'e' | b'E' | b'b' | b'B', ..] => {
             let (rest, w) = ident(i)?;
             let op = match w.len() {
                 2 if w.eq_ignore_ascii_case(b"OR") => Or,
@@ -408,6 +443,7 @@ fn binary_op(i: &[u8]) -> PResult<'_, (BinOp, &[u8])> {
             };
             Ok((rest, (op, w)))
         }
+        _ => backtrack(i),
     }
 }
 
@@ -680,13 +716,33 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
         ));
     }
     loop {
+        // Fast path: a run of `NAME number` members (what CAM programs are made of), read
+        // without the general machinery; the first other member leaves it.
+        if !nested {
+            let mut n = cx.nodes.borrow_mut();
+            while let Some((k, m)) = plain_member(cx, j) {
+                n.push_member(m);
+                let k = &k[blanks(k)..];
+                if k[0] == b',' {
+                    j = &k[1..];
+                    j = &j[blanks(j)..];
+                    continue;
+                }
+                drop(n);
+                let k = &k[1..];
+                return Ok((
+                    k,
+                    close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
+                ));
+            }
+        }
         let (k, m) = expecting!("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
         {
             let mut n = cx.nodes.borrow_mut();
             if nested {
                 n.scratch.push(m);
             } else {
-                n.members.push(m);
+                n.push_member(m);
             }
         }
         let (k, _) = ws(k)?;
@@ -735,14 +791,45 @@ fn close_aggregate(
     };
     n.agg_depth -= 1;
     let id = AggregateId(n.aggregates.len() as u32);
-    n.aggregates.push(Aggregate {
+    let ty = type_name.unwrap_or_default();
+    n.push_aggregate(Aggregate {
         span,
-        type_name,
+        type_start: ty.start,
+        type_len: ty.len() as u32,
         first: first as u32,
-        len: len as u32,
-        nested,
+        len_nested: len as u32 | if nested { NESTED_BIT } else { 0 },
     });
     Expr::Aggregate(span, id)
+}
+
+/// `NAME number` followed by blanks and `,` or `}` (not consumed), the number plain enough
+/// for `number::read_plain`; `None` sends the member to the general `member` parser, which
+/// reads these the same way.
+#[inline]
+fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Member)> {
+    if !is_ident_start(*i.first()?) {
+        return None;
+    }
+    let name_end = 1 + i[1..].iter().take_while(|&&b| is_ident_char(b)).count();
+    let at = name_end + blanks(&i[name_end..]);
+    let (len, value, integer) = number::read_plain(&i[at..])?;
+    let rest = &i[at + len..];
+    if !matches!(rest.get(blanks(rest)), Some(b',' | b'}')) {
+        return None;
+    }
+    let start = cx.off(i);
+    Some((
+        rest,
+        Member {
+            name: Span::new(start, start + name_end),
+            value: Expr::Number(Number {
+                value,
+                start: (start + at) as u32,
+                len: len as u16,
+                integer,
+            }),
+        },
+    ))
 }
 
 /// `NAME[[…]] value`.
@@ -755,24 +842,14 @@ fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Member> {
         },
         _ => j,
     };
-    let (k, blanks) = ws(j)?;
+    let (k, gap) = ws(j)?;
     // `X1` is one name, so a value glued to the name must start with a non-name byte.
-    if blanks.is_empty() && k.first().is_some_and(|&b| is_ident_char(b)) {
+    if gap.is_empty() && k.first().is_some_and(|&b| is_ident_char(b)) {
         return fail!(
             k,
             "expected a blank between the member name and its value",
             HELP_AGG,
         );
-    }
-    // Fast path: a plain number followed by `,` or `}` (what CAM programs are made of).
-    if let Ok((r, Expr::Number(n))) = number(cx, k) {
-        if matches!(ws(r)?.0.first(), Some(b',' | b'}')) {
-            let member = Member {
-                name: cx.span_of(name),
-                value: Expr::Number(n),
-            };
-            return Ok((r, member));
-        }
     }
     let (rest, value) = expecting!("expected a value for the member", HELP_AGG, |x| {
         expr(cx, d + 1, x)
@@ -827,7 +904,7 @@ mod tests {
         let (n, e, nodes) = parse(s);
         assert_eq!(&s[..n], &s[..s.len() - 6]);
         let a = nodes.aggregates[e.as_aggregate().unwrap().0 as usize];
-        assert_eq!(&s[a.type_name.unwrap().range()], b"E6POS");
+        assert_eq!(&s[a.type_name().unwrap().range()], b"E6POS");
         assert_eq!(a.len(), 6);
         let y = member(&nodes, s, &a, "y").value.as_number().unwrap();
         assert_eq!((&s[y.span().range()], y.value), (&b"-2.5E+01"[..], -25.0));

@@ -154,16 +154,49 @@ macro_rules! expecting {
 }
 pub(crate) use expecting;
 
+/// Byte classes, one table lookup per byte in the hot loops.
+const BLANK: u8 = 1;
+const IDENT_START: u8 = 2;
+const IDENT_CHAR: u8 = 4;
+
+static CLASS: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut b = 0;
+    while b < 256 {
+        let c = b as u8;
+        if matches!(c, b' ' | b'\t' | b'\r' | 0x0b | 0x0c) {
+            t[b] |= BLANK;
+        }
+        if c.is_ascii_alphabetic() || c == b'_' || c == b'$' {
+            t[b] |= IDENT_START | IDENT_CHAR;
+        }
+        if c.is_ascii_digit() {
+            t[b] |= IDENT_CHAR;
+        }
+        b += 1;
+    }
+    t
+};
+
+#[inline]
 pub(crate) fn is_blank(b: u8) -> bool {
-    matches!(b, b' ' | b'\t' | b'\r' | 0x0b | 0x0c)
+    CLASS[usize::from(b)] & BLANK != 0
 }
 
+#[inline]
 pub(crate) fn is_ident_start(b: u8) -> bool {
-    b.is_ascii_alphabetic() || b == b'_' || b == b'$'
+    CLASS[usize::from(b)] & IDENT_START != 0
 }
 
+#[inline]
 pub(crate) fn is_ident_char(b: u8) -> bool {
-    b.is_ascii_alphanumeric() || b == b'_' || b == b'$'
+    CLASS[usize::from(b)] & IDENT_CHAR != 0
+}
+
+/// Number of blanks at the start of `i`.
+#[inline]
+pub(crate) fn blanks(i: &[u8]) -> usize {
+    i.iter().take_while(|&&b| is_blank(b)).count()
 }
 
 /// Optional blanks (never a line end: the parser sees one line of code at a time).
@@ -178,6 +211,24 @@ pub(crate) fn next_item(i: &[u8]) -> Option<&[u8]> {
     let skip = |s: &[u8]| s.iter().take_while(|&&b| is_blank(b)).count();
     let j = &i[skip(i)..];
     (j.first() == Some(&b',')).then(|| &j[1 + skip(&j[1..])..])
+}
+
+/// `item {, item}`: a comma-separated list (separators read by `next_item`); the first
+/// failing item fails the list.
+pub(crate) fn list<'a, T>(
+    i: &'a [u8],
+    mut item: impl FnMut(&'a [u8]) -> PResult<'a, T>,
+) -> Fails<'a, Vec<T>> {
+    let mut items = Vec::new();
+    let mut j = i;
+    loop {
+        let (k, v) = item(j)?;
+        items.push(v);
+        match next_item(k) {
+            Some(n) => j = n,
+            None => return Ok((k, items)),
+        }
+    }
 }
 
 /// At least one blank, or the end of the code, or a punctuation byte (keywords end there).
@@ -304,5 +355,15 @@ mod tests {
         assert!(number_literal(b"12ab").is_err());
         let mut buf = [0; 16];
         assert_eq!(first_word(b"Lin_Rel {", &mut buf), b"LIN_REL");
+    }
+
+    #[test]
+    fn byte_classes_match_their_definitions() {
+        for b in 0..=255u8 {
+            assert_eq!(is_blank(b), b" \t\r\x0b\x0c".contains(&b), "{b}");
+            let start = b.is_ascii_alphabetic() || b == b'_' || b == b'$';
+            assert_eq!(is_ident_start(b), start, "{b}");
+            assert_eq!(is_ident_char(b), start || b.is_ascii_digit(), "{b}");
+        }
     }
 }

@@ -81,6 +81,7 @@ pub mod error;
 pub mod expr;
 pub mod fold;
 mod lex;
+mod memory;
 pub mod motion;
 mod nodes;
 pub mod number;
@@ -104,7 +105,9 @@ pub use program::{LoadError, Program};
 pub use span::{LineIndex, Span};
 pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, Directive, For, Stmt, StmtKind};
 pub use symbols::{Symbol, Symbols};
-pub use tree::{parse, parse_recovering, FileKind, SourceFile, Stats, TileKind};
+pub use tree::{
+    parse, parse_recovering, parse_recovering_owned, FileKind, SourceFile, Stats, TileKind,
+};
 
 /// The `.dat` beside a `.src` (same stem, `.dat` or `.DAT`), if it exists.
 pub fn companion_dat(src: &std::path::Path) -> Option<std::path::PathBuf> {

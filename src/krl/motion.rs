@@ -6,7 +6,7 @@
 //! silently skipped, because a missed target would be left uncompensated.
 
 use super::expr::{expr, path, Expr};
-use super::lex::{expecting, fail, ident, keyword, next_item, punct, sep, ws, Cx, PResult};
+use super::lex::{expecting, fail, ident, keyword, list, punct, sep, ws, Cx, PResult};
 use super::span::Span;
 
 /// Which motion instruction.
@@ -99,19 +99,18 @@ impl MotionKind {
     }
 }
 
-/// A motion statement.
+/// A motion statement. Packed into 40 bytes (a CAM program holds a million): the keyword and
+/// approximation keywords are stored as start offsets (their length is fixed by their kind),
+/// the rare parts (auxiliary point, `CA`, `WITH`, `#BASE`/`#TOOL`) are boxed.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Motion {
     pub kind: MotionKind,
-    pub keyword: Span,
     /// The target: an aggregate, a variable, an array element, a `:` chain, `$AXIS_ACT`…
     pub target: Expr,
-    /// Approximation keywords in order (`C_DIS C_DIS` gives two).
-    pub approx: Approxes,
-    /// `#BASE` or `#TOOL` of a relative motion.
-    pub frame: Option<RelFrame>,
-    /// The auxiliary point, `CA` and `WITH` clause, when any is written (boxed: a
-    /// million-line program of plain `LIN`s should not pay for them).
+    keyword_start: u32,
+    approx: Approxes,
+    /// The auxiliary point, `CA`, `WITH` clause and relative frame, when any is written
+    /// (boxed: a million-line program of plain `LIN`s should not pay for them).
     extra: Option<Box<MotionExtra>>,
 }
 
@@ -120,9 +119,29 @@ struct MotionExtra {
     aux: Option<Expr>,
     angle: Option<CircAngle>,
     with: Vec<WithItem>,
+    frame: Option<RelFrame>,
 }
 
 impl Motion {
+    /// The motion keyword as written (`LIN`, `lin`, `Ptp_Rel`…).
+    pub fn keyword(&self) -> Span {
+        let start = self.keyword_start;
+        Span {
+            start,
+            end: start + self.kind.keyword().len() as u32,
+        }
+    }
+
+    /// Approximation keywords in order (`C_DIS C_DIS` gives two).
+    pub fn approx(&self) -> Approxes {
+        self.approx
+    }
+
+    /// `#BASE` or `#TOOL` of a relative motion.
+    pub fn frame(&self) -> Option<RelFrame> {
+        self.extra.as_ref().and_then(|e| e.frame)
+    }
+
     /// The auxiliary point of a circular motion.
     pub fn aux(&self) -> Option<&Expr> {
         self.extra.as_ref().and_then(|e| e.aux.as_ref())
@@ -136,6 +155,11 @@ impl Motion {
     /// `WITH $VEL.CP = 0.2, …` (empty without a `WITH`).
     pub fn with(&self) -> &[WithItem] {
         self.extra.as_ref().map_or(&[], |e| &e.with)
+    }
+
+    /// Whether the motion owns heap memory (see `Expr::owns_heap`).
+    pub(crate) fn owns_heap(&self) -> bool {
+        self.extra.is_some() || self.target.owns_heap()
     }
 }
 
@@ -160,44 +184,69 @@ pub struct Approx {
     pub span: Span,
 }
 
-/// Up to two approximation keywords, stored inline (a slice through `Deref`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Every approximation keyword is five bytes (`C_DIS`, `c_ptp`…).
+const APPROX_LEN: u32 = 5;
+
+/// Up to two approximation keywords, packed: their start offsets and, in one byte, the count
+/// (bits 0–1) and the kinds (bits 2–4 and 5–7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Approxes {
-    items: [Approx; 2],
-    len: u8,
-}
-
-impl Default for Approxes {
-    fn default() -> Self {
-        let none = Approx {
-            kind: ApproxKind::Dis,
-            span: Span::default(),
-        };
-        Approxes {
-            items: [none; 2],
-            len: 0,
-        }
-    }
-}
-
-impl std::ops::Deref for Approxes {
-    type Target = [Approx];
-
-    fn deref(&self) -> &[Approx] {
-        &self.items[..self.len as usize]
-    }
+    starts: [u32; 2],
+    packed: u8,
 }
 
 impl Approxes {
-    fn push(&mut self, a: Approx) -> bool {
-        match self.items.get_mut(self.len as usize) {
-            Some(slot) => {
-                *slot = a;
-                self.len += 1;
-                true
-            }
-            None => false,
+    pub fn len(&self) -> usize {
+        usize::from(self.packed & 3)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The `i`-th keyword.
+    pub fn get(&self, i: usize) -> Option<Approx> {
+        if i >= self.len() {
+            return None;
         }
+        let kind = match (self.packed >> (2 + 3 * i)) & 7 {
+            0 => ApproxKind::Dis,
+            1 => ApproxKind::Ptp,
+            2 => ApproxKind::Vel,
+            3 => ApproxKind::Ori,
+            _ => ApproxKind::Spl,
+        };
+        let start = self.starts[i];
+        Some(Approx {
+            kind,
+            span: Span {
+                start,
+                end: start + APPROX_LEN,
+            },
+        })
+    }
+
+    /// The keywords in order.
+    pub fn iter(&self) -> impl Iterator<Item = Approx> + '_ {
+        (0..self.len()).filter_map(|i| self.get(i))
+    }
+
+    fn push(&mut self, a: Approx) -> bool {
+        let n = self.len();
+        if n == 2 {
+            return false;
+        }
+        debug_assert_eq!(a.span.len() as u32, APPROX_LEN);
+        let code = match a.kind {
+            ApproxKind::Dis => 0,
+            ApproxKind::Ptp => 1,
+            ApproxKind::Vel => 2,
+            ApproxKind::Ori => 3,
+            ApproxKind::Spl => 4,
+        };
+        self.starts[n] = a.span.start;
+        self.packed = (self.packed & !3) | (n as u8 + 1) | (code << (2 + 3 * n));
+        true
     }
 }
 
@@ -276,18 +325,24 @@ pub(crate) fn motion<'a>(cx: Cx<'a>, kind: MotionKind, i: &'a [u8]) -> PResult<'
             j = k;
         }
     }
+    debug_assert_eq!(kw.len(), kind.keyword().len());
     let mut m = Motion {
         kind,
-        keyword: cx.span_of(kw),
         target,
+        keyword_start: cx.off(kw) as u32,
         approx: Approxes::default(),
-        frame: None,
         extra: None,
     };
+    let mut frame = None;
     let mut with = Vec::new();
-    let (rest, ()) = motion_tail(cx, &mut m.approx, &mut m.frame, &mut with, j)?;
-    if aux.is_some() || angle.is_some() || !with.is_empty() {
-        m.extra = Some(Box::new(MotionExtra { aux, angle, with }));
+    let (rest, ()) = motion_tail(cx, &mut m.approx, &mut frame, &mut with, j)?;
+    if aux.is_some() || angle.is_some() || !with.is_empty() || frame.is_some() {
+        m.extra = Some(Box::new(MotionExtra {
+            aux,
+            angle,
+            with,
+            frame,
+        }));
     }
     Ok((rest, m))
 }
@@ -368,19 +423,13 @@ pub(crate) fn approximation<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Approx> 
 
 /// The assignments after `WITH` (the keyword already read): `item {, item}`.
 pub(crate) fn with_clause<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Vec<WithItem>> {
-    let mut items = Vec::new();
-    let (mut j, _) =
-        sep(i).or_else(|_| fail!(i, "expected an assignment after WITH", HELP_WITH))?;
-    loop {
-        let (k, item) = expecting!("expected an assignment after WITH", HELP_WITH, |x| {
+    let (j, _) = sep(i).or_else(|_| fail!(i, "expected an assignment after WITH", HELP_WITH))?;
+    list(
+        j,
+        expecting!("expected an assignment after WITH", HELP_WITH, |x| {
             with_item(cx, x)
-        })(j)?;
-        items.push(item);
-        match next_item(k) {
-            Some(k3) => j = k3,
-            None => return Ok((k, items)),
-        }
-    }
+        }),
+    )
 }
 
 /// `path = expr`.
@@ -398,4 +447,48 @@ fn with_item<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, WithItem> {
             value,
         },
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::krl::{self, ApproxKind, FileKind, RelFrameKind};
+
+    #[test]
+    fn packed_keyword_approx_and_frame_spans_are_the_written_text() {
+        let src = b"DEF t()\nlin_Rel {X 1} c_dis C_Ptp #tool\nLIN P1\nEND\n";
+        let f = krl::parse(src, FileKind::Src).unwrap();
+        let ms: Vec<_> = f.motions().map(|(_, m)| m).collect();
+        let m = ms[0];
+        assert_eq!(f.text(m.keyword()), b"lin_Rel");
+        let a = m.approx();
+        assert_eq!(a.len(), 2);
+        let kinds: Vec<_> = a.iter().map(|x| (x.kind, f.text(x.span))).collect();
+        assert_eq!(
+            kinds,
+            [
+                (ApproxKind::Dis, &b"c_dis"[..]),
+                (ApproxKind::Ptp, &b"C_Ptp"[..])
+            ]
+        );
+        let fr = m.frame().unwrap();
+        assert_eq!(
+            (fr.kind, f.text(fr.span)),
+            (RelFrameKind::Tool, &b"#tool"[..])
+        );
+        assert!(a.get(2).is_none());
+        assert_eq!(f.text(ms[1].keyword()), b"LIN");
+        assert!(ms[1].approx().is_empty() && ms[1].frame().is_none());
+        // Every kind code round-trips through the packed byte, in either slot.
+        for (w, k) in [
+            ("C_VEL", ApproxKind::Vel),
+            ("C_ORI", ApproxKind::Ori),
+            ("C_SPL", ApproxKind::Spl),
+        ] {
+            let src = format!("PTP P1 C_DIS {w}\n");
+            let f = krl::parse(src.as_bytes(), FileKind::Src).unwrap();
+            let (_, m) = f.motions().next().unwrap();
+            assert_eq!(m.approx().get(1).unwrap().kind, k);
+            assert_eq!(f.text(m.approx().get(1).unwrap().span), w.as_bytes());
+        }
+    }
 }

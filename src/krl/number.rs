@@ -125,25 +125,91 @@ pub(crate) fn scan(i: &[u8]) -> Option<Literal> {
 pub(crate) fn value(text: &[u8], lit: &Literal) -> f64 {
     let negative = lit.sign == b'-';
     if lit.int_digits + lit.frac_digits <= 19 {
-        let m = lit.mantissa;
         let e10 = lit.exp_value - lit.frac_digits as i64;
-        if m == 0 {
-            return if negative { -0.0 } else { 0.0 };
-        }
-        if m <= (1u64 << 53) && (-22..=22).contains(&e10) {
-            let v = m as f64;
-            let v = if e10 >= 0 {
-                v * POW10[e10 as usize]
-            } else {
-                v / POW10[(-e10) as usize]
-            };
-            return if negative { -v } else { v };
+        if let Some(v) = exact(negative, lit.mantissa, e10) {
+            return v;
         }
     }
     std::str::from_utf8(&text[..lit.len])
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
         .unwrap_or(f64::NAN)
+}
+
+/// `±m·10^e10` by Clinger's fast path when it is exact (m ≤ 2^53, |e10| ≤ 22: one exact
+/// integer, one exact power of ten, one rounding), else `None`. `m` must hold every digit.
+#[inline]
+fn exact(negative: bool, m: u64, e10: i64) -> Option<f64> {
+    if m == 0 {
+        return Some(if negative { -0.0 } else { 0.0 });
+    }
+    if m > (1u64 << 53) || !(-22..=22).contains(&e10) {
+        return None;
+    }
+    let v = m as f64;
+    let v = if e10 >= 0 {
+        v * POW10[e10 as usize]
+    } else {
+        v / POW10[(-e10) as usize]
+    };
+    Some(if negative { -v } else { v })
+}
+
+/// The common literal in one pass: `[+-] digits [. digits]` with at most 19 digits and no
+/// exponent, as CAM systems write coordinates. Gives (length, value, integer) when the
+/// literal has that shape and its value is exact on Clinger's path, else `None` (then
+/// [`scan`] and [`value`] read it; both give the same answer where both apply).
+#[inline]
+pub(crate) fn read_plain(i: &[u8]) -> Option<(usize, f64, bool)> {
+    let mut p = 0;
+    let negative = match i.first() {
+        Some(b'-') => {
+            p = 1;
+            true
+        }
+        Some(b'+') => {
+            p = 1;
+            false
+        }
+        _ => false,
+    };
+    // Digits from `p` appended to `m`; `None` past 19 digits in all (m would overflow).
+    let run = |mut p: usize, mut m: u64, mut taken: usize| -> Option<(usize, u64, usize)> {
+        while let Some(&b) = i.get(p) {
+            let d = b.wrapping_sub(b'0');
+            if d > 9 {
+                break;
+            }
+            if taken == 19 {
+                return None;
+            }
+            m = m * 10 + u64::from(d);
+            taken += 1;
+            p += 1;
+        }
+        Some((p, m, taken))
+    };
+    let (q, m, int_digits) = run(p, 0, 0)?;
+    p = q;
+    let dot = i.get(p) == Some(&b'.');
+    let (m, frac_digits) = if dot {
+        let (q, m, taken) = run(p + 1, m, int_digits)?;
+        let frac_digits = q - (p + 1);
+        if taken == 0 {
+            return None;
+        }
+        p = q;
+        (m, frac_digits)
+    } else if int_digits == 0 {
+        return None;
+    } else {
+        (m, 0)
+    };
+    if matches!(i.get(p), Some(b'e' | b'E')) {
+        return None;
+    }
+    let v = exact(negative, m, -(frac_digits as i64))?;
+    Some((p, v, !dot))
 }
 
 /// Writes `value` in the style of the literal `original`: the same number of decimals (never
@@ -258,6 +324,65 @@ fn split_exp(v: f64, decimals: usize) -> (String, i64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The one-pass reader agrees with scan + value wherever it accepts, bit for bit, and
+    /// declines exponents, long mantissas and non-numbers.
+    #[test]
+    fn plain_agrees_with_scan_and_value() {
+        for t in [
+            "0",
+            "-0",
+            "+0",
+            "-0.000",
+            "1.",
+            ".25",
+            "-.5",
+            "+3.75",
+            "123.456",
+            "-2.500",
+            "9007199254740992",
+            "9007199254740993",
+            "1234567890123456789",
+            "0.1",
+            "0.3",
+            "-1.000000000000000001",
+            "300.125,",
+            "12}",
+            "7 ",
+        ] {
+            let lit = scan(t.as_bytes()).unwrap();
+            let (len, v, integer) = match read_plain(t.as_bytes()) {
+                Some(x) => x,
+                None => {
+                    // Declined only for values off Clinger's exact path.
+                    assert!(
+                        lit.int_digits + lit.frac_digits > 19 || lit.mantissa > 1 << 53,
+                        "{t}"
+                    );
+                    continue;
+                }
+            };
+            assert_eq!(len, lit.len, "{t}");
+            assert_eq!(integer, lit.is_integer(), "{t}");
+            let want = value(t.as_bytes(), &lit);
+            assert_eq!(v.to_bits(), want.to_bits(), "{t}");
+            assert_eq!(v, t[..len].parse::<f64>().unwrap(), "{t}");
+        }
+        for t in [
+            "",
+            "-",
+            "+",
+            ".",
+            "-.",
+            "1e3",
+            "2.5E+01",
+            "12345678901234567890",
+            "x1",
+            "- 1",
+        ] {
+            assert_eq!(read_plain(t.as_bytes()), None, "{t}");
+        }
+    }
 
     fn val(s: &str) -> f64 {
         let lit = scan(s.as_bytes()).unwrap();

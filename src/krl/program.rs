@@ -6,7 +6,7 @@ use super::error::Problem;
 use super::expr::Expr;
 use super::span::Span;
 use super::symbols::Symbols;
-use super::tree::{parse_recovering, FileKind, SourceFile};
+use super::tree::{parse_recovering_owned, FileKind, SourceFile};
 use crate::diagnostic::Diagnostic;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -47,14 +47,14 @@ impl Program {
     /// Reads and parses `path`; a `.src` also reads the `.dat` beside it when there is one.
     pub fn load(path: &Path) -> Result<Program, LoadError> {
         let kind = FileKind::from_path(path);
-        let main = parse_recovering(&read_bytes(path)?, kind);
+        let main = parse_recovering_owned(read_bytes(path)?, kind);
         let dat_path = if path.as_os_str() == "-" {
             None
         } else {
             super::companion_dat(path)
         };
         let dat = match &dat_path {
-            Some(p) => Some(parse_recovering(&read_bytes(p)?, FileKind::Dat)),
+            Some(p) => Some(parse_recovering_owned(read_bytes(p)?, FileKind::Dat)),
             None => None,
         };
         Ok(Program {

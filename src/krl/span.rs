@@ -87,7 +87,8 @@ impl LineIndex {
     }
 
     /// Builds the index from line starts already found by the line scanner.
-    pub(crate) fn from_starts(starts: Vec<u32>, len: usize) -> LineIndex {
+    pub(crate) fn from_starts(mut starts: Vec<u32>, len: usize) -> LineIndex {
+        starts.shrink_to_fit();
         LineIndex {
             starts,
             len: len as u32,

@@ -11,8 +11,8 @@ use super::decl::{
 use super::expr::{call, expr, path, Call, Expr};
 use super::fold::FoldId;
 use super::lex::{
-    backtrack, fail, first_word, ident, is_ident_char, keyword, next_item, punct, sep, ws, Cx,
-    PErr, PResult,
+    backtrack, fail, first_word, ident, is_ident_char, keyword, list, punct, sep, ws, Cx, PErr,
+    PResult,
 };
 use super::motion::{motion, with_clause, MotionKind, WithItem};
 use super::nodes::MotionId;
@@ -298,8 +298,9 @@ pub(crate) type LineError<'a> = Option<PErr<'a>>;
 pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Line, LineError<'a>> {
     let mut buf = [0u8; 16];
     let word = first_word(code, &mut buf);
+    // Only asked when the line fails.
     let committed =
-        is_committed(word, code) || (file == FileKind::Dat && looks_like_user_decl(word, code));
+        || is_committed(word, code) || (file == FileKind::Dat && looks_like_user_decl(word, code));
     let mark = {
         let mut n = cx.nodes.borrow_mut();
         n.new_line();
@@ -313,7 +314,7 @@ pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Lin
     match result {
         Ok((b"", l)) => Ok(l),
         Ok((rest, _)) => {
-            if committed {
+            if committed() {
                 Err(Some(PErr {
                     at: rest,
                     msg: &super::lex::Msg {
@@ -325,7 +326,7 @@ pub(crate) fn line<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Lin
                 Err(None)
             }
         }
-        Err(nom::Err::Failure(e)) if committed || is_hard(&e) => Err(Some(e)),
+        Err(nom::Err::Failure(e)) if committed() || is_hard(&e) => Err(Some(e)),
         Err(_) => Err(None),
     }
 }
@@ -397,7 +398,7 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
         let (r, m) = motion(cx, kind, i)?;
         let mut nodes = cx.nodes.borrow_mut();
         let id = MotionId(nodes.motions.len() as u32);
-        nodes.motions.push(m);
+        nodes.push_motion(m);
         return Ok((r, Line::Simple(K::Motion(id))));
     }
     if TypeKind::builtin(word).is_some() {
@@ -589,17 +590,9 @@ fn if_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
 /// `CASE v {, v}`.
 fn case_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
     let (j, _) = keyword("CASE")(i)?;
-    let (mut j, _) = sep(j)?;
-    let mut values = Vec::new();
-    loop {
-        let (k, _) = ws(j)?;
-        let (k, v) = expr(cx, 0, k)?;
-        values.push(v);
-        match next_item(k) {
-            Some(k) => j = k,
-            None => return Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values)))),
-        }
-    }
+    let (j, _) = sep(j)?;
+    let (k, values) = list(j, |x| expr(cx, 0, x))?;
+    Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values))))
 }
 
 /// `FOR var = from TO to [STEP step]`; an unreadable header keeps the block.

@@ -9,10 +9,11 @@ use super::error::{ParseError, Problem};
 use super::expr::{Aggregate, Expr, Member, Number};
 use super::fold::{Fold, FoldId, FoldTracker, Ilf};
 use super::lex::Cx;
+use super::memory::{extend_mapped, Ahead};
 use super::motion::Motion;
 use super::nodes::{AggregateId, MotionId, Nodes};
 use super::span::{LineIndex, Span};
-use super::stmt::{self, Arm, ArmKind, BlockKind, Clause, Line, Stmt, StmtKind};
+use super::stmt::{self, Arm, ArmKind, Block, BlockKind, Clause, Line, Stmt, StmtKind};
 use super::trivia::split_line;
 use crate::diagnostic::Diagnostic;
 use std::borrow::Cow;
@@ -87,7 +88,12 @@ pub fn parse(bytes: &[u8], kind: FileKind) -> Result<SourceFile, ParseError> {
 /// Parses a file, never failing: malformed lines become `StmtKind::Invalid` and are listed in
 /// `problems()` as errors.
 pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
-    let src = bytes.to_vec();
+    parse_recovering_owned(super::memory::copy_of(bytes), kind)
+}
+
+/// `parse_recovering` of bytes the file then owns (no copy: a program loaded from disk is
+/// held once, not twice).
+pub fn parse_recovering_owned(src: Vec<u8>, kind: FileKind) -> SourceFile {
     if src.len() > u32::MAX as usize {
         let mut problems = vec![Problem::error(
             Span::at(0),
@@ -113,7 +119,7 @@ pub fn parse_recovering(bytes: &[u8], kind: FileKind) -> SourceFile {
 
 /// Parses `src` into a file whose `src` field is left empty (the caller moves the bytes in).
 fn build(src: &[u8], kind: FileKind) -> SourceFile {
-    let nodes = RefCell::new(Nodes::default());
+    let nodes = RefCell::new(Nodes::for_input(src.len()));
     let cx = Cx::new(src, &nodes);
     let mut b = Builder::default();
     let mut folds = FoldTracker::default();
@@ -177,6 +183,7 @@ fn build(src: &[u8], kind: FileKind) -> SourceFile {
         folds,
         problems,
         lines: LineIndex::from_starts(starts, src.len()),
+
         nodes,
     }
 }
@@ -192,6 +199,8 @@ struct Builder {
     top: Vec<Stmt>,
     stack: Vec<Frame>,
     problems: Vec<Problem>,
+    /// Pages mapped ahead of the statement list being filled (see `memory`).
+    ahead: Ahead,
 }
 
 fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<FoldId>) -> Stmt {
@@ -224,7 +233,11 @@ impl Builder {
         match l {
             Line::Simple(kind) => {
                 let s = simple(kind, leading, head, line, fold);
-                self.body().push(s);
+                let mut ahead = self.ahead;
+                let body = self.body();
+                ahead.before_push(body);
+                body.push(s);
+                self.ahead = ahead;
             }
             Line::Open(kind, bk) => {
                 if matches!(bk, BlockKind::Routine | BlockKind::DefDat) {
@@ -287,6 +300,7 @@ impl Builder {
                     line,
                 });
                 f.stmt.end = head.end;
+                trim(block);
                 self.body().push(f.stmt);
             }
         }
@@ -312,6 +326,9 @@ impl Builder {
             "add the closing line where the block ends",
         ));
         f.stmt.end = last_end(&f.stmt) as u32;
+        if let Some(b) = f.stmt.block.as_mut() {
+            trim(b);
+        }
         self.body().push(f.stmt);
     }
 
@@ -323,7 +340,17 @@ impl Builder {
 
     fn finish(mut self) -> (Vec<Stmt>, Vec<Problem>) {
         self.close_all();
+        self.top.shrink_to_fit();
         (self.top, self.problems)
+    }
+}
+
+/// Gives back the spare capacity of a closed block's statement lists (a routine of a million
+/// lines would otherwise keep up to half as much again).
+fn trim(b: &mut Block) {
+    b.body.shrink_to_fit();
+    for a in &mut b.arms {
+        a.body.shrink_to_fit();
     }
 }
 
@@ -556,15 +583,16 @@ impl SourceFile {
     /// Appends the file's bytes, tile by tile, to `out` (adjacent tiles are copied together).
     pub fn emit_into(&self, out: &mut Vec<u8>) {
         let mut run = Span::default();
+        let mut ahead = Ahead::default();
         self.for_each_tile(&mut |span, _| {
             if span.start == run.end {
                 run.end = span.end;
             } else {
-                out.extend_from_slice(&self.src[run.range()]);
+                extend_mapped(out, &mut ahead, &self.src[run.range()]);
                 run = span;
             }
         });
-        out.extend_from_slice(&self.src[run.range()]);
+        extend_mapped(out, &mut ahead, &self.src[run.range()]);
     }
 
     /// Every tile (trivia or code) of the file in order; together they cover it exactly.

@@ -49,8 +49,8 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     );
     // PTP P1 CONT Vel=100 % PDAT1 Tool[1]:Gripper Base[2]:Table
     let (stmt, m) = ms[1];
-    assert_eq!(m.approx.len(), 1);
-    assert_eq!(m.approx[0].kind, ApproxKind::Ptp);
+    assert_eq!(m.approx().len(), 1);
+    assert_eq!(m.approx().get(0).unwrap().kind, ApproxKind::Ptp);
     let (fold, ilf) = src.inline_form(stmt).expect("inside an ILF fold");
     assert_eq!(fold.open_line, 27);
     assert_eq!(fold.close_line, Some(33));
@@ -120,7 +120,7 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     // CIRC P4 P5: auxiliary point and target.
     let (s4, circ) = ms[4];
     assert_eq!(path_text(&src, circ.aux().unwrap()), "XP4");
-    assert_eq!(circ.approx.len(), 2);
+    assert_eq!(circ.approx().len(), 2);
     let im4 = src.inline_form(s4).unwrap().1.motion.as_ref().unwrap();
     let pts: Vec<String> = im4.points.iter().map(|p| text(&src, *p)).collect();
     assert_eq!(pts, ["P4", "P5"]);
@@ -156,7 +156,7 @@ fn spline_inline_forms_with_parameter_folds() {
     assert_eq!(path_text(&src, sc.aux().unwrap()), "XS3");
     assert_eq!(path_text(&src, &sc.target), "XS4");
     assert_eq!(sc.angle().unwrap().value.as_number().unwrap().value, 180.0);
-    assert_eq!(sc.approx[0].kind, ApproxKind::Spl);
+    assert_eq!(sc.approx().get(0).unwrap().kind, ApproxKind::Spl);
     assert_eq!(sc.with().len(), 12);
     let vel = &sc.with()[0];
     assert_eq!(path_text(&src, &vel.lhs), "$VEL");
@@ -183,7 +183,7 @@ fn spline_inline_forms_with_parameter_folds() {
     assert_eq!(im.motion_data_var(src.source()).unwrap(), b"LCPDAT5");
     // SPTP S1 CONT … C_SPL: ILF says CONT, the motion says C_SPL.
     let (s1, m1) = ms[1];
-    assert_eq!(m1.approx[0].kind, ApproxKind::Spl);
+    assert_eq!(m1.approx().get(0).unwrap().kind, ApproxKind::Spl);
     let im1 = src.inline_form(s1).unwrap().1.motion.as_ref().unwrap();
     assert!(im1.cont.is_some());
     assert_eq!(im1.motion_data_var(src.source()).unwrap(), b"PPDAT2");
@@ -285,14 +285,14 @@ fn robodk_style_split_program() {
         })
         .unwrap();
     let agg = p1.aggregate_of(&base.rhs).unwrap();
-    assert_eq!(text(&p1, agg.type_name.unwrap()), "FRAME");
+    assert_eq!(text(&p1, agg.type_name().unwrap()), "FRAME");
     assert_eq!(p1.member_number(agg, "X").unwrap().value, 1200.0);
     let ms = motions(&p1);
     assert_eq!(ms.len(), 7);
     let axis = p1.aggregate_of(&ms[1].target).unwrap();
-    assert_eq!(text(&p1, axis.type_name.unwrap()), "AXIS");
+    assert_eq!(text(&p1, axis.type_name().unwrap()), "AXIS");
     assert_eq!(p1.member_number(axis, "A2").unwrap().value, -78.4);
-    assert_eq!(ms[6].approx[0].kind, ApproxKind::Dis);
+    assert_eq!(ms[6].approx().get(0).unwrap().kind, ApproxKind::Dis);
     let z = p1
         .member_number(p1.aggregate_of(&ms[4].target).unwrap(), "Z")
         .unwrap();
@@ -354,11 +354,11 @@ fn every_language_construct() {
         ]
     );
     let e6 = f.aggregate_of(&ms[2].target).unwrap();
-    assert_eq!(text(&f, e6.type_name.unwrap()), "E6POS");
+    assert_eq!(text(&f, e6.type_name().unwrap()), "E6POS");
     assert_eq!(f.member_number(e6, "Y").unwrap().value, -25.0);
     assert_eq!(f.member_number(e6, "Z").unwrap().value, 0.25);
     assert!(matches!(f.member(e6, "S").unwrap().value, Expr::Bits(_)));
-    assert_eq!(ms[3].approx[0].kind, ApproxKind::Vel);
+    assert_eq!(ms[3].approx().get(0).unwrap().kind, ApproxKind::Vel);
     let Expr::Binary(g) = &ms[4].target else {
         panic!()
     };
@@ -366,7 +366,7 @@ fn every_language_construct() {
         (g.op, path_text(&f, &g.lhs), path_text(&f, &g.rhs)),
         (BinOp::Geo, "pickPos".into(), "offset".into())
     );
-    assert_eq!(ms[6].approx[0].kind, ApproxKind::Ori);
+    assert_eq!(ms[6].approx().get(0).unwrap().kind, ApproxKind::Ori);
     let p = ms[7].target.as_path().unwrap();
     let Access::Index { items, .. } = &p.access[0] else {
         panic!()
@@ -377,14 +377,14 @@ fn every_language_construct() {
         90.0
     );
     assert!(ms[9].angle().is_none());
-    assert_eq!(ms[10].frame.unwrap().kind, RelFrameKind::Tool);
-    assert_eq!(ms[11].frame.unwrap().kind, RelFrameKind::Base);
-    assert_eq!(ms[11].approx[0].kind, ApproxKind::Dis);
+    assert_eq!(ms[10].frame().unwrap().kind, RelFrameKind::Tool);
+    assert_eq!(ms[11].frame().unwrap().kind, RelFrameKind::Base);
+    assert_eq!(ms[11].approx().get(0).unwrap().kind, ApproxKind::Dis);
     assert_eq!(
         ms[13].angle().unwrap().value.as_number().unwrap().value,
         -45.5
     );
-    assert_eq!(ms[15].approx[0].kind, ApproxKind::Ptp);
+    assert_eq!(ms[15].approx().get(0).unwrap().kind, ApproxKind::Ptp);
     // Control flow.
     let ifs: Vec<_> = all
         .iter()
@@ -627,12 +627,16 @@ fn spline_blocks() {
     );
     let ms = motions(&f);
     let rel = ms.iter().find(|m| m.kind == MotionKind::SlinRel).unwrap();
-    assert_eq!(rel.frame.unwrap().kind, RelFrameKind::Tool);
+    assert_eq!(rel.frame().unwrap().kind, RelFrameKind::Tool);
     let chained = ms
         .iter()
         .find(|m| matches!(m.target, Expr::Binary(_)) && m.kind == MotionKind::Slin)
         .unwrap();
-    assert_eq!(chained.approx[0].kind, ApproxKind::Spl, "lower-case c_spl");
+    assert_eq!(
+        chained.approx().get(0).unwrap().kind,
+        ApproxKind::Spl,
+        "lower-case c_spl"
+    );
     assert_eq!(chained.with().len(), 1);
     assert_eq!(path_text(&f, &ms.last().unwrap().target), "$AXIS_ACT");
     assert!(f.problems().is_empty(), "{:?}", f.problems());

@@ -179,7 +179,7 @@ impl<'f> Simulator<'f> {
         let rel = m.kind.is_relative().then(|| {
             if pos.axis {
                 Rel::Axis
-            } else if m.frame.is_some_and(|f| f.kind == RelFrameKind::Tool) {
+            } else if m.frame().is_some_and(|f| f.kind == RelFrameKind::Tool) {
                 Rel::Tool
             } else {
                 Rel::Base
