@@ -21,6 +21,28 @@ pub struct Args {
     pub what: What,
 }
 
+/// How the virtual robot paces the stops it visits (the `t` column of the measurement CSV).
+#[derive(clap::Args, Debug, Clone, Copy)]
+pub struct Pace {
+    /// Dwell per stop, seconds.
+    #[arg(long, default_value_t = DEFAULT_DWELL_S)]
+    dwell: f64,
+    /// Axis speed between stops, degrees per second.
+    #[arg(long, default_value_t = DEFAULT_AXIS_SPEED_DEG_S)]
+    speed: f64,
+}
+
+impl Pace {
+    /// (dwell, speed), or the usage error for impossible values.
+    fn checked(self) -> Result<(f64, f64), Exit> {
+        if self.dwell >= 0.0 && self.speed > 0.0 {
+            Ok((self.dwell, self.speed))
+        } else {
+            Err(usage("--dwell must be ≥ 0 and --speed > 0"))
+        }
+    }
+}
+
 #[derive(clap::Subcommand, Debug)]
 pub enum What {
     /// Run an indexing campaign (the paper's by default) on the virtual robot.
@@ -40,38 +62,36 @@ pub enum What {
     },
     /// Visit a list of axis sets (CSV: test, a1..a6[, measured]) and measure them.
     Poses {
+        /// Truth file (robopost-truth/1).
         #[arg(long)]
         truth: PathBuf,
         /// The poses, in visiting order.
         poses: PathBuf,
+        /// Seed of the tracker noise (overrides the truth file's).
         #[arg(long)]
         seed: Option<u64>,
-        /// Dwell per stop, seconds.
-        #[arg(long, default_value_t = DEFAULT_DWELL_S)]
-        dwell: f64,
-        /// Axis speed between stops, degrees per second.
-        #[arg(long, default_value_t = DEFAULT_AXIS_SPEED_DEG_S)]
-        speed: f64,
+        #[command(flatten)]
+        pace: Pace,
+        /// Measurement CSV to write, `-` for stdout.
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
     },
     /// Run a KRL program on the virtual robot: every executed target a measured stop, with the
     /// controller's axes and the directions of the simulated motion.
     Program {
+        /// Truth file (robopost-truth/1).
         #[arg(long)]
         truth: PathBuf,
         /// The program (.src; its .dat beside it is used too), or `-` for stdin.
         program: PathBuf,
+        /// Seed of the tracker noise (overrides the truth file's).
         #[arg(long)]
         seed: Option<u64>,
-        /// Dwell per stop, seconds.
-        #[arg(long, default_value_t = DEFAULT_DWELL_S)]
-        dwell: f64,
-        /// Axis speed between stops, degrees per second.
-        #[arg(long, default_value_t = DEFAULT_AXIS_SPEED_DEG_S)]
-        speed: f64,
+        #[command(flatten)]
+        pace: Pace,
         #[command(flatten)]
         frames: FrameArgs,
+        /// Measurement CSV to write, `-` for stdout.
         #[arg(short = 'o', long = "out")]
         out: PathBuf,
     },
@@ -115,13 +135,13 @@ pub fn run(args: Args) -> Exit {
             truth,
             poses: file,
             seed,
-            dwell,
-            speed,
+            pace,
             out,
         } => {
-            if !(dwell >= 0.0 && speed > 0.0) {
-                return usage("--dwell must be ≥ 0 and --speed > 0");
-            }
+            let (dwell, speed) = match pace.checked() {
+                Ok(p) => p,
+                Err(exit) => return exit,
+            };
             match poses::read_poses(&file, dwell, speed) {
                 Ok(stops) => measure_and_write(&truth, seed, &stops, &out),
                 Err(e) => {
@@ -134,16 +154,13 @@ pub fn run(args: Args) -> Exit {
             truth,
             program,
             seed,
-            dwell,
-            speed,
+            pace,
             frames,
             out,
-        } => {
-            if !(dwell >= 0.0 && speed > 0.0) {
-                return usage("--dwell must be ≥ 0 and --speed > 0");
-            }
-            run_program(&truth, &program, seed, (dwell, speed), &frames, &out)
-        }
+        } => match pace.checked() {
+            Ok(pace) => run_program(&truth, &program, seed, pace, &frames, &out),
+            Err(exit) => exit,
+        },
         What::Truth {
             hidden,
             seed,
