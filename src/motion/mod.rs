@@ -8,6 +8,7 @@ pub mod frame;
 pub mod interpolate;
 pub mod nominal;
 pub mod simulate;
+pub mod spline;
 pub mod value;
 pub mod workspace;
 

@@ -4,7 +4,8 @@
 //! `BASE_DATA[n]`, `FDAT_ACT` + `BAS(...)` of inline forms, `WITH` clauses) — and records every
 //! motion's target as a [`Stop`]: goal TCP pose in the robot base frame, the controller's
 //! nominal axes (IK with S/T, or by nearness and the start's S for path motions), and the
-//! arrival motion of every axis from the sampled interpolation. Whatever depends on run time
+//! arrival motion of every axis from the sampled interpolation (along the curve for the `SPL`
+//! segments of spline blocks). Whatever depends on run time
 //! (a branch on `$IN[…]`, a computed target) is reported with its line; the motions concerned
 //! are left out and the robot's position is unknown after them.
 
@@ -24,6 +25,7 @@ mod assign;
 mod call;
 mod eval;
 mod flow;
+mod spline;
 mod target;
 
 /// Calls nested deeper than this are not followed (recursion).
@@ -173,6 +175,7 @@ pub fn simulate<'f>(
     let mut out = sim.out;
     out.prefixes = sim.prefixes.into_inner();
     finish(&mut out, robot);
+    spline::finish_splines(&mut out, robot, &sim.splines);
     out
 }
 
@@ -233,6 +236,8 @@ struct Simulator<'f> {
     warned_frames: bool,
     /// Prefix frames of geometric operators (see `Origin::prefix`), filled while evaluating.
     prefixes: std::cell::RefCell<Vec<Frame>>,
+    /// The `SPL` segments of CP spline blocks, whose arrivals are taken along the curve.
+    splines: Vec<spline::SplineSegment>,
 }
 
 fn upper(b: &[u8]) -> Vec<u8> {
@@ -297,6 +302,7 @@ impl<'f> Simulator<'f> {
             steps: 0,
             warned_frames: false,
             prefixes: Default::default(),
+            splines: Vec::new(),
         }
     }
 
