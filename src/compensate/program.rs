@@ -194,6 +194,7 @@ pub fn targets(ws: &Workspace, sim: &Simulation) -> Vec<Target> {
                 (true, _, _) => Interp::Joint,
                 (false, true, Role::Aux) => Interp::CircAux,
                 (false, true, Role::Target) => Interp::CircEnd,
+                (false, false, _) if s.kind == krl::MotionKind::Spl => Interp::Curve,
                 (false, false, _) => Interp::Line,
             },
             compensate: s.compensable,

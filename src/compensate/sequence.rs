@@ -82,8 +82,11 @@ pub enum Interp {
     /// PTP: linear in axis space.
     #[default]
     Joint,
-    /// LIN (and spline segments, approximated): straight line, orientation slerp.
+    /// LIN, SLIN: straight line, orientation slerp.
     Line,
+    /// An `SPL` segment of a spline block: it ends along the spline's tangent
+    /// (`motion::spline`), orientation slerp.
+    Curve,
     /// The auxiliary point of a CIRC (the arc continues to the next target).
     CircAux,
     /// The end of a CIRC (its auxiliary point is the previous target).
@@ -490,6 +493,18 @@ impl Ctx<'_> {
                 let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
                 let v = b.position - a.position;
                 nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+            }
+            Interp::Curve => {
+                // The curve's end tangent is set by the neighbouring points, which the
+                // correction moves by far less than their spacing: the nominal arrival's TCP
+                // velocity stands (first order in the correction, as for LIN), with the
+                // orientation change of the commands as for LIN.
+                let (a, b) = (tcp(k - 1), tcp(k));
+                let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
+                let (_, jn) =
+                    Nominal(&self.model.robot).tcp_jacobian(&t.nominal_axes, self.tool(k));
+                let v = jn * nalgebra::Vector6::from_column_slice(&nominal);
+                nalgebra::Vector6::new(v[0], v[1], v[2], w.x, w.y, w.z)
             }
             Interp::CircEnd if k >= 2 => {
                 let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));

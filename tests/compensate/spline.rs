@@ -9,7 +9,8 @@ use robopost::kinematics::{inverse, status_turn, RobotDescription, Select};
 use robopost::krl::MotionKind;
 use robopost::motion::{self, frame::Frame};
 
-use super::pipeline::load;
+use super::pipeline::{load, run};
+use robopost::compensate::Method;
 
 /// The chord-length Catmull–Rom segment from `p[1]` to `p[2]` at `u ∈ [0, 1]`, by the
 /// Barry–Goldman recursion (three linear interpolations, then two, then one).
@@ -77,7 +78,10 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
 
     // A1 turns round on the way: the chord and the curve disagree, the simulation follows
     // the curve.
-    assert!(fd[0].abs() > 0.5 && chord[0].abs() > 0.5, "{fd:?} {chord:?}");
+    assert!(
+        fd[0].abs() > 0.5 && chord[0].abs() > 0.5,
+        "{fd:?} {chord:?}"
+    );
     assert!(fd[0] * chord[0] < 0.0, "{fd:?} {chord:?}");
     for i in 0..6 {
         if fd[i].abs() > 0.05 {
@@ -96,4 +100,18 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
     let first = spl[0].arrival.unwrap();
     let start = axes_at(p[0], spl[0].nominal_axes);
     assert!((spl[0].nominal_axes[0] - start[0]) * first[0] > 0.0);
+
+    // Compensation re-checks the directions of the compensated motion along the same curve:
+    // the target keeps the curve's A1 direction and nothing is reported flipped.
+    let result = run(&ws, "kr30ha-handset.json", Method::Iterate);
+    let point = result
+        .report
+        .points
+        .iter()
+        .find(|p| p.line == stop.stmt.line)
+        .expect("the SPL point is reported");
+    assert!(point.compensated && point.flipped.is_empty(), "{point:?}");
+    let a1 = point.directions.chars().next().unwrap();
+    assert_eq!(a1, if fd[0] > 0.0 { '+' } else { '-' }, "{point:?}");
+    assert_eq!(result.report.direction_flips, 0);
 }
