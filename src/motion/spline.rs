@@ -93,4 +93,39 @@ mod tests {
         let expected = p[0] * l0 + p[1] * l1 + p[2] * l2;
         assert_relative_eq!(tangents(&p)[1], expected, epsilon = 1e-12);
     }
+
+    proptest::proptest! {
+        /// Consecutive cubic segments through the points meet at them with one tangent (C1 in
+        /// the chord-length parameter), and the twist is the derivative of the pose.
+        #[test]
+        fn segments_join_smoothly(
+            raw in proptest::collection::vec((-500.0..500.0f64, -500.0..500.0f64, -500.0..500.0f64), 3..7)
+        ) {
+            use crate::motion::frame::Frame;
+            use crate::motion::interpolate::Cartesian;
+            let points: Vec<Vector3<f64>> =
+                raw.iter().map(|&(x, y, z)| Vector3::new(x, y, z)).collect();
+            proptest::prop_assume!(points.windows(2).all(|w| (w[1] - w[0]).norm() > 1.0));
+            let t = tangents(&points);
+            let at = |p: &Vector3<f64>| Frame { rotation: nalgebra::Matrix3::identity(), position: *p };
+            let segs: Vec<Cartesian> = (1..points.len())
+                .map(|k| Cartesian::cubic(&at(&points[k - 1]), &at(&points[k]), &t[k - 1], &t[k]))
+                .collect();
+            for (k, seg) in segs.iter().enumerate() {
+                let h = (points[k + 1] - points[k]).norm();
+                assert_relative_eq!(seg.pose(0.0).position, points[k], epsilon = 1e-9);
+                assert_relative_eq!(seg.pose(1.0).position, points[k + 1], epsilon = 1e-9);
+                // Tangent per unit chord length at both ends.
+                let v0 = seg.twist(0.0).fixed_rows::<3>(0) / h;
+                let v1 = seg.twist(1.0).fixed_rows::<3>(0) / h;
+                assert_relative_eq!(v0.into_owned(), t[k], epsilon = 1e-9);
+                assert_relative_eq!(v1.into_owned(), t[k + 1], epsilon = 1e-9);
+                // Central difference of the position.
+                let d = 1e-6;
+                let fd = (seg.pose(0.5 + d).position - seg.pose(0.5 - d).position) / (2.0 * d);
+                let tw = seg.twist(0.5).fixed_rows::<3>(0).into_owned();
+                assert_relative_eq!(fd, tw, epsilon = 1e-4 * (1.0 + tw.norm()));
+            }
+        }
+    }
 }
