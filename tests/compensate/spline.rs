@@ -66,8 +66,8 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
         .axes_deg
     };
     let q1 = axes_at(barry_goldman(&p, 1.0), stop.nominal_axes);
-    for i in 0..6 {
-        assert!((q1[i] - stop.nominal_axes[i]).abs() < 1e-6, "A{}", i + 1);
+    for (i, (a, b)) in q1.iter().zip(stop.nominal_axes).enumerate() {
+        assert!((a - b).abs() < 1e-6, "A{}", i + 1);
     }
     let h = 1e-5;
     let qh = axes_at(barry_goldman(&p, 1.0 - h), q1);
