@@ -28,6 +28,8 @@ mod flow;
 mod spline;
 mod target;
 
+pub use spline::SplineEnds;
+
 /// Calls nested deeper than this are not followed (recursion).
 const MAX_CALL_DEPTH: usize = 64;
 /// Statements executed before the simulation gives up (an endless loop).
@@ -96,6 +98,8 @@ pub struct Stop<'f> {
     pub compensable: bool,
     /// The arrival is computed after the walk (short LIN segment, see `simulate`).
     deferred: bool,
+    /// An `SPL` segment that follows the block's curve: where it lies in its chain.
+    pub spline: Option<SplineEnds>,
 }
 
 /// The simulated program.

@@ -11,6 +11,15 @@ use super::*;
 use crate::krl::MotionKind;
 use crate::motion::spline;
 
+/// Where an `SPL` segment lies in its chain of points (see `Simulator::spline_block`): the
+/// curve's tangents at its ends depend on the point before its start (none when the start is
+/// the chain's `first` point) and on the point after its end (none when it is the `last`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SplineEnds {
+    pub first: bool,
+    pub last: bool,
+}
+
 /// An `SPL` segment: the stop it reaches and the curve's tangents (per unit chord length) at
 /// its start and its end.
 pub(super) struct SplineSegment {
@@ -39,15 +48,18 @@ impl Simulator<'_> {
             let tool_frame = self.out.frames[tool as usize];
             let mut points = Vec::with_capacity(j - k + 1);
             let offset = match self.out.stops[k].prev {
-                Some(p) => {
+                // The point it starts from, when that is the stop just before (always, unless
+                // the position was lost in between).
+                Some(p) if p as usize + 1 == k => {
                     let axes = self.out.stops[p as usize].nominal_axes;
                     points.push(Nominal(&self.robot).tcp(&axes, &tool_frame).position);
                     1
                 }
-                None => 0,
+                _ => 0,
             };
             points.extend(self.out.stops[k..j].iter().map(|s| s.goal.position));
             let t = spline::tangents(&points);
+            let n = points.len();
             for i in k..j {
                 let at = i - k + offset;
                 let stop = &mut self.out.stops[i];
@@ -55,6 +67,10 @@ impl Simulator<'_> {
                     continue;
                 }
                 stop.deferred = false;
+                stop.spline = Some(SplineEnds {
+                    first: at == 1,
+                    last: at == n - 1,
+                });
                 self.splines.push(SplineSegment {
                     stop: i as u32,
                     t0: t[at - 1],
