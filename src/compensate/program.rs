@@ -194,7 +194,13 @@ pub fn targets(ws: &Workspace, sim: &Simulation) -> Vec<Target> {
                 (true, _, _) => Interp::Joint,
                 (false, true, Role::Aux) => Interp::CircAux,
                 (false, true, Role::Target) => Interp::CircEnd,
-                (false, false, _) => Interp::Line,
+                (false, false, _) => match s.spline {
+                    Some(e) => Interp::Curve {
+                        first: e.first,
+                        last: e.last,
+                    },
+                    None => Interp::Line,
+                },
             },
             compensate: s.compensable,
             quantum: s.origin.filter(|_| s.compensable).map(|o| Quantum {

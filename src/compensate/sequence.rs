@@ -18,7 +18,7 @@
 //! linearly in axis space, `arrival` is the nominal step) and to first order in the
 //! correction for LIN/CIRC (whose joint path moves by the interpolated correction).
 
-use nalgebra::Vector6;
+use nalgebra::{Vector3, Vector6};
 use rayon::prelude::*;
 
 use super::solve::{self, weighted_norm, Method, Problem, SolveError};
@@ -82,8 +82,12 @@ pub enum Interp {
     /// PTP: linear in axis space.
     #[default]
     Joint,
-    /// LIN (and spline segments, approximated): straight line, orientation slerp.
+    /// LIN, SLIN: straight line, orientation slerp.
     Line,
+    /// An `SPL` segment of a spline block: it ends along the tangent of the spline through
+    /// the targets before and after it (`motion::spline`; `first`: its start begins the
+    /// chain of points, `last`: its end closes it), orientation slerp.
+    Curve { first: bool, last: bool },
     /// The auxiliary point of a CIRC (the arc continues to the next target).
     CircAux,
     /// The end of a CIRC (its auxiliary point is the previous target).
@@ -489,6 +493,33 @@ impl Ctx<'_> {
                 let (a, b) = (tcp(k - 1), tcp(k));
                 let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
                 let v = b.position - a.position;
+                nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
+            }
+            Interp::Curve { first, last } => {
+                // The spline through the written TCPs around it, as `motion::simulate` builds
+                // it from the programmed ones.
+                let (a, b) = (tcp(k - 1), tcp(k));
+                let mut p = [Vector3::zeros(); 4];
+                let mut n = 0;
+                if !first && k >= 2 {
+                    p[0] = tcp(k - 2).position;
+                    n = 1;
+                }
+                p[n] = a.position;
+                p[n + 1] = b.position;
+                let at = n + 1;
+                n += 2;
+                if !last && k + 1 < self.targets.len() {
+                    // The next point moved by this one's correction: the re-check runs
+                    // forward, the next command is not settled yet (and the correction varies
+                    // slowly along a dense spline).
+                    let shift = b.position - t.goal.position;
+                    p[n] = self.targets[k + 1].goal.position + shift;
+                    n += 1;
+                }
+                let v =
+                    crate::motion::spline::tangents(&p[..n])[at] * (b.position - a.position).norm();
+                let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
                 nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
             }
             Interp::CircEnd if k >= 2 => {

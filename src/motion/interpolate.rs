@@ -1,7 +1,9 @@
 //! The controller's interpolation between two targets, sampled to find how every axis arrives
 //! at the end: PTP is linear in axis space (no axis can reverse inside it), LIN a straight
 //! line with the orientation turning at a constant rate about a fixed axis (slerp), CIRC the
-//! arc through the auxiliary point with the same orientation law. A Cartesian segment is
+//! arc through the auxiliary point with the same orientation law, an `SPL` segment of a spline
+//! block the cubic Hermite curve of [`super::spline`] with the same orientation law. A
+//! Cartesian segment is
 //! walked with local IK at a pitch fine enough for the axes to move nearly linearly between
 //! samples (so that a reversal inside it shows as a sign change of the differences), the end
 //! is checked against the controller's end axes (a mismatch means the path crosses a
@@ -73,6 +75,14 @@ enum Shape {
         radius0: Vector3<f64>,
         angle: f64,
     },
+    /// Cubic Hermite from `from` to `to` with end derivatives `d0`, `d1` (per unit of `u`).
+    Cubic {
+        from: Vector3<f64>,
+        to: Vector3<f64>,
+        d0: Vector3<f64>,
+        d1: Vector3<f64>,
+        length: f64,
+    },
 }
 
 impl Cartesian {
@@ -92,6 +102,35 @@ impl Cartesian {
         })
     }
 
+    /// The cubic Hermite segment from `start` to `end` whose position leaves `start` along
+    /// `t0` and reaches `end` along `t1` (derivatives per unit chord length, as
+    /// [`super::spline::tangents`] gives them); orientation by slerp as for LIN.
+    pub fn cubic(start: &Frame, end: &Frame, t0: &Vector3<f64>, t1: &Vector3<f64>) -> Cartesian {
+        let omega = frame::log_so3(&(end.rotation * start.rotation.transpose()));
+        let (from, to) = (start.position, end.position);
+        let h = (to - from).norm();
+        let (d0, d1) = (t0 * h, t1 * h);
+        // Arc length from a 32-piece polyline: only the sample count depends on it.
+        let mut length = 0.0;
+        let mut prev = from;
+        for j in 1..=32 {
+            let p = hermite(&from, &to, &d0, &d1, j as f64 / 32.0);
+            length += (p - prev).norm();
+            prev = p;
+        }
+        Cartesian {
+            start: *start,
+            omega,
+            shape: Shape::Cubic {
+                from,
+                to,
+                d0,
+                d1,
+                length,
+            },
+        }
+    }
+
     pub fn pose(&self, u: f64) -> Frame {
         let rotation = exp_so3(&(self.omega * u)) * self.start.rotation;
         let position = match self.shape {
@@ -102,6 +141,9 @@ impl Cartesian {
                 radius0,
                 angle,
             } => centre + exp_so3(&(axis * (angle * u))) * radius0,
+            Shape::Cubic {
+                from, to, d0, d1, ..
+            } => hermite(&from, &to, &d0, &d1, u),
         };
         Frame { rotation, position }
     }
@@ -116,6 +158,16 @@ impl Cartesian {
                 angle,
                 ..
             } => (axis * angle).cross(&(exp_so3(&(axis * (angle * u))) * radius0)),
+            Shape::Cubic {
+                from, to, d0, d1, ..
+            } => {
+                // d/du of the Hermite basis.
+                let u2 = u * u;
+                from * (6.0 * u2 - 6.0 * u)
+                    + d0 * (3.0 * u2 - 4.0 * u + 1.0)
+                    + to * (6.0 * u - 6.0 * u2)
+                    + d1 * (3.0 * u2 - 2.0 * u)
+            }
         };
         let w = self.omega;
         Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
@@ -129,7 +181,7 @@ impl Cartesian {
         rotation: &nalgebra::Matrix3<f64>,
     ) -> Option<Cartesian> {
         match self.shape {
-            Shape::Line { .. } => None,
+            Shape::Line { .. } | Shape::Cubic { .. } => None,
             Shape::Arc {
                 centre,
                 axis,
@@ -149,9 +201,18 @@ impl Cartesian {
     }
 
     /// The path parameter at which an arc passes `point` (its angle from the start over the
-    /// arc's angle); for a line, the projection onto it.
+    /// arc's angle); for a line, the projection onto it (for a cubic, onto its chord).
     pub fn fraction_at(&self, point: &Vector3<f64>) -> f64 {
         match self.shape {
+            Shape::Cubic { from, to, .. } => {
+                let delta = to - from;
+                let l2 = delta.norm_squared();
+                if l2 == 0.0 {
+                    0.0
+                } else {
+                    (point - from).dot(&delta) / l2
+                }
+            }
             Shape::Line { from, delta } => {
                 let l2 = delta.norm_squared();
                 if l2 == 0.0 {
@@ -181,9 +242,26 @@ impl Cartesian {
         let length = match self.shape {
             Shape::Line { delta, .. } => delta.norm(),
             Shape::Arc { radius0, angle, .. } => radius0.norm() * angle.abs(),
+            Shape::Cubic { length, .. } => length,
         };
         (length, self.omega.norm().to_degrees())
     }
+}
+
+/// The cubic Hermite interpolant at `u ∈ [0, 1]` (basis h₀₀ = 2u³−3u²+1, h₁₀ = u³−2u²+u,
+/// h₀₁ = −2u³+3u², h₁₁ = u³−u²).
+fn hermite(
+    p0: &Vector3<f64>,
+    p1: &Vector3<f64>,
+    d0: &Vector3<f64>,
+    d1: &Vector3<f64>,
+    u: f64,
+) -> Vector3<f64> {
+    let (u2, u3) = (u * u, u * u * u);
+    p0 * (2.0 * u3 - 3.0 * u2 + 1.0)
+        + d0 * (u3 - 2.0 * u2 + u)
+        + p1 * (3.0 * u2 - 2.0 * u3)
+        + d1 * (u3 - u2)
 }
 
 /// The circle through `a`, `b`, `c` traversed a → b → c.

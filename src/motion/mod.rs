@@ -8,10 +8,11 @@ pub mod frame;
 pub mod interpolate;
 pub mod nominal;
 pub mod simulate;
+pub mod spline;
 pub mod value;
 pub mod workspace;
 
-pub use simulate::{simulate, GivenFrame, Rel, Role, Simulation, Stop};
+pub use simulate::{simulate, GivenFrame, Rel, Role, Simulation, SplineEnds, Stop};
 pub use workspace::{FileId, Workspace};
 
 /// The commanded axis states of a program run, in execution order: every target's nominal

@@ -3,6 +3,7 @@
 mod cli;
 mod core;
 mod pipeline;
+mod spline;
 
 use std::path::Path;
 

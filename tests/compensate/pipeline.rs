@@ -143,6 +143,7 @@ fn compensated_paths_reach_the_programmed_poses() {
         "paper_path2",
         "paper_path3",
         "vertical_segment",
+        "spline/turn_at_spl",
     ] {
         let path = PathBuf::from(format!("fixtures/programs/{name}.src"));
         let ws = load(&path);

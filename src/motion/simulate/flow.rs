@@ -282,7 +282,11 @@ impl<'f> Simulator<'f> {
             StmtKind::Spline(head) => {
                 let b = s.block.as_ref().expect("SPLINE is a block");
                 let saved = self.apply_with(file, &head.with, scope);
+                let first = self.out.stops.len();
                 let flow = self.block(file, &b.body, scope);
+                if !head.ptp {
+                    self.spline_block(first);
+                }
                 if let Some(saved) = saved {
                     self.restore(saved);
                 }

@@ -4,7 +4,8 @@
 //! `BASE_DATA[n]`, `FDAT_ACT` + `BAS(...)` of inline forms, `WITH` clauses) — and records every
 //! motion's target as a [`Stop`]: goal TCP pose in the robot base frame, the controller's
 //! nominal axes (IK with S/T, or by nearness and the start's S for path motions), and the
-//! arrival motion of every axis from the sampled interpolation. Whatever depends on run time
+//! arrival motion of every axis from the sampled interpolation (along the curve for the `SPL`
+//! segments of spline blocks). Whatever depends on run time
 //! (a branch on `$IN[…]`, a computed target) is reported with its line; the motions concerned
 //! are left out and the robot's position is unknown after them.
 
@@ -24,7 +25,10 @@ mod assign;
 mod call;
 mod eval;
 mod flow;
+mod spline;
 mod target;
+
+pub use spline::SplineEnds;
 
 /// Calls nested deeper than this are not followed (recursion).
 const MAX_CALL_DEPTH: usize = 64;
@@ -94,6 +98,8 @@ pub struct Stop<'f> {
     pub compensable: bool,
     /// The arrival is computed after the walk (short LIN segment, see `simulate`).
     deferred: bool,
+    /// An `SPL` segment that follows the block's curve: where it lies in its chain.
+    pub spline: Option<SplineEnds>,
 }
 
 /// The simulated program.
@@ -173,6 +179,7 @@ pub fn simulate<'f>(
     let mut out = sim.out;
     out.prefixes = sim.prefixes.into_inner();
     finish(&mut out, robot);
+    spline::finish_splines(&mut out, robot, &sim.splines);
     out
 }
 
@@ -233,6 +240,8 @@ struct Simulator<'f> {
     warned_frames: bool,
     /// Prefix frames of geometric operators (see `Origin::prefix`), filled while evaluating.
     prefixes: std::cell::RefCell<Vec<Frame>>,
+    /// The `SPL` segments of CP spline blocks, whose arrivals are taken along the curve.
+    splines: Vec<spline::SplineSegment>,
 }
 
 fn upper(b: &[u8]) -> Vec<u8> {
@@ -297,6 +306,7 @@ impl<'f> Simulator<'f> {
             steps: 0,
             warned_frames: false,
             prefixes: Default::default(),
+            splines: Vec::new(),
         }
     }
 

@@ -54,6 +54,7 @@ impl<'f> Simulator<'f> {
             prev: None,
             compensable: false,
             deferred: false,
+            spline: None,
         }
     }
 
