@@ -908,9 +908,17 @@ mod tests {
         let a = nodes.aggregates[e.as_aggregate().unwrap().0 as usize];
         assert_eq!(&s[a.type_name().unwrap().range()], b"E6POS");
         assert_eq!(a.len(), 6);
-        let y = member(&nodes, s, &a, "y").value.as_number().unwrap();
+        let y = member(&nodes, s, &a, "y")
+            .value
+            .as_number()
+            .copied()
+            .unwrap();
         assert_eq!((&s[y.span().range()], y.value), (&b"-2.5E+01"[..], -25.0));
-        let z = member(&nodes, s, &a, "Z").value.as_number().unwrap();
+        let z = member(&nodes, s, &a, "Z")
+            .value
+            .as_number()
+            .copied()
+            .unwrap();
         assert_eq!(z.value, 0.25);
         assert!(matches!(*member(&nodes, s, &a, "S").value, Expr::Bits(_)));
         assert!(member(&nodes, s, &a, "FCNC").value.as_aggregate().is_some());
@@ -974,7 +982,7 @@ mod tests {
             owned,
             [true, false, true, false, false, false, true, false, false]
         );
-        assert_eq!(nodes.outline.len(), 5);
+        assert_eq!(nodes.outline.len(), 6);
         assert!(matches!(*ms[4].value, Expr::Path(_)));
         assert!(matches!(*ms[7].value, Expr::Binary(_)));
         assert!(matches!(*ms[8].value, Expr::Enum(_)));
