@@ -151,14 +151,14 @@ fn file_separator(file: &SourceFile) -> Vec<u8> {
 /// The text between two members (`, `) and between a name and its value (` `).
 fn separators(file: &SourceFile, agg: &Aggregate) -> (Vec<u8>, Vec<u8>) {
     let src = file.source();
-    let members: Vec<krl::Member> = file.members(agg).take(2).collect();
-    let sep = members
-        .windows(2)
-        .next()
-        .map(|w| src[w[0].span().end as usize..w[1].span().start as usize].to_vec())
+    let mut members = file.members(agg);
+    let (first, second) = (members.next(), members.next());
+    let sep = first
+        .as_ref()
+        .zip(second)
+        .map(|(a, b)| src[a.span().end as usize..b.span().start as usize].to_vec())
         .unwrap_or_else(|| file_separator(file));
-    let nv = members
-        .first()
+    let nv = first
         .map(|m| src[m.name.end as usize..m.value.span().start as usize].to_vec())
         .filter(|v| !v.is_empty())
         .unwrap_or_else(|| b" ".to_vec());
