@@ -125,9 +125,9 @@ fn file_separator(file: &SourceFile) -> Vec<u8> {
         let mut found = None;
         let mut look = |e: &Expr| {
             if let (None, Expr::Aggregate(_, id)) = (&found, e) {
-                if let Some(w) = file.members(file.aggregate(*id)).windows(2).next() {
-                    found =
-                        Some(src[w[0].span().end as usize..w[1].span().start as usize].to_vec());
+                let mut ms = file.members(file.aggregate(*id));
+                if let (Some(a), Some(b)) = (ms.next(), ms.next()) {
+                    found = Some(src[a.span().end as usize..b.span().start as usize].to_vec());
                 }
             }
         };
@@ -151,14 +151,14 @@ fn file_separator(file: &SourceFile) -> Vec<u8> {
 /// The text between two members (`, `) and between a name and its value (` `).
 fn separators(file: &SourceFile, agg: &Aggregate) -> (Vec<u8>, Vec<u8>) {
     let src = file.source();
-    let members = file.members(agg);
-    let sep = members
-        .windows(2)
-        .next()
-        .map(|w| src[w[0].span().end as usize..w[1].span().start as usize].to_vec())
+    let mut members = file.members(agg);
+    let (first, second) = (members.next(), members.next());
+    let sep = first
+        .as_ref()
+        .zip(second)
+        .map(|(a, b)| src[a.span().end as usize..b.span().start as usize].to_vec())
         .unwrap_or_else(|| file_separator(file));
-    let nv = members
-        .first()
+    let nv = first
         .map(|m| src[m.name.end as usize..m.value.span().start as usize].to_vec())
         .filter(|v| !v.is_empty())
         .unwrap_or_else(|| b" ".to_vec());
@@ -176,7 +176,7 @@ fn aggregate_edits(
 ) -> Option<TargetEdits> {
     let src = file.source();
     let names = if axis { AXIS_NAMES } else { CARTESIAN_NAMES };
-    let mut present: [Option<&krl::Member>; 6] = [None; 6];
+    let mut present: [Option<krl::Member>; 6] = Default::default();
     for m in file.members(agg) {
         if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
             if is_axis == axis {
@@ -206,7 +206,7 @@ fn aggregate_edits(
         if !write[k] {
             continue;
         }
-        match present[k] {
+        match &present[k] {
             Some(m) => {
                 let (replace, lit) = literal_span(&m.value)?;
                 let orig_value = value::literal(&m.value)?;
@@ -244,13 +244,13 @@ fn aggregate_edits(
                 entry.extend_from_slice(text.as_bytes());
                 // Before the first present component that follows in X..C order, else after
                 // the last present one.
-                if let Some(next) = (k + 1..6).find_map(|j| present[j]) {
+                if let Some(next) = (k + 1..6).find_map(|j| present[j].as_ref()) {
                     entry.extend_from_slice(&sep);
                     edits.push(Edit {
                         range: next.span().start as usize..next.span().start as usize,
                         bytes: entry,
                     });
-                } else if let Some(prev) = (0..k).rev().find_map(|j| present[j]) {
+                } else if let Some(prev) = (0..k).rev().find_map(|j| present[j].as_ref()) {
                     let mut text = sep.clone();
                     text.extend_from_slice(&entry);
                     edits.push(Edit {

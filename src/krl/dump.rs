@@ -428,12 +428,11 @@ pub fn expr_text(f: &SourceFile, e: &Expr) -> String {
             let a = f.aggregate(*id);
             let members: Vec<String> = f
                 .members(a)
-                .iter()
                 .map(|m| {
                     format!(
                         "{}{} {}",
                         t(m.name),
-                        f.member_index(m).map_or(String::new(), t),
+                        f.member_index(&m).map_or(String::new(), t),
                         expr_text(f, &m.value)
                     )
                 })

@@ -7,9 +7,10 @@ use super::lex::{
     backtrack, bits, blanks, enum_literal, expecting, fail, ident, is_ident_char, is_ident_start,
     keyword, number_literal, punct, string, ws, Cx, Fails, PResult,
 };
-use super::nodes::{AggregateId, Nodes};
+use super::nodes::{AggregateId, Nodes, Packed};
 use super::number;
 use super::span::Span;
+use std::borrow::Cow;
 
 /// Deepest nesting of parentheses, aggregates, indices and calls the parser follows.
 pub(crate) const MAX_DEPTH: u32 = 64;
@@ -52,6 +53,15 @@ pub struct Number {
 }
 
 impl Number {
+    pub(crate) fn new(value: f64, span: Span, integer: bool) -> Number {
+        Number {
+            value,
+            start: span.start,
+            len: span.len() as u16,
+            integer,
+        }
+    }
+
     /// The bytes of the literal.
     pub fn span(&self) -> Span {
         Span {
@@ -102,12 +112,14 @@ pub struct Aggregate {
 
 const NESTED_BIT: u32 = 1 << 31;
 
-/// `NAME value` inside an aggregate. An array member's `[]` (`POINT2[] " "`) follows the
-/// name directly: `SourceFile::member_index` gives its span.
+/// `NAME value` inside an aggregate, handed out by value (`SourceFile::members`): a plain
+/// number is read from the source bytes when asked for (`Cow::Owned`), any other value is
+/// borrowed from the file. An array member's `[]` (`POINT2[] " "`) follows the name
+/// directly: `SourceFile::member_index` gives its span.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Member {
+pub struct Member<'a> {
     pub name: Span,
-    pub value: Expr,
+    pub value: Cow<'a, Expr>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -264,30 +276,30 @@ impl Expr {
     }
 
     /// Calls `f` on this expression and every sub-expression, parents first (aggregate
-    /// members are looked up in `nodes`).
-    pub(crate) fn visit(&self, nodes: &Nodes, f: &mut impl FnMut(&Expr)) {
+    /// members are looked up in `nodes`, plain numbers read from `src`).
+    pub(crate) fn visit(&self, nodes: &Nodes, src: &[u8], f: &mut impl FnMut(&Expr)) {
         f(self);
         match self {
             Expr::Path(p) => {
                 for a in &p.access {
                     if let Access::Index { items, .. } = a {
-                        items.iter().for_each(|e| e.visit(nodes, f));
+                        items.iter().for_each(|e| e.visit(nodes, src, f));
                     }
                 }
             }
-            Expr::Call(c) => c.args.iter().flatten().for_each(|a| a.visit(nodes, f)),
+            Expr::Call(c) => c.args.iter().flatten().for_each(|a| a.visit(nodes, src, f)),
             Expr::Aggregate(_, id) => {
                 let a = &nodes.aggregates[id.0 as usize];
-                for m in nodes.members_of(a) {
-                    m.value.visit(nodes, f);
+                for &m in nodes.members_of(a) {
+                    nodes.member(src, m).value.visit(nodes, src, f);
                 }
             }
-            Expr::Unary(u) => u.operand.visit(nodes, f),
+            Expr::Unary(u) => u.operand.visit(nodes, src, f),
             Expr::Binary(b) => {
-                b.lhs.visit(nodes, f);
-                b.rhs.visit(nodes, f);
+                b.lhs.visit(nodes, src, f);
+                b.rhs.visit(nodes, src, f);
             }
-            Expr::Paren(p) => p.inner.visit(nodes, f),
+            Expr::Paren(p) => p.inner.visit(nodes, src, f),
             _ => {}
         }
     }
@@ -300,7 +312,7 @@ impl Path {
     }
 }
 
-impl Member {
+impl Member<'_> {
     /// From the name to the end of the value.
     pub fn span(&self) -> Span {
         self.name.to(self.value.span())
@@ -736,9 +748,11 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
                 ));
             }
         }
-        let (k, m) = expecting!("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
+        let (k, (name, value)) =
+            expecting!("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
         {
             let mut n = cx.nodes.borrow_mut();
+            let m = n.pack(cx.base(), name, value);
             if nested {
                 n.scratch.push(m);
             } else {
@@ -806,34 +820,27 @@ fn close_aggregate(
 /// for `number::read_plain`; `None` sends the member to the general `member` parser, which
 /// reads these the same way.
 #[inline]
-fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Member)> {
+fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Packed)> {
     if !is_ident_start(*i.first()?) {
         return None;
     }
     let name_end = 1 + i[1..].iter().take_while(|&&b| is_ident_char(b)).count();
     let at = name_end + blanks(&i[name_end..]);
-    let (len, value, integer) = number::read_plain(&i[at..])?;
+    let (len, _, _) = number::read_plain(&i[at..])?;
     let rest = &i[at + len..];
     if !matches!(rest.get(blanks(rest)), Some(b',' | b'}')) {
         return None;
     }
     let start = cx.off(i);
-    Some((
-        rest,
-        Member {
-            name: Span::new(start, start + name_end),
-            value: Expr::Number(Number {
-                value,
-                start: (start + at) as u32,
-                len: len as u16,
-                integer,
-            }),
-        },
-    ))
+    let packed = Packed::plain(
+        Span::new(start, start + name_end),
+        Span::new(start + at, start + at + len),
+    )?;
+    Some((rest, packed))
 }
 
-/// `NAME[[…]] value`.
-fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Member> {
+/// `NAME[[…]] value`: the name's span and the value.
+fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, (Span, Expr)> {
     let (j, name) = ident(i)?;
     let j = match j.first() {
         Some(b'[') => match j.iter().position(|&b| b == b']') {
@@ -854,13 +861,7 @@ fn member<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Member> {
     let (rest, value) = expecting!("expected a value for the member", HELP_AGG, |x| {
         expr(cx, d + 1, x)
     })(k)?;
-    Ok((
-        rest,
-        Member {
-            name: cx.span_of(name),
-            value,
-        },
-    ))
+    Ok((rest, (cx.span_of(name), value)))
 }
 
 #[cfg(test)]
@@ -874,9 +875,10 @@ mod tests {
         (s.len() - rest.len(), e, nodes.into_inner())
     }
 
-    fn member<'n>(n: &'n Nodes, src: &[u8], a: &Aggregate, name: &str) -> &'n Member {
+    fn member<'n>(n: &'n Nodes, src: &[u8], a: &Aggregate, name: &str) -> Member<'n> {
         n.members_of(a)
             .iter()
+            .map(|&p| n.member(src, p))
             .find(|m| src[m.name.range()].eq_ignore_ascii_case(name.as_bytes()))
             .unwrap()
     }
@@ -906,11 +908,19 @@ mod tests {
         let a = nodes.aggregates[e.as_aggregate().unwrap().0 as usize];
         assert_eq!(&s[a.type_name().unwrap().range()], b"E6POS");
         assert_eq!(a.len(), 6);
-        let y = member(&nodes, s, &a, "y").value.as_number().unwrap();
+        let y = member(&nodes, s, &a, "y")
+            .value
+            .as_number()
+            .copied()
+            .unwrap();
         assert_eq!((&s[y.span().range()], y.value), (&b"-2.5E+01"[..], -25.0));
-        let z = member(&nodes, s, &a, "Z").value.as_number().unwrap();
+        let z = member(&nodes, s, &a, "Z")
+            .value
+            .as_number()
+            .copied()
+            .unwrap();
         assert_eq!(z.value, 0.25);
-        assert!(matches!(member(&nodes, s, &a, "S").value, Expr::Bits(_)));
+        assert!(matches!(*member(&nodes, s, &a, "S").value, Expr::Bits(_)));
         assert!(member(&nodes, s, &a, "FCNC").value.as_aggregate().is_some());
         let p2 = member(&nodes, s, &a, "POINT2");
         assert_eq!(
@@ -922,6 +932,60 @@ mod tests {
         assert_eq!(a.close().end as usize, n);
         // The nested aggregate's member went to the nested pool, the outer run is contiguous.
         assert_eq!((nodes.members.len(), nodes.nested_members.len()), (6, 1));
+    }
+
+    /// Plain members are stored as 8-byte records and read again on demand, the rest out of
+    /// line: both give the number Rust's own (correctly rounded) parser reads from the text.
+    #[test]
+    fn packed_and_out_of_line_members_read_back() {
+        let long = "L".repeat(300);
+        let text = format!(
+            "{{X -0.25, Y 1.5E3, Z +7, A  12345678901234567890.5, B P1.X, {long} 2.5, C\t.125, D 3 + 4, E #BASE}}"
+        );
+        let s = text.as_bytes();
+        let (n, e, nodes) = parse(s);
+        assert_eq!(n, s.len());
+        let a = nodes.aggregates[e.as_aggregate().unwrap().0 as usize];
+        let ms: Vec<Member> = nodes
+            .members_of(&a)
+            .iter()
+            .map(|&p| nodes.member(s, p))
+            .collect();
+        let names: Vec<&[u8]> = ms.iter().map(|m| &s[m.name.range()]).collect();
+        assert_eq!(names.len(), 9);
+        assert_eq!(names[5], long.as_bytes());
+        for m in &ms {
+            if let Some(num) = m.value.as_number() {
+                let t = std::str::from_utf8(&s[num.span().range()]).unwrap();
+                let want: f64 = t.parse().unwrap();
+                assert_eq!(num.value.to_bits(), want.to_bits(), "{t}");
+                assert_eq!(num.integer, !t.contains(['.', 'E']), "{t}");
+            }
+        }
+        let numbers: Vec<f64> = ms
+            .iter()
+            .filter_map(|m| m.value.as_number())
+            .map(|n| n.value)
+            .collect();
+        assert_eq!(numbers.len(), 6);
+        assert_eq!(
+            [numbers[0], numbers[1], numbers[2], numbers[4], numbers[5]],
+            [-0.25, 1500.0, 7.0, 2.5, 0.125]
+        );
+        // Plain numbers are owned (read on demand); the exponent, the over-long name, the
+        // 20-digit number and the non-numbers are out of line.
+        let owned: Vec<bool> = ms
+            .iter()
+            .map(|m| matches!(m.value, Cow::Owned(_)))
+            .collect();
+        assert_eq!(
+            owned,
+            [true, false, true, false, false, false, true, false, false]
+        );
+        assert_eq!(nodes.outline.len(), 6);
+        assert!(matches!(*ms[4].value, Expr::Path(_)));
+        assert!(matches!(*ms[7].value, Expr::Binary(_)));
+        assert!(matches!(*ms[8].value, Expr::Enum(_)));
     }
 
     #[test]

@@ -2,11 +2,16 @@
 //! members — referred to by typed ids. A CAM program of a million `LIN {…}` lines would
 //! otherwise make several million small heap allocations (and as many frees); pooled, parsing
 //! stays at memory speed. `SourceFile` gives access through `motion(id)`, `aggregate(id)` and
-//! `members(aggregate)`.
+//! `members(aggregate)`. Members are stored as 8-byte records (`Packed`): a `NAME number`
+//! member keeps only where its name and number are, the number being read again from the
+//! source bytes when asked for; any other member's value lives in an out-of-line pool.
 
-use super::expr::{Aggregate, Member};
+use super::expr::{Aggregate, Expr, Member, Number};
 use super::memory::Ahead;
 use super::motion::Motion;
+use super::number;
+use super::span::Span;
+use std::borrow::Cow;
 
 /// A motion statement's data in its file (`SourceFile::motion`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -21,18 +26,19 @@ pub(crate) struct Nodes {
     pub motions: Vec<Motion>,
     pub aggregates: Vec<Aggregate>,
     /// Members of outermost aggregates, written in place as they are parsed.
-    pub members: Vec<Member>,
+    pub members: Vec<Packed>,
     /// Members of aggregates nested in another one (each run moved here from `scratch` when
     /// its aggregate closes, so runs stay contiguous while the parent's run grows).
-    pub nested_members: Vec<Member>,
-    pub scratch: Vec<Member>,
+    pub nested_members: Vec<Packed>,
+    pub scratch: Vec<Packed>,
+    /// Name and value of every member that is not a plain `NAME number` (paths, strings,
+    /// enums, nested aggregates, expressions, numbers `read_plain` declines).
+    pub outline: Vec<(Span, Expr)>,
     /// Aggregates open on the current line (reset per line: a failure may leave it high,
     /// which only sends later aggregates of that line down the nested path).
     pub agg_depth: u32,
-    /// Whether some member of `members` owns heap memory (a path, call or operator value):
-    /// when none does, dropping the pool need not visit its millions of members.
-    members_own_heap: bool,
-    /// The same for `motions` (a target that is a path or an expression, a boxed extra).
+    /// Whether some motion owns heap memory (a target that is a path or an expression, a
+    /// boxed extra): when none does, dropping the pool need not visit its million motions.
     motions_own_heap: bool,
     /// Pages mapped ahead of the three big pools (see `memory`).
     ahead: [Ahead; 3],
@@ -40,14 +46,10 @@ pub(crate) struct Nodes {
 
 impl Drop for Nodes {
     fn drop(&mut self) {
-        if !self.members_own_heap {
-            // SAFETY: no member of the pool owns heap memory (`push_member` records every
+        if !self.motions_own_heap {
+            // SAFETY: no motion of the pool owns heap memory (`push_motion` records every
             // one that does), so forgetting them frees nothing that dropping them would;
             // the buffer itself is still freed with the Vec. Length 0 is always valid.
-            unsafe { self.members.set_len(0) }
-        }
-        if !self.motions_own_heap {
-            // SAFETY: as above; `push_motion` records every motion that owns heap memory.
             unsafe { self.motions.set_len(0) }
         }
     }
@@ -60,6 +62,7 @@ pub(crate) struct Mark {
     aggregates: usize,
     members: usize,
     nested_members: usize,
+    outline: usize,
 }
 
 impl Nodes {
@@ -69,6 +72,7 @@ impl Nodes {
             aggregates: self.aggregates.len(),
             members: self.members.len(),
             nested_members: self.nested_members.len(),
+            outline: self.outline.len(),
         }
     }
 
@@ -77,6 +81,7 @@ impl Nodes {
         self.aggregates.truncate(m.aggregates);
         self.members.truncate(m.members);
         self.nested_members.truncate(m.nested_members);
+        self.outline.truncate(m.outline);
         self.scratch.clear();
         self.agg_depth = 0;
     }
@@ -87,14 +92,75 @@ impl Nodes {
         self.agg_depth = 0;
     }
 
-    /// The members of an aggregate.
-    pub fn members_of(&self, a: &Aggregate) -> &[Member] {
+    /// The stored members of an aggregate.
+    pub fn members_of(&self, a: &Aggregate) -> &[Packed] {
         let pool = if a.nested() {
             &self.nested_members
         } else {
             &self.members
         };
         &pool[a.range()]
+    }
+
+    /// A member's name without reading its value.
+    #[inline]
+    pub fn member_name(&self, p: Packed) -> Span {
+        if p.name_len == 0 {
+            self.outline[p.at as usize].0
+        } else {
+            Span::new(p.at as usize, p.at as usize + usize::from(p.name_len))
+        }
+    }
+
+    /// A member with its value (a plain number is read again from `src`, the bytes the
+    /// file was parsed from, giving the value the parser read).
+    pub fn member<'n>(&'n self, src: &[u8], p: Packed) -> Member<'n> {
+        if p.name_len == 0 {
+            let (name, value) = &self.outline[p.at as usize];
+            return Member {
+                name: *name,
+                value: Cow::Borrowed(value),
+            };
+        }
+        let name = self.member_name(p);
+        let start = name.end as usize + usize::from(p.gap);
+        let span = Span::new(start, start + usize::from(p.value_len));
+        let value = match src.get(span.range()).and_then(number::read_plain) {
+            Some((len, value, integer)) if len == span.len() => {
+                Expr::Number(Number::new(value, span, integer))
+            }
+            // Unreachable: `pack` stores only numbers `read_plain` reads back whole.
+            _ => Expr::Opaque(span),
+        };
+        Member {
+            name,
+            value: Cow::Owned(value),
+        }
+    }
+
+    /// The record of member `name` = `value` in `src`: packed when the value is a number
+    /// `read_plain` gives back bit for bit, else out of line.
+    pub fn pack(&mut self, src: &[u8], name: Span, value: Expr) -> Packed {
+        if let Expr::Number(n) = &value {
+            let span = n.span();
+            let fits = matches!(number::read_plain(&src[span.range()]),
+                Some((len, v, integer)) if len == span.len()
+                    && v.to_bits() == n.value.to_bits()
+                    && integer == n.integer);
+            if fits && span.start >= name.end {
+                if let Some(p) = Packed::plain(name, span) {
+                    return p;
+                }
+            }
+        }
+        let at = self.outline.len() as u32;
+        self.outline.push((name, value));
+        Packed {
+            at,
+            name_len: 0,
+            gap: 0,
+            value_len: 0,
+        }
     }
 
     /// Pools sized for a file of `len` bytes, in the proportions of a CAM program (one
@@ -110,8 +176,7 @@ impl Nodes {
 
     /// Adds a member of an outermost aggregate.
     #[inline]
-    pub fn push_member(&mut self, m: Member) {
-        self.members_own_heap |= m.value.owns_heap();
+    pub fn push_member(&mut self, m: Packed) {
         self.ahead[0].before_push(&self.members);
         self.members.push(m);
     }
@@ -136,5 +201,60 @@ impl Nodes {
         self.aggregates.shrink_to_fit();
         self.members.shrink_to_fit();
         self.nested_members.shrink_to_fit();
+        self.outline.shrink_to_fit();
     }
 }
+
+/// A member as stored, 8 bytes. A plain member: `at` is where its name starts, `name_len`
+/// (≥ 1) its length, the number starts `gap` bytes after the name and is `value_len` long.
+/// `name_len` 0 marks a member held out of line: `at` is its index in `Nodes::outline`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Packed {
+    at: u32,
+    name_len: u8,
+    gap: u8,
+    value_len: u16,
+}
+
+impl Packed {
+    /// A plain member's record, if its lengths fit.
+    #[inline]
+    pub fn plain(name: Span, number: Span) -> Option<Packed> {
+        Some(Packed {
+            at: name.start,
+            name_len: u8::try_from(name.len()).ok().filter(|&l| l > 0)?,
+            gap: u8::try_from(number.start.checked_sub(name.end)?).ok()?,
+            value_len: u16::try_from(number.len()).ok()?,
+        })
+    }
+}
+
+/// The members of an aggregate, in order, by value (`SourceFile::members`).
+#[derive(Clone)]
+pub struct Members<'a> {
+    pub(crate) nodes: &'a Nodes,
+    pub(crate) src: &'a [u8],
+    pub(crate) packed: std::slice::Iter<'a, Packed>,
+}
+
+impl<'a> Iterator for Members<'a> {
+    type Item = Member<'a>;
+
+    fn next(&mut self) -> Option<Member<'a>> {
+        let p = *self.packed.next()?;
+        Some(self.nodes.member(self.src, p))
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.packed.size_hint()
+    }
+}
+
+impl DoubleEndedIterator for Members<'_> {
+    fn next_back(&mut self) -> Option<Self::Item> {
+        let p = *self.packed.next_back()?;
+        Some(self.nodes.member(self.src, p))
+    }
+}
+
+impl ExactSizeIterator for Members<'_> {}

@@ -11,7 +11,7 @@ use super::fold::{Fold, FoldId, FoldTracker, Ilf};
 use super::lex::Cx;
 use super::memory::{extend_mapped, Ahead};
 use super::motion::Motion;
-use super::nodes::{AggregateId, MotionId, Nodes};
+use super::nodes::{AggregateId, Members, MotionId, Nodes};
 use super::span::{LineIndex, Span};
 use super::stmt::{self, Arm, ArmKind, Block, BlockKind, Clause, Line, Stmt, StmtKind};
 use super::trivia::split_line;
@@ -472,14 +472,23 @@ impl SourceFile {
         e.as_aggregate().map(|id| self.aggregate(id))
     }
 
-    /// The members of an aggregate, in order.
-    pub fn members(&self, a: &Aggregate) -> &[Member] {
-        self.nodes.members_of(a)
+    /// The members of an aggregate, in order, by value.
+    pub fn members(&self, a: &Aggregate) -> Members<'_> {
+        Members {
+            nodes: &self.nodes,
+            src: &self.src,
+            packed: self.nodes.members_of(a).iter(),
+        }
     }
 
     /// The member called `name` (case-insensitive).
-    pub fn member(&self, a: &Aggregate, name: &str) -> Option<&Member> {
-        self.members(a).iter().find(|m| self.is_named(m.name, name))
+    pub fn member(&self, a: &Aggregate, name: &str) -> Option<Member<'_>> {
+        let p = self
+            .nodes
+            .members_of(a)
+            .iter()
+            .find(|&&p| self.is_named(self.nodes.member_name(p), name))?;
+        Some(self.nodes.member(&self.src, *p))
     }
 
     /// The `[]` right after an array member's name (`POINT2[] " "`), if any.
@@ -493,13 +502,13 @@ impl SourceFile {
     }
 
     /// The number of member `name` when it is a plain (possibly signed) literal.
-    pub fn member_number(&self, a: &Aggregate, name: &str) -> Option<&Number> {
-        self.member(a, name)?.value.as_number()
+    pub fn member_number(&self, a: &Aggregate, name: &str) -> Option<Number> {
+        self.member(a, name)?.value.as_number().copied()
     }
 
     /// Calls `f` on `e` and every sub-expression (aggregate members included), parents first.
     pub fn visit_expr(&self, e: &Expr, f: &mut impl FnMut(&Expr)) {
-        e.visit(&self.nodes, f);
+        e.visit(&self.nodes, &self.src, f);
     }
 
     /// Every numeric literal in `e`, in source order.

@@ -4,7 +4,8 @@
 //! that compensation can write them back. Anything that depends on run time (inputs, sensor
 //! values, unknown functions) is `Unknown` with the reason.
 
-use crate::krl::{Aggregate, Expr, SourceFile, Span};
+use crate::krl::{Aggregate, Expr, Number, SourceFile, Span};
+use std::borrow::Cow;
 
 use super::workspace::FileId;
 
@@ -142,6 +143,15 @@ pub fn literal(e: &Expr) -> Option<f64> {
     }
 }
 
+/// The value of a numeric literal: an integer when written as one (and exact in an f64).
+pub fn number<'f>(n: &Number) -> Value<'f> {
+    if n.integer && n.value.abs() < 9e15 {
+        Value::Int(n.value as i64)
+    } else {
+        Value::Real(n.value)
+    }
+}
+
 /// Reads an aggregate as a position or frame data, evaluating member values with `eval`.
 pub fn aggregate<'f>(
     file: &'f SourceFile,
@@ -164,14 +174,20 @@ pub fn aggregate<'f>(
     };
     let mut fdat = Fdat::default();
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
+    // A plain number member is handed out by value (not borrowed from the file).
+    let mut eval = |v: &Cow<'f, Expr>| match v {
+        Cow::Borrowed(e) => eval(e),
+        Cow::Owned(Expr::Number(n)) => number(n),
+        Cow::Owned(e) => Value::Unknown(format!("a member value at {:?}", e.span())),
+    };
     for m in file.members(agg) {
         let name = &src[m.name.range()];
         let is = |word: &str| name.eq_ignore_ascii_case(word.as_bytes());
         match () {
             _ if is("S") || is("T") => {
-                let v = match &m.value {
+                let v = match &*m.value {
                     Expr::Bits(s) => bits_value(file.text(*s)),
-                    e => eval(e).as_int(),
+                    _ => eval(&m.value).as_int(),
                 };
                 let Some(v) = v else {
                     return Value::Unknown(format!(
@@ -196,7 +212,7 @@ pub fn aggregate<'f>(
             }
             _ if is("IPO_FRAME") => {
                 is_fdat = true;
-                fdat.external_tcp = matches!(&m.value, Expr::Enum(s) if file.text(*s).eq_ignore_ascii_case(b"#TCP"));
+                fdat.external_tcp = matches!(&*m.value, Expr::Enum(s) if file.text(*s).eq_ignore_ascii_case(b"#TCP"));
             }
             _ => {
                 if let Some((is_axis, k)) = component(name) {

@@ -51,7 +51,6 @@ proptest! {
                 kind: m.kind,
                 members: f
                     .members(f.aggregate_of(&m.target).unwrap())
-                    .iter()
                     .map(|mem| {
                         let n = mem.value.as_number().unwrap();
                         (f.text(mem.name).to_ascii_uppercase(), f.text(n.span()).to_vec(), n.value)

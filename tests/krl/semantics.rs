@@ -108,7 +108,7 @@ fn teach_pendant_inline_forms_resolve_through_the_dat() {
     let fa = dat.aggregate_of(fd.var.init.as_ref().unwrap()).unwrap();
     assert_eq!(dat.member_number(fa, "BASE_NO").unwrap().value, 2.0);
     assert!(matches!(
-        dat.member(fa, "IPO_FRAME").unwrap().value,
+        *dat.member(fa, "IPO_FRAME").unwrap().value,
         Expr::Enum(_)
     ));
     // LIN P2 Vel=0.5 m/s CPDAT1: path motion data is LDAT L + name.
@@ -357,7 +357,7 @@ fn every_language_construct() {
     assert_eq!(text(&f, e6.type_name().unwrap()), "E6POS");
     assert_eq!(f.member_number(e6, "Y").unwrap().value, -25.0);
     assert_eq!(f.member_number(e6, "Z").unwrap().value, 0.25);
-    assert!(matches!(f.member(e6, "S").unwrap().value, Expr::Bits(_)));
+    assert!(matches!(*f.member(e6, "S").unwrap().value, Expr::Bits(_)));
     assert_eq!(ms[3].approx().get(0).unwrap().kind, ApproxKind::Vel);
     let Expr::Binary(g) = &ms[4].target else {
         panic!()
@@ -509,7 +509,7 @@ fn data_list_declarations() {
         .unwrap();
     assert_eq!(d.member_number(inner, "Z").unwrap().value, 3.5);
     assert_eq!(
-        d.member_index(d.member(job, "sName").unwrap())
+        d.member_index(&d.member(job, "sName").unwrap())
             .map(|s| d.text(s)),
         Some(&b"[]"[..])
     );

@@ -16,13 +16,7 @@ impl<'f> Simulator<'f> {
     pub(super) fn eval(&self, file: FileId, e: &'f Expr, scope: &Scope<'f>) -> Value<'f> {
         let src = self.src(file);
         match e {
-            Expr::Number(n) => {
-                if n.integer && n.value.abs() < 9e15 {
-                    Value::Int(n.value as i64)
-                } else {
-                    Value::Real(n.value)
-                }
-            }
+            Expr::Number(n) => value::number(n),
             Expr::Bool(_, b) => Value::Bool(*b),
             Expr::Enum(s) => Value::Enum(upper(&src.text(*s)[1..])),
             Expr::Bits(s) => match value::bits_value(src.text(*s)) {
