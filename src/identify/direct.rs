@@ -356,28 +356,30 @@ fn fill_tables(model: &mut Model, samples: &[DeviationSample]) {
             continue;
         };
         let parse_axis = |s: &str| s.parse::<u8>().ok();
-        if let Some(n) = name.strip_prefix("map:A").and_then(parse_axis) {
-            let curves: Vec<&Curves> = by_test
+        let curves_of = |n: u8| -> Vec<&Curves> {
+            by_test
                 .iter()
                 .filter(|(k, _)| k.0 == n)
                 .map(|(_, c)| c)
-                .collect();
-            for (j, &g) in table.grid_deg.iter().enumerate() {
-                let v: Vec<f64> = curves.iter().filter_map(|c| c.at(g).map(|a| a.0)).collect();
-                if let Some(m) = mean(&v) {
-                    values[start + j] = m;
-                }
-            }
-        } else if let Some(n) = name.strip_prefix("backlash:A").and_then(parse_axis) {
-            let curves: Vec<&Curves> = by_test
-                .iter()
-                .filter(|(k, _)| k.0 == n)
-                .map(|(_, c)| c)
-                .collect();
+                .collect()
+        };
+        // The mean deviation (map) or half the difference between the directions
+        // (backlash) of every test of the axis, at each grid angle.
+        let one_d = [
+            (
+                "map:A",
+                (|a| Some(a.0)) as fn((f64, Option<f64>)) -> Option<f64>,
+            ),
+            ("backlash:A", |a| a.1),
+        ];
+        if let Some((n, pick)) = one_d.iter().find_map(|&(prefix, pick)| {
+            Some((name.strip_prefix(prefix).and_then(parse_axis)?, pick))
+        }) {
+            let curves = curves_of(n);
             for (j, &g) in table.grid_deg.iter().enumerate() {
                 let v: Vec<f64> = curves
                     .iter()
-                    .filter_map(|c| c.at(g).and_then(|a| a.1))
+                    .filter_map(|c| c.at(g).and_then(pick))
                     .collect();
                 if let Some(m) = mean(&v) {
                     values[start + j] = m;
@@ -391,11 +393,7 @@ fn fill_tables(model: &mut Model, samples: &[DeviationSample]) {
             let Some(columns) = &table.other_grid_deg else {
                 continue;
             };
-            let curves: Vec<&Curves> = by_test
-                .iter()
-                .filter(|(k, _)| k.0 == n)
-                .map(|(_, c)| c)
-                .collect();
+            let curves = curves_of(n);
             for (i, &g) in table.grid_deg.iter().enumerate() {
                 let all: Vec<f64> = curves.iter().filter_map(|c| c.at(g).map(|a| a.0)).collect();
                 let Some(pooled) = mean(&all) else {
