@@ -37,10 +37,7 @@ pub struct Args {
 pub fn run(args: Args) -> Exit {
     let (cal, cal_bytes) = match load_calibration(&args.cal) {
         Ok(c) => c,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return Exit::Usage;
-        }
+        Err(exit) => return exit,
     };
     for input in &args.inputs {
         if !input.exists() {

@@ -122,11 +122,20 @@ pub struct Args {
 }
 
 /// Loads a calibration and names it for the output header.
-pub fn load_calibration(path: &Path) -> Result<(calibration::Calibration, Vec<u8>), String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let text = String::from_utf8_lossy(&bytes);
-    let cal = calibration::parse(&text, path).map_err(|e| e.to_string())?;
-    Ok((cal, bytes))
+/// The calibration file and its bytes (for the header's checksum); an unreadable or invalid
+/// file is reported here and is a usage error (exit 2), before any program is touched.
+pub fn load_calibration(path: &Path) -> Result<(calibration::Calibration, Vec<u8>), Exit> {
+    let loaded = std::fs::read(path)
+        .map_err(|e| format!("{}: {e}", path.display()))
+        .and_then(|bytes| {
+            let cal = calibration::parse(&String::from_utf8_lossy(&bytes), path)
+                .map_err(|e| e.to_string())?;
+            Ok((cal, bytes))
+        });
+    loaded.map_err(|e| {
+        eprintln!("error: {e}");
+        Exit::Usage
+    })
 }
 
 pub fn calibrated<'a>(
@@ -148,10 +157,7 @@ fn is_dash(p: &Path) -> bool {
 pub fn run(args: Args) -> Exit {
     let (cal, cal_bytes) = match load_calibration(&args.cal) {
         Ok(c) => c,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return Exit::Usage;
-        }
+        Err(exit) => return exit,
     };
     let stdin = is_dash(&args.input);
     let bytes = if stdin {
@@ -286,10 +292,7 @@ pub fn summary(r: &compensate::Report) {
 pub fn check_programs(programs: &[PathBuf], cal_path: &Path, args: &ProgramArgs) -> Exit {
     let (cal, cal_bytes) = match load_calibration(cal_path) {
         Ok(c) => c,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return Exit::Usage;
-        }
+        Err(exit) => return exit,
     };
     let calibrated = calibrated(&cal, cal_path, &cal_bytes);
     let mut exit = Exit::Success;
