@@ -26,7 +26,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
     let bytes = std::fs::read(PROGRAM).expect("fixture");
     let ws = files::load_program(Some(Path::new(PROGRAM)), &bytes, None).expect("parses");
     let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
-    let targets = program::targets(&ws, &sim);
+    let targets = program::targets(&ws, &sim, 0..sim.stops.len());
     let n = targets.len();
     let serial = compensate::Options {
         method: compensate::Method::Iterate,
@@ -69,6 +69,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
                 &sim,
                 &outcomes,
                 &model.robot,
+                None,
             ))
         })
     });

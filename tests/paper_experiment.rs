@@ -90,7 +90,7 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> Workspace {
     );
     assert!(!result.rejected && result.target_errors == 0);
     let out = dir.join(src.file_name().unwrap());
-    files::write_atomic(&files::outputs(&ws, &result.files, &out)).unwrap();
+    files::write_atomic_pieces(&files::outputs(&ws, &result.files, &out)).unwrap();
     load(&out)
 }
 

@@ -178,19 +178,25 @@ pub fn run(args: Args) -> Exit {
     };
     let input = (!stdin).then_some(args.input.as_path());
     program::lap_start();
-    let ws = match files::load_program(input, &bytes, args.program.config.as_deref()) {
-        Ok(ws) => ws,
-        Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
-            eprintln!("error: {e}");
-            return Exit::Usage;
-        }
-        Err(e) => {
-            eprintln!("{e}");
-            return Exit::Rejected;
-        }
-    };
-    drop(bytes);
+    let stream = Some(crate::krl::StreamOptions::default());
+    let ws =
+        match files::load_program_streaming(input, bytes, args.program.config.as_deref(), stream) {
+            Ok(ws) => ws,
+            Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
+                eprintln!("error: {e}");
+                return Exit::Usage;
+            }
+            Err(e) => {
+                eprintln!("{e}");
+                return Exit::Rejected;
+            }
+        };
     program::lap("load");
+    if std::env::var_os("ROBOPOST_TIMING").is_some() {
+        let runs = ws.get(ws.main).file.streamed_runs();
+        let windows: usize = runs.iter().map(|r| r.windows().len()).sum();
+        eprintln!("  streamed: {} runs in {windows} windows", runs.len());
+    }
     let to_stdout = is_dash(&args.out);
     if !to_stdout {
         for f in &ws.files {
@@ -231,14 +237,20 @@ pub fn run(args: Args) -> Exit {
             eprintln!("warning: the .dat or called modules changed too; they are written only with a file output (-o FILE.src)");
         }
         let mut out = std::io::stdout().lock();
-        if let Err(e) = out.write_all(&main.bytes).and_then(|_| out.flush()) {
+        let written = main
+            .bytes
+            .pieces()
+            .into_iter()
+            .try_for_each(|p| out.write_all(p))
+            .and_then(|_| out.flush());
+        if let Err(e) = written {
             eprintln!("error: <stdout>: {e}");
             return Exit::Usage;
         }
     } else {
         program::lap("compensated");
         let outputs = files::outputs(&ws, &result.files, &args.out);
-        if let Err(e) = files::write_atomic(&outputs) {
+        if let Err(e) = files::write_atomic_pieces(&outputs) {
             eprintln!("error: writing {}: {e}", args.out.display());
             return Exit::Usage;
         }

@@ -179,11 +179,11 @@ pub fn run_job(
         Ok(b) => b,
         Err(e) => return failed(format!("{}: {e}", job.src.display())),
     };
-    let ws = match files::load_program(Some(&job.src), &bytes, config) {
+    let stream = Some(crate::krl::StreamOptions::default());
+    let ws = match files::load_program_streaming(Some(&job.src), bytes, config, stream) {
         Ok(ws) => ws,
         Err(e) => return failed(e.to_string()),
     };
-    drop(bytes);
     let result = program::compensate_program(&ws, cal, options);
     let warnings = result
         .diagnostics
@@ -200,7 +200,7 @@ pub fn run_job(
         return failed(text.join("\n"));
     }
     let outputs = files::outputs(&ws, &result.files, &job.out);
-    if let Err(e) = files::write_atomic(&outputs) {
+    if let Err(e) = files::write_atomic_pieces(&outputs) {
         return failed(format!("writing {}: {e}", job.out.display()));
     }
     Done::Written {

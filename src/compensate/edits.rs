@@ -82,19 +82,33 @@ impl EditList {
     /// `source` with `first` (an insertion or replacement that goes before any edit of the
     /// list at the same place) and the edits applied (see `krl::apply`).
     pub fn apply(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
+        self.apply_in(source, 0..source.len(), Some(first))
+    }
+
+    /// The bytes `within` of `source` with the edits inside them applied (and `first`, as in
+    /// [`EditList::apply`], when it is inside them); edits elsewhere are left out, an edit
+    /// across the bounds is an error.
+    pub fn apply_in(
+        &self,
+        source: &[u8],
+        within: Range<usize>,
+        first: Option<&Edit>,
+    ) -> Result<Vec<u8>, EditError> {
         // Index 0 is `first`, i + 1 the list's i-th edit: a stable sort keeps their order.
         let range = |k: u32| match k {
-            0 => first.range.clone(),
+            0 => first.map_or(0..0, |f| f.range.clone()),
             k => Self::range(&self.pieces[k as usize - 1]),
         };
         let bytes = |k: u32| match k {
-            0 => &first.bytes[..],
+            0 => first.map_or(&[][..], |f| &f.bytes[..]),
             k => {
                 let p = &self.pieces[k as usize - 1];
                 &self.text[p.at..p.at + p.len as usize]
             }
         };
         let n = self.pieces.len() as u32 + 1;
+        let whole = within.start == 0 && within.end == source.len();
+        let mut order: Vec<u32> = Vec::with_capacity(n as usize);
         for k in 0..n {
             let r = range(k);
             if r.start > r.end || r.end > source.len() {
@@ -103,8 +117,24 @@ impl EditList {
                     len: source.len(),
                 });
             }
+            if k == 0 && first.is_none() {
+                continue;
+            }
+            // An insertion at the end of `within` belongs to the bytes after it.
+            let inside = within.start <= r.start
+                && r.end <= within.end
+                && !(r.is_empty() && r.start == within.end && within.end < source.len());
+            let straddles = (r.start < within.start && r.end > within.start)
+                || (r.start < within.end && r.end > within.end);
+            if whole || inside {
+                order.push(k);
+            } else if straddles {
+                return Err(EditError::OutOfBounds {
+                    range: r,
+                    len: within.end,
+                });
+            }
         }
-        let mut order: Vec<u32> = (0..n).collect();
         // Already in order for a CAM program's fast path: the stable sort sees one run.
         order.sort_by_key(|&k| {
             let r = range(k);
@@ -121,15 +151,15 @@ impl EditList {
         }
         let removed: usize = order.iter().map(|&k| range(k).len()).sum();
         let added: usize = order.iter().map(|&k| bytes(k).len()).sum();
-        let mut out = Vec::with_capacity(source.len() - removed + added);
-        let mut at = 0;
+        let mut out = Vec::with_capacity(within.len() - removed + added);
+        let mut at = within.start;
         for k in order {
             let r = range(k);
             out.extend_from_slice(&source[at..r.start]);
             out.extend_from_slice(bytes(k));
             at = r.end;
         }
-        out.extend_from_slice(&source[at..]);
+        out.extend_from_slice(&source[at..within.end]);
         Ok(out)
     }
 }

@@ -19,6 +19,18 @@ pub fn load_program(
     bytes: &[u8],
     config: Option<&Path>,
 ) -> Result<Workspace, LoadError> {
+    load_program_streaming(path, bytes.to_vec(), config, None)
+}
+
+/// [`load_program`] taking the bytes, with the main routine's plain stretches left out of the
+/// tree as runs when `stream` is given (see `krl::stream`): how the main job loads, so that a
+/// long CAM program is never held as a whole tree.
+pub fn load_program_streaming(
+    path: Option<&Path>,
+    bytes: Vec<u8>,
+    config: Option<&Path>,
+    stream: Option<krl::StreamOptions>,
+) -> Result<Workspace, LoadError> {
     let name = path.map_or_else(|| "<stdin>".to_string(), |p| p.display().to_string());
     let dat = match path.and_then(krl::companion_dat) {
         Some(d) => {
@@ -31,11 +43,12 @@ pub fn load_program(
         }
         None => None,
     };
-    Workspace::load(
+    Workspace::load_streaming(
         (bytes, path, &name),
         dat.as_ref()
             .map(|(b, d, s)| (b.as_slice(), d.as_path(), s.as_str())),
         config,
+        stream,
     )
 }
 
@@ -87,8 +100,15 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
 
 /// Writes every `(path, bytes)` atomically: all temporary files first, then the renames.
 pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
+    let pieces: Vec<(PathBuf, Vec<&[u8]>)> =
+        files.iter().map(|(p, b)| (p.clone(), vec![*b])).collect();
+    write_atomic_pieces(&pieces)
+}
+
+/// [`write_atomic`] of files given in pieces (see `program::Output`).
+pub fn write_atomic_pieces(files: &[(PathBuf, Vec<&[u8]>)]) -> std::io::Result<()> {
     let mut staged = Vec::with_capacity(files.len());
-    for (path, bytes) in files {
+    for (path, pieces) in files {
         let dir = path
             .parent()
             .filter(|d| !d.as_os_str().is_empty())
@@ -99,7 +119,13 @@ pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
             .tempfile_in(dir)?;
         // No fsync: like `cp`, durability against power loss is the file system's business;
         // the rename still guarantees that a reader sees the old file or the whole new one.
-        tmp.write_all(bytes)?;
+        {
+            let mut w = std::io::BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
+            for p in pieces {
+                w.write_all(p)?;
+            }
+            w.flush()?;
+        }
         staged.push((tmp, path));
     }
     for (tmp, path) in staged {
@@ -113,7 +139,7 @@ pub fn outputs<'a>(
     ws: &Workspace,
     files: &'a [FileOutput],
     out: &Path,
-) -> Vec<(PathBuf, &'a [u8])> {
+) -> Vec<(PathBuf, Vec<&'a [u8]>)> {
     let paths = output_paths(ws, out);
     files
         .iter()
@@ -121,7 +147,7 @@ pub fn outputs<'a>(
             paths
                 .iter()
                 .find(|(id, _)| *id == f.file)
-                .map(|(_, p)| (p.clone(), f.bytes.as_slice()))
+                .map(|(_, p)| (p.clone(), f.bytes.pieces()))
         })
         .collect()
 }

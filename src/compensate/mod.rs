@@ -12,6 +12,7 @@ pub mod edits;
 pub mod files;
 pub mod program;
 pub mod rewrite;
+mod segments;
 pub mod sequence;
 pub mod solve;
 

@@ -15,6 +15,7 @@ use crate::motion::workspace::Role as FileRole;
 use crate::motion::{self, FileId, GivenFrame, Role, Simulation, Workspace};
 
 use super::rewrite::{self, Rewrite};
+use super::segments::Segments;
 use super::sequence::{self, Interp, Keep, Outcome, Quantum, Resolution, Target};
 use super::solve::Method;
 
@@ -59,8 +60,84 @@ pub struct Options {
 #[derive(Clone, Debug)]
 pub struct FileOutput {
     pub file: FileId,
-    pub bytes: Vec<u8>,
+    pub bytes: Output,
     pub changed: bool,
+}
+
+/// A file's new bytes in pieces: rewritten stretches, and stretches of the source left as
+/// they were (shared with the loaded file, not copied: a program of a million motions is
+/// written without a second copy of it in memory).
+#[derive(Clone, Debug, Default)]
+pub struct Output {
+    chunks: Vec<Chunk>,
+}
+
+#[derive(Clone, Debug)]
+enum Chunk {
+    Owned(Vec<u8>),
+    Shared(std::sync::Arc<Vec<u8>>, std::ops::Range<usize>),
+}
+
+impl Output {
+    /// The pieces in order.
+    pub fn pieces(&self) -> Vec<&[u8]> {
+        self.chunks
+            .iter()
+            .map(|c| match c {
+                Chunk::Owned(b) => &b[..],
+                Chunk::Shared(src, r) => &src[r.clone()],
+            })
+            .filter(|p| !p.is_empty())
+            .collect()
+    }
+
+    /// The bytes in one buffer.
+    pub fn to_vec(&self) -> Vec<u8> {
+        self.pieces().concat()
+    }
+
+    pub fn len(&self) -> usize {
+        self.pieces().iter().map(|p| p.len()).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn source(file: &krl::SourceFile) -> Output {
+        let src = file.shared_source();
+        let len = src.len();
+        Output {
+            chunks: vec![Chunk::Shared(src, 0..len)],
+        }
+    }
+}
+
+impl From<Vec<u8>> for Output {
+    fn from(bytes: Vec<u8>) -> Output {
+        Output {
+            chunks: vec![Chunk::Owned(bytes)],
+        }
+    }
+}
+
+impl PartialEq<&[u8]> for Output {
+    fn eq(&self, other: &&[u8]) -> bool {
+        self == *other
+    }
+}
+
+impl PartialEq<[u8]> for Output {
+    fn eq(&self, other: &[u8]) -> bool {
+        let mut at = 0;
+        for p in self.pieces() {
+            if other.get(at..at + p.len()) != Some(p) {
+                return false;
+            }
+            at += p.len();
+        }
+        at == other.len()
+    }
 }
 
 /// What compensating a program produced.
@@ -81,21 +158,6 @@ pub struct ProgramResult {
 pub struct MaxMean {
     pub max: f64,
     pub mean: f64,
-}
-
-impl MaxMean {
-    fn of(values: impl Iterator<Item = f64>) -> MaxMean {
-        let (mut max, mut sum, mut n) = (0.0f64, 0.0, 0usize);
-        for v in values {
-            max = max.max(v);
-            sum += v;
-            n += 1;
-        }
-        MaxMean {
-            max,
-            mean: if n > 0 { sum / n as f64 } else { 0.0 },
-        }
-    }
 }
 
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
@@ -181,9 +243,9 @@ fn axes_list(mask: &[bool; 6]) -> Vec<String> {
         .collect()
 }
 
-/// The compensation targets of a simulation.
-pub fn targets(ws: &Workspace, sim: &Simulation) -> Vec<Target> {
-    sim.stops
+/// The compensation targets of the stops `range` of a simulation.
+pub fn targets(ws: &Workspace, sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
+    sim.stops[range]
         .iter()
         .map(|s| Target {
             goal: s.goal,
@@ -305,7 +367,8 @@ pub fn lap(what: &str) {
     eprintln!("{what}: {:.3} s{peak}", t0.elapsed().as_secs_f64());
 }
 
-/// Compensates the main program of `ws`.
+/// Compensates the main program of `ws` (its streamed runs, if it was loaded with
+/// `Workspace::load_streaming`, window by window).
 pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -> ProgramResult {
     let main = ws.get(ws.main);
     let mut report = Report {
@@ -351,7 +414,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             .filter(|(_, f)| f.role != FileRole::Config)
             .map(|(i, f)| FileOutput {
                 file: i as FileId,
-                bytes: f.file.source().to_vec(),
+                bytes: Output::source(&f.file),
                 changed: false,
             })
             .collect();
@@ -367,77 +430,42 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         return rejected(report, diagnostics, 0);
     }
     let model = cal.model;
-    let sim = motion::simulate(ws, &model.robot, &options.frames);
-    lap("simulate");
+    let mut seg = Segments::new(ws, model, options);
+    let sim = motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg));
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
         return rejected(report, diagnostics, 0);
     }
-    let targets = targets(ws, &sim);
-    let outcomes = sequence::compensate(
-        model,
-        &sim.frames,
-        &targets,
-        [Direction::Unknown; 6],
-        &sequence::Options {
-            method: options.method,
-            parallel: options.parallel,
-        },
-    );
-    drop(targets);
-    lap("compensate");
-    let mut target_errors = sim.unreachable;
-    // Near-singular targets: the compensation there is least squares, and small Cartesian
-    // changes turn axes a lot.
-    let robot = &model.robot;
-    let mut seen = std::collections::HashSet::new();
-    for stop in &sim.stops {
-        if let Some(sing) = crate::kinematics::singularity(robot, &stop.nominal_axes) {
-            if stop.compensable && seen.insert((stop.file, stop.stmt.head.start)) {
-                diagnostics.push(ws.diagnostic(
-                    Severity::Warning,
-                    stop.file,
-                    stop.stmt.head,
-                    format!("the target is near a singularity ({sing}): compensated in the least-squares sense where the pose cannot be reached exactly"),
-                ));
-            }
-        }
+    seg.skeleton_from(ws, &sim, seg.skeleton.len());
+    lap("simulate and compensate");
+    if std::env::var_os("ROBOPOST_TIMING").is_some() {
+        let (state, motion) = sequence::resolved_counts();
+        eprintln!(
+            "  re-solved: {state} for the compensated state, {motion} for the compensated motion"
+        );
     }
-    for (stop, o) in sim.stops.iter().zip(&outcomes) {
-        if let Some(e) = &o.error {
-            target_errors += 1;
-            diagnostics.push(
-                ws.diagnostic(
-                    Severity::Error,
-                    stop.file,
-                    stop.stmt.head,
-                    format!("target not compensated: {e}"),
-                )
-                .with_help(
-                    "the target is left as written; move it away from the limit or singularity",
-                ),
-            );
-        }
-    }
-    let mut rw = rewrite::rewrite(ws, &sim, &outcomes, &model.robot);
+    let target_errors = sim.unreachable + seg.target_errors.len();
+    diagnostics.append(&mut seg.singular);
+    diagnostics.append(&mut seg.target_errors);
+    let mut rw = rewrite::rewrite(ws, &sim, &seg.skeleton, &model.robot, None);
     lap("rewrite");
+    diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());
-    // The report before applying the edits, so that the stops and outcomes are freed before
-    // the new bytes are built (the peak memory of a long program).
     let unfilled = report.clone();
-    fill_report(
-        &mut report,
+    seg.tally.fill(&mut report, &rw, &diagnostics);
+    drop(sim);
+    if let Some(d) = seg.failed.take() {
+        diagnostics.push(*d);
+        return rejected(unfilled, diagnostics, target_errors);
+    }
+    let windows = std::mem::take(&mut seg.windows);
+    let files = match apply(
         ws,
-        &sim,
-        &outcomes,
-        &model.robot,
-        &rw,
-        &diagnostics,
-        options.points,
-    );
-    lap("report");
-    drop((sim, outcomes));
-    let files = match apply(ws, std::mem::take(&mut rw.edits), cal, options.method) {
+        std::mem::take(&mut rw.edits),
+        windows,
+        cal,
+        options.method,
+    ) {
         Ok(files) => files,
         Err(d) => {
             diagnostics.push(*d);
@@ -454,156 +482,265 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     }
 }
 
+/// Every output file: the edits applied, the main file's streamed windows put in place.
 fn apply(
     ws: &Workspace,
     edits: std::collections::BTreeMap<FileId, super::edits::EditList>,
+    windows: Vec<(krl::Span, Vec<u8>)>,
     cal: &Calibrated,
     method: Method,
 ) -> Result<Vec<FileOutput>, Box<Diagnostic>> {
     let mut edits = edits;
+    let mut windows = Some(windows).filter(|w| !w.is_empty());
     ws.files
         .iter()
         .enumerate()
         .filter(|(_, f)| f.role != FileRole::Config)
         .map(|(i, f)| {
             let id = i as FileId;
-            let src = f.file.source();
-            match edits.remove(&id) {
-                Some(list) if !list.is_empty() => {
-                    // The header first: insertions at one offset keep their order.
-                    let (at, text) = header(&f.file, cal, method);
-                    let first = krl::Edit {
-                        range: at..at,
-                        bytes: text,
-                    };
-                    match list.apply(src, &first) {
-                        Ok(bytes) => Ok(FileOutput {
-                            file: id,
-                            bytes,
-                            changed: true,
-                        }),
-                        Err(e) => Err(Box::new(Diagnostic::new(
-                            Severity::Error,
-                            &f.name,
-                            format!("internal error, nothing written: the rewrite produced {e}; please report this program"),
-                        ))),
-                    }
-                }
-                _ => Ok(FileOutput {
+            let list = edits.remove(&id).unwrap_or_default();
+            let windows = if id == ws.main { windows.take() } else { None };
+            if list.is_empty() && windows.is_none() {
+                return Ok(FileOutput {
                     file: id,
-                    bytes: src.to_vec(),
+                    bytes: Output::source(&f.file),
                     changed: false,
-                }),
+                });
             }
+            // The header first: insertions at one offset keep their order.
+            let (at, text) = header(&f.file, cal, method);
+            let first = krl::Edit {
+                range: at..at,
+                bytes: text,
+            };
+            let failed = |e: krl::EditError| {
+                Box::new(Diagnostic::new(
+                    Severity::Error,
+                    &f.name,
+                    format!("internal error, nothing written: the rewrite produced {e}; please report this program"),
+                ))
+            };
+            let src = f.file.source();
+            let bytes = match windows {
+                None => Output::from(list.apply(src, &first).map_err(failed)?),
+                Some(windows) => {
+                    // The skeleton's stretches between the runs with its edits, the windows
+                    // that changed, the others shared with the source.
+                    let shared = f.file.shared_source();
+                    let mut chunks = Vec::new();
+                    let mut at = 0;
+                    let mut changed = windows.into_iter().peekable();
+                    for run in f.file.streamed_runs() {
+                        let r = run.range.range();
+                        chunks.push(Chunk::Owned(
+                            list.apply_in(src, at..r.start, Some(&first)).map_err(failed)?,
+                        ));
+                        for (w, _) in run.windows() {
+                            match changed.next_if(|(c, _)| *c == w) {
+                                Some((_, new)) => chunks.push(Chunk::Owned(new)),
+                                None => chunks.push(Chunk::Shared(shared.clone(), w.range())),
+                            }
+                        }
+                        at = r.end;
+                    }
+                    chunks.push(Chunk::Owned(
+                        list.apply_in(src, at..src.len(), Some(&first)).map_err(failed)?,
+                    ));
+                    Output { chunks }
+                }
+            };
+            Ok(FileOutput {
+                file: id,
+                bytes,
+                changed: true,
+            })
         })
         .collect()
 }
 
-#[allow(clippy::too_many_arguments)]
-fn fill_report(
-    report: &mut Report,
-    ws: &Workspace,
-    sim: &Simulation,
-    outcomes: &[Outcome],
-    robot: &RobotDescription,
-    rw: &Rewrite,
-    diagnostics: &[Diagnostic],
-    points: bool,
-) {
-    use rayon::prelude::*;
-    let arm = Nominal(robot);
-    let compensated =
-        |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && sim.stops[i].compensable;
-    // Command change at the TCP, µm and mdeg.
-    let corr: Vec<(f64, f64)> = (0..outcomes.len())
-        .into_par_iter()
-        .with_min_len(4096)
-        .map(|i| {
-            let (stop, o) = (&sim.stops[i], &outcomes[i]);
-            if !o.changed {
-                return (0.0, 0.0);
-            }
-            let tool: &Frame = &sim.frames[stop.tool as usize];
-            let cmd = arm.tcp(&o.axes_deg, tool);
-            let nominal = arm.tcp(&stop.nominal_axes, tool);
-            let (cp, cr) = frame::norms(&frame::error(&cmd, &nominal));
-            (cp * 1e3, cr.to_degrees() * 1e3)
-        })
-        .collect();
-    if points {
-        for (i, (stop, o)) in sim.stops.iter().zip(outcomes).enumerate() {
-            let (bp, _) = frame::norms(&o.before);
-            let (rp, rr) = frame::norms(&o.residual);
-            let flipped = o.flipped();
-            report.points.push(PointReport {
-                file: ws.get(stop.file).name.clone(),
-                line: stop.stmt.line,
-                motion: stop.kind.keyword(),
-                role: match stop.role {
-                    Role::Target => "target",
-                    Role::Aux => "aux",
-                },
-                correction_um: corr[i].0,
-                correction_mdeg: corr[i].1,
-                before_um: bp * 1e3,
-                residual_um: rp * 1e3,
-                residual_mdeg: rr.to_degrees() * 1e3,
-                iterations: o.iterations,
-                directions: o.directions.iter().map(|d| dir_char(*d)).collect(),
-                flipped: axes_list(&flipped),
-                resolution: match o.resolution {
-                    Resolution::Consistent => "consistent".into(),
-                    Resolution::Rebranched => "rebranched".into(),
-                    Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
-                    Resolution::Branch => "branch".into(),
-                } + &if o.turn_held.iter().any(|&h| h) {
-                    format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
-                } else {
-                    String::new()
-                },
-                compensated: compensated(i),
-                error: o.error.map(|e| e.to_string()),
-            });
+/// A running maximum and mean (summed in the order given).
+#[derive(Clone, Copy, Debug, Default)]
+struct Running {
+    max: f64,
+    sum: f64,
+    n: usize,
+}
+
+impl Running {
+    fn add(&mut self, v: f64) {
+        self.max = self.max.max(v);
+        self.sum += v;
+        self.n += 1;
+    }
+
+    fn get(&self) -> MaxMean {
+        MaxMean {
+            max: self.max,
+            mean: if self.n > 0 {
+                self.sum / self.n as f64
+            } else {
+                0.0
+            },
         }
     }
-    report.targets = outcomes.len();
-    let idx: Vec<usize> = (0..outcomes.len()).filter(|&i| compensated(i)).collect();
-    report.compensated = idx.len();
-    report.rejected = outcomes.iter().filter(|o| o.error.is_some()).count();
-    report.correction = PoseStats {
-        position_um: MaxMean::of(idx.iter().map(|&i| corr[i].0)),
-        orientation_mdeg: MaxMean::of(idx.iter().map(|&i| corr[i].1)),
-    };
-    let stats = |f: &dyn Fn(&Outcome) -> nalgebra::Vector6<f64>| PoseStats {
-        position_um: MaxMean::of(idx.iter().map(|&i| frame::norms(&f(&outcomes[i])).0 * 1e3)),
-        orientation_mdeg: MaxMean::of(
-            idx.iter()
-                .map(|&i| frame::norms(&f(&outcomes[i])).1.to_degrees() * 1e3),
-        ),
-    };
-    report.predicted_before = stats(&|o| o.before);
-    report.predicted_after = stats(&|o| o.residual);
-    report.direction_flips = outcomes
-        .iter()
-        .filter(|o| o.flipped().iter().any(|&f| f))
-        .count();
-    report.oscillations_resolved = outcomes
-        .iter()
-        .filter(|o| matches!(o.resolution, Resolution::Held(_) | Resolution::Branch))
-        .count();
-    report.split_points = rw
-        .splits
-        .iter()
-        .map(|(p, c)| SplitReport {
-            point: p.clone(),
-            copies: c.clone(),
-        })
-        .collect();
-    for d in diagnostics {
-        let line = format!("{}:{}:{}: {}", d.file, d.line, d.col, d.message);
-        match d.severity {
-            Severity::Warning => report.warnings.push(line),
-            Severity::Error => report.errors.push(line),
+}
+
+/// The report's figures, gathered segment by segment in execution order.
+#[derive(Debug, Default)]
+pub(super) struct Tally {
+    targets: usize,
+    compensated: usize,
+    rejected: usize,
+    /// Correction, predicted error before and after: position and orientation each.
+    figures: [Running; 6],
+    direction_flips: usize,
+    oscillations_resolved: usize,
+    points: Vec<PointReport>,
+}
+
+impl Tally {
+    /// The targets `sim.stops[first..]` with their `outcomes`.
+    pub fn add(
+        &mut self,
+        ws: &Workspace,
+        sim: &Simulation,
+        first: usize,
+        outcomes: &[Outcome],
+        robot: &RobotDescription,
+        points: bool,
+    ) {
+        use rayon::prelude::*;
+        let stops = &sim.stops[first..first + outcomes.len()];
+        let arm = Nominal(robot);
+        let compensated =
+            |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && stops[i].compensable;
+        // Command change at the TCP, µm and mdeg.
+        let corr: Vec<(f64, f64)> = (0..outcomes.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|i| {
+                let (stop, o) = (&stops[i], &outcomes[i]);
+                if !o.changed {
+                    return (0.0, 0.0);
+                }
+                let tool: &Frame = &sim.frames[stop.tool as usize];
+                let cmd = arm.tcp(&o.axes_deg, tool);
+                let nominal = arm.tcp(&stop.nominal_axes, tool);
+                let (cp, cr) = frame::norms(&frame::error(&cmd, &nominal));
+                (cp * 1e3, cr.to_degrees() * 1e3)
+            })
+            .collect();
+        if points {
+            for (i, (stop, o)) in stops.iter().zip(outcomes).enumerate() {
+                self.points
+                    .push(point_report(ws, stop, o, corr[i], compensated(i)));
+            }
         }
+        self.targets += outcomes.len();
+        self.rejected += outcomes.iter().filter(|o| o.error.is_some()).count();
+        for i in (0..outcomes.len()).filter(|&i| compensated(i)) {
+            self.compensated += 1;
+            let o = &outcomes[i];
+            let (bp, br) = frame::norms(&o.before);
+            let (rp, rr) = frame::norms(&o.residual);
+            let values = [
+                corr[i].0,
+                corr[i].1,
+                bp * 1e3,
+                br.to_degrees() * 1e3,
+                rp * 1e3,
+                rr.to_degrees() * 1e3,
+            ];
+            for (f, v) in self.figures.iter_mut().zip(values) {
+                f.add(v);
+            }
+        }
+        self.direction_flips += outcomes
+            .iter()
+            .filter(|o| o.flipped().iter().any(|&f| f))
+            .count();
+        self.oscillations_resolved += outcomes
+            .iter()
+            .filter(|o| matches!(o.resolution, Resolution::Held(_) | Resolution::Branch))
+            .count();
+    }
+
+    /// The report with the figures, the split points and the diagnostics.
+    pub fn fill(&mut self, report: &mut Report, rw: &Rewrite, diagnostics: &[Diagnostic]) {
+        let f = &self.figures;
+        report.targets = self.targets;
+        report.compensated = self.compensated;
+        report.rejected = self.rejected;
+        report.correction = PoseStats {
+            position_um: f[0].get(),
+            orientation_mdeg: f[1].get(),
+        };
+        report.predicted_before = PoseStats {
+            position_um: f[2].get(),
+            orientation_mdeg: f[3].get(),
+        };
+        report.predicted_after = PoseStats {
+            position_um: f[4].get(),
+            orientation_mdeg: f[5].get(),
+        };
+        report.direction_flips = self.direction_flips;
+        report.oscillations_resolved = self.oscillations_resolved;
+        report.points = std::mem::take(&mut self.points);
+        report.split_points = rw
+            .splits
+            .iter()
+            .map(|(p, c)| SplitReport {
+                point: p.clone(),
+                copies: c.clone(),
+            })
+            .collect();
+        for d in diagnostics {
+            let line = format!("{}:{}:{}: {}", d.file, d.line, d.col, d.message);
+            match d.severity {
+                Severity::Warning => report.warnings.push(line),
+                Severity::Error => report.errors.push(line),
+            }
+        }
+    }
+}
+
+fn point_report(
+    ws: &Workspace,
+    stop: &motion::Stop,
+    o: &Outcome,
+    (correction_um, correction_mdeg): (f64, f64),
+    compensated: bool,
+) -> PointReport {
+    let (bp, _) = frame::norms(&o.before);
+    let (rp, rr) = frame::norms(&o.residual);
+    let flipped = o.flipped();
+    PointReport {
+        file: ws.get(stop.file).name.clone(),
+        line: stop.stmt.line,
+        motion: stop.kind.keyword(),
+        role: match stop.role {
+            Role::Target => "target",
+            Role::Aux => "aux",
+        },
+        correction_um,
+        correction_mdeg,
+        before_um: bp * 1e3,
+        residual_um: rp * 1e3,
+        residual_mdeg: rr.to_degrees() * 1e3,
+        iterations: o.iterations,
+        directions: o.directions.iter().map(|d| dir_char(*d)).collect(),
+        flipped: axes_list(&flipped),
+        resolution: match o.resolution {
+            Resolution::Consistent => "consistent".into(),
+            Resolution::Rebranched => "rebranched".into(),
+            Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
+            Resolution::Branch => "branch".into(),
+        } + &if o.turn_held.iter().any(|&h| h) {
+            format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
+        } else {
+            String::new()
+        },
+        compensated,
+        error: o.error.map(|e| e.to_string()),
     }
 }

@@ -118,8 +118,29 @@ fn literal_span(e: &Expr) -> Option<(Span, Span)> {
     }
 }
 
-/// The text between members of the file's first aggregate with several (`,` or `, `).
-fn file_separator(file: &SourceFile) -> Vec<u8> {
+/// The text between members of the file's first aggregate with several (`,` or `, `),
+/// streamed runs included (the first window before the tree's first such aggregate that has
+/// one).
+pub fn file_separator(file: &SourceFile) -> Vec<u8> {
+    let in_tree = first_separator(file);
+    for run in file.streamed_runs() {
+        if in_tree
+            .as_ref()
+            .is_some_and(|(at, _)| *at < run.range.start)
+        {
+            break;
+        }
+        for w in run.windows() {
+            if let Some((_, sep)) = first_separator(&file.window(w)) {
+                return sep;
+            }
+        }
+    }
+    in_tree.map_or_else(|| b", ".to_vec(), |(_, sep)| sep)
+}
+
+/// Where the tree's first aggregate with several members is, and the text between them.
+fn first_separator(file: &SourceFile) -> Option<(u32, Vec<u8>)> {
     let src = file.source();
     for st in file.statements() {
         let mut found = None;
@@ -142,14 +163,15 @@ fn file_separator(file: &SourceFile) -> Vec<u8> {
             _ => {}
         }
         if let Some(sep) = found {
-            return sep;
+            return Some((st.head.start, sep));
         }
     }
-    b", ".to_vec()
+    None
 }
 
 /// The text between two members (`, `) and between a name and its value (` `).
-fn separators(file: &SourceFile, agg: &Aggregate) -> (Vec<u8>, Vec<u8>) {
+/// `file_sep`: the file's separator when known (a window's is its file's).
+fn separators(file: &SourceFile, agg: &Aggregate, file_sep: Option<&[u8]>) -> (Vec<u8>, Vec<u8>) {
     let src = file.source();
     let mut members = file.members(agg);
     let (first, second) = (members.next(), members.next());
@@ -157,7 +179,7 @@ fn separators(file: &SourceFile, agg: &Aggregate) -> (Vec<u8>, Vec<u8>) {
         .as_ref()
         .zip(second)
         .map(|(a, b)| src[a.span().end as usize..b.span().start as usize].to_vec())
-        .unwrap_or_else(|| file_separator(file));
+        .unwrap_or_else(|| file_sep.map_or_else(|| file_separator(file), <[u8]>::to_vec));
     let nv = first
         .map(|m| src[m.name.end as usize..m.value.span().start as usize].to_vec())
         .filter(|v| !v.is_empty())
@@ -173,6 +195,7 @@ fn aggregate_edits(
     values: &[f64; 6],
     write: [bool; 6],
     relative: bool,
+    file_sep: Option<&[u8]>,
 ) -> Option<TargetEdits> {
     let src = file.source();
     let names = if axis { AXIS_NAMES } else { CARTESIAN_NAMES };
@@ -233,7 +256,7 @@ fn aggregate_edits(
                     continue;
                 }
                 any = true;
-                let (sep, nv) = separators(file, agg);
+                let (sep, nv) = separators(file, agg, file_sep);
                 let text = if zero {
                     text.trim_start_matches('-').to_string()
                 } else {
@@ -382,12 +405,15 @@ struct Use<'f> {
     origin: Origin<'f>,
 }
 
-/// Computes the edits of every compensated target.
+/// Computes the edits of every compensated target. `separator`: what goes between members
+/// added to a partial aggregate when it has no two of its own (found in the file when `None`;
+/// a streamed window is given its file's, see [`file_separator`]).
 pub fn rewrite(
     ws: &Workspace,
     sim: &Simulation,
     outcomes: &[Outcome],
     robot: &crate::kinematics::RobotDescription,
+    separator: Option<&[u8]>,
 ) -> Rewrite {
     let mut out = Rewrite::default();
     // Each compensated target's edits, in parallel.
@@ -416,6 +442,7 @@ pub fn rewrite(
             &values,
             write,
             stop.rel.is_some(),
+            separator,
         ) {
             Some(edits) => Some(Ok(Use {
                 stop: i,

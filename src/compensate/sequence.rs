@@ -229,6 +229,15 @@ pub fn nominal_directions(targets: &[Target], start: [Direction; 6]) -> Vec<[Dir
         .collect()
 }
 
+/// A target compensated before a cut (see [`compensate_after`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Carried {
+    pub target: Target,
+    pub outcome: Outcome,
+    /// Whether the re-check re-solved it.
+    pub resolved: bool,
+}
+
 /// Compensates `targets` (tools indexed by `Target::tool`), directions before the first
 /// target given by `start`.
 pub fn compensate(
@@ -238,30 +247,68 @@ pub fn compensate(
     start: [Direction; 6],
     options: &Options,
 ) -> Vec<Outcome> {
-    let nominal = nominal_directions(targets, start);
+    compensate_after(model, tools, &[], targets, start, options).0
+}
+
+/// How far back the re-check of a target looks: its arrival depends on the commands of the
+/// two targets before it (the start and auxiliary point of a circle).
+pub const LOOK_BACK: usize = 2;
+
+/// [`compensate`] of a sequence cut in segments: `history` holds the last (up to
+/// [`LOOK_BACK`]) targets before `targets`, already compensated; `start` counts only when
+/// there is none. Gives the outcomes of `targets` exactly as compensating the whole sequence
+/// at once would, and whether each was re-solved (the history of the next segment).
+pub fn compensate_after(
+    model: &Model,
+    tools: &[Frame],
+    history: &[Carried],
+    targets: &[Target],
+    start: [Direction; 6],
+    options: &Options,
+) -> (Vec<Outcome>, Vec<bool>) {
+    let h = history.len();
+    let (nominal_start, state_start) = match history.last() {
+        Some(c) => (c.outcome.nominal_directions, c.outcome.directions),
+        None => (start, start),
+    };
+    let nominal = nominal_directions(targets, nominal_start);
     let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
-    let mut outcomes: Vec<Outcome> = if options.parallel {
-        (0..targets.len())
+    let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
+    outcomes.extend(history.iter().map(|c| c.outcome));
+    if options.parallel {
+        let solved: Vec<Outcome> = (0..targets.len())
             .into_par_iter()
             .with_min_len(256)
             .map(first)
-            .collect()
+            .collect();
+        outcomes.extend(solved);
     } else {
-        (0..targets.len()).map(first).collect()
+        outcomes.extend((0..targets.len()).map(first));
+    }
+    let all: std::borrow::Cow<[Target]> = if h == 0 {
+        std::borrow::Cow::Borrowed(targets)
+    } else {
+        std::borrow::Cow::Owned(
+            history
+                .iter()
+                .map(|c| c.target)
+                .chain(targets.iter().copied())
+                .collect(),
+        )
     };
     let ctx = Ctx {
         model,
         tools,
-        targets,
+        targets: &all,
         method: options.method,
     };
     // Arrival motions of the first-pass commands, chunk by chunk: each rate needs its
     // neighbours' written TCPs, computed once per chunk (plus the few around its ends), and
     // the re-check needs only the signs.
     let cmd = |j: usize| outcomes[j].axes_deg;
-    let n = targets.len();
+    let n = all.len();
     let chunk = |c: usize| -> Vec<Option<[i8; 6]>> {
-        let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
+        let (a, b) = (h + c * RATE_CHUNK, (h + (c + 1) * RATE_CHUNK).min(n));
         let from = a.saturating_sub(2);
         let tcps: Vec<Frame> = (from..(b + 1).min(n))
             .map(|k| ctx.tcp(k, &outcomes[k].axes_deg))
@@ -270,14 +317,18 @@ pub fn compensate(
             .map(|k| signs(ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some((from, &tcps)))))
             .collect()
     };
-    let chunks = n.div_ceil(RATE_CHUNK);
+    let chunks = (n - h).div_ceil(RATE_CHUNK);
     let rates: Vec<Option<[i8; 6]>> = if options.parallel {
         (0..chunks).into_par_iter().flat_map_iter(chunk).collect()
     } else {
         (0..chunks).flat_map(chunk).collect()
     };
-    recheck(&ctx, start, &mut outcomes, &rates);
-    outcomes
+    let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
+    resolved.resize(n, false);
+    recheck(&ctx, state_start, h, &mut outcomes, &rates, &mut resolved);
+    outcomes.drain(..h);
+    resolved.drain(..h);
+    (outcomes, resolved)
 }
 
 fn tcp_error(
@@ -554,11 +605,18 @@ impl Ctx<'_> {
 /// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
 /// they were solved with. `rates[k]` is the arrival motion's signs at k with the first-pass
 /// commands; it is recomputed when a command it depends on changed since.
-fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[Option<[i8; 6]>]) {
+/// Targets before `from` are settled (history); `rates[k - from]`.
+fn recheck(
+    ctx: &Ctx,
+    start: [Direction; 6],
+    from: usize,
+    outcomes: &mut [Outcome],
+    rates: &[Option<[i8; 6]>],
+    resolved: &mut [bool],
+) {
     let mut state = start;
-    let mut resolved = vec![false; ctx.targets.len()];
     let (mut n_expected, mut n_actual) = (0usize, 0usize);
-    for k in 0..ctx.targets.len() {
+    for k in from..ctx.targets.len() {
         let target = &ctx.targets[k];
         let tool = ctx.tool(k);
         let fixed = !target.compensate || outcomes[k].error.is_some();
@@ -577,7 +635,7 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
             let snapshot = |j: usize| outcomes[j].axes_deg;
             signs(ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None))
         } else {
-            rates[k]
+            rates[k - from]
         };
         let actual = arrive_signs(&state, rate);
         if actual != outcomes[k].directions {
@@ -596,9 +654,21 @@ fn recheck(ctx: &Ctx, start: [Direction; 6], outcomes: &mut [Outcome], rates: &[
         }
         state = outcomes[k].directions;
     }
-    if std::env::var_os("ROBOPOST_TIMING").is_some() {
-        eprintln!("  re-solved: {n_expected} for the compensated state, {n_actual} for the compensated motion");
-    }
+    RESOLVED[0].fetch_add(n_expected, std::sync::atomic::Ordering::Relaxed);
+    RESOLVED[1].fetch_add(n_actual, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Targets re-solved for the compensated state and for the compensated motion, since the
+/// process started (what `ROBOPOST_TIMING` prints).
+static RESOLVED: [std::sync::atomic::AtomicUsize; 2] = [
+    std::sync::atomic::AtomicUsize::new(0),
+    std::sync::atomic::AtomicUsize::new(0),
+];
+
+/// [`RESOLVED`]'s two counts.
+pub fn resolved_counts() -> (usize, usize) {
+    use std::sync::atomic::Ordering::Relaxed;
+    (RESOLVED[0].load(Relaxed), RESOLVED[1].load(Relaxed))
 }
 
 /// Candidate command of a target with its true directions and predicted error.

@@ -88,6 +88,7 @@ pub mod number;
 pub mod program;
 pub mod span;
 pub mod stmt;
+pub mod stream;
 pub mod symbols;
 pub mod tree;
 mod trivia;
@@ -104,9 +105,11 @@ pub use nodes::{AggregateId, Members, MotionId};
 pub use program::{LoadError, Program};
 pub use span::{LineIndex, Span};
 pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, Directive, For, Stmt, StmtKind};
+pub use stream::{StreamOptions, StreamedRun};
 pub use symbols::{Symbol, Symbols};
 pub use tree::{
-    parse, parse_recovering, parse_recovering_owned, FileKind, SourceFile, Stats, TileKind,
+    parse, parse_recovering, parse_recovering_owned, parse_streaming, FileKind, SourceFile, Stats,
+    TileKind,
 };
 
 /// The `.dat` beside a `.src` (same stem, `.dat` or `.DAT`), if it exists.

@@ -69,6 +69,8 @@ impl fmt::Debug for Span {
 pub struct LineIndex {
     starts: Vec<u32>,
     len: u32,
+    /// Lines before `starts[0]` (a window of a file starts at a later line).
+    before: u32,
 }
 
 impl LineIndex {
@@ -83,31 +85,46 @@ impl LineIndex {
         LineIndex {
             starts,
             len: src.len() as u32,
+            before: 0,
         }
     }
 
     /// Builds the index from line starts already found by the line scanner.
-    pub(crate) fn from_starts(mut starts: Vec<u32>, len: usize) -> LineIndex {
+    /// `first_line`: the 1-based number of the line starting at `starts[0]`.
+    pub(crate) fn from_starts(mut starts: Vec<u32>, len: usize, first_line: u32) -> LineIndex {
         starts.shrink_to_fit();
         LineIndex {
             starts,
             len: len as u32,
+            before: first_line.saturating_sub(1),
         }
+    }
+
+    /// The bytes indexed: from the first line's start to the end.
+    pub fn extent(&self) -> Span {
+        Span::new(
+            self.starts.first().copied().unwrap_or(0) as usize,
+            self.len as usize,
+        )
     }
 
     /// Number of lines (a final line without a newline counts; an empty file has one line).
     pub fn line_count(&self) -> usize {
-        self.starts.len()
+        self.starts.len() + self.before as usize
     }
 
     /// 1-based line and 1-based byte column of a byte offset (clamped to the file).
     pub fn line_col(&self, offset: usize) -> (usize, usize) {
-        let offset = offset.min(self.len as usize) as u32;
+        let offset =
+            (offset.min(self.len as usize) as u32).max(self.starts.first().copied().unwrap_or(0));
         let line = match self.starts.binary_search(&offset) {
             Ok(i) => i,
             Err(i) => i - 1,
         };
-        (line + 1, (offset - self.starts[line]) as usize + 1)
+        (
+            line + 1 + self.before as usize,
+            (offset - self.starts[line]) as usize + 1,
+        )
     }
 
     /// The 1-based line of a byte offset.
@@ -117,7 +134,10 @@ impl LineIndex {
 
     /// Span of a 1-based line without its line ending (`\n` or `\r\n`).
     pub fn line_span(&self, src: &[u8], line: usize) -> Span {
-        let i = line.clamp(1, self.starts.len()) - 1;
+        let i = line
+            .saturating_sub(self.before as usize)
+            .clamp(1, self.starts.len())
+            - 1;
         let start = self.starts[i] as usize;
         let mut end = match self.starts.get(i + 1) {
             Some(&next) => next as usize - 1,

@@ -14,11 +14,13 @@ use super::motion::Motion;
 use super::nodes::{AggregateId, Members, MotionId, Nodes};
 use super::span::{LineIndex, Span};
 use super::stmt::{self, Arm, ArmKind, Block, BlockKind, Clause, Line, Stmt, StmtKind};
+use super::stream::{is_plain, Held, StreamOptions, StreamedRun, Stretch};
 use super::trivia::split_line;
 use crate::diagnostic::Diagnostic;
 use std::borrow::Cow;
 use std::cell::RefCell;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Which kind of KRL file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -45,7 +47,8 @@ const MAX_BLOCK_DEPTH: usize = 200;
 /// A parsed KRL file: its original bytes, the statements, the fold overlay, the problems.
 #[derive(Clone, Debug)]
 pub struct SourceFile {
-    src: Vec<u8>,
+    /// Shared with the windows of its runs.
+    src: Arc<Vec<u8>>,
     kind: FileKind,
     body: Vec<Stmt>,
     trailing: Span,
@@ -53,6 +56,8 @@ pub struct SourceFile {
     problems: Vec<Problem>,
     lines: LineIndex,
     nodes: Nodes,
+    /// Stretches of the main routine left out of the tree (`parse_streaming`).
+    runs: Vec<StreamedRun>,
 }
 
 /// Counts of what a file holds (what `robopost check` prints).
@@ -103,72 +108,162 @@ pub fn parse_recovering_owned(src: Vec<u8>, kind: FileKind) -> SourceFile {
         problems[0].label = "here";
         return SourceFile {
             lines: LineIndex::default(),
-            src: Vec::new(),
+            src: Arc::default(),
             kind,
             body: Vec::new(),
             trailing: Span::default(),
             folds: Vec::new(),
             problems,
             nodes: Nodes::default(),
+            runs: Vec::new(),
         };
     }
     let mut file = build(&src, kind);
-    file.src = src;
+    file.src = Arc::new(src);
     file
+}
+
+/// [`parse_recovering_owned`], leaving the plain stretches of the main routine out of the
+/// tree as runs to be parsed window by window ([`SourceFile::window`]); `Err` as [`parse`].
+pub fn parse_streaming(
+    src: Vec<u8>,
+    kind: FileKind,
+    opts: StreamOptions,
+) -> Result<SourceFile, ParseError> {
+    let file = if src.len() > u32::MAX as usize {
+        parse_recovering_owned(src, kind)
+    } else {
+        let mut file = build_in(&src, kind, 0..src.len(), 1, Some(opts));
+        file.src = Arc::new(src);
+        file
+    };
+    if file.has_errors() {
+        Err(ParseError {
+            file: Box::new(file),
+        })
+    } else {
+        Ok(file)
+    }
 }
 
 /// Parses `src` into a file whose `src` field is left empty (the caller moves the bytes in).
 fn build(src: &[u8], kind: FileKind) -> SourceFile {
-    let nodes = RefCell::new(Nodes::for_input(src.len()));
+    build_in(src, kind, 0..src.len(), 1, None)
+}
+
+/// Parses the whole lines `range` of `src` (line `first_line` first); with `stream`, the
+/// plain stretches of the main routine are left out as runs (see `stream`).
+fn build_in(
+    src: &[u8],
+    kind: FileKind,
+    range: std::ops::Range<usize>,
+    first_line: u32,
+    stream: Option<StreamOptions>,
+) -> SourceFile {
+    let nodes = RefCell::new(Nodes::for_input(range.len()));
     let cx = Cx::new(src, &nodes);
     let mut b = Builder::default();
     let mut folds = FoldTracker::default();
-    let mut starts = Vec::with_capacity(src.len() / 32 + 1);
-    starts.push(0u32);
-    let mut pos = 0;
-    let mut line = 1u32;
-    let mut pending = 0usize;
-    while pos < src.len() {
+    let mut starts = Vec::with_capacity(range.len() / 32 + 1);
+    starts.push(range.start as u32);
+    let mut pos = range.start;
+    let mut line = first_line;
+    let mut pending = range.start;
+    let mut stretch: Option<Stretch> = None;
+    let mut runs = Vec::new();
+    // A line of code into the tree (parsed; an unreadable line recorded as a problem).
+    let feed = |b: &mut Builder, code: Span, leading: Span, line: u32, fold| {
+        let parsed = match stmt::line(cx, kind, &src[code.range()]) {
+            Ok(parsed) => parsed,
+            Err(e) => {
+                let kind = match e {
+                    Some(e) => {
+                        let at = cx.off(e.at).min(code.end as usize);
+                        let mut p = Problem::error(
+                            Span::new(at, (at + 1).min(code.end as usize).max(at)),
+                            e.label(),
+                            e.help(),
+                        );
+                        if p.message.is_empty() {
+                            p.message = "malformed statement".into();
+                        }
+                        b.problems.push(p);
+                        StmtKind::Invalid
+                    }
+                    None => StmtKind::Opaque,
+                };
+                Line::Simple(kind)
+            }
+        };
+        b.feed(parsed, leading, code, line, fold);
+    };
+    // Ends the stretch being collected: a run, or lines parsed into the tree after all.
+    let close = |b: &mut Builder,
+                 stretch: &mut Option<Stretch>,
+                 pending: &mut usize,
+                 runs: &mut Vec<StreamedRun>| {
+        let Some(st) = stretch.take() else { return };
+        match st.run {
+            Some(run) => runs.push(run),
+            None => {
+                for h in st.held {
+                    feed(
+                        b,
+                        h.code,
+                        Span::new(*pending, h.code.start as usize),
+                        h.line,
+                        None,
+                    );
+                    *pending = h.code.end as usize;
+                }
+            }
+        }
+    };
+    while pos < range.end {
         let l = split_line(src, pos);
         if l.code_start == l.code_end {
             if let Some((c0, c1)) = l.comment {
+                if stretch.is_some() && fold_marker(&src[c0..c1]) {
+                    close(&mut b, &mut stretch, &mut pending, &mut runs);
+                }
                 folds.comment_line(cx, &src[c0..c1], line);
             }
         } else {
-            let leading = Span::new(pending, l.code_start);
-            let head = Span::new(l.code_start, l.code_end);
-            pending = l.code_end;
-            let code = &src[l.code_start..l.code_end];
-            let parsed = match stmt::line(cx, kind, code) {
-                Ok(parsed) => parsed,
-                Err(e) => {
-                    let kind = match e {
-                        Some(e) => {
-                            let at = cx.off(e.at).min(l.code_end);
-                            let mut p = Problem::error(
-                                Span::new(at, (at + 1).min(l.code_end).max(at)),
-                                e.label(),
-                                e.help(),
-                            );
-                            if p.message.is_empty() {
-                                p.message = "malformed statement".into();
-                            }
-                            b.problems.push(p);
-                            StmtKind::Invalid
-                        }
-                        None => StmtKind::Opaque,
-                    };
-                    Line::Simple(kind)
+            let code = Span::new(l.code_start, l.code_end);
+            let mut plain = false;
+            if let Some(opts) = &stream {
+                if b.in_main_body() && folds.current().is_none() {
+                    let mark = nodes.borrow().mark();
+                    if let Ok(parsed) = stmt::line(cx, kind, &src[code.range()]) {
+                        plain = is_plain(&parsed, &nodes.borrow(), src);
+                    }
+                    nodes.borrow_mut().reset(mark);
+                    if plain {
+                        let st = stretch.get_or_insert_with(|| Stretch::new(pos, line));
+                        st.push(
+                            opts,
+                            pos,
+                            l.next.min(range.end),
+                            Held { code, line },
+                            || b.main_body_len(),
+                        );
+                    }
                 }
-            };
-            b.feed(parsed, leading, head, line, folds.current());
+            }
+            if !plain {
+                close(&mut b, &mut stretch, &mut pending, &mut runs);
+                let leading = Span::new(pending, l.code_start);
+                pending = l.code_end;
+                feed(&mut b, code, leading, line, folds.current());
+            }
         }
-        if l.newline < src.len() {
+        if l.newline < range.end {
             starts.push(l.next as u32);
             line += 1;
         }
         pos = l.next.max(pos + 1);
     }
+    close(&mut b, &mut stretch, &mut pending, &mut runs);
     let (body, mut problems) = b.finish();
     let (folds, fold_problems) = folds.finish();
     problems.extend(fold_problems);
@@ -176,22 +271,32 @@ fn build(src: &[u8], kind: FileKind) -> SourceFile {
     let mut nodes = nodes.into_inner();
     nodes.finish();
     SourceFile {
-        src: Vec::new(),
+        src: Arc::default(),
         kind,
         body,
-        trailing: Span::new(pending, src.len()),
+        trailing: Span::new(pending, range.end),
         folds,
         problems,
-        lines: LineIndex::from_starts(starts, src.len()),
-
+        lines: LineIndex::from_starts(starts, range.end, first_line),
         nodes,
+        runs,
     }
+}
+
+/// A `;FOLD` or `;ENDFOLD` line (a run never spans one: folds change what motions mean).
+fn fold_marker(comment: &[u8]) -> bool {
+    let body = comment[1..].trim_ascii_start();
+    [&b"FOLD"[..], b"ENDFOLD"]
+        .iter()
+        .any(|w| body.len() >= w.len() && body[..w.len()].eq_ignore_ascii_case(w))
 }
 
 /// An open block being filled.
 struct Frame {
     stmt: Stmt,
     kind: BlockKind,
+    /// The file's first routine (its main program).
+    main: bool,
 }
 
 #[derive(Default)]
@@ -201,6 +306,7 @@ struct Builder {
     problems: Vec<Problem>,
     /// Pages mapped ahead of the statement list being filled (see `memory`).
     ahead: Ahead,
+    routines: u32,
 }
 
 fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<FoldId>) -> Stmt {
@@ -216,6 +322,25 @@ fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<Fol
 }
 
 impl Builder {
+    /// Directly inside the main routine (where runs may be).
+    fn in_main_body(&self) -> bool {
+        self.stack.len() == 1
+            && self.stack[0].main
+            && self.stack[0]
+                .stmt
+                .block
+                .as_ref()
+                .is_some_and(|b| b.arms.is_empty())
+    }
+
+    fn main_body_len(&self) -> u32 {
+        self.stack[0]
+            .stmt
+            .block
+            .as_ref()
+            .map_or(0, |b| b.body.len()) as u32
+    }
+
     fn body(&mut self) -> &mut Vec<Stmt> {
         match self.stack.last_mut() {
             None => &mut self.top,
@@ -253,7 +378,15 @@ impl Builder {
                 }
                 let mut s = simple(kind, leading, head, line, fold);
                 s.block = Some(Box::default());
-                self.stack.push(Frame { stmt: s, kind: bk });
+                let main = bk == BlockKind::Routine && self.stack.is_empty() && self.routines == 0;
+                if bk == BlockKind::Routine {
+                    self.routines += 1;
+                }
+                self.stack.push(Frame {
+                    stmt: s,
+                    kind: bk,
+                    main,
+                });
             }
             Line::Arm(bk, arm) => {
                 let clause = Clause {
@@ -392,6 +525,27 @@ pub enum TileKind {
 }
 
 impl SourceFile {
+    /// `Err` when the file has errors (as [`parse`]).
+    pub fn checked(self) -> Result<SourceFile, ParseError> {
+        if self.has_errors() {
+            Err(ParseError {
+                file: Box::new(self),
+            })
+        } else {
+            Ok(self)
+        }
+    }
+
+    /// The bytes this file's tree covers: the whole source, or a window's lines.
+    pub fn extent(&self) -> Span {
+        self.lines.extent()
+    }
+
+    /// The original bytes, shared (a window shares its file's).
+    pub fn shared_source(&self) -> Arc<Vec<u8>> {
+        Arc::clone(&self.src)
+    }
+
     /// The original bytes.
     pub fn source(&self) -> &[u8] {
         &self.src
@@ -419,6 +573,20 @@ impl SourceFile {
     /// case-insensitive).
     pub fn is_named(&self, span: Span, name: &str) -> bool {
         self.text(span).eq_ignore_ascii_case(name.as_bytes())
+    }
+
+    /// The stretches of the main routine left out of the tree by [`parse_streaming`].
+    pub fn streamed_runs(&self) -> &[StreamedRun] {
+        &self.runs
+    }
+
+    /// One window of a run (`window` from [`StreamedRun::windows`]) parsed into a file of its
+    /// own: its statements at top level, the source bytes shared, spans and line numbers as
+    /// in the whole file.
+    pub fn window(&self, (bytes, first_line): (Span, u32)) -> SourceFile {
+        let mut w = build_in(&self.src, self.kind, bytes.range(), first_line, None);
+        w.src = Arc::clone(&self.src);
+        w
     }
 
     /// The top-level statements (header directives, routines, `DEFDAT`, stray lines).

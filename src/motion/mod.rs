@@ -12,7 +12,9 @@ pub mod spline;
 pub mod value;
 pub mod workspace;
 
-pub use simulate::{simulate, GivenFrame, Rel, Role, Simulation, SplineEnds, Stop};
+pub use simulate::{
+    simulate, simulate_streaming, GivenFrame, Rel, Role, RunSink, Simulation, SplineEnds, Stop,
+};
 pub use workspace::{FileId, Workspace};
 
 /// The commanded axis states of a program run, in execution order: every target's nominal

@@ -76,12 +76,32 @@ impl Workspace {
         dat: Option<(&[u8], &Path, &str)>,
         config: Option<&Path>,
     ) -> Result<Workspace, LoadError> {
+        let (bytes, path, name) = src;
+        Workspace::load_streaming((bytes.to_vec(), path, name), dat, config, None)
+    }
+
+    /// [`Workspace::load`] taking the program's bytes; with `stream`, the plain stretches of
+    /// its main routine are left out of the tree as runs (`krl::parse_streaming`), to be walked
+    /// window by window with `motion::simulate_streaming`.
+    pub fn load_streaming(
+        src: (Vec<u8>, Option<&Path>, &str),
+        dat: Option<(&[u8], &Path, &str)>,
+        config: Option<&Path>,
+        stream: Option<krl::StreamOptions>,
+    ) -> Result<Workspace, LoadError> {
         let mut ws = Workspace::default();
         let (bytes, path, name) = src;
+        let file = match stream {
+            Some(opts) => krl::parse_streaming(bytes, FileKind::Src, opts),
+            None => krl::parse_recovering_owned(bytes, FileKind::Src).checked(),
+        }
+        .map_err(|e| LoadError::Parse {
+            diagnostics: e.diagnostics(name),
+        })?;
         ws.files.push(Loaded {
             path: path.map(Path::to_path_buf),
             name: name.to_string(),
-            file: parse(bytes, FileKind::Src, name)?,
+            file,
             partner: None,
             role: Role::Main,
         });
@@ -198,6 +218,21 @@ impl Workspace {
 
     pub fn get(&self, id: FileId) -> &Loaded {
         &self.files[id as usize]
+    }
+
+    /// A workspace holding one window of a streamed run of file `id` as its only file.
+    pub fn window_of(&self, id: FileId, window: SourceFile) -> Workspace {
+        let f = self.get(id);
+        Workspace {
+            files: vec![Loaded {
+                path: f.path.clone(),
+                name: f.name.clone(),
+                file: window,
+                partner: None,
+                role: Role::Main,
+            }],
+            main: 0,
+        }
     }
 
     /// The main program's `.dat`, if any.

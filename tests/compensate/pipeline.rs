@@ -88,6 +88,80 @@ fn nominal_calibration_is_the_identity_on_every_fixture() {
     }
 }
 
+/// The main job loads programs with their plain stretches streamed (`krl::parse_streaming`)
+/// and compensates them window by window: on every fixture, cut into runs and windows as
+/// small as possible, that gives exactly what the whole-tree walk gives — every output byte,
+/// the report, the diagnostics.
+#[test]
+fn streamed_runs_give_the_whole_programs_result() {
+    let mut windows = 0;
+    for path in fixtures() {
+        let ws = load(&path);
+        let whole = run(&ws, "kr30ha-handset.json", compensate::Method::Iterate);
+        for (min_run, window) in [(1, 1), (1, 2), (3, 7)] {
+            let bytes = std::fs::read(&path).unwrap();
+            let opts = robopost::krl::StreamOptions { min_run, window };
+            let streamed_ws = files::load_program_streaming(
+                Some(&path),
+                bytes,
+                Some(Path::new(CONFIG)),
+                Some(opts),
+            )
+            .unwrap();
+            windows += streamed_ws
+                .get(streamed_ws.main)
+                .file
+                .streamed_runs()
+                .iter()
+                .map(|r| r.windows().len())
+                .sum::<usize>();
+            let streamed = run(
+                &streamed_ws,
+                "kr30ha-handset.json",
+                compensate::Method::Iterate,
+            );
+            let at = format!("{} streamed {min_run}/{window}", path.display());
+            assert_eq!(streamed.rejected, whole.rejected, "{at}");
+            assert_eq!(streamed.target_errors, whole.target_errors, "{at}");
+            assert_eq!(streamed.files.len(), whole.files.len(), "{at}");
+            for (a, b) in streamed.files.iter().zip(&whole.files) {
+                assert_eq!((a.file, a.changed), (b.file, b.changed), "{at}");
+                if a.bytes.to_vec() != b.bytes.to_vec() {
+                    std::fs::write("/tmp/streamed.out", a.bytes.to_vec()).ok();
+                    std::fs::write("/tmp/whole.out", b.bytes.to_vec()).ok();
+                    panic!("{at}: file {} differs", a.file);
+                }
+            }
+            let json = |r: &ProgramResult| {
+                let mut v = serde_json::to_value(&r.report).unwrap();
+                // Warnings and errors come in another order (windows are rewritten first).
+                for key in ["warnings", "errors"] {
+                    if let Some(list) = v[key].as_array_mut() {
+                        list.sort_by_key(|x| x.to_string());
+                    }
+                }
+                v
+            };
+            if json(&streamed) != json(&whole) {
+                let pretty = |v| serde_json::to_string_pretty(&v).unwrap();
+                std::fs::write("/tmp/streamed.json", pretty(json(&streamed))).ok();
+                std::fs::write("/tmp/whole.json", pretty(json(&whole))).ok();
+                panic!("{at}: report differs");
+            }
+            let diags = |r: &ProgramResult| {
+                let mut d: Vec<String> = r.diagnostics.iter().map(|d| d.render()).collect();
+                d.sort();
+                d
+            };
+            assert_eq!(diags(&streamed), diags(&whole), "{at}: diagnostics");
+        }
+    }
+    assert!(
+        windows > 1000,
+        "the fixtures were cut into {windows} windows"
+    );
+}
+
 /// Arbitrary aggregates in the styles controllers and CAM systems write: with the nominal
 /// calibration nothing changes.
 fn number() -> impl Strategy<Value = String> {
@@ -154,7 +228,7 @@ fn compensated_paths_reach_the_programmed_poses() {
         // Write the outputs to a temporary directory and load them back.
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join(format!("{name}.src"));
-        files::write_atomic(&files::outputs(&ws, &result.files, &out)).unwrap();
+        files::write_atomic_pieces(&files::outputs(&ws, &result.files, &out)).unwrap();
         let ws2 = load(&out);
         let again = motion::simulate(&ws2, &robot, &[]);
         assert_eq!(again.stops.len(), original.stops.len());
@@ -259,7 +333,7 @@ fn diff_snapshots() {
                 continue;
             }
             let old = String::from_utf8_lossy(ws.get(f.file).file.source()).replace('\r', "␍");
-            let new = String::from_utf8_lossy(&f.bytes).replace('\r', "␍");
+            let new = String::from_utf8_lossy(&f.bytes.to_vec()).replace('\r', "␍");
             let name = ws.get(f.file).name.clone();
             let diff = similar::TextDiff::from_lines(&old, &new);
             text += &diff
@@ -305,9 +379,9 @@ fn compensate_text(src: &str, dat: Option<&str>) -> (String, Option<String>, Pro
     let ws = load(&sp);
     let r = run(&ws, "kr30ha-handset.json", compensate::Method::Iterate);
     let main = r.files.iter().find(|f| f.file == ws.main).unwrap();
-    let out = String::from_utf8(main.bytes.clone()).unwrap();
+    let out = String::from_utf8(main.bytes.to_vec()).unwrap();
     let dat_out = ws.main_dat().map(|d| {
-        String::from_utf8(r.files.iter().find(|f| f.file == d).unwrap().bytes.clone()).unwrap()
+        String::from_utf8(r.files.iter().find(|f| f.file == d).unwrap().bytes.to_vec()).unwrap()
     });
     (out, dat_out, r)
 }

@@ -8,6 +8,7 @@ mod fixtures;
 mod grammar;
 mod props;
 mod semantics;
+mod stream;
 
 use robopost::krl::{self, FileKind, SourceFile};
 use std::path::{Path, PathBuf};

@@ -26,9 +26,11 @@ mod call;
 mod eval;
 mod flow;
 mod spline;
+mod stream;
 mod target;
 
 pub use spline::SplineEnds;
+pub use stream::{simulate_streaming, RunSink};
 
 /// Calls nested deeper than this are not followed (recursion).
 const MAX_CALL_DEPTH: usize = 64;
@@ -100,6 +102,9 @@ pub struct Stop<'f> {
     deferred: bool,
     /// An `SPL` segment that follows the block's curve: where it lies in its chain.
     pub spline: Option<SplineEnds>,
+    /// A copy of a stop executed before a streamed segment began (see `simulate_streaming`):
+    /// there for continuity, not a target of this segment.
+    pub ghost: bool,
 }
 
 /// The simulated program.
@@ -175,11 +180,10 @@ pub fn simulate<'f>(
     // At least one stop per motion statement (loops add more): no regrowth for CAM programs.
     let motions: usize = ws.files.iter().map(|f| f.file.motions().count()).sum();
     sim.out.stops.reserve(motions);
-    sim.run();
+    sim.run(None);
+    sim.finish_segment();
     let mut out = sim.out;
     out.prefixes = sim.prefixes.into_inner();
-    finish(&mut out, robot);
-    spline::finish_splines(&mut out, robot, &sim.splines);
     out
 }
 
@@ -242,6 +246,8 @@ struct Simulator<'f> {
     prefixes: std::cell::RefCell<Vec<Frame>>,
     /// The `SPL` segments of CP spline blocks, whose arrivals are taken along the curve.
     splines: Vec<spline::SplineSegment>,
+    /// Stops already handed to a [`RunSink`].
+    handed: usize,
 }
 
 fn upper(b: &[u8]) -> Vec<u8> {
@@ -307,6 +313,7 @@ impl<'f> Simulator<'f> {
             warned_frames: false,
             prefixes: Default::default(),
             splines: Vec::new(),
+            handed: 0,
         }
     }
 
@@ -353,7 +360,8 @@ impl<'f> Simulator<'f> {
         self.state.current = None;
     }
 
-    pub(super) fn run(&mut self) {
+    /// Walks the main routine; its streamed runs (if any) go to `sink`.
+    pub(super) fn run(&mut self, sink: Option<&mut dyn RunSink<'f>>) {
         let main = self.ws.main;
         let Some((stmt, _)) = self.src(main).routines().next() else {
             self.out.diagnostics.push(Diagnostic::new(
@@ -364,7 +372,26 @@ impl<'f> Simulator<'f> {
             return;
         };
         let mut scope = Scope::default();
-        self.routine(main, stmt, &mut scope);
+        match sink {
+            Some(sink) => {
+                if let Some(b) = &stmt.block {
+                    self.main_body(main, &b.body, &mut scope, sink);
+                }
+            }
+            None => {
+                if !self.src(main).streamed_runs().is_empty() {
+                    let name = &self.ws.get(main).name;
+                    self.out.fatal = true;
+                    self.out.diagnostics.push(Diagnostic::new(
+                        Severity::Error,
+                        name,
+                        "internal error: a program parsed with streamed runs needs simulate_streaming",
+                    ));
+                    return;
+                }
+                self.routine(main, stmt, &mut scope);
+            }
+        }
     }
 
     pub(super) fn routine(&mut self, file: FileId, stmt: &'f Stmt, scope: &mut Scope<'f>) {

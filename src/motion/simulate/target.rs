@@ -55,6 +55,7 @@ impl<'f> Simulator<'f> {
             compensable: false,
             deferred: false,
             spline: None,
+            ghost: false,
         }
     }
 

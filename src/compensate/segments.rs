@@ -1,0 +1,176 @@
+//! Compensation segment by segment, in execution order, as the walk hands the stops over
+//! ([`RunSink`]): the skeleton's stops up to a streamed run, then each window of the run —
+//! compensated, reported and (windows) rewritten at once, so that nothing of a window is
+//! kept but its new bytes. The direction logic's look-back crosses the cuts through the
+//! carried last targets ([`sequence::compensate_after`]), so the result is the one of the
+//! whole sequence at once. The skeleton is rewritten after the walk (a `.dat` point may be
+//! reached before and after a run: splitting it needs every use).
+
+use crate::diagnostic::{Diagnostic, Severity};
+use crate::krl::Span;
+use crate::model::{Direction, Model};
+use crate::motion::{RunSink, Simulation, Workspace};
+
+use super::program::{targets, Options, Tally};
+use super::rewrite;
+use super::sequence::{self, Carried, Outcome, LOOK_BACK};
+
+pub(super) struct Segments<'a> {
+    /// The main file (its skeleton): where windows take their style from.
+    main: &'a crate::krl::SourceFile,
+    separator: Option<Vec<u8>>,
+    model: &'a Model,
+    options: &'a Options,
+    history: Vec<Carried>,
+    /// Outcomes of the skeleton's stops (ghosts included), in order.
+    pub skeleton: Vec<Outcome>,
+    /// The windows whose numbers changed: their bytes in the main file and the new bytes.
+    pub windows: Vec<(Span, Vec<u8>)>,
+    pub tally: Tally,
+    /// Near-singular targets and targets not compensated, in execution order.
+    pub singular: Vec<Diagnostic>,
+    pub target_errors: Vec<Diagnostic>,
+    /// What rewriting the windows said.
+    pub rewrite_diagnostics: Vec<Diagnostic>,
+    /// Applying a window's edits failed (an internal error: nothing may be written).
+    pub failed: Option<Box<Diagnostic>>,
+}
+
+impl<'a> Segments<'a> {
+    pub fn new(ws: &'a Workspace, model: &'a Model, options: &'a Options) -> Segments<'a> {
+        Segments {
+            main: &ws.get(ws.main).file,
+            separator: None,
+            model,
+            options,
+            history: Vec::new(),
+            skeleton: Vec::new(),
+            windows: Vec::new(),
+            tally: Tally::default(),
+            singular: Vec::new(),
+            target_errors: Vec::new(),
+            rewrite_diagnostics: Vec::new(),
+            failed: None,
+        }
+    }
+
+    /// Compensates `sim.stops[from..]` after the carried history (the stops executed just
+    /// before them: the leading ghosts stand for its last ones) and gives their outcomes,
+    /// ghosts' included.
+    fn segment(&mut self, ws: &Workspace, sim: &Simulation, from: usize) -> Vec<Outcome> {
+        let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
+        debug_assert!(ghosts <= self.history.len());
+        let first = from + ghosts;
+        let targets = targets(ws, sim, first..sim.stops.len());
+        let (outcomes, resolved) = sequence::compensate_after(
+            self.model,
+            &sim.frames,
+            &self.history,
+            &targets,
+            [Direction::Unknown; 6],
+            &sequence::Options {
+                method: self.options.method,
+                parallel: self.options.parallel,
+            },
+        );
+        self.diagnose(ws, sim, first, &outcomes);
+        self.tally.add(
+            ws,
+            sim,
+            first,
+            &outcomes,
+            &self.model.robot,
+            self.options.points,
+        );
+        let mut all: Vec<Outcome> = self.history[self.history.len() - ghosts..]
+            .iter()
+            .map(|c| c.outcome)
+            .collect();
+        self.history
+            .extend(targets.iter().zip(&outcomes).zip(&resolved).map(
+                |((&target, &outcome), &resolved)| Carried {
+                    target,
+                    outcome,
+                    resolved,
+                },
+            ));
+        let extra = self.history.len().saturating_sub(LOOK_BACK);
+        self.history.drain(..extra);
+        all.extend(outcomes);
+        all
+    }
+
+    /// Near-singular targets (compensated in the least-squares sense there, where small
+    /// Cartesian changes turn axes a lot) and targets left as written.
+    fn diagnose(&mut self, ws: &Workspace, sim: &Simulation, first: usize, outcomes: &[Outcome]) {
+        let robot = &self.model.robot;
+        let mut seen = std::collections::HashSet::new();
+        for (stop, o) in sim.stops[first..].iter().zip(outcomes) {
+            if let Some(sing) = crate::kinematics::singularity(robot, &stop.nominal_axes) {
+                if stop.compensable && seen.insert((stop.file, stop.stmt.head.start)) {
+                    self.singular.push(ws.diagnostic(
+                        Severity::Warning,
+                        stop.file,
+                        stop.stmt.head,
+                        format!("the target is near a singularity ({sing}): compensated in the least-squares sense where the pose cannot be reached exactly"),
+                    ));
+                }
+            }
+            if let Some(e) = &o.error {
+                self.target_errors.push(
+                    ws.diagnostic(
+                        Severity::Error,
+                        stop.file,
+                        stop.stmt.head,
+                        format!("target not compensated: {e}"),
+                    )
+                    .with_help(
+                        "the target is left as written; move it away from the limit or singularity",
+                    ),
+                );
+            }
+        }
+    }
+
+    /// The skeleton's stops from `from` on (the rest after the walk).
+    pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
+        debug_assert_eq!(from, self.skeleton.len());
+        let outcomes = self.segment(ws, sim, from);
+        self.skeleton.extend(outcomes);
+    }
+}
+
+impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
+    fn skeleton(&mut self, sim: &Simulation<'f>, from: usize) {
+        let ws = self.0;
+        self.1.skeleton_from(ws, sim, from);
+    }
+
+    fn window(&mut self, ws: &Workspace, sim: &Simulation<'_>) {
+        let seg = &mut *self.1;
+        let outcomes = seg.segment(ws, sim, 0);
+        let main = seg.main;
+        let separator = seg
+            .separator
+            .get_or_insert_with(|| rewrite::file_separator(main));
+        let mut rw = rewrite::rewrite(ws, sim, &outcomes, &seg.model.robot, Some(separator));
+        seg.rewrite_diagnostics.append(&mut rw.diagnostics);
+        let Some(edits) = rw.edits.remove(&0).filter(|e| !e.is_empty()) else {
+            return;
+        };
+        let file = &ws.get(0).file;
+        let extent = file.extent();
+        match edits.apply_in(file.source(), extent.range(), None) {
+            Ok(bytes) => seg.windows.push((extent, bytes)),
+            Err(e) => {
+                seg.failed.get_or_insert_with(|| {
+                    Box::new(Diagnostic::new(
+                        Severity::Error,
+                        &ws.get(0).name,
+                        format!("internal error, nothing written: the rewrite produced {e}; please report this program"),
+                    ))
+                });
+            }
+        }
+    }
+}

@@ -1,0 +1,181 @@
+//! The walk of a program whose main routine has streamed runs (`krl::parse_streaming`): the
+//! statements of the tree are walked as usual, and where a run stands the walker hands every
+//! stop recorded so far to a [`RunSink`], then parses the run window by window, walks each
+//! window with a walker of its own (the robot's state, frames and step count carried in and
+//! out) and hands the window's stops to the sink before the window is dropped. So a program
+//! of a million motions is never held whole: only the skeleton and one window.
+//!
+//! Continuity across the cuts: every segment handed to the sink begins with *ghosts* — copies
+//! of the (up to two) stops executed just before it, as far back as the compensation's
+//! direction logic looks (`Stop::ghost`; never rewritten or reported) — so a window's first
+//! motion starts from the right pose and its index arithmetic (`Stop::prev`) holds. Runs
+//! hold only statements whose meaning depends on nothing but themselves, so walking them
+//! without the routine's variables gives the stops the whole-tree walk gives (the tests
+//! compare both on every fixture).
+
+use super::*;
+use crate::krl::StreamedRun;
+
+/// Stops executed before a cut that the segment after it needs (see the module doc).
+const HISTORY: usize = 2;
+
+/// Where the stops of a streamed walk go, segment by segment, in execution order.
+pub trait RunSink<'f> {
+    /// The walk reached a run: `sim.stops[from..]` are the skeleton's stops since the last
+    /// call (ghosts first when the previous segment was a run), their arrivals final.
+    fn skeleton(&mut self, sim: &Simulation<'f>, from: usize);
+    /// One window of a run, walked: `ws` holds the window as its only file (id 0), `sim` its
+    /// stops, ghosts first.
+    fn window(&mut self, ws: &Workspace, sim: &Simulation<'_>);
+}
+
+/// [`simulate`] of a workspace whose main file may have streamed runs; the skeleton's stops
+/// after the last run are in the result (the sink has every stop before them).
+pub fn simulate_streaming<'f>(
+    ws: &'f Workspace,
+    robot: &RobotDescription,
+    given: &[GivenFrame],
+    sink: &mut dyn RunSink<'f>,
+) -> Simulation<'f> {
+    let mut sim = Simulator::new(ws, robot, given);
+    sim.run(Some(sink));
+    sim.finish_segment();
+    let mut out = sim.out;
+    out.prefixes = sim.prefixes.into_inner();
+    out
+}
+
+/// A stop as a placeholder for the segment after a cut.
+fn ghost(stop: &Stop) -> Stop<'static> {
+    static GHOST: std::sync::OnceLock<Stmt> = std::sync::OnceLock::new();
+    let stmt = GHOST.get_or_init(|| Stmt {
+        leading: Span::default(),
+        head: Span::default(),
+        end: 0,
+        line: 0,
+        fold: None,
+        kind: crate::krl::StmtKind::Opaque,
+        block: None,
+    });
+    Stop {
+        file: stop.file,
+        stmt,
+        kind: stop.kind,
+        role: stop.role,
+        goal: stop.goal,
+        tool: stop.tool,
+        base: stop.base,
+        nominal_axes: stop.nominal_axes,
+        arrival: stop.arrival,
+        axis: stop.axis,
+        programmed: stop.programmed,
+        keep_s: stop.keep_s,
+        keep_t: stop.keep_t,
+        rel: stop.rel,
+        origin: None,
+        reference: None,
+        prev: None,
+        compensable: false,
+        deferred: false,
+        spline: None,
+        ghost: true,
+    }
+}
+
+/// The last `HISTORY` stops of `stops` (ghosts stand for the stops they copy; a window's
+/// stops begin with the history it was given, so this is the history after it).
+fn remember(history: &mut Vec<Stop<'static>>, stops: &[Stop]) {
+    history.clear();
+    history.extend(
+        stops[stops.len().saturating_sub(HISTORY)..]
+            .iter()
+            .map(ghost),
+    );
+}
+
+impl<'f> Simulator<'f> {
+    /// Arrivals of the stops recorded since the last cut made final.
+    pub(super) fn finish_segment(&mut self) {
+        finish(&mut self.out, &self.robot);
+        let splines = std::mem::take(&mut self.splines);
+        spline::finish_splines(&mut self.out, &self.robot, &splines);
+    }
+
+    /// The main routine's body, with the runs left out of it walked where they stand.
+    pub(super) fn main_body(
+        &mut self,
+        file: FileId,
+        body: &'f [Stmt],
+        scope: &mut Scope<'f>,
+        sink: &mut dyn RunSink<'f>,
+    ) -> Flow {
+        let runs = self.src(file).streamed_runs();
+        let mut next = 0;
+        for i in 0..=body.len() {
+            while next < runs.len() && runs[next].before as usize == i {
+                self.stream_run(file, &runs[next], sink);
+                next += 1;
+                if self.steps >= MAX_STEPS || self.out.fatal {
+                    return Flow::Return;
+                }
+            }
+            let Some(s) = body.get(i) else { break };
+            match self.stmt(file, s, scope) {
+                Flow::Next => {}
+                other => return other,
+            }
+        }
+        Flow::Next
+    }
+
+    fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut dyn RunSink<'f>) {
+        self.finish_segment();
+        sink.skeleton(&self.out, self.handed);
+        self.handed = self.out.stops.len();
+        let before = self.state.current.and_then(|c| c.stop);
+        let mut history = Vec::new();
+        remember(&mut history, &self.out.stops);
+        let mut moved = false;
+        let loaded = self.ws.get(file);
+        for w in run.windows() {
+            let ws = self.ws.window_of(file, loaded.file.window(w));
+            let mut walker = Simulator::new(&ws, &self.robot, &self.given);
+            walker.state = self.state.clone();
+            walker.warned_frames = self.warned_frames;
+            walker.steps = self.steps;
+            walker.out.frames = std::mem::take(&mut self.out.frames);
+            walker.out.stops.extend(history.iter().copied());
+            if let Some(c) = &mut walker.state.current {
+                // The position the window starts from is the last stop before it.
+                c.stop = c.stop.and((history.len() as u32).checked_sub(1));
+            }
+            let window = &ws.get(0).file;
+            walker.block(0, window.body(), &mut Scope::default());
+            walker.finish_segment();
+            self.state = walker.state.clone();
+            self.warned_frames = walker.warned_frames;
+            self.steps = walker.steps;
+            let out = &mut walker.out;
+            self.out.unreachable += out.unreachable;
+            self.out.fatal |= out.fatal;
+            self.out.diagnostics.append(&mut out.diagnostics);
+            moved |= out.stops.iter().any(|s| !s.ghost);
+            sink.window(&ws, out);
+            remember(&mut history, &out.stops);
+            self.out.frames = std::mem::take(&mut out.frames);
+            if self.steps >= MAX_STEPS || self.out.fatal {
+                return;
+            }
+        }
+        if moved {
+            // The skeleton goes on from the run's last stops.
+            let first = self.out.stops.len() as u32;
+            self.out.stops.extend(history.iter().copied());
+            if let Some(c) = &mut self.state.current {
+                c.stop = c.stop.map(|_| first + history.len() as u32 - 1);
+            }
+        } else if let Some(c) = &mut self.state.current {
+            c.stop = c.stop.and(before);
+        }
+    }
+}
