@@ -1,6 +1,8 @@
 //! Fuzz target for the KRL parser: any bytes, as a program and as a data list, must parse
 //! without panicking, emit back byte for byte, be covered exactly by the tree's tiles, keep
-//! every number's text readable as its value, and render every problem.
+//! every number's text readable as its value, and render every problem; parsed with streamed
+//! runs, the skeleton emits the bytes too and its statements plus the windows' are the whole
+//! parse's.
 
 #![no_main]
 
@@ -30,4 +32,24 @@ fuzz_target!(|data: &[u8]| {
         let _ = krl::dump::dump(&f);
         let _ = f.stats();
     }
+    let whole = krl::parse_recovering(data, FileKind::Src);
+    let opts = krl::StreamOptions { min_run: 1, window: 2 };
+    let parsed = krl::parse_streaming(data.to_vec(), FileKind::Src, opts);
+    assert_eq!(parsed.is_err(), whole.has_errors());
+    let skeleton = match &parsed {
+        Ok(f) => f,
+        Err(e) => e.recovered(),
+    };
+    assert_eq!(skeleton.emit(), data);
+    let key = |s: &krl::Stmt| (s.line, s.head.start, s.head.end);
+    let mut got: Vec<_> = skeleton.statements().map(key).collect();
+    for run in skeleton.streamed_runs() {
+        for w in run.windows() {
+            let window = skeleton.window(w);
+            assert!(!window.has_errors());
+            got.extend(window.statements().map(key));
+        }
+    }
+    got.sort_by_key(|k| k.1);
+    assert_eq!(got, whole.statements().map(key).collect::<Vec<_>>());
 });

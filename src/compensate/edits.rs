@@ -211,6 +211,40 @@ mod tests {
         }
     }
 
+    proptest! {
+        /// A source cut into stretches, each applied on its own (`apply_in`), gives the
+        /// whole-source result: every edit lands in exactly one stretch (an insertion at a cut
+        /// in the stretch after it).
+        #[test]
+        fn stretches_put_together_are_the_whole(
+            src in "[a-z]{1,30}",
+            raw in proptest::collection::vec((0usize..30, 0usize..3, "[A-Z]{0,3}"), 0..10),
+            cuts in proptest::collection::vec(0usize..30, 0..4),
+        ) {
+            let n = src.len();
+            let mut list = EditList::new();
+            for (s, l, t) in &raw {
+                let (s, e) = ((*s).min(n), (s + l).min(n));
+                list.push(edit(s, e, t));
+            }
+            let first = edit(0, 0, "#");
+            let Ok(whole) = list.apply(src.as_bytes(), &first) else { return Ok(()) };
+            let mut at: Vec<usize> = cuts.iter().map(|c| c % n).collect();
+            at.extend([0, n]);
+            at.sort_unstable();
+            at.dedup();
+            let mut pieces = Vec::new();
+            for w in at.windows(2) {
+                match list.apply_in(src.as_bytes(), w[0]..w[1], Some(&first)) {
+                    Ok(p) => pieces.extend(p),
+                    // An edit across a cut: the caller never cuts there.
+                    Err(_) => return Ok(()),
+                }
+            }
+            prop_assert_eq!(pieces, whole);
+        }
+    }
+
     #[test]
     fn insertions_at_one_offset_keep_their_order_after_first() {
         let mut l = EditList::new();

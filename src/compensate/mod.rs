@@ -3,7 +3,9 @@
 //! motion. This module owns the solver ([`solve`]: the paper's equation (3) iterated to a
 //! fixed point, or one step of it), the sequence logic ([`sequence`]: nominal directions,
 //! parallel solving, the sequential direction re-check and the resolution of backlash-branch
-//! oscillation). It knows nothing of KRL: its
+//! oscillation), the program pipeline ([`program`]: compensated segment by segment as the walk
+//! hands over the stops — the whole program at once, or a streamed run window by window) and
+//! the rewrite. The solver and sequence logic know nothing of KRL: their
 //! input is a list of goal poses with nominal axes and arrival motions (from `motion`), its
 //! output the command axes per target (turned into KRL edits by `rewrite`).
 

@@ -57,6 +57,11 @@ pub struct ParseError {
 }
 
 impl ParseError {
+    /// The tree recovered from the malformed lines.
+    pub fn recovered(&self) -> &SourceFile {
+        &self.file
+    }
+
     /// The errors (warnings left out), in source order.
     pub fn errors(&self) -> impl Iterator<Item = &Problem> {
         self.file.problems().iter().filter(|p| p.is_error())

@@ -69,6 +69,10 @@
 //! assert!(out.windows(17).any(|w| w == b"LIN {X 100.037, Y"));
 //! ```
 //!
+//! Long programs: [`parse_streaming`] leaves the long plain stretches of the main routine (CAM
+//! motions to literal positions) out of the tree as [`StreamedRun`]s, each parsed later window
+//! by window with [`SourceFile::window`] (see [`stream`]).
+//!
 //! Inline forms: `program.inline_form(stmt)` gives the ILF fold a statement sits in, with the
 //! point name, velocity, motion data and tool/base of the form (`IlfMotion`), and the names
 //! KUKA gives their `.dat` variables (`position_var` → `XP1`, `frame_data_var` → `FP1`,

@@ -26,11 +26,11 @@ pub struct StreamOptions {
 
 impl Default for StreamOptions {
     fn default() -> StreamOptions {
-        // A window of 16k motions holds a few MB of tree, stops and results; runs shorter than
-        // one window gain nothing from streaming.
+        // A window of 8k motions holds a few MB of tree, stops and results; a run of a few
+        // thousand lines is already worth not holding as a tree.
         StreamOptions {
-            min_run: 16_384,
-            window: 16_384,
+            min_run: 2_048,
+            window: 8_192,
         }
     }
 }

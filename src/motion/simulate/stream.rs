@@ -19,6 +19,9 @@ use crate::krl::StreamedRun;
 /// Stops executed before a cut that the segment after it needs (see the module doc).
 const HISTORY: usize = 2;
 
+/// Windows parsed at a time (and at most held at once): a few MB of tree each.
+const WINDOWS_AHEAD: usize = 4;
+
 /// Where the stops of a streamed walk go, segment by segment, in execution order.
 pub trait RunSink<'f> {
     /// The walk reached a run: `sim.stops[from..]` are the skeleton's stops since the last
@@ -94,6 +97,38 @@ fn remember(history: &mut Vec<Stop<'static>>, stops: &[Stop]) {
 }
 
 impl<'f> Simulator<'f> {
+    /// Walks one window (`ws`, its only file) from the state the walk is in, `history` the
+    /// stops before it (updated to the last ones after it); the robot's state, frames, step
+    /// count and diagnostics carry over.
+    fn walk_window<'w>(
+        &mut self,
+        ws: &'w Workspace,
+        history: &mut Vec<Stop<'static>>,
+    ) -> Simulation<'w> {
+        let mut walker = Simulator::new(ws, &self.robot, &self.given);
+        walker.state = self.state.clone();
+        walker.warned_frames = self.warned_frames;
+        walker.steps = self.steps;
+        walker.out.frames = self.out.frames.clone();
+        walker.out.stops.extend(history.iter().copied());
+        if let Some(c) = &mut walker.state.current {
+            // The position the window starts from is the last stop before it.
+            c.stop = c.stop.and((history.len() as u32).checked_sub(1));
+        }
+        walker.block(0, ws.get(0).file.body(), &mut Scope::default());
+        walker.finish_segment();
+        self.state = walker.state.clone();
+        self.warned_frames = walker.warned_frames;
+        self.steps = walker.steps;
+        let mut out = walker.out;
+        self.out.unreachable += out.unreachable;
+        self.out.fatal |= out.fatal;
+        self.out.diagnostics.append(&mut out.diagnostics);
+        self.out.frames.clone_from(&out.frames);
+        remember(history, &out.stops);
+        out
+    }
+
     /// Arrivals of the stops recorded since the last cut made final.
     pub(super) fn finish_segment(&mut self) {
         finish(&mut self.out, &self.robot);
@@ -128,7 +163,12 @@ impl<'f> Simulator<'f> {
         Flow::Next
     }
 
+    /// Walks run `run` window by window. The windows are parsed a group at a time (in
+    /// parallel), then one thread walks them in order while this one hands each walked window
+    /// to the sink (compensating it on rayon's pool): the walk, sequential by nature, overlaps
+    /// the compensation.
     fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut dyn RunSink<'f>) {
+        use rayon::prelude::*;
         self.finish_segment();
         sink.skeleton(&self.out, self.handed);
         self.handed = self.out.stops.len();
@@ -136,34 +176,36 @@ impl<'f> Simulator<'f> {
         let mut history = Vec::new();
         remember(&mut history, &self.out.stops);
         let mut moved = false;
-        let loaded = self.ws.get(file);
-        for w in run.windows() {
-            let ws = self.ws.window_of(file, loaded.file.window(w));
-            let mut walker = Simulator::new(&ws, &self.robot, &self.given);
-            walker.state = self.state.clone();
-            walker.warned_frames = self.warned_frames;
-            walker.steps = self.steps;
-            walker.out.frames = std::mem::take(&mut self.out.frames);
-            walker.out.stops.extend(history.iter().copied());
-            if let Some(c) = &mut walker.state.current {
-                // The position the window starts from is the last stop before it.
-                c.stop = c.stop.and((history.len() as u32).checked_sub(1));
-            }
-            let window = &ws.get(0).file;
-            walker.block(0, window.body(), &mut Scope::default());
-            walker.finish_segment();
-            self.state = walker.state.clone();
-            self.warned_frames = walker.warned_frames;
-            self.steps = walker.steps;
-            let out = &mut walker.out;
-            self.out.unreachable += out.unreachable;
-            self.out.fatal |= out.fatal;
-            self.out.diagnostics.append(&mut out.diagnostics);
-            moved |= out.stops.iter().any(|s| !s.ghost);
-            sink.window(&ws, out);
-            remember(&mut history, &out.stops);
-            self.out.frames = std::mem::take(&mut out.frames);
-            if self.steps >= MAX_STEPS || self.out.fatal {
+        let (all, file_tree) = (self.ws, &self.ws.get(file).file);
+        let windows: Vec<(Span, u32)> = run.windows().collect();
+        for group in windows.chunks(WINDOWS_AHEAD) {
+            let parsed: Vec<Workspace> = group
+                .par_iter()
+                .map(|&w| all.window_of(file, file_tree.window(w)))
+                .collect();
+            let walked = std::thread::scope(|scope| {
+                let (tx, rx) = std::sync::mpsc::sync_channel(1);
+                let (this, history, moved) = (&mut *self, &mut history, &mut moved);
+                let parsed = &parsed;
+                let walker = scope.spawn(move || {
+                    for ws in parsed {
+                        let out = this.walk_window(ws, history);
+                        *moved |= out.stops.iter().any(|s| !s.ghost);
+                        let stop = this.steps >= MAX_STEPS || this.out.fatal;
+                        if tx.send(out).is_err() || stop {
+                            return false;
+                        }
+                    }
+                    true
+                });
+                for (ws, out) in parsed.iter().zip(rx) {
+                    sink.window(ws, &out);
+                }
+                walker
+                    .join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            });
+            if !walked {
                 return;
             }
         }
