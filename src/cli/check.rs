@@ -24,6 +24,12 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Exit {
+    // A bad calibration is a usage error found before anything is printed.
+    if let Some(cal) = &args.cal {
+        if let Err(exit) = super::compensate::load_calibration(cal) {
+            return exit;
+        }
+    }
     let mut exit = Exit::Success;
     let mut programs = Vec::new();
     // A .dat given explicitly after its .src is already checked with it.

@@ -228,4 +228,14 @@ fn check_reports_without_writing() {
         .unwrap();
     assert_eq!(ok.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&ok.stdout).contains("53 targets simulated"));
+    // A bad calibration: a usage error, reported before any summary.
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, "{ not json").unwrap();
+    let st = robopost()
+        .args(["check", "fixtures/programs/paper_path1.src", "-c", bad.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    assert!(st.stdout.is_empty(), "{}", String::from_utf8_lossy(&st.stdout));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("bad.json"));
 }
