@@ -321,10 +321,11 @@ fn solve_target(
     let robot = &model.robot;
     // Near a singularity the goal may be out of reach in one direction: take the least-squares
     // command there (reported by its residual) rather than rejecting the target.
-    let near_singular = crate::kinematics::singularity(robot, &target.nominal_axes).is_some();
+    // (Checked only on failure: the check costs as much as a chain evaluation.)
+    let near_singular = || crate::kinematics::singularity(robot, &target.nominal_axes).is_some();
     let solve_or_best = |p: &Problem, m: Method| match solve::solve(model, p, m) {
         Ok(s) => Ok(s),
-        Err(e) if near_singular => Ok(*e.best),
+        Err(e) if near_singular() => Ok(*e.best),
         Err(e) => Err(e),
     };
     let mut sol = solve_or_best(&problem, method)?;

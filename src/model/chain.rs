@@ -129,6 +129,33 @@ pub fn a6_frame(
     walk(robot, axes_deg, errors, |_, _| {})
 }
 
+/// The A6 frame with every axis's world line (direction of a positive KUKA rotation, centre):
+/// all an axis Jacobian needs, without the slot bookkeeping of [`ChainFrames`].
+#[derive(Clone, Copy, Debug)]
+pub struct AxisLines {
+    pub a6_rotation: Matrix3<f64>,
+    pub a6_origin: Vector3<f64>,
+    pub joint_axis: [Vector3<f64>; 6],
+    pub origin: [Vector3<f64>; 6],
+}
+
+/// The chain evaluated for an axis Jacobian (see [`AxisLines`]).
+pub fn axis_lines(robot: &RobotDescription, axes_deg: &[f64; 6], errors: &ChainErrors) -> AxisLines {
+    let mut joint_axis = [Vector3::zeros(); 6];
+    let mut origin = [Vector3::zeros(); 6];
+    let (a6_rotation, a6_origin) = walk(robot, axes_deg, errors, |n, step| match step {
+        Step::Origin(p) => origin[n] = *p,
+        Step::Joint(axis) => joint_axis[n] = *axis,
+        _ => {}
+    });
+    AxisLines {
+        a6_rotation,
+        a6_origin,
+        joint_axis,
+        origin,
+    }
+}
+
 /// The KUKA flange frame in the base frame, fast path.
 pub fn flange_pose(
     robot: &RobotDescription,
