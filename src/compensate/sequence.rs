@@ -543,7 +543,7 @@ impl Ctx<'_> {
             _ => return Some(step),
         };
         let (_, j) = Nominal(&self.model.robot).tcp_jacobian(axes, self.tool(k));
-        let rate = j.lu().solve(&twist);
+        let rate = crate::motion::lu6::Lu6::new(&j).solve(&twist);
         Some(std::array::from_fn(|i| match rate {
             Some(r) if r[i].is_finite() && r[i].abs() >= REST_DEG => r[i],
             // A turning point right at the target: the sign of the whole step.

@@ -13,6 +13,7 @@
 use nalgebra::{Matrix6, Vector6};
 
 use super::frame::{self, Frame};
+use super::lu6::Lu6;
 use crate::kinematics::RobotDescription;
 use crate::model::chain::{self, a6_to_flange};
 use crate::model::ChainErrors;
@@ -220,7 +221,7 @@ pub fn local_ik(
 // The LU lives inline: boxing it cost one heap allocation per solved target.
 #[allow(clippy::large_enum_variant)]
 enum Stepper {
-    Lu(nalgebra::LU<f64, nalgebra::U6, nalgebra::U6>),
+    Lu(Lu6),
     Damped,
 }
 
@@ -229,7 +230,7 @@ impl Stepper {
         if hold.iter().any(|&h| h) {
             return Stepper::Damped;
         }
-        let lu = j.lu();
+        let lu = Lu6::new(j);
         if lu.is_invertible() {
             Stepper::Lu(lu)
         } else {
