@@ -27,6 +27,8 @@ pub struct Model {
     effects: Vec<Box<dyn ModelEffect>>,
     /// Start of each effect's parameters in the flat vector, plus the total at the end.
     starts: Vec<usize>,
+    /// Indices of the effects whose contribution depends on the axis angles.
+    varying: Vec<usize>,
 }
 
 impl Model {
@@ -38,12 +40,16 @@ impl Model {
             target_mm,
             effects: Vec::new(),
             starts: vec![0],
+            varying: Vec::new(),
         }
     }
 
     /// Appends an effect; its parameters go to the end of the flat vector.
     pub fn push(&mut self, effect: Box<dyn ModelEffect>) {
         let end = self.n_parameters() + effect.values().len();
+        if effect.varies_with_axes() {
+            self.varying.push(self.effects.len());
+        }
         self.effects.push(effect);
         self.starts.push(end);
     }
@@ -83,6 +89,28 @@ impl Model {
             effect.add_to(state, &ctx, &mut errors);
         }
         errors
+    }
+
+    /// The errors of the effects that do not depend on the axis angles, at `state`'s time and
+    /// directions: a solver evaluating many commands at one time and set of directions sums
+    /// them once and adds [`Self::add_varying_errors`] per command. Summed in the effects'
+    /// order, like [`Self::chain_errors`] (bit-identical when the fixed effects come first).
+    pub fn fixed_errors(&self, state: &AxisState) -> ChainErrors {
+        let ctx = self.context();
+        let mut errors = ChainErrors::default();
+        for effect in self.effects.iter().filter(|e| !e.varies_with_axes()) {
+            effect.add_to(state, &ctx, &mut errors);
+        }
+        errors
+    }
+
+    /// Adds the errors of the effects that depend on the axis angles:
+    /// `fixed_errors(s)` plus these is `chain_errors(s)`.
+    pub fn add_varying_errors(&self, state: &AxisState, errors: &mut ChainErrors) {
+        let ctx = self.context();
+        for &i in &self.varying {
+            self.effects[i].add_to(state, &ctx, errors);
+        }
     }
 
     /// The evaluated chain, for callers that need several outputs of one state.
