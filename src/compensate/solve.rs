@@ -14,8 +14,11 @@
 //! `--one-step` is the paper's equation (3) literally: `p_c = p* − (p̂(p*) − p*)` (orientation
 //! likewise, as a world-frame rotation) followed by an exact (iterated) nominal IK.
 
+use std::cell::Cell;
+
 use nalgebra::{Matrix6, Vector6};
 
+use crate::model::chain::JointTrig;
 use crate::model::{AxisState, ChainErrors, Direction, Model};
 use crate::motion::frame::{self as pose, Frame};
 use crate::motion::nominal::{self, Arm, Goal, NotConverged, LEVER_MM};
@@ -25,12 +28,14 @@ pub const TOL_POSITION_MM: f64 = 1e-4;
 pub const TOL_ROTATION_RAD: f64 = 1e-7;
 
 /// The calibrated model with the rotation directions it is evaluated at.
-#[derive(Clone, Copy)]
 pub struct Predicted<'a> {
     pub model: &'a Model,
     pub directions: [Direction; 6],
     /// The errors that do not change with the command, summed once per target.
     fixed: ChainErrors,
+    /// The joint sines and cosines of the first evaluation: the solve's later commands are
+    /// millidegrees away (see [`JointTrig`]).
+    trig: Cell<JointTrig>,
 }
 
 impl<'a> Predicted<'a> {
@@ -44,6 +49,7 @@ impl<'a> Predicted<'a> {
             model,
             directions,
             fixed,
+            trig: Cell::default(),
         }
     }
 
@@ -71,12 +77,18 @@ impl Arm for Predicted<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
         let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);
-        nominal::tcp_of(&self.model.robot, axes, &errors, &tool)
+        let mut trig = self.trig.get();
+        let tcp = nominal::tcp_of(&self.model.robot, axes, &errors, &tool, &mut trig);
+        self.trig.set(trig);
+        tcp
     }
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>) {
         let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);
-        nominal::tcp_jacobian_of(&self.model.robot, axes, &errors, &tool)
+        let mut trig = self.trig.get();
+        let out = nominal::tcp_jacobian_of(&self.model.robot, axes, &errors, &tool, &mut trig);
+        self.trig.set(trig);
+        out
     }
 }
 

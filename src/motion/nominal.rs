@@ -15,7 +15,7 @@ use nalgebra::{Matrix6, Vector6};
 use super::frame::{self, Frame};
 use super::lu6::Lu6;
 use crate::kinematics::RobotDescription;
-use crate::model::chain::{self, a6_to_flange};
+use crate::model::chain::{self, a6_to_flange, JointTrig};
 use crate::model::ChainErrors;
 
 /// Orientation weight of least-squares solves and of error comparisons: 1 rad ≙ 100 mm (a
@@ -40,8 +40,9 @@ pub fn tcp_of(
     axes: &[f64; 6],
     errors: &ChainErrors,
     tool: &Frame,
+    trig: &mut JointTrig,
 ) -> Frame {
-    let (r6, p6) = chain::a6_frame(robot, axes, errors);
+    let (r6, p6) = chain::a6_frame_near(robot, axes, errors, trig);
     let rf = r6 * a6_to_flange();
     Frame {
         rotation: rf * tool.rotation,
@@ -55,8 +56,9 @@ pub fn tcp_jacobian_of(
     axes: &[f64; 6],
     errors: &ChainErrors,
     tool: &Frame,
+    trig: &mut JointTrig,
 ) -> (Frame, Matrix6<f64>) {
-    let lines = chain::axis_lines(robot, axes, errors);
+    let lines = chain::axis_lines(robot, axes, errors, trig);
     let rf = lines.a6_rotation * a6_to_flange();
     let tcp = Frame {
         rotation: rf * tool.rotation,
@@ -71,16 +73,19 @@ pub fn tcp_jacobian_of(
     (tcp, j)
 }
 
+/// The nominal chain's errors (a static: no 360-byte zeroing per evaluation).
+static NO_ERRORS: ChainErrors = ChainErrors([0.0; crate::model::N_SLOTS]);
+
 /// The nominal robot (the controller's kinematics).
 #[derive(Clone, Copy, Debug)]
 pub struct Nominal<'a>(pub &'a RobotDescription);
 
 impl Arm for Nominal<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
-        tcp_of(self.0, axes, &ChainErrors::default(), tool)
+        tcp_of(self.0, axes, &NO_ERRORS, tool, &mut JointTrig::default())
     }
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>) {
-        tcp_jacobian_of(self.0, axes, &ChainErrors::default(), tool)
+        tcp_jacobian_of(self.0, axes, &NO_ERRORS, tool, &mut JointTrig::default())
     }
 }
 
@@ -325,8 +330,9 @@ mod tests {
         ];
         for errors in [ChainErrors::default(), errors()] {
             for axes in poses {
-                let (tcp, j) = tcp_jacobian_of(&robot, &axes, &errors, &tool);
-                let at = tcp_of(&robot, &axes, &errors, &tool);
+                let trig = &mut JointTrig::default();
+                let (tcp, j) = tcp_jacobian_of(&robot, &axes, &errors, &tool, trig);
+                let at = tcp_of(&robot, &axes, &errors, &tool, trig);
                 assert!((at.position - tcp.position).norm() < 1e-12);
                 assert!((at.rotation - tcp.rotation).norm() < 1e-15);
                 let h = 1e-4; // degrees
@@ -334,7 +340,7 @@ mod tests {
                     let moved = |d: f64| {
                         let mut q = axes;
                         q[n] += d;
-                        tcp_of(&robot, &q, &errors, &tool)
+                        tcp_of(&robot, &q, &errors, &tool, &mut JointTrig::default())
                     };
                     let (plus, minus) = (moved(h), moved(-h));
                     let fd = frame::error(&plus, &minus) / (2.0 * h);
