@@ -213,4 +213,10 @@ fn fixed_plus_varying_errors_are_the_chain_errors() {
         // The fixed part is not empty here: geometry and drift at a time > 0.
         assert!(model.fixed_errors(&state).0.iter().any(|&e| e != 0.0));
     }
+    // The split really merged: the six map and six backlash tables share their axes' grids.
+    let varying: Vec<usize> = (0..model.effects().len())
+        .filter(|&i| model.effects()[i].varies_with_axes())
+        .collect();
+    let merged = robopost::model::merged::Merged::new(model.effects(), &varying);
+    assert_eq!(merged.rest.len(), varying.len() - 12);
 }

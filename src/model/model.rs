@@ -4,11 +4,14 @@
 //! Levenberg–Marquardt identification) and composes the chain's slot Jacobian with the
 //! effects' sparse Jacobians (chain rule: d p/d value = Σ_slots d p/d slot · d slot/d value).
 
+use std::sync::OnceLock;
+
 use nalgebra::{Isometry3, Vector3, Vector6};
 
 use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
 use super::effect::{ChainErrors, Context, Parameter, Partial, Slot};
 use super::effects::{GridOptions, ModelEffect};
+use super::merged::Merged;
 use super::registry::EffectName;
 use super::AxisState;
 use crate::kinematics::{Payload, RobotDescription};
@@ -29,6 +32,8 @@ pub struct Model {
     starts: Vec<usize>,
     /// Indices of the effects whose contribution depends on the axis angles.
     varying: Vec<usize>,
+    /// The solver's merged angle tables, built on first use after any change.
+    merged: OnceLock<Merged>,
 }
 
 impl Model {
@@ -41,6 +46,7 @@ impl Model {
             effects: Vec::new(),
             starts: vec![0],
             varying: Vec::new(),
+            merged: OnceLock::new(),
         }
     }
 
@@ -52,6 +58,7 @@ impl Model {
         }
         self.effects.push(effect);
         self.starts.push(end);
+        self.merged = OnceLock::new();
     }
 
     /// Appends a zero effect of `name` for identification.
@@ -104,11 +111,16 @@ impl Model {
         errors
     }
 
-    /// Adds the errors of the effects that depend on the axis angles:
-    /// `fixed_errors(s)` plus these is `chain_errors(s)`.
+    /// Adds the errors of the effects that depend on the axis angles: `fixed_errors(s)` plus
+    /// these is `chain_errors(s)` to rounding (the `map` and `backlash` tables of an axis are
+    /// looked up merged, see [`Merged`]).
     pub fn add_varying_errors(&self, state: &AxisState, errors: &mut ChainErrors) {
+        let merged = self
+            .merged
+            .get_or_init(|| Merged::new(&self.effects, &self.varying));
+        merged.add_to(&state.axes_deg, &state.directions, errors);
         let ctx = self.context();
-        for &i in &self.varying {
+        for &i in &merged.rest {
             self.effects[i].add_to(state, &ctx, errors);
         }
     }
@@ -200,6 +212,7 @@ impl Model {
                 .values_mut()
                 .copy_from_slice(&values[self.starts[i]..self.starts[i + 1]]);
         }
+        self.merged = OnceLock::new();
     }
 
     /// Every effect's sparse Jacobian at `state`, with flat parameter indices.
