@@ -103,9 +103,9 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn add_to(&self, state: &AxisState, ctx: &Context, errors: &mut ChainErrors);
     /// Pushes d(chain errors)/d(values) at `state` (stored units) as sparse entries.
     fn jacobian(&self, state: &AxisState, ctx: &Context, out: &mut Vec<Partial>);
-    /// Whether the contribution depends on the axis angles. Effects that answer `false`
-    /// (the axis lines' geometry, drift) are summed once per time and set of directions when
-    /// a solver evaluates many commands ([`Model::fixed_errors`](super::Model::fixed_errors)).
+    /// Whether the contribution depends on the axis angles or directions. Effects that answer
+    /// `false` (the axis lines' geometry, drift) depend on the time at most and are summed once
+    /// when a solver evaluates many commands ([`Model::fixed_errors`](super::Model::fixed_errors)).
     fn varies_with_axes(&self) -> bool {
         true
     }

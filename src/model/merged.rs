@@ -42,6 +42,8 @@ pub struct Merged {
     axes: Vec<AxisSum>,
     /// Indices of the varying effects not merged.
     pub rest: Vec<usize>,
+    /// The sum of the effects that vary neither with the axes nor the directions, at time 0.
+    pub fixed_at_time_zero: ChainErrors,
 }
 
 fn direction_index(d: Direction) -> usize {

@@ -98,11 +98,18 @@ impl Model {
         errors
     }
 
-    /// The errors of the effects that do not depend on the axis angles, at `state`'s time and
-    /// directions: a solver evaluating many commands at one time and set of directions sums
-    /// them once and adds [`Self::add_varying_errors`] per command. Summed in the effects'
-    /// order, like [`Self::chain_errors`] (bit-identical when the fixed effects come first).
+    /// The errors of the effects that depend neither on the axis angles nor on the directions,
+    /// at `state`'s time: a solver evaluating many commands sums them once and adds
+    /// [`Self::add_varying_errors`] per command. At time 0 (compensation) they are summed once
+    /// per model.
     pub fn fixed_errors(&self, state: &AxisState) -> ChainErrors {
+        if state.time_s == 0.0 {
+            return self.merged().fixed_at_time_zero;
+        }
+        self.sum_fixed_errors(state)
+    }
+
+    fn sum_fixed_errors(&self, state: &AxisState) -> ChainErrors {
         let ctx = self.context();
         let mut errors = ChainErrors::default();
         for effect in self.effects.iter().filter(|e| !e.varies_with_axes()) {
@@ -111,13 +118,20 @@ impl Model {
         errors
     }
 
+    /// The solver's precomputed sums, built on first use after any change.
+    fn merged(&self) -> &Merged {
+        self.merged.get_or_init(|| {
+            let mut merged = Merged::new(&self.effects, &self.varying);
+            merged.fixed_at_time_zero = self.sum_fixed_errors(&AxisState::default());
+            merged
+        })
+    }
+
     /// Adds the errors of the effects that depend on the axis angles: `fixed_errors(s)` plus
     /// these is `chain_errors(s)` to rounding (the `map` and `backlash` tables of an axis are
     /// looked up merged, see [`Merged`]).
     pub fn add_varying_errors(&self, state: &AxisState, errors: &mut ChainErrors) {
-        let merged = self
-            .merged
-            .get_or_init(|| Merged::new(&self.effects, &self.varying));
+        let merged = self.merged();
         merged.add_to(&state.axes_deg, &state.directions, errors);
         let ctx = self.context();
         for &i in &merged.rest {
