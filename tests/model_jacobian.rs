@@ -216,7 +216,7 @@ fn fixed_plus_varying_errors_are_the_chain_errors() {
         // The fixed part is not empty here: the geometry.
         assert!(model.fixed_errors(&state).0.iter().any(|&e| e != 0.0));
     }
-    // The split really merged: the six map and six backlash tables share their axes' grids.
+    // The split really merged the six map and six backlash tables.
     let varying: Vec<usize> = (0..model.effects().len())
         .filter(|&i| model.effects()[i].varies_with_axes())
         .collect();

@@ -1,15 +1,17 @@
 //! The solver's fast path through the angle tables: the effects that add `factor · table(A_n)`
 //! to axis n's own angle slot (`map:An`, and `backlash:An` whose factor is the rotation
-//! direction) and share one grid are merged, per direction, into one table — one lookup per
-//! axis where there were two, and no dynamic dispatch. Interpolation is linear in the table
-//! values, so the merged value is the sum of the separate ones (to rounding).
+//! direction) are merged, per direction, into one table — one lookup per axis where there
+//! were two, and no dynamic dispatch. The merged table lives on the union of the grids: a sum
+//! of piecewise-linear functions (each held constant beyond its grid) is piecewise linear with
+//! breakpoints among theirs, so interpolating the sum sampled there is the sum of the
+//! separate interpolations (to rounding).
 
 use std::f64::consts::PI;
 
 use super::effect::{ChainErrors, Slot};
 use super::effects::ModelEffect;
 use super::state::Direction;
-use super::table::Table1;
+use super::table::{Grid, Table1};
 
 /// How an own-axis table's contribution scales with the axis's rotation direction.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -55,8 +57,7 @@ fn direction_index(d: Direction) -> usize {
 }
 
 impl Merged {
-    /// Merges the own-axis tables among `varying` (indices into `effects`) that share a grid
-    /// with another one of the same axis.
+    /// Merges the own-axis tables among `varying` (indices into `effects`), axis by axis.
     pub fn new(effects: &[Box<dyn ModelEffect>], varying: &[usize]) -> Merged {
         let mut merged = Merged::default();
         let mut taken = vec![false; effects.len()];
@@ -68,32 +69,35 @@ impl Merged {
                     _ => None,
                 })
                 .collect();
-            let Some(&(_, first, _)) = tables.first() else {
-                continue;
-            };
-            let group: Vec<_> = tables
-                .iter()
-                .filter(|(_, t, _)| t.grid == first.grid)
-                .collect();
-            if group.len() < 2 {
+            if tables.is_empty() {
                 continue;
             }
+            let mut points: Vec<f64> = tables
+                .iter()
+                .flat_map(|(_, t, _)| t.grid.points().iter().copied())
+                .collect();
+            points.sort_by(f64::total_cmp);
+            points.dedup();
+            let Ok(grid) = Grid::new(points) else {
+                continue; // grids are checked on loading; never here
+            };
             let table_at = |d: Direction| {
-                let mut values = vec![0.0; first.grid.len()];
-                for (_, t, f) in &group {
-                    let factor = f.at(d);
-                    for (v, x) in values.iter_mut().zip(&t.values) {
-                        *v += factor * x;
-                    }
-                }
+                let values = grid
+                    .points()
+                    .iter()
+                    .map(|&x| {
+                        let sum: f64 = tables.iter().map(|(_, t, f)| f.at(d) * t.eval(x).0).sum();
+                        sum * (PI / 180.0)
+                    })
+                    .collect();
                 Table1 {
-                    grid: first.grid.clone(),
-                    values: values.into_iter().map(|v| v * (PI / 180.0)).collect(),
+                    grid: grid.clone(),
+                    values,
                 }
             };
-            let tables = [Direction::Negative, Direction::Unknown, Direction::Positive].map(table_at);
-            group.iter().for_each(|(i, _, _)| taken[*i] = true);
-            merged.axes.push(AxisSum { axis, tables });
+            let sums = [Direction::Negative, Direction::Unknown, Direction::Positive].map(table_at);
+            tables.iter().for_each(|(i, _, _)| taken[*i] = true);
+            merged.axes.push(AxisSum { axis, tables: sums });
         }
         merged.rest = varying.iter().copied().filter(|&i| !taken[i]).collect();
         merged
