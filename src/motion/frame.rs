@@ -133,8 +133,17 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         r[(0, 2)] - r[(2, 0)],
         r[(1, 0)] - r[(0, 1)],
     ) * 0.5;
-    let s = v.norm();
     let c = (r.trace() - 1.0) * 0.5;
+    let ss = v.norm_squared();
+    if ss < 1e-6 * c * c && c > 0.0 {
+        // Small angle (every pose error of a solve): angle/s = atan(t)/(t·c), t = s/c below
+        // 10⁻³, whose series `t − t³/3 + t⁵/5 − t⁷/7` leaves out less than t⁹/9 < 10⁻²⁷·t:
+        // no square root, no library atan2, one division.
+        let inv_c = 1.0 / c;
+        let t2 = ss * inv_c * inv_c;
+        return v * (inv_c * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 / 7.0))));
+    }
+    let s = ss.sqrt();
     if s < 1e-300 {
         if c > 0.0 {
             return Vector3::zeros();
@@ -147,22 +156,9 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         let axis = b.column(i) / b[(i, i)].max(1e-300).sqrt();
         return axis.normalize() * std::f64::consts::PI;
     }
-    v * (atan2_small(s, c) / s)
+    v * (s.atan2(c) / s)
 }
 
-/// `s.atan2(c)`, by its series where the angle is small: for `0 ≤ s < 10⁻³·c` the argument
-/// `t = s/c` is below 10⁻³ and the dropped terms of `t − t³/3 + t⁵/5 − t⁷/7` are under
-/// `t⁹/9 < 10⁻²⁷·t`, far below an ulp; the library call costs several times more and a
-/// compensation solve takes the rotation error of every evaluation.
-fn atan2_small(s: f64, c: f64) -> f64 {
-    if s < 1e-3 * c {
-        let t = s / c;
-        let t2 = t * t;
-        t * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 / 7.0)))
-    } else {
-        s.atan2(c)
-    }
-}
 
 /// Rodrigues' formula: the rotation by `w` (rad).
 pub fn exp_so3(w: &Vector3<f64>) -> Matrix3<f64> {
@@ -219,15 +215,21 @@ mod tests {
     }
 
     #[test]
-    fn small_angle_atan2_matches_the_library() {
-        for k in 0..2000 {
-            let angle = 1.2e-3 * (k as f64 / 2000.0).powi(3) + 1e-300;
-            let (s, c) = angle.sin_cos();
-            for scale in [1.0, 0.5, 1.7] {
-                let (s, c) = (s * scale, c * scale);
-                let (ours, lib) = (atan2_small(s, c), s.atan2(c));
-                assert!((ours - lib).abs() <= 2.0 * f64::EPSILON * lib, "{angle}: {ours} vs {lib}");
-            }
+    fn small_rotation_vectors_match_the_atan2_formula() {
+        for k in 0..3000 {
+            let angle = 1.2e-3 * (k as f64 / 3000.0).powi(3);
+            let axis = Vector3::new(0.3, -0.8, 0.5 + k as f64 * 1e-3).normalize();
+            let r = exp_so3(&(axis * angle));
+            let v = Vector3::new(
+                r[(2, 1)] - r[(1, 2)],
+                r[(0, 2)] - r[(2, 0)],
+                r[(1, 0)] - r[(0, 1)],
+            ) * 0.5;
+            let (s, c) = (v.norm(), (r.trace() - 1.0) * 0.5);
+            let reference = if s == 0.0 { Vector3::zeros() } else { v * (s.atan2(c) / s) };
+            let ours = log_so3(&r);
+            assert!((ours - reference).norm() <= 4.0 * f64::EPSILON * angle, "{angle}");
+            assert!((ours.norm() - angle).abs() <= 1e-15 + 1e-9 * angle, "{angle}");
         }
     }
 
