@@ -413,7 +413,11 @@ mod tests {
             let axes: [f64; 6] = std::array::from_fn(|n| start[n] + step * (n as f64 - 2.5));
             let (r0, p0) = a6_frame(&robot, &axes, &errors);
             let (r1, p1) = a6_frame_near(&robot, &axes, &errors, &mut trig);
-            assert!((r1 - r0).amax() < 8.0 * f64::EPSILON, "step {k}: {}", (r1 - r0).amax());
+            assert!(
+                (r1 - r0).amax() < 8.0 * f64::EPSILON,
+                "step {k}: {}",
+                (r1 - r0).amax()
+            );
             assert!((p1 - p0).amax() < 4e-12, "step {k}: {}", (p1 - p0).amax());
         }
     }

@@ -104,7 +104,12 @@ impl Merged {
     }
 
     /// Adds the merged tables' values at `axes_deg` with `directions`.
-    pub fn add_to(&self, axes_deg: &[f64; 6], directions: &[Direction; 6], errors: &mut ChainErrors) {
+    pub fn add_to(
+        &self,
+        axes_deg: &[f64; 6],
+        directions: &[Direction; 6],
+        errors: &mut ChainErrors,
+    ) {
         for sum in &self.axes {
             let n = sum.axis as usize - 1;
             let (value, _) = sum.tables[direction_index(directions[n])].eval(axes_deg[n]);

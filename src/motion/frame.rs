@@ -159,7 +159,6 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
     v * (s.atan2(c) / s)
 }
 
-
 /// Rodrigues' formula: the rotation by `w` (rad).
 pub fn exp_so3(w: &Vector3<f64>) -> Matrix3<f64> {
     let theta2 = w.norm_squared();
@@ -226,10 +225,20 @@ mod tests {
                 r[(1, 0)] - r[(0, 1)],
             ) * 0.5;
             let (s, c) = (v.norm(), (r.trace() - 1.0) * 0.5);
-            let reference = if s == 0.0 { Vector3::zeros() } else { v * (s.atan2(c) / s) };
+            let reference = if s == 0.0 {
+                Vector3::zeros()
+            } else {
+                v * (s.atan2(c) / s)
+            };
             let ours = log_so3(&r);
-            assert!((ours - reference).norm() <= 4.0 * f64::EPSILON * angle, "{angle}");
-            assert!((ours.norm() - angle).abs() <= 1e-15 + 1e-9 * angle, "{angle}");
+            assert!(
+                (ours - reference).norm() <= 4.0 * f64::EPSILON * angle,
+                "{angle}"
+            );
+            assert!(
+                (ours.norm() - angle).abs() <= 1e-15 + 1e-9 * angle,
+                "{angle}"
+            );
         }
     }
 

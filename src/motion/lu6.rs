@@ -62,6 +62,7 @@ impl Lu6 {
     }
 
     /// `x` with `J·x = b`, or `None` when a pivot is zero.
+    #[allow(clippy::needless_range_loop)] // x and the factors indexed alike, as in the formulas
     pub fn solve(&self, b: &Vector6<f64>) -> Option<Vector6<f64>> {
         let mut x: [f64; 6] = (*b).into();
         for (i, &s) in self.swap.iter().enumerate() {
@@ -103,9 +104,16 @@ mod tests {
             state ^= state << 17;
             (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
-        let mut out: Vec<Matrix6<f64>> = (0..200).map(|_| Matrix6::from_fn(|_, _| next())).collect();
+        let mut out: Vec<Matrix6<f64>> =
+            (0..200).map(|_| Matrix6::from_fn(|_, _| next())).collect();
         // Equal magnitudes in a column (pivot ties), an exact zero column, a repeated row.
-        out.push(Matrix6::from_fn(|r, c| if c == 0 { [1.0, -1.0][r % 2] } else { next() }));
+        out.push(Matrix6::from_fn(|r, c| {
+            if c == 0 {
+                [1.0, -1.0][r % 2]
+            } else {
+                next()
+            }
+        }));
         out.push(Matrix6::from_fn(|_, c| if c == 2 { 0.0 } else { next() }));
         let mut repeated = Matrix6::from_fn(|_, _| next());
         let row = repeated.row(1).into_owned();

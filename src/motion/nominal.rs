@@ -348,7 +348,11 @@ mod tests {
                     // Position mm/deg (values ~20), rotation rad/deg (0.017).
                     for r in 0..3 {
                         assert!((col[r] - fd[r]).abs() < 1e-6, "axis {n} row {r}");
-                        assert!((col[r + 3] - fd[r + 3]).abs() < 1e-10, "axis {n} row {}", r + 3);
+                        assert!(
+                            (col[r + 3] - fd[r + 3]).abs() < 1e-10,
+                            "axis {n} row {}",
+                            r + 3
+                        );
                     }
                 }
             }

@@ -7,8 +7,8 @@ use super::axis_table::AxisTable;
 use super::{GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial};
-use crate::model::record::{EffectRecord, RecordError};
 use crate::model::merged::AxisFactor;
+use crate::model::record::{EffectRecord, RecordError};
 use crate::model::table::Table1;
 use crate::model::AxisState;
 
