@@ -317,6 +317,33 @@ mod tests {
         }
     }
 
+    /// A goal out of reach is refused (`NotConverged`), with the least-squares best found,
+    /// and a reachable one near a start is reached.
+    #[test]
+    fn newton_reaches_what_it_can_and_refuses_the_rest() {
+        let robot = RobotDescription::kr30ha();
+        let tool = tool();
+        let start = [20.0, -70.0, 110.0, 15.0, 40.0, -30.0];
+        let arm = Nominal(&robot);
+        let reachable: [f64; 6] = std::array::from_fn(|n| start[n] + 0.3 * (n as f64 - 2.0));
+        let goal = arm.tcp(&reachable, &tool);
+        let sol = local_ik(&robot, &goal, &tool, &start).unwrap();
+        for n in 0..6 {
+            assert!((sol.axes_deg[n] - reachable[n]).abs() < 1e-9);
+        }
+        let far = Frame {
+            rotation: goal.rotation,
+            position: goal.position * 4.0, // beyond the 3 m reach
+        };
+        let err = local_ik(&robot, &far, &tool, &start).unwrap_err();
+        let initial = frame::norms(&err.best.initial).0;
+        assert!(err.position_um > 1e5, "{err}");
+        assert!(
+            err.position_um * 1e-3 <= initial,
+            "the best is no worse than the start"
+        );
+    }
+
     /// The analytic axis Jacobian against central differences of the TCP, with and without
     /// chain errors, at poses across the workspace.
     #[test]
