@@ -328,8 +328,8 @@ mod tests {
         let reachable: [f64; 6] = std::array::from_fn(|n| start[n] + 0.3 * (n as f64 - 2.0));
         let goal = arm.tcp(&reachable, &tool);
         let sol = local_ik(&robot, &goal, &tool, &start).unwrap();
-        for n in 0..6 {
-            assert!((sol.axes_deg[n] - reachable[n]).abs() < 1e-9);
+        for (got, want) in sol.axes_deg.iter().zip(reachable) {
+            assert!((got - want).abs() < 1e-9);
         }
         let far = Frame {
             rotation: goal.rotation,
