@@ -340,3 +340,94 @@ fn effect_names_parse_case_insensitively_and_expand_ranges() {
     assert!(EffectName::parse("mapp:A2").is_err());
     assert!(EffectName::parse("geometric:A1").is_err());
 }
+
+mod grid_lookup {
+    use super::Grid;
+    use proptest::prelude::*;
+
+    /// Grids of every kind the cell guess meets: uniform, uniform with a cut last cell (a
+    /// joint limit off the pitch), the union of two pitches, irregular.
+    fn grid() -> impl Strategy<Value = Vec<f64>> {
+        let uniform = (-200.0..0.0f64, 0.5..10.0f64, 2usize..80)
+            .prop_map(|(lo, pitch, n)| (0..n).map(|i| lo + i as f64 * pitch).collect());
+        let cut = (-200.0..0.0f64, 1.0..10.0f64, 3usize..80, 0.05..0.95f64).prop_map(
+            |(lo, pitch, n, f)| {
+                let mut p: Vec<f64> = (0..n).map(|i| lo + i as f64 * pitch).collect();
+                let last = p[n - 2] + f * pitch;
+                p[n - 1] = last;
+                p
+            },
+        );
+        let irregular = prop::collection::vec(0.01..20.0f64, 1..40).prop_map(|steps| {
+            let mut x = -50.0;
+            let mut p = vec![x];
+            for s in steps {
+                x += s;
+                p.push(x);
+            }
+            p
+        });
+        prop_oneof![uniform, cut, irregular]
+    }
+
+    proptest! {
+        /// The cell holds x (`p[lo] ≤ x < p[lo+1]` inside the grid) and its weight
+        /// interpolates x, as a linear scan finds it.
+        #[test]
+        fn cell_is_found(points in grid(), f in -0.1..1.1f64) {
+            let (first, last) = (points[0], points[points.len() - 1]);
+            let x = first + f * (last - first);
+            let grid = Grid::new(points.clone()).unwrap();
+            let cell = grid.locate(x);
+            if x > first && x < last {
+                let scan = points.iter().rposition(|&p| p <= x).unwrap();
+                prop_assert_eq!(cell.lo, scan);
+                prop_assert_eq!(cell.hi, scan + 1);
+                let back = points[cell.lo] + cell.w * (points[cell.hi] - points[cell.lo]);
+                prop_assert!((back - x).abs() <= 1e-12 * (1.0 + x.abs()));
+            }
+            prop_assert_eq!(cell.clamped, x < first || x > last);
+        }
+    }
+}
+
+/// The solver's merged map + backlash table of an axis equals the two looked up separately,
+/// also when their grids differ in pitch and range (each held at its own edges) and for every
+/// direction.
+#[test]
+fn merged_map_and_backlash_on_different_grids() {
+    let robot = RobotDescription::kr30ha();
+    let mut model = robopost::model::Model::new(robot, Payload::default(), Default::default());
+    let map = Table1 {
+        grid: Grid::new(vec![-10.0, 0.0, 10.0, 20.0]).unwrap(),
+        values: vec![0.01, 0.03, -0.01, 0.0],
+    };
+    let backlash = Table1 {
+        grid: Grid::new(vec![-5.0, 2.5, 15.0]).unwrap(),
+        values: vec![0.004, 0.002, 0.006],
+    };
+    model.push(Box::new(AngleMap(AxisTable {
+        axis: 2,
+        table: map.clone(),
+    })));
+    model.push(Box::new(Backlash(AxisTable {
+        axis: 2,
+        table: backlash.clone(),
+    })));
+    for k in 0..=400 {
+        let a2 = -15.0 + k as f64 * 0.1;
+        for dir in [Direction::Negative, Direction::Unknown, Direction::Positive] {
+            let mut state = AxisState::new([0.0, a2, 90.0, 0.0, 30.0, 0.0]);
+            state.directions = [dir; 6];
+            let mut errors = model.fixed_errors(&state);
+            model.add_varying_errors(&state, &mut errors);
+            // By hand: map(A2) + dir·backlash(A2), degrees → radians.
+            let expected = (map.eval(a2).0 + dir.sign() * backlash.eval(a2).0) * DEG;
+            let got = errors.get(Slot::Angle { axis: 2 });
+            assert!(
+                (got - expected).abs() < 1e-17,
+                "A2 {a2} {dir:?}: {got} vs {expected}"
+            );
+        }
+    }
+}

@@ -190,3 +190,36 @@ fn model_flange_jacobian_matches_finite_differences() {
         }
     }
 }
+
+/// Summing the axis-independent effects once and the others per command is the same sum
+/// (to rounding: the order differs when an axis-dependent effect comes between fixed ones),
+/// and the effects declared axis-independent really are.
+#[test]
+fn fixed_plus_varying_errors_are_the_chain_errors() {
+    let mut rng = Lcg(11);
+    let model = full_model(&mut rng);
+    for k in 0..50 {
+        let mut state = random_state(&mut rng, &model.robot);
+        if k % 2 == 0 {
+            state.time_s = 0.0; // the model's cached sum
+        }
+        let mut split = model.fixed_errors(&state);
+        model.add_varying_errors(&state, &mut split);
+        let whole = model.chain_errors(&state);
+        for i in 0..N_SLOTS {
+            assert!((split.0[i] - whole.0[i]).abs() < 1e-15, "slot {i}");
+        }
+        let mut elsewhere = random_state(&mut rng, &model.robot);
+        elsewhere.directions = state.directions;
+        elsewhere.time_s = state.time_s;
+        assert_eq!(model.fixed_errors(&state), model.fixed_errors(&elsewhere));
+        // The fixed part is not empty here: the geometry.
+        assert!(model.fixed_errors(&state).0.iter().any(|&e| e != 0.0));
+    }
+    // The split really merged the six map and six backlash tables.
+    let varying: Vec<usize> = (0..model.effects().len())
+        .filter(|&i| model.effects()[i].varies_with_axes())
+        .collect();
+    let merged = robopost::model::merged::Merged::new(model.effects(), &varying);
+    assert_eq!(merged.rest.len(), varying.len() - 12);
+}

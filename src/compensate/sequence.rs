@@ -372,10 +372,11 @@ fn solve_target(
     let robot = &model.robot;
     // Near a singularity the goal may be out of reach in one direction: take the least-squares
     // command there (reported by its residual) rather than rejecting the target.
-    let near_singular = crate::kinematics::singularity(robot, &target.nominal_axes).is_some();
+    // (Checked only on failure: the check costs as much as a chain evaluation.)
+    let near_singular = || crate::kinematics::singularity(robot, &target.nominal_axes).is_some();
     let solve_or_best = |p: &Problem, m: Method| match solve::solve(model, p, m) {
         Ok(s) => Ok(s),
-        Err(e) if near_singular => Ok(*e.best),
+        Err(e) if near_singular() => Ok(*e.best),
         Err(e) => Err(e),
     };
     let mut sol = solve_or_best(&problem, method)?;
@@ -593,7 +594,7 @@ impl Ctx<'_> {
             _ => return Some(step),
         };
         let (_, j) = Nominal(&self.model.robot).tcp_jacobian(axes, self.tool(k));
-        let rate = j.lu().solve(&twist);
+        let rate = crate::motion::lu6::Lu6::new(&j).solve(&twist);
         Some(std::array::from_fn(|i| match rate {
             Some(r) if r[i].is_finite() && r[i].abs() >= REST_DEG => r[i],
             // A turning point right at the target: the sign of the whole step.

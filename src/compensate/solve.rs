@@ -14,9 +14,12 @@
 //! `--one-step` is the paper's equation (3) literally: `p_c = p* − (p̂(p*) − p*)` (orientation
 //! likewise, as a world-frame rotation) followed by an exact (iterated) nominal IK.
 
+use std::cell::Cell;
+
 use nalgebra::{Matrix6, Vector6};
 
-use crate::model::{AxisState, Direction, Model};
+use crate::model::chain::JointTrig;
+use crate::model::{AxisState, ChainErrors, Direction, Model};
 use crate::motion::frame::{self as pose, Frame};
 use crate::motion::nominal::{self, Arm, Goal, NotConverged, LEVER_MM};
 
@@ -25,40 +28,67 @@ pub const TOL_POSITION_MM: f64 = 1e-4;
 pub const TOL_ROTATION_RAD: f64 = 1e-7;
 
 /// The calibrated model with the rotation directions it is evaluated at.
-#[derive(Clone, Copy)]
 pub struct Predicted<'a> {
     pub model: &'a Model,
     pub directions: [Direction; 6],
+    /// The errors that do not change with the command, summed once per target.
+    fixed: ChainErrors,
+    /// The joint sines and cosines of the first evaluation: the solve's later commands are
+    /// millidegrees away (see [`JointTrig`]).
+    trig: Cell<JointTrig>,
 }
 
-impl Predicted<'_> {
+impl<'a> Predicted<'a> {
+    pub fn new(model: &'a Model, directions: [Direction; 6]) -> Self {
+        let fixed = model.fixed_errors(&AxisState {
+            axes_deg: [0.0; 6],
+            directions,
+            time_s: 0.0,
+        });
+        Predicted {
+            model,
+            directions,
+            fixed,
+            trig: Cell::default(),
+        }
+    }
+
     /// The tool as the model has it: the measurement target carries its identified correction.
-    fn tool(&self, tool: &Frame, errors: &crate::model::ChainErrors) -> Frame {
+    fn tool(&self, tool: &Frame, errors: &ChainErrors) -> Frame {
         Frame {
             rotation: tool.rotation,
             position: self.model.tool_as_identified(&tool.position, errors),
         }
     }
 
-    fn state(&self, axes: &[f64; 6]) -> AxisState {
-        AxisState {
+    fn errors(&self, axes: &[f64; 6]) -> ChainErrors {
+        let state = AxisState {
             axes_deg: *axes,
             directions: self.directions,
             time_s: 0.0,
-        }
+        };
+        let mut errors = self.fixed;
+        self.model.add_varying_errors(&state, &mut errors);
+        errors
     }
 }
 
 impl Arm for Predicted<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
-        let errors = self.model.chain_errors(&self.state(axes));
+        let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);
-        nominal::tcp_of(&self.model.robot, axes, &errors, &tool)
+        let mut trig = self.trig.get();
+        let tcp = nominal::tcp_of(&self.model.robot, axes, &errors, &tool, &mut trig);
+        self.trig.set(trig);
+        tcp
     }
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>) {
-        let errors = self.model.chain_errors(&self.state(axes));
+        let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);
-        nominal::tcp_jacobian_of(&self.model.robot, axes, &errors, &tool)
+        let mut trig = self.trig.get();
+        let out = nominal::tcp_jacobian_of(&self.model.robot, axes, &errors, &tool, &mut trig);
+        self.trig.set(trig);
+        out
     }
 }
 
@@ -111,19 +141,13 @@ pub fn predicted_error(
     tool: &Frame,
     goal: &Frame,
 ) -> Vector6<f64> {
-    let arm = Predicted {
-        model,
-        directions: *directions,
-    };
+    let arm = Predicted::new(model, *directions);
     pose::error(&arm.tcp(axes, tool), goal)
 }
 
 /// Solves `problem` with the calibrated model.
 pub fn solve(model: &Model, problem: &Problem, method: Method) -> Result<Solution, SolveError> {
-    let arm = Predicted {
-        model,
-        directions: problem.directions,
-    };
+    let arm = Predicted::new(model, problem.directions);
     if method == Method::OneStep && !problem.hold.iter().any(|&h| h) {
         return one_step(&arm, problem);
     }

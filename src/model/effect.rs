@@ -11,7 +11,9 @@
 //!
 //! Units: slots are mm and radians; `dθ` is in KUKA sign (actual KUKA angle = command + dθ).
 
+use super::merged::AxisFactor;
 use super::state::AxisState;
+use super::table::Table1;
 use crate::kinematics::RobotDescription;
 
 /// Slots per axis: dx, dy, dz (mm), rx, ry, rz (rad), dθ (rad, KUKA sign).
@@ -101,6 +103,18 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn add_to(&self, state: &AxisState, ctx: &Context, errors: &mut ChainErrors);
     /// Pushes d(chain errors)/d(values) at `state` (stored units) as sparse entries.
     fn jacobian(&self, state: &AxisState, ctx: &Context, out: &mut Vec<Partial>);
+    /// Whether the contribution depends on the axis angles or directions. Effects that answer
+    /// `false` (the axis lines' geometry, drift) depend on the time at most and are summed once
+    /// when a solver evaluates many commands ([`Model::fixed_errors`](super::Model::fixed_errors)).
+    fn varies_with_axes(&self) -> bool {
+        true
+    }
+    /// `Some((n, table, factor))` when the whole contribution is `factor · table(A_n)` degrees
+    /// added to axis n's own angle slot (`map`, `backlash`): a model merges such tables of one
+    /// axis that share a grid into one lookup ([`Merged`](super::merged::Merged)).
+    fn own_axis_table(&self) -> Option<(u8, &Table1, AxisFactor)> {
+        None
+    }
     /// Whether `state` lies outside this effect's table range (the value was clamped to the
     /// edge), so that reports can count such points.
     fn clamped(&self, _state: &AxisState) -> bool {

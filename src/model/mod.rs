@@ -12,6 +12,7 @@
 pub mod chain;
 pub mod effect;
 pub mod effects;
+pub mod merged;
 #[allow(clippy::module_inception)]
 pub mod model;
 pub mod record;

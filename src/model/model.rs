@@ -4,11 +4,14 @@
 //! Levenberg–Marquardt identification) and composes the chain's slot Jacobian with the
 //! effects' sparse Jacobians (chain rule: d p/d value = Σ_slots d p/d slot · d slot/d value).
 
+use std::sync::OnceLock;
+
 use nalgebra::{Isometry3, Vector3, Vector6};
 
 use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
 use super::effect::{ChainErrors, Context, Parameter, Partial, Slot};
 use super::effects::{GridOptions, ModelEffect};
+use super::merged::Merged;
 use super::registry::EffectName;
 use super::AxisState;
 use crate::kinematics::{Payload, RobotDescription};
@@ -27,6 +30,10 @@ pub struct Model {
     effects: Vec<Box<dyn ModelEffect>>,
     /// Start of each effect's parameters in the flat vector, plus the total at the end.
     starts: Vec<usize>,
+    /// Indices of the effects whose contribution depends on the axis angles.
+    varying: Vec<usize>,
+    /// The solver's merged angle tables, built on first use after any change.
+    merged: OnceLock<Merged>,
 }
 
 impl Model {
@@ -38,14 +45,20 @@ impl Model {
             target_mm,
             effects: Vec::new(),
             starts: vec![0],
+            varying: Vec::new(),
+            merged: OnceLock::new(),
         }
     }
 
     /// Appends an effect; its parameters go to the end of the flat vector.
     pub fn push(&mut self, effect: Box<dyn ModelEffect>) {
         let end = self.n_parameters() + effect.values().len();
+        if effect.varies_with_axes() {
+            self.varying.push(self.effects.len());
+        }
         self.effects.push(effect);
         self.starts.push(end);
+        self.merged = OnceLock::new();
     }
 
     /// Appends a zero effect of `name` for identification.
@@ -83,6 +96,47 @@ impl Model {
             effect.add_to(state, &ctx, &mut errors);
         }
         errors
+    }
+
+    /// The errors of the effects that depend neither on the axis angles nor on the directions,
+    /// at `state`'s time: a solver evaluating many commands sums them once and adds
+    /// [`Self::add_varying_errors`] per command. At time 0 (compensation) they are summed once
+    /// per model.
+    pub fn fixed_errors(&self, state: &AxisState) -> ChainErrors {
+        if state.time_s == 0.0 {
+            return self.merged().fixed_at_time_zero;
+        }
+        self.sum_fixed_errors(state)
+    }
+
+    fn sum_fixed_errors(&self, state: &AxisState) -> ChainErrors {
+        let ctx = self.context();
+        let mut errors = ChainErrors::default();
+        for effect in self.effects.iter().filter(|e| !e.varies_with_axes()) {
+            effect.add_to(state, &ctx, &mut errors);
+        }
+        errors
+    }
+
+    /// The solver's precomputed sums, built on first use after any change.
+    fn merged(&self) -> &Merged {
+        self.merged.get_or_init(|| {
+            let mut merged = Merged::new(&self.effects, &self.varying);
+            merged.fixed_at_time_zero = self.sum_fixed_errors(&AxisState::default());
+            merged
+        })
+    }
+
+    /// Adds the errors of the effects that depend on the axis angles: `fixed_errors(s)` plus
+    /// these is `chain_errors(s)` to rounding (the `map` and `backlash` tables of an axis are
+    /// looked up merged, see [`Merged`]).
+    pub fn add_varying_errors(&self, state: &AxisState, errors: &mut ChainErrors) {
+        let merged = self.merged();
+        merged.add_to(&state.axes_deg, &state.directions, errors);
+        let ctx = self.context();
+        for &i in &merged.rest {
+            self.effects[i].add_to(state, &ctx, errors);
+        }
     }
 
     /// The evaluated chain, for callers that need several outputs of one state.
@@ -172,6 +226,7 @@ impl Model {
                 .values_mut()
                 .copy_from_slice(&values[self.starts[i]..self.starts[i + 1]]);
         }
+        self.merged = OnceLock::new();
     }
 
     /// Every effect's sparse Jacobian at `state`, with flat parameter indices.

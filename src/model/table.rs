@@ -2,15 +2,16 @@
 //! paper's section 2.2, "linearly interpolating Δθ_n,map") and 2-D bilinear interpolation (its
 //! section 2.4, crosstalk). Outside the grid the value is held at the edge and the lookup says
 //! so. Lookups return the interpolation weights, which are also the Jacobian of the value with
-//! respect to the table entries. Uniform grids (the common case) find their cell in O(1),
-//! others by binary search.
+//! respect to the table entries. The cell is guessed from the mean pitch and corrected by a
+//! step or two, so uniform grids (the common case) and nearly uniform ones (a last cell cut
+//! at a joint limit, merged grids) find it in O(1); others fall back to binary search.
 
 /// A strictly increasing grid of abscissae (degrees in this crate).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grid {
     points: Vec<f64>,
-    /// `(first point, 1 / pitch)` when the points are equally spaced.
-    uniform: Option<(f64, f64)>,
+    /// `(first point, 1 / mean pitch)`: where the cell of an abscissa is guessed.
+    guess: (f64, f64),
 }
 
 /// Where an abscissa falls on a grid: `value = (1 − w)·v[lo] + w·v[hi]`.
@@ -57,8 +58,8 @@ impl Grid {
                 });
             }
         }
-        let uniform = uniform_spacing(&points);
-        Ok(Grid { points, uniform })
+        let guess = mean_spacing(&points);
+        Ok(Grid { points, guess })
     }
 
     /// `lo, lo + pitch, …` up to the first point ≥ `hi` (so the range is covered and the
@@ -120,11 +121,21 @@ impl Grid {
                 clamped: x > last,
             };
         }
-        let lo = match self.uniform {
-            Some((start, per_pitch)) => (((x - start) * per_pitch) as usize).min(n - 2),
-            // First point greater than x, minus one: x lies in [p[lo], p[lo+1]).
-            None => self.points.partition_point(|&p| p <= x) - 1,
-        };
+        let p = &self.points;
+        let (start, per_pitch) = self.guess;
+        let mut lo = (((x - start) * per_pitch) as usize).min(n - 2);
+        // x lies in [p[lo], p[lo+1]): at most two steps from a good guess.
+        for _ in 0..2 {
+            if p[lo] > x {
+                lo -= 1; // p[0] < x here, so lo > 0
+            } else if p[lo + 1] <= x {
+                lo += 1; // x < p[n-1], so lo + 1 < n - 1
+            }
+        }
+        if !(p[lo] <= x && x < p[lo + 1]) {
+            // First point greater than x, minus one.
+            lo = p.partition_point(|&q| q <= x).saturating_sub(1).min(n - 2);
+        }
         let (a, b) = (self.points[lo], self.points[lo + 1]);
         Cell {
             lo,
@@ -135,19 +146,13 @@ impl Grid {
     }
 }
 
-/// Equal spacing to a relative 1e-9 of the pitch (grids written as decimals in JSON are not
-/// bit-exactly uniform, and the cell index is only a starting guess bounded to the grid).
-fn uniform_spacing(points: &[f64]) -> Option<(f64, f64)> {
+/// `(first point, 1 / mean pitch)` of a grid (a single point: any finite pair).
+fn mean_spacing(points: &[f64]) -> (f64, f64) {
     if points.len() < 2 {
-        return None;
+        return (points[0], 0.0);
     }
     let pitch = (points[points.len() - 1] - points[0]) / (points.len() - 1) as f64;
-    let tolerance = 1e-9 * pitch;
-    points
-        .iter()
-        .enumerate()
-        .all(|(i, &p)| (p - (points[0] + i as f64 * pitch)).abs() <= tolerance)
-        .then_some((points[0], 1.0 / pitch))
+    (points[0], 1.0 / pitch)
 }
 
 /// A 1-D table: one value per grid point, linearly interpolated.

@@ -133,8 +133,17 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         r[(0, 2)] - r[(2, 0)],
         r[(1, 0)] - r[(0, 1)],
     ) * 0.5;
-    let s = v.norm();
     let c = (r.trace() - 1.0) * 0.5;
+    let ss = v.norm_squared();
+    if ss < 1e-6 * c * c && c > 0.0 {
+        // Small angle (every pose error of a solve): angle/s = atan(t)/(t·c), t = s/c below
+        // 10⁻³, whose series `t − t³/3 + t⁵/5 − t⁷/7` leaves out less than t⁹/9 < 10⁻²⁷·t:
+        // no square root, no library atan2, one division.
+        let inv_c = 1.0 / c;
+        let t2 = ss * inv_c * inv_c;
+        return v * (inv_c * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 / 7.0))));
+    }
+    let s = ss.sqrt();
     if s < 1e-300 {
         if c > 0.0 {
             return Vector3::zeros();
@@ -147,8 +156,7 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         let axis = b.column(i) / b[(i, i)].max(1e-300).sqrt();
         return axis.normalize() * std::f64::consts::PI;
     }
-    let angle = s.atan2(c);
-    v * (angle / s)
+    v * (s.atan2(c) / s)
 }
 
 /// Rodrigues' formula: the rotation by `w` (rad).
@@ -202,6 +210,35 @@ mod tests {
             }
             let back = Frame::from_kuka(&out);
             assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
+        }
+    }
+
+    #[test]
+    fn small_rotation_vectors_match_the_atan2_formula() {
+        for k in 0..3000 {
+            let angle = 1.2e-3 * (k as f64 / 3000.0).powi(3);
+            let axis = Vector3::new(0.3, -0.8, 0.5 + k as f64 * 1e-3).normalize();
+            let r = exp_so3(&(axis * angle));
+            let v = Vector3::new(
+                r[(2, 1)] - r[(1, 2)],
+                r[(0, 2)] - r[(2, 0)],
+                r[(1, 0)] - r[(0, 1)],
+            ) * 0.5;
+            let (s, c) = (v.norm(), (r.trace() - 1.0) * 0.5);
+            let reference = if s == 0.0 {
+                Vector3::zeros()
+            } else {
+                v * (s.atan2(c) / s)
+            };
+            let ours = log_so3(&r);
+            assert!(
+                (ours - reference).norm() <= 4.0 * f64::EPSILON * angle,
+                "{angle}"
+            );
+            assert!(
+                (ours.norm() - angle).abs() <= 1e-15 + 1e-9 * angle,
+                "{angle}"
+            );
         }
     }
 

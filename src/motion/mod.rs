@@ -6,6 +6,7 @@
 
 pub mod frame;
 pub mod interpolate;
+pub mod lu6;
 pub mod nominal;
 pub mod simulate;
 pub mod spline;

@@ -87,7 +87,8 @@ impl AxisTable {
             return;
         }
         let (value, _) = self.table.eval(self.command(state));
-        errors.add(Slot::Angle { axis: self.axis }, factor * value * PI / 180.0);
+        // `to_radians` multiplies by π/180 where `· π / 180` divided: the hot path of a solve.
+        errors.add(Slot::Angle { axis: self.axis }, factor * value.to_radians());
     }
 
     pub fn jacobian(&self, state: &AxisState, factor: f64, out: &mut Vec<Partial>) {

@@ -115,7 +115,7 @@ impl Effect for Crosstalk {
     }
     fn add_to(&self, state: &AxisState, _ctx: &Context, errors: &mut ChainErrors) {
         let (value, _, _) = self.lookup(state);
-        errors.add(Slot::Angle { axis: self.to }, value * PI / 180.0);
+        errors.add(Slot::Angle { axis: self.to }, value.to_radians());
     }
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
         let (_, corners, _) = self.lookup(state);

@@ -63,6 +63,9 @@ impl Effect for Drift {
             errors.add(slot, rate * hours);
         }
     }
+    fn varies_with_axes(&self) -> bool {
+        false
+    }
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
         let hours = state.time_s / SECONDS_PER_HOUR;
         for (param, &(_, slot)) in LINKS.iter().enumerate() {

@@ -110,6 +110,9 @@ impl Effect for Geometric {
             errors.add(slot, self.values[i] * Self::gain(i, ctx));
         }
     }
+    fn varies_with_axes(&self) -> bool {
+        false
+    }
     fn jacobian(&self, _state: &AxisState, ctx: &Context, out: &mut Vec<Partial>) {
         for (i, &(_, slot, _)) in PARAMETERS.iter().enumerate() {
             out.push(Partial {

@@ -6,7 +6,9 @@ use super::axis_table::AxisTable;
 use super::{GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial};
+use crate::model::merged::AxisFactor;
 use crate::model::record::{EffectRecord, RecordError};
+use crate::model::table::Table1;
 use crate::model::AxisState;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -43,6 +45,9 @@ impl Effect for AngleMap {
     }
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
         self.0.jacobian(state, 1.0, out);
+    }
+    fn own_axis_table(&self) -> Option<(u8, &Table1, AxisFactor)> {
+        Some((self.0.axis, &self.0.table, AxisFactor::One))
     }
     fn clamped(&self, state: &AxisState) -> bool {
         self.0.clamped(state)
