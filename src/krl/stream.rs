@@ -70,9 +70,14 @@ const MOVING_SYSTEM_VARIABLES: [&[u8]; 3] = [b"$BASE", b"$TOOL", b"$IPO_MODE"];
 /// `CA`, `WITH` or `:` chain), an assignment to a system
 /// variable that does not move the robot (`$VEL.CP = 0.2`, `$OUT[3] = TRUE`), `WAIT SEC`.
 pub(crate) fn is_plain(line: &Line, nodes: &Nodes, src: &[u8]) -> bool {
-    let Line::Simple(kind) = line else {
-        return false;
-    };
+    match line {
+        Line::Simple(kind) => is_plain_kind(kind, nodes, src),
+        _ => false,
+    }
+}
+
+/// [`is_plain`] of a statement's kind.
+pub(crate) fn is_plain_kind(kind: &StmtKind, nodes: &Nodes, src: &[u8]) -> bool {
     match kind {
         StmtKind::Motion(id) => {
             let m = &nodes.motions[id.0 as usize];
@@ -172,6 +177,273 @@ impl Stretch {
                         self.in_window = opts.window.max(1);
                     }
                 }
+            }
+        }
+    }
+}
+
+/// A fast look at a line of code: `true` only for the shapes CAM systems write by the million
+/// that surely parse as plain lines — `LIN {X 1.5,Y -2,…} C_DIS` (any of `PTP`/`LIN`/`CIRC`
+/// and their `_REL` forms, an optional type before `:`, numbers `[+-]d[.d]`, approximation
+/// keywords), `$VEL.CP = 0.2`, `WAIT SEC 1`. Anything else goes to the parser and
+/// [`is_plain`]; a window checks every statement again when it is parsed (`SourceFile::window`).
+pub(crate) fn looks_plain(code: &[u8]) -> bool {
+    let mut s = Scan { b: code, p: 0 };
+    if s.b.first() == Some(&b'$') {
+        return s.system_assignment();
+    }
+    let word = s.word();
+    if word.eq_ignore_ascii_case(b"WAIT") {
+        return s.blanks()
+            && s.word().eq_ignore_ascii_case(b"SEC")
+            && s.blanks()
+            && s.number()
+            && s.end();
+    }
+    let aggregates = match word.len() {
+        3 | 4 | 7 | 8 => {
+            let kw = match word.len() {
+                7 | 8 if word[word.len() - 4..].eq_ignore_ascii_case(b"_REL") => {
+                    &word[..word.len() - 4]
+                }
+                _ => word,
+            };
+            if kw.eq_ignore_ascii_case(b"LIN") || kw.eq_ignore_ascii_case(b"PTP") {
+                1
+            } else if kw.eq_ignore_ascii_case(b"CIRC") {
+                2
+            } else {
+                return false;
+            }
+        }
+        _ => return false,
+    };
+    if !s.blanks() || !s.aggregate() {
+        return false;
+    }
+    if aggregates == 2 {
+        s.blanks();
+        if !s.eat(b',') {
+            return false;
+        }
+        s.blanks();
+        if !s.aggregate() {
+            return false;
+        }
+    }
+    loop {
+        let had_blank = s.blanks();
+        if s.end() {
+            return true;
+        }
+        let w = s.word();
+        if !had_blank || !APPROX.iter().any(|a| w.eq_ignore_ascii_case(a)) {
+            return false;
+        }
+    }
+}
+
+const APPROX: [&[u8]; 4] = [b"C_DIS", b"C_PTP", b"C_VEL", b"C_ORI"];
+
+struct Scan<'a> {
+    b: &'a [u8],
+    p: usize,
+}
+
+impl Scan<'_> {
+    fn peek(&self) -> Option<u8> {
+        self.b.get(self.p).copied()
+    }
+
+    fn end(&self) -> bool {
+        self.p == self.b.len()
+    }
+
+    fn eat(&mut self, c: u8) -> bool {
+        let yes = self.peek() == Some(c);
+        self.p += usize::from(yes);
+        yes
+    }
+
+    /// Skips spaces and tabs; whether there were any.
+    fn blanks(&mut self) -> bool {
+        let at = self.p;
+        while matches!(self.peek(), Some(b' ' | b'\t')) {
+            self.p += 1;
+        }
+        self.p > at
+    }
+
+    /// An identifier (empty when none starts here).
+    fn word(&mut self) -> &[u8] {
+        let at = self.p;
+        if self
+            .peek()
+            .is_some_and(|c| c.is_ascii_alphabetic() || c == b'_')
+        {
+            while self
+                .peek()
+                .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_')
+            {
+                self.p += 1;
+            }
+        }
+        &self.b[at..self.p]
+    }
+
+    fn digits(&mut self) -> usize {
+        let at = self.p;
+        while self.peek().is_some_and(|c| c.is_ascii_digit()) {
+            self.p += 1;
+        }
+        self.p - at
+    }
+
+    /// `[+-] d+ [. d+]` or `[+-] . d+`, at most 15 digits, not followed by a name character.
+    fn number(&mut self) -> bool {
+        if matches!(self.peek(), Some(b'+' | b'-')) {
+            self.p += 1;
+        }
+        let int = self.digits();
+        let frac = if self.eat(b'.') { self.digits() } else { 0 };
+        let ok =
+            (int > 0 || frac > 0) && int + frac <= 15 && (frac > 0 || self.b[self.p - 1] != b'.');
+        ok && !self
+            .peek()
+            .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_' || c == b'.')
+    }
+
+    /// `{ [TYPE:] NAME number {, NAME number} }`.
+    fn aggregate(&mut self) -> bool {
+        if !self.eat(b'{') {
+            return false;
+        }
+        self.blanks();
+        let save = self.p;
+        if !self.word().is_empty() {
+            self.blanks();
+            if self.eat(b':') {
+                self.blanks();
+            } else {
+                self.p = save;
+            }
+        }
+        loop {
+            if self.word().is_empty() || !self.blanks() || !self.number() {
+                return false;
+            }
+            self.blanks();
+            if self.eat(b'}') {
+                return true;
+            }
+            if !self.eat(b',') {
+                return false;
+            }
+            self.blanks();
+        }
+    }
+
+    /// `$NAME{.NAME|[d]} = number|TRUE|FALSE` to a system variable that does not move the
+    /// robot.
+    fn system_assignment(&mut self) -> bool {
+        self.p = 1;
+        let root = self.word();
+        if root.is_empty()
+            || MOVING_SYSTEM_VARIABLES
+                .iter()
+                .any(|v| root.eq_ignore_ascii_case(&v[1..]))
+        {
+            return false;
+        }
+        loop {
+            if self.eat(b'.') {
+                if self.word().is_empty() {
+                    return false;
+                }
+            } else if self.eat(b'[') {
+                if self.digits() == 0 || !self.eat(b']') {
+                    return false;
+                }
+            } else {
+                break;
+            }
+        }
+        self.blanks();
+        if !self.eat(b'=') {
+            return false;
+        }
+        self.blanks();
+        let save = self.p;
+        let w = self.word();
+        if w.eq_ignore_ascii_case(b"TRUE") || w.eq_ignore_ascii_case(b"FALSE") {
+            return self.end();
+        }
+        self.p = save;
+        self.number() && self.end()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::krl::lex::Cx;
+    use crate::krl::stmt;
+    use crate::krl::tree::FileKind;
+    use proptest::prelude::*;
+    use std::cell::RefCell;
+
+    /// What the parser says of a line: plain or not.
+    fn parsed_plain(code: &[u8]) -> bool {
+        let nodes = RefCell::new(Nodes::default());
+        let cx = Cx::new(code, &nodes);
+        match stmt::line(cx, FileKind::Src, code) {
+            Ok(l) => is_plain(&l, &nodes.borrow(), code),
+            Err(_) => false,
+        }
+    }
+
+    #[test]
+    fn the_quick_look_knows_cam_lines() {
+        for yes in [
+            "LIN {X 0.000,Y 0.000,Z -1.000,A 0.000,B 94.500,C 0.000} C_DIS",
+            "lin {x 1, y -2.5} c_dis C_ORI",
+            "PTP {E6AXIS: A1 -12.5,A2 -85,A3 105,A4 0,A5 70,A6 -12.5,E1 0}",
+            "CIRC {X 1,Y 2}, {X 3,Y 4}",
+            "LIN_REL {Z 5.000} C_DIS",
+            "$VEL.CP = 0.080",
+            "$OUT[12] = TRUE",
+            "WAIT SEC 2.0",
+        ] {
+            assert!(looks_plain(yes.as_bytes()), "{yes}");
+            assert!(parsed_plain(yes.as_bytes()), "{yes}");
+        }
+        for no in [
+            "LIN P1",
+            "LIN {X 1} C_DIS C_FOO",
+            "LIN {X a}",
+            "LIN {X 1E3}",
+            "LIN {X 1.}",
+            "LIN_REL {Z 5} #TOOL",
+            "CIRC {X 1,Y 2}, {X 3,Y 4}, CA 90",
+            "$BASE = {X 1}",
+            "$TOOL.X = 3",
+            "$VEL.CP = speed",
+            "LIN {X 1}:{X 2}",
+            "SLIN {X 1}",
+        ] {
+            assert!(!looks_plain(no.as_bytes()), "{no}");
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        /// Never plain by the quick look where the parser says otherwise.
+        #[test]
+        fn the_quick_look_is_sound(
+            line in "(LIN|PTP|CIRC|lin|Ptp_Rel|LIN_REL|WAIT SEC|\\$VEL\\.CP|\\$BASE|\\$OUT\\[1\\])[ \t]{0,2}[=]?[ ]?\\{?[A-Za-z0-9_:, .+\\-]{0,30}\\}?[ ,]{0,2}\\{?[A-Z0-9 ,.\\-]{0,12}\\}?( C_DIS| C_PTP| CA 9| #TOOL)?",
+        ) {
+            if looks_plain(line.as_bytes()) {
+                prop_assert!(parsed_plain(line.as_bytes()), "{line}");
             }
         }
     }

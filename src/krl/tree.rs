@@ -14,7 +14,9 @@ use super::motion::Motion;
 use super::nodes::{AggregateId, Members, MotionId, Nodes};
 use super::span::{LineIndex, Span};
 use super::stmt::{self, Arm, ArmKind, Block, BlockKind, Clause, Line, Stmt, StmtKind};
-use super::stream::{is_plain, Held, StreamOptions, StreamedRun, Stretch};
+use super::stream::{
+    is_plain, is_plain_kind, looks_plain, Held, StreamOptions, StreamedRun, Stretch,
+};
 use super::trivia::split_line;
 use crate::diagnostic::Diagnostic;
 use std::borrow::Cow;
@@ -233,11 +235,14 @@ fn build_in(
             let mut plain = false;
             if let Some(opts) = &stream {
                 if b.in_main_body() && folds.current().is_none() {
-                    let mark = nodes.borrow().mark();
-                    if let Ok(parsed) = stmt::line(cx, kind, &src[code.range()]) {
-                        plain = is_plain(&parsed, &nodes.borrow(), src);
-                    }
-                    nodes.borrow_mut().reset(mark);
+                    plain = looks_plain(&src[code.range()]) || {
+                        let mark = nodes.borrow().mark();
+                        let parsed = stmt::line(cx, kind, &src[code.range()]);
+                        let plain =
+                            parsed.is_ok_and(|parsed| is_plain(&parsed, &nodes.borrow(), src));
+                        nodes.borrow_mut().reset(mark);
+                        plain
+                    };
                     if plain {
                         let st = stretch.get_or_insert_with(|| Stretch::new(pos, line));
                         st.push(
@@ -583,9 +588,26 @@ impl SourceFile {
     /// One window of a run (`window` from [`StreamedRun::windows`]) parsed into a file of its
     /// own: its statements at top level, the source bytes shared, spans and line numbers as
     /// in the whole file.
+    ///
+    /// Every statement of a window must be plain (the reason it was left out of the tree);
+    /// one that is not, or a line that does not parse, is an error of the window (a bug of
+    /// the quick look that chose the run's lines: the caller must not use the window).
     pub fn window(&self, (bytes, first_line): (Span, u32)) -> SourceFile {
         let mut w = build_in(&self.src, self.kind, bytes.range(), first_line, None);
         w.src = Arc::clone(&self.src);
+        let strange: Vec<Span> = w
+            .body
+            .iter()
+            .filter(|s| s.block.is_some() || !is_plain_kind(&s.kind, &w.nodes, &w.src))
+            .map(|s| s.head)
+            .collect();
+        for head in strange {
+            w.problems.push(Problem::error(
+                head,
+                "internal error: a line streamed as plain is not (please report this program)",
+                "compensate the program with the line changed, e.g. split the run there",
+            ));
+        }
         w
     }
 

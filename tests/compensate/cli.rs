@@ -232,10 +232,19 @@ fn check_reports_without_writing() {
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, "{ not json").unwrap();
     let st = robopost()
-        .args(["check", "fixtures/programs/paper_path1.src", "-c", bad.to_str().unwrap()])
+        .args([
+            "check",
+            "fixtures/programs/paper_path1.src",
+            "-c",
+            bad.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert_eq!(st.status.code(), Some(2));
-    assert!(st.stdout.is_empty(), "{}", String::from_utf8_lossy(&st.stdout));
+    assert!(
+        st.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&st.stdout)
+    );
     assert!(String::from_utf8_lossy(&st.stderr).contains("bad.json"));
 }
