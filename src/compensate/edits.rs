@@ -18,6 +18,13 @@ struct Piece {
     at: usize,
 }
 
+/// A length of an [`EditList`] ([`EditList::mark`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mark {
+    pieces: usize,
+    text: usize,
+}
+
 /// Edits of one source in the order they were made.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct EditList {
@@ -52,6 +59,58 @@ impl EditList {
 
     pub fn push(&mut self, edit: Edit) {
         self.replace(edit.range, &edit.bytes);
+    }
+
+    /// Replaces `range` with the bytes `write` appends to the list's text, written in place
+    /// (no buffer of its own); when `write` returns false nothing is added.
+    pub fn replace_with(
+        &mut self,
+        range: Range<usize>,
+        write: impl FnOnce(&mut Vec<u8>) -> bool,
+    ) -> bool {
+        let at = self.text.len();
+        if !write(&mut self.text) {
+            self.text.truncate(at);
+            return false;
+        }
+        self.pieces.push(Piece {
+            start: range.start as u32,
+            end: range.end as u32,
+            len: (self.text.len() - at) as u32,
+            at,
+        });
+        true
+    }
+
+    /// Where the list ends now: to drop or reorder what is added after it.
+    pub fn mark(&self) -> Mark {
+        Mark {
+            pieces: self.pieces.len(),
+            text: self.text.len(),
+        }
+    }
+
+    /// Drops the edits added since `mark`.
+    pub fn truncate(&mut self, mark: Mark) {
+        self.pieces.truncate(mark.pieces);
+        self.text.truncate(mark.text);
+    }
+
+    /// Sorts the edits added since `mark` by where they start, keeping the order of those
+    /// that start at one place (a stable sort: insertions there stay in the order given).
+    pub fn sort_since(&mut self, mark: Mark) {
+        self.pieces[mark.pieces..].sort_by_key(|p| p.start);
+    }
+
+    /// The edits as `krl::Edit`s, in the order they were made.
+    pub fn to_edits(&self) -> Vec<Edit> {
+        self.pieces
+            .iter()
+            .map(|p| Edit {
+                range: Self::range(p),
+                bytes: self.text[p.at..p.at + p.len as usize].to_vec(),
+            })
+            .collect()
     }
 
     /// Room for `edits` more edits with `text` more bytes of replacement text.
