@@ -340,6 +340,20 @@ pub fn arrival_along(
     q0: &[f64; 6],
     q1: &[f64; 6],
 ) -> Result<Arrival, PathError> {
+    arrival_and_end(robot, tool, cart, u_end, q0, q1).map(|(a, _)| a)
+}
+
+/// [`arrival_along`], with the nominal TCP at the arrival's end axes (`Nominal::tcp` of
+/// `Arrival::end`, bit for bit: it comes from the same chain evaluation as the Jacobian), which
+/// the next segment's start may reuse.
+pub fn arrival_and_end(
+    robot: &RobotDescription,
+    tool: &Frame,
+    cart: &Cartesian,
+    u_end: f64,
+    q0: &[f64; 6],
+    q1: &[f64; 6],
+) -> Result<(Arrival, Frame), PathError> {
     let mut q1 = *q1;
     let (length, turn) = cart.extent();
     let n = ((length * u_end / PITCH_MM)
@@ -347,9 +361,9 @@ pub fn arrival_along(
         .ceil() as usize)
         .clamp(1, MAX_SAMPLES);
     // Walk the path; keep the last sample at which each axis still differed from its end.
+    // (The start is a sample too; a short segment has no other and allocates nothing.)
     let mut q = *q0;
-    let mut samples = Vec::with_capacity(n);
-    samples.push((*q0, 0.0));
+    let mut samples = Vec::with_capacity(n - 1);
     for j in 1..n {
         let u = u_end * j as f64 / n as f64;
         q = nominal::local_ik(robot, &cart.pose(u), tool, &q)
@@ -381,7 +395,7 @@ pub fn arrival_along(
     }
     let q1 = &q1;
     let mut last_moving: [Option<([f64; 6], f64)>; 6] = [None; 6];
-    for (qs, u) in samples.iter().rev() {
+    for (qs, u) in samples.iter().rev().chain([(*q0, 0.0)].iter()) {
         for i in 0..6 {
             if last_moving[i].is_none() && (q1[i] - qs[i]).abs() >= REST_DEG {
                 last_moving[i] = Some((*qs, *u));
@@ -389,9 +403,9 @@ pub fn arrival_along(
         }
     }
     // The exact rate at the end, where the Jacobian is regular.
-    let (_, jac) = Nominal(robot).tcp_jacobian(q1, tool);
+    let (end, jac) = Nominal(robot).tcp_jacobian(q1, tool);
     let rate = jac.lu().solve(&(cart.twist(u_end) * u_end));
-    Ok(Arrival {
+    let arrival = Arrival {
         rate: std::array::from_fn(|i| {
             let r = rate.map_or(0.0, |r| r[i]);
             if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
@@ -403,7 +417,8 @@ pub fn arrival_along(
             }
         }),
         end: *q1,
-    })
+    };
+    Ok((arrival, end))
 }
 
 fn rest(d: f64) -> f64 {
