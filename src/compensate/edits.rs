@@ -1,9 +1,11 @@
 //! The byte edits of one rewritten file, stored compactly: a million-target program makes
 //! six million small replacements, and a `krl::Edit` each (range plus its own heap buffer,
 //! ~70 bytes with the allocation) would cost more memory than the source itself. Here every
-//! edit is 24 bytes of range and offset into one shared buffer of replacement text. Applying
-//! follows `krl::apply` exactly — sorted by position, insertions at one offset in the order
-//! given, overlaps and out-of-range edits rejected — and writes straight into the output.
+//! edit is 24 bytes of range and offset into a shared buffer of replacement text, in segments:
+//! lists built in parallel are joined by moving their segments, not by copying hundreds of
+//! megabytes. Applying follows `krl::apply` exactly — sorted by position, insertions at one
+//! offset in the order given, overlaps and out-of-range edits rejected — and writes straight
+//! into the output; edits already in order (a CAM program's) are streamed without sorting.
 
 use std::ops::Range;
 
@@ -14,13 +16,37 @@ struct Piece {
     start: u32,
     end: u32,
     len: u32,
-    /// Offset of the replacement text in [`EditList::text`].
+    /// Offset of the replacement text in its segment's `text`.
     at: usize,
+}
+
+impl Piece {
+    fn range(&self) -> Range<usize> {
+        self.start as usize..self.end as usize
+    }
+
+    fn key(&self) -> (u32, u32) {
+        (self.start, self.end)
+    }
+}
+
+/// A run of edits with their text.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+struct Segment {
+    pieces: Vec<Piece>,
+    text: Vec<u8>,
+}
+
+impl Segment {
+    fn bytes(&self, p: &Piece) -> &[u8] {
+        &self.text[p.at..p.at + p.len as usize]
+    }
 }
 
 /// A length of an [`EditList`] ([`EditList::mark`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mark {
+    segment: usize,
     pieces: usize,
     text: usize,
 }
@@ -28,8 +54,8 @@ pub struct Mark {
 /// Edits of one source in the order they were made.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct EditList {
-    pieces: Vec<Piece>,
-    text: Vec<u8>,
+    /// Never empty once an edit was made; new edits go to the last.
+    segments: Vec<Segment>,
 }
 
 impl EditList {
@@ -38,23 +64,31 @@ impl EditList {
     }
 
     pub fn len(&self) -> usize {
-        self.pieces.len()
+        self.segments.iter().map(|s| s.pieces.len()).sum()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.pieces.is_empty()
+        self.segments.iter().all(|s| s.pieces.is_empty())
+    }
+
+    fn last(&mut self) -> &mut Segment {
+        if self.segments.is_empty() {
+            self.segments.push(Segment::default());
+        }
+        self.segments.last_mut().expect("just made sure")
     }
 
     /// Replaces `range` (empty: inserts) with `bytes`.
     pub fn replace(&mut self, range: Range<usize>, bytes: &[u8]) {
+        let seg = self.last();
         // Sources are addressed with u32 spans (krl::Span), and so are their edits.
-        self.pieces.push(Piece {
+        seg.pieces.push(Piece {
             start: range.start as u32,
             end: range.end as u32,
             len: bytes.len() as u32,
-            at: self.text.len(),
+            at: seg.text.len(),
         });
-        self.text.extend_from_slice(bytes);
+        seg.text.extend_from_slice(bytes);
     }
 
     pub fn push(&mut self, edit: Edit) {
@@ -68,103 +102,168 @@ impl EditList {
         range: Range<usize>,
         write: impl FnOnce(&mut Vec<u8>) -> bool,
     ) -> bool {
-        let at = self.text.len();
-        if !write(&mut self.text) {
-            self.text.truncate(at);
+        let seg = self.last();
+        let at = seg.text.len();
+        if !write(&mut seg.text) {
+            seg.text.truncate(at);
             return false;
         }
-        self.pieces.push(Piece {
+        seg.pieces.push(Piece {
             start: range.start as u32,
             end: range.end as u32,
-            len: (self.text.len() - at) as u32,
+            len: (seg.text.len() - at) as u32,
             at,
         });
         true
     }
 
     /// Where the list ends now: to drop or reorder what is added after it.
-    pub fn mark(&self) -> Mark {
+    pub fn mark(&mut self) -> Mark {
+        let segment = self.segments.len().max(1) - 1;
+        let seg = self.last();
         Mark {
-            pieces: self.pieces.len(),
-            text: self.text.len(),
+            segment,
+            pieces: seg.pieces.len(),
+            text: seg.text.len(),
         }
     }
 
-    /// Drops the edits added since `mark`.
+    /// Drops the edits added since `mark` (with no [`Self::append`] in between).
     pub fn truncate(&mut self, mark: Mark) {
-        self.pieces.truncate(mark.pieces);
-        self.text.truncate(mark.text);
+        let seg = &mut self.segments[mark.segment];
+        seg.pieces.truncate(mark.pieces);
+        seg.text.truncate(mark.text);
     }
 
-    /// Sorts the edits added since `mark` by where they start, keeping the order of those
-    /// that start at one place (a stable sort: insertions there stay in the order given).
+    /// Sorts the edits added since `mark` (with no [`Self::append`] in between) by where they
+    /// start, keeping the order of those that start at one place (a stable sort: insertions
+    /// there stay in the order given).
     pub fn sort_since(&mut self, mark: Mark) {
-        self.pieces[mark.pieces..].sort_by_key(|p| p.start);
+        self.segments[mark.segment].pieces[mark.pieces..].sort_by_key(|p| p.start);
     }
 
     /// The edits as `krl::Edit`s, in the order they were made.
     pub fn to_edits(&self) -> Vec<Edit> {
-        self.pieces
+        self.segments
             .iter()
-            .map(|p| Edit {
-                range: Self::range(p),
-                bytes: self.text[p.at..p.at + p.len as usize].to_vec(),
+            .flat_map(|s| {
+                s.pieces.iter().map(|p| Edit {
+                    range: p.range(),
+                    bytes: s.bytes(p).to_vec(),
+                })
             })
             .collect()
     }
 
-    /// Room for `edits` more edits with `text` more bytes of replacement text.
-    pub fn reserve(&mut self, edits: usize, text: usize) {
-        self.pieces.reserve(edits);
-        self.text.reserve(text);
-    }
-
     /// Bytes of replacement text.
     pub fn text_len(&self) -> usize {
-        self.text.len()
+        self.segments.iter().map(|s| s.text.len()).sum()
     }
 
-    /// Moves the edits of `other` to the end of this list.
+    /// Moves the edits of `other` to the end of this list (its segments, not copied).
     pub fn append(&mut self, other: &mut EditList) {
-        let shift = self.text.len();
-        self.pieces.extend(other.pieces.drain(..).map(|p| Piece {
-            at: p.at + shift,
-            ..p
-        }));
-        self.text.append(&mut other.text);
+        self.segments
+            .retain(|s| !s.pieces.is_empty() || !s.text.is_empty());
+        self.segments
+            .extend(other.segments.drain(..).filter(|s| !s.pieces.is_empty()));
     }
 
-    fn range(p: &Piece) -> Range<usize> {
-        p.start as usize..p.end as usize
+    fn pieces(&self) -> impl Iterator<Item = (&Segment, &Piece)> + '_ {
+        self.segments
+            .iter()
+            .flat_map(|s| s.pieces.iter().map(move |p| (s, p)))
     }
 
     /// `source` with `first` (an insertion or replacement that goes before any edit of the
     /// list at the same place) and the edits applied (see `krl::apply`).
     pub fn apply(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
+        let out_of_bounds = |r: Range<usize>| {
+            (r.start > r.end || r.end > source.len()).then(|| EditError::OutOfBounds {
+                range: r,
+                len: source.len(),
+            })
+        };
+        if let Some(e) = out_of_bounds(first.range.clone()) {
+            return Err(e);
+        }
+        if let Some(e) = self.pieces().find_map(|(_, p)| out_of_bounds(p.range())) {
+            return Err(e);
+        }
+        let mut keys = self.pieces().map(|(_, p)| p.key());
+        let in_order = match keys.next() {
+            Some(k0) => keys
+                .try_fold(k0, |prev, k| (prev <= k).then_some(k))
+                .is_some(),
+            None => true,
+        };
+        if !in_order {
+            return self.flattened().apply_sorting(source, first);
+        }
+        // Already in order: `first` goes before the first edit not ahead of it (a stable sort
+        // with `first` in front would put it there).
+        let first_key = (first.range.start as u32, first.range.end as u32);
+        let mut placed = false;
+        let mut order = self.pieces().map(Some).peekable();
+        let mut merged = std::iter::from_fn(|| {
+            if !placed
+                && order
+                    .peek()
+                    .map_or(true, |x| x.map_or(true, |(_, p)| p.key() >= first_key))
+            {
+                placed = true;
+                return Some((first.range.clone(), &first.bytes[..]));
+            }
+            order.next().flatten().map(|(s, p)| (p.range(), s.bytes(p)))
+        });
+        let mut out = Vec::with_capacity(source.len() + self.text_len() + first.bytes.len());
+        let mut at = 0;
+        let mut last: Option<Range<usize>> = None;
+        for (r, bytes) in &mut merged {
+            if let Some(a) = &last {
+                if r.start < a.end {
+                    return Err(EditError::Overlap {
+                        first: a.clone(),
+                        second: r,
+                    });
+                }
+            }
+            out.extend_from_slice(&source[at..r.start]);
+            out.extend_from_slice(bytes);
+            at = r.end;
+            last = Some(r);
+        }
+        out.extend_from_slice(&source[at..]);
+        Ok(out)
+    }
+
+    /// The list as one segment (for the general, sorting apply).
+    fn flattened(&self) -> Segment {
+        let mut flat = Segment::default();
+        for (s, p) in self.pieces() {
+            flat.pieces.push(Piece {
+                at: flat.text.len(),
+                ..*p
+            });
+            flat.text.extend_from_slice(s.bytes(p));
+        }
+        flat
+    }
+}
+
+impl Segment {
+    /// [`EditList::apply`] for edits in any order: sorted (stably) by position first.
+    fn apply_sorting(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
         // Index 0 is `first`, i + 1 the list's i-th edit: a stable sort keeps their order.
         let range = |k: u32| match k {
             0 => first.range.clone(),
-            k => Self::range(&self.pieces[k as usize - 1]),
+            k => self.pieces[k as usize - 1].range(),
         };
         let bytes = |k: u32| match k {
             0 => &first.bytes[..],
-            k => {
-                let p = &self.pieces[k as usize - 1];
-                &self.text[p.at..p.at + p.len as usize]
-            }
+            k => self.bytes(&self.pieces[k as usize - 1]),
         };
         let n = self.pieces.len() as u32 + 1;
-        for k in 0..n {
-            let r = range(k);
-            if r.start > r.end || r.end > source.len() {
-                return Err(EditError::OutOfBounds {
-                    range: r,
-                    len: source.len(),
-                });
-            }
-        }
         let mut order: Vec<u32> = (0..n).collect();
-        // Already in order for a CAM program's fast path: the stable sort sees one run.
         order.sort_by_key(|&k| {
             let r = range(k);
             (r.start, r.end)
@@ -237,6 +336,40 @@ mod tests {
             all.extend(edits);
             let expected = crate::krl::apply(src.as_bytes(), &all);
             prop_assert_eq!(a.apply(src.as_bytes(), &first), expected);
+        }
+    }
+
+    proptest! {
+        /// Edits made in order (the streaming path), in up to three segments, with `first`
+        /// anywhere: the same as `krl::apply`, overlaps included.
+        #[test]
+        fn ordered_edits_apply_like_krl_apply(
+            src in "[a-z]{0,40}",
+            steps in proptest::collection::vec((0usize..4, 0usize..3, "[A-Z]{0,3}"), 0..14),
+            first_at in 0usize..44,
+            first_len in 0usize..2,
+            cuts in (0usize..14, 0usize..14),
+        ) {
+            let mut at = 0;
+            let mut edits = Vec::new();
+            for (gap, len, text) in &steps {
+                at += gap;
+                edits.push(edit(at, at + len, text));
+                at += len;
+            }
+            let first = edit(first_at, first_at + first_len, "#");
+            let (c1, c2) = (cuts.0.min(cuts.1), cuts.0.max(cuts.1));
+            let mut lists = [EditList::new(), EditList::new(), EditList::new()];
+            for (i, e) in edits.iter().enumerate() {
+                lists[usize::from(i >= c1) + usize::from(i >= c2)].push(e.clone());
+            }
+            let [mut a, mut b, mut c] = lists;
+            a.append(&mut b);
+            a.append(&mut c);
+            prop_assert_eq!(a.to_edits(), edits.clone());
+            let mut all = vec![first.clone()];
+            all.extend(edits);
+            prop_assert_eq!(a.apply(src.as_bytes(), &first), crate::krl::apply(src.as_bytes(), &all));
         }
     }
 

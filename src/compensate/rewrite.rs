@@ -522,17 +522,7 @@ pub fn rewrite(
             },
         )
         .collect();
-    // Exact room first: growing a list of millions of edits by doubling would hold up to
-    // three times its size at once.
-    let mut room: BTreeMap<FileId, (usize, usize)> = BTreeMap::new();
-    for (file, list) in single.iter().flat_map(|(edits, _)| edits) {
-        let r = room.entry(*file).or_default();
-        r.0 += list.len();
-        r.1 += list.text_len();
-    }
-    for (file, (n, text)) in room {
-        out.edits.entry(file).or_default().reserve(n, text);
-    }
+    // Joined by moving each chunk's segment (see `EditList::append`), not copying.
     for (edits, s) in single {
         for (file, mut list) in edits {
             out.edits.entry(file).or_default().append(&mut list);
