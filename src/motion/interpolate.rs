@@ -305,10 +305,26 @@ pub struct Arrival {
 /// at its end then depends on its two ends only, so it can be computed later, in parallel).
 pub fn lin_needs_no_samples(start: &Frame, end: &Frame) -> bool {
     let length = (end.position - start.position).norm();
-    let turn = frame::log_so3(&(end.rotation * start.rotation.transpose()))
-        .norm()
-        .to_degrees();
-    length <= PITCH_MM && turn <= PITCH_DEG
+    if !(length <= PITCH_MM) {
+        return false;
+    }
+    let r = end.rotation * start.rotation.transpose();
+    // The turn is atan2(s, c) (see `log_so3`): far from the pitch, the sine alone decides
+    // (sin 4.59° = 0.08, sin 5.16° = 0.09, rounding is 1e-15 of that); near it, and for
+    // anything odd, the exact angle.
+    let s = 0.5
+        * ((r[(2, 1)] - r[(1, 2)]).powi(2)
+            + (r[(0, 2)] - r[(2, 0)]).powi(2)
+            + (r[(1, 0)] - r[(0, 1)]).powi(2))
+        .sqrt();
+    let c = (r.trace() - 1.0) * 0.5;
+    if c > 0.9 && s < 0.08 {
+        return true;
+    }
+    if c <= 0.0 || (c > 0.0 && s > 0.09) {
+        return false;
+    }
+    frame::log_so3(&r).norm().to_degrees() <= PITCH_DEG
 }
 
 /// How every axis arrives at the end of a segment from `start` to `end` (TCP, axes).
@@ -452,6 +468,34 @@ mod tests {
 
     fn fk(q: &[f64; 6]) -> Frame {
         Nominal(&robot()).tcp(q, &Frame::identity())
+    }
+
+    proptest::proptest! {
+        /// The shortcut decides like the exact angle, on both sides of the pitch.
+        #[test]
+        fn short_segment_test_matches_the_exact_angle(
+            axis in proptest::array::uniform3(-1.0f64..1.0),
+            angle_deg in proptest::prop_oneof![0.0f64..200.0, 4.4f64..5.3, 4.99999f64..5.00001],
+            length in 0.0f64..40.0,
+            start in proptest::array::uniform3(-3.0f64..3.0),
+        ) {
+            let w = Vector3::from(axis);
+            proptest::prop_assume!(w.norm() > 1e-3);
+            let a = Frame {
+                rotation: exp_so3(&Vector3::from(start)),
+                position: Vector3::new(100.0, -50.0, 800.0),
+            };
+            let b = Frame {
+                rotation: exp_so3(&(w.normalize() * angle_deg.to_radians())) * a.rotation,
+                position: a.position + Vector3::new(length, 0.0, 0.0),
+            };
+            let exact = (b.position - a.position).norm() <= PITCH_MM
+                && frame::log_so3(&(b.rotation * a.rotation.transpose()))
+                    .norm()
+                    .to_degrees()
+                    <= PITCH_DEG;
+            proptest::prop_assert_eq!(lin_needs_no_samples(&a, &b), exact);
+        }
     }
 
     #[test]
