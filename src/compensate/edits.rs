@@ -43,6 +43,14 @@ impl Segment {
     }
 }
 
+/// A stretch of the merged, ordered edits of [`EditList::apply`]: pieces of one segment, or
+/// the edit that goes first.
+#[derive(Clone, Copy, Debug)]
+enum Run {
+    Pieces { seg: usize, from: usize, to: usize },
+    First,
+}
+
 /// A length of an [`EditList`] ([`EditList::mark`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mark {
@@ -199,40 +207,113 @@ impl EditList {
         if !in_order {
             return self.flattened().apply_sorting(source, first);
         }
-        // Already in order: `first` goes before the first edit not ahead of it (a stable sort
-        // with `first` in front would put it there).
+        self.apply_in_order(source, first)
+    }
+
+    /// [`Self::apply`] for edits already in order: `first` goes before the first edit not
+    /// ahead of it (where a stable sort with `first` in front would put it). The merged
+    /// sequence is cut into runs that are measured and then written in parallel, each into
+    /// its own part of the output.
+    fn apply_in_order(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
+        use rayon::prelude::*;
+        /// Edits per run (a few in tests, so that they cut runs everywhere).
+        const RUN: usize = if cfg!(test) { 3 } else { 1 << 16 };
         let first_key = (first.range.start as u32, first.range.end as u32);
-        let mut placed = false;
-        let mut order = self.pieces().map(Some).peekable();
-        let mut merged = std::iter::from_fn(|| {
-            if !placed
-                && order
-                    .peek()
-                    .map_or(true, |x| x.map_or(true, |(_, p)| p.key() >= first_key))
-            {
-                placed = true;
-                return Some((first.range.clone(), &first.bytes[..]));
+        let mut runs = Vec::new();
+        let pieces = |seg: usize, from: usize, to: usize, runs: &mut Vec<Run>| {
+            for a in (from..to).step_by(RUN) {
+                runs.push(Run::Pieces {
+                    seg,
+                    from: a,
+                    to: (a + RUN).min(to),
+                });
             }
-            order.next().flatten().map(|(s, p)| (p.range(), s.bytes(p)))
-        });
-        let mut out = Vec::with_capacity(source.len() + self.text_len() + first.bytes.len());
-        let mut at = 0;
-        let mut last: Option<Range<usize>> = None;
-        for (r, bytes) in &mut merged {
-            if let Some(a) = &last {
-                if r.start < a.end {
-                    return Err(EditError::Overlap {
-                        first: a.clone(),
-                        second: r,
-                    });
+        };
+        let mut placed = false;
+        for (seg, s) in self.segments.iter().enumerate() {
+            let mut from = 0;
+            if !placed {
+                let at = s.pieces.partition_point(|p| p.key() < first_key);
+                if at < s.pieces.len() {
+                    pieces(seg, 0, at, &mut runs);
+                    runs.push(Run::First);
+                    placed = true;
+                    from = at;
                 }
             }
-            out.extend_from_slice(&source[at..r.start]);
-            out.extend_from_slice(bytes);
-            at = r.end;
-            last = Some(r);
+            pieces(seg, from, s.pieces.len(), &mut runs);
         }
-        out.extend_from_slice(&source[at..]);
+        if !placed {
+            runs.push(Run::First);
+        }
+        let item = |run: &Run, k: usize| -> (Range<usize>, &[u8]) {
+            match *run {
+                Run::First => (first.range.clone(), &first.bytes[..]),
+                Run::Pieces { seg, from, .. } => {
+                    let s = &self.segments[seg];
+                    let p = &s.pieces[from + k];
+                    (p.range(), s.bytes(p))
+                }
+            }
+        };
+        let count = |run: &Run| match *run {
+            Run::First => 1,
+            Run::Pieces { from, to, .. } => to - from,
+        };
+        let last_end = |j: usize| item(&runs[j], count(&runs[j]) - 1).0.end;
+        // Measure each run (and find the first overlap, the one with the previous run first).
+        let measured: Vec<Result<(usize, usize), EditError>> = (0..runs.len())
+            .into_par_iter()
+            .map(|j| {
+                let mut last = (j > 0).then(|| item(&runs[j - 1], count(&runs[j - 1]) - 1).0);
+                let (mut removed, mut added) = (0, 0);
+                for k in 0..count(&runs[j]) {
+                    let (r, bytes) = item(&runs[j], k);
+                    if let Some(a) = &last {
+                        if r.start < a.end {
+                            return Err(EditError::Overlap {
+                                first: a.clone(),
+                                second: r,
+                            });
+                        }
+                    }
+                    removed += r.len();
+                    added += bytes.len();
+                    last = Some(r);
+                }
+                Ok((removed, added))
+            })
+            .collect();
+        let mut lengths = Vec::with_capacity(runs.len());
+        for (j, m) in measured.into_iter().enumerate() {
+            let (removed, added) = m?;
+            let start = if j == 0 { 0 } else { last_end(j - 1) };
+            lengths.push(last_end(j) - start - removed + added);
+        }
+        let tail = &source[runs.len().checked_sub(1).map_or(0, last_end)..];
+        let total: usize = lengths.iter().sum::<usize>() + tail.len();
+        let mut out = vec![0u8; total];
+        let mut parts = Vec::with_capacity(runs.len());
+        let mut rest = &mut out[..];
+        for &len in &lengths {
+            let (part, after) = rest.split_at_mut(len);
+            parts.push(part);
+            rest = after;
+        }
+        rest.copy_from_slice(tail);
+        parts.into_par_iter().enumerate().for_each(|(j, part)| {
+            let mut at = if j == 0 { 0 } else { last_end(j - 1) };
+            let mut w = 0;
+            for k in 0..count(&runs[j]) {
+                let (r, bytes) = item(&runs[j], k);
+                let keep = &source[at..r.start];
+                part[w..w + keep.len()].copy_from_slice(keep);
+                w += keep.len();
+                part[w..w + bytes.len()].copy_from_slice(bytes);
+                w += bytes.len();
+                at = r.end;
+            }
+        });
         Ok(out)
     }
 
