@@ -523,11 +523,15 @@ fn fill_report(
             if !o.changed {
                 return (0.0, 0.0);
             }
+            // The rewrite has it for every target it wrote.
+            if let Some(c) = rw.correction(i) {
+                return c;
+            }
             let tool: &Frame = &sim.frames[stop.tool as usize];
-            let cmd = arm.tcp(&o.axes_deg, tool);
-            let nominal = arm.tcp(&stop.nominal_axes, tool);
-            let (cp, cr) = frame::norms(&frame::error(&cmd, &nominal));
-            (cp * 1e3, cr.to_degrees() * 1e3)
+            rewrite::correction(
+                &arm.tcp(&o.axes_deg, tool),
+                &arm.tcp(&stop.nominal_axes, tool),
+            )
         })
         .collect();
     if points {

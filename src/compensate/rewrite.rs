@@ -38,6 +38,24 @@ pub struct Rewrite {
     pub diagnostics: Vec<Diagnostic>,
     /// Declared points split into copies (original name, new names).
     pub splits: Vec<(String, Vec<String>)>,
+    /// Per stop, the command change at the TCP of a written target ([`correction`]; NaN
+    /// for the others): the report's figure, from the chain evaluation the rewrite needs.
+    pub corrections: Vec<(f64, f64)>,
+}
+
+impl Rewrite {
+    /// The command change at the TCP of stop `i`, when the rewrite wrote it.
+    pub fn correction(&self, i: usize) -> Option<(f64, f64)> {
+        self.corrections.get(i).copied().filter(|c| !c.0.is_nan())
+    }
+}
+
+/// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
+/// that of the controller's axes for the programmed target.
+pub fn correction(command_tcp: &Frame, nominal_tcp: &Frame) -> (f64, f64) {
+    let (cp, cr) =
+        crate::motion::frame::norms(&crate::motion::frame::error(command_tcp, nominal_tcp));
+    (cp * 1e3, cr.to_degrees() * 1e3)
 }
 
 /// The edits of one target's aggregate: replacements of member values and insertions of
@@ -58,6 +76,7 @@ fn new_values(
     outcomes: &[Outcome],
     stop: &Stop,
     axes: &[f64; 6],
+    command_tcp: &Frame,
     original: &[Option<f64>; 6],
     robot: &crate::kinematics::RobotDescription,
 ) -> Option<[f64; 6]> {
@@ -74,7 +93,7 @@ fn new_values(
     let tool = &sim.frames[stop.tool as usize];
     let base = &sim.frames[stop.base as usize];
     let arm = Nominal(robot);
-    let p_c = base.inverse().compose(&arm.tcp(axes, tool));
+    let p_c = base.inverse().compose(command_tcp);
     let near = |k: usize| original[k].unwrap_or(0.0);
     let abc_near = [near(3), near(4), near(5)];
     match stop.rel {
@@ -418,39 +437,58 @@ pub fn rewrite(
         NotLiteral(usize),
     }
     // One target's edits appended to a list: `None` for a target not to be written.
-    let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
-        let (stop, o) = (&sim.stops[i], &outcomes[i]);
-        let origin = stop.origin?;
-        if !stop.compensable || !o.changed || o.error.is_some() {
-            return None;
-        }
-        let file = &ws.get(origin.file).file;
-        let present = components(file, origin.agg, stop.axis);
-        let original = present.map(|c| c.and_then(|c| c.value));
-        let Some(values) = new_values(sim, outcomes, stop, &o.axes_deg, &original, robot) else {
-            return Some(Err(Skip::Relative(i)));
+    // One target's edits appended to a list (its correction to `corr`): `None` for a
+    // target not to be written.
+    type Corrections = Vec<(u32, (f64, f64))>;
+    let edits_into =
+        |i: usize, list: &mut EditList, corr: &mut Corrections| -> Option<Result<(), Skip>> {
+            let (stop, o) = (&sim.stops[i], &outcomes[i]);
+            let origin = stop.origin?;
+            if !stop.compensable || !o.changed || o.error.is_some() {
+                return None;
+            }
+            let tool = &sim.frames[stop.tool as usize];
+            let arm = Nominal(robot);
+            let command_tcp = arm.tcp(&o.axes_deg, tool);
+            corr.push((
+                i as u32,
+                correction(&command_tcp, &arm.tcp(&stop.nominal_axes, tool)),
+            ));
+            let file = &ws.get(origin.file).file;
+            let present = components(file, origin.agg, stop.axis);
+            let original = present.map(|c| c.and_then(|c| c.value));
+            let Some(values) = new_values(
+                sim,
+                outcomes,
+                stop,
+                &o.axes_deg,
+                &command_tcp,
+                &original,
+                robot,
+            ) else {
+                return Some(Err(Skip::Relative(i)));
+            };
+            let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
+            let written = aggregate_edits(
+                file,
+                origin.agg,
+                stop.axis,
+                &present,
+                &values,
+                write,
+                stop.rel.is_some(),
+                list,
+            );
+            Some(if written {
+                Ok(())
+            } else {
+                Err(Skip::NotLiteral(i))
+            })
         };
-        let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
-        let written = aggregate_edits(
-            file,
-            origin.agg,
-            stop.axis,
-            &present,
-            &values,
-            write,
-            stop.rel.is_some(),
-            list,
-        );
-        Some(if written {
-            Ok(())
-        } else {
-            Err(Skip::NotLiteral(i))
-        })
-    };
-    let per_stop = |i: usize| -> Option<Result<Use, Skip>> {
+    let per_stop = |i: usize, corr: &mut Corrections| -> Option<Result<Use, Skip>> {
         let mut list = EditList::new();
         let stop = &sim.stops[i];
-        edits_into(i, &mut list).map(|r| {
+        edits_into(i, &mut list, corr).map(|r| {
             r.map(|()| Use {
                 stop: i,
                 edits: list.to_edits(),
@@ -502,37 +540,46 @@ pub fn rewrite(
     };
     // Fast path, in parallel: the edits straight into one list per file.
     // (Keys are sorted by file: a chunk's edits are runs of one file each.)
-    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>);
+    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>, Corrections);
     let single: Vec<Chunk> = (0..keys.len())
         .into_par_iter()
         .with_min_len(1024)
         .filter(|&k| !shared(k))
         .fold(
-            || (Vec::new(), Vec::new()),
-            |(mut edits, mut skips): Chunk, k| {
+            || (Vec::new(), Vec::new(), Vec::new()),
+            |(mut edits, mut skips, mut corr): Chunk, k| {
                 let file = keys[k].0;
                 if edits.last().map_or(true, |(f, _)| *f != file) {
                     edits.push((file, EditList::new()));
                 }
                 let list = &mut edits.last_mut().expect("pushed").1;
-                if let Some(Err(s)) = edits_into(keys[k].2 as usize, list) {
+                if let Some(Err(s)) = edits_into(keys[k].2 as usize, list, &mut corr) {
                     skips.push(s);
                 }
-                (edits, skips)
+                (edits, skips, corr)
             },
         )
         .collect();
     // Joined by moving each chunk's segment (see `EditList::append`), not copying.
-    for (edits, s) in single {
+    out.corrections = vec![(f64::NAN, f64::NAN); sim.stops.len()];
+    for (edits, s, corr) in single {
         for (file, mut list) in edits {
             out.edits.entry(file).or_default().append(&mut list);
         }
         skips.extend(s);
+        for (i, c) in corr {
+            out.corrections[i as usize] = c;
+        }
     }
     // Shared origins, grouped, in execution order.
     let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
     for k in (0..keys.len()).filter(|&k| shared(k)) {
-        match per_stop(keys[k].2 as usize) {
+        let mut corr = Vec::new();
+        let used = per_stop(keys[k].2 as usize, &mut corr);
+        for (i, c) in corr {
+            out.corrections[i as usize] = c;
+        }
+        match used {
             Some(Ok(u)) => {
                 let key = (keys[k].0, keys[k].1);
                 match uses.last_mut() {
