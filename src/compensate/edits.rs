@@ -186,7 +186,7 @@ impl EditList {
     /// list at the same place) and the edits applied (see `krl::apply`).
     pub fn apply(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
         let out_of_bounds = |r: Range<usize>| {
-            (r.start > r.end || r.end > source.len()).then(|| EditError::OutOfBounds {
+            (r.start > r.end || r.end > source.len()).then_some(EditError::OutOfBounds {
                 range: r,
                 len: source.len(),
             })

@@ -305,7 +305,7 @@ pub struct Arrival {
 /// at its end then depends on its two ends only, so it can be computed later, in parallel).
 pub fn lin_needs_no_samples(start: &Frame, end: &Frame) -> bool {
     let length = (end.position - start.position).norm();
-    if !(length <= PITCH_MM) {
+    if length.is_nan() || length > PITCH_MM {
         return false;
     }
     let r = end.rotation * start.rotation.transpose();
