@@ -571,8 +571,8 @@ fn fill_report(
         }
     }
     report.targets = outcomes.len();
-    // Every statistic in one pass over the targets, each summed in target order (as
-    // `MaxMean::of` over the compensated ones would).
+    // Every statistic in one pass over the targets; each sum runs over the compensated
+    // targets in program order, so the means come out to the same bits as summed one by one.
     #[derive(Default)]
     struct Sum {
         max: f64,
