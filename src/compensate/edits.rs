@@ -1,9 +1,11 @@
 //! The byte edits of one rewritten file, stored compactly: a million-target program makes
 //! six million small replacements, and a `krl::Edit` each (range plus its own heap buffer,
 //! ~70 bytes with the allocation) would cost more memory than the source itself. Here every
-//! edit is 24 bytes of range and offset into one shared buffer of replacement text. Applying
-//! follows `krl::apply` exactly — sorted by position, insertions at one offset in the order
-//! given, overlaps and out-of-range edits rejected — and writes straight into the output.
+//! edit is 24 bytes of range and offset into a shared buffer of replacement text, in segments:
+//! lists built in parallel are joined by moving their segments, not by copying hundreds of
+//! megabytes. Applying follows `krl::apply` exactly — sorted by position, insertions at one
+//! offset in the order given, overlaps and out-of-range edits rejected — and writes straight
+//! into the output; edits already in order (a CAM program's) are streamed without sorting.
 
 use std::ops::Range;
 
@@ -14,15 +16,54 @@ struct Piece {
     start: u32,
     end: u32,
     len: u32,
-    /// Offset of the replacement text in [`EditList::text`].
+    /// Offset of the replacement text in its segment's `text`.
     at: usize,
+}
+
+impl Piece {
+    fn range(&self) -> Range<usize> {
+        self.start as usize..self.end as usize
+    }
+
+    fn key(&self) -> (u32, u32) {
+        (self.start, self.end)
+    }
+}
+
+/// A run of edits with their text.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+struct Segment {
+    pieces: Vec<Piece>,
+    text: Vec<u8>,
+}
+
+impl Segment {
+    fn bytes(&self, p: &Piece) -> &[u8] {
+        &self.text[p.at..p.at + p.len as usize]
+    }
+}
+
+/// A stretch of the merged, ordered edits of [`EditList::apply`]: pieces of one segment, or
+/// the edit that goes first.
+#[derive(Clone, Copy, Debug)]
+enum Run {
+    Pieces { seg: usize, from: usize, to: usize },
+    First,
+}
+
+/// A length of an [`EditList`] ([`EditList::mark`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mark {
+    segment: usize,
+    pieces: usize,
+    text: usize,
 }
 
 /// Edits of one source in the order they were made.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct EditList {
-    pieces: Vec<Piece>,
-    text: Vec<u8>,
+    /// Never empty once an edit was made; new edits go to the last.
+    segments: Vec<Segment>,
 }
 
 impl EditList {
@@ -31,103 +72,173 @@ impl EditList {
     }
 
     pub fn len(&self) -> usize {
-        self.pieces.len()
+        self.segments.iter().map(|s| s.pieces.len()).sum()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.pieces.is_empty()
+        self.segments.iter().all(|s| s.pieces.is_empty())
+    }
+
+    fn last(&mut self) -> &mut Segment {
+        if self.segments.is_empty() {
+            self.segments.push(Segment::default());
+        }
+        self.segments.last_mut().expect("just made sure")
     }
 
     /// Replaces `range` (empty: inserts) with `bytes`.
     pub fn replace(&mut self, range: Range<usize>, bytes: &[u8]) {
+        let seg = self.last();
         // Sources are addressed with u32 spans (krl::Span), and so are their edits.
-        self.pieces.push(Piece {
+        seg.pieces.push(Piece {
             start: range.start as u32,
             end: range.end as u32,
             len: bytes.len() as u32,
-            at: self.text.len(),
+            at: seg.text.len(),
         });
-        self.text.extend_from_slice(bytes);
+        seg.text.extend_from_slice(bytes);
     }
 
     pub fn push(&mut self, edit: Edit) {
         self.replace(edit.range, &edit.bytes);
     }
 
-    /// Room for `edits` more edits with `text` more bytes of replacement text.
-    pub fn reserve(&mut self, edits: usize, text: usize) {
-        self.pieces.reserve(edits);
-        self.text.reserve(text);
+    /// Replaces `range` with the bytes `write` appends to the list's text, written in place
+    /// (no buffer of its own); when `write` returns false nothing is added.
+    pub fn replace_with(
+        &mut self,
+        range: Range<usize>,
+        write: impl FnOnce(&mut Vec<u8>) -> bool,
+    ) -> bool {
+        let seg = self.last();
+        let at = seg.text.len();
+        if !write(&mut seg.text) {
+            seg.text.truncate(at);
+            return false;
+        }
+        seg.pieces.push(Piece {
+            start: range.start as u32,
+            end: range.end as u32,
+            len: (seg.text.len() - at) as u32,
+            at,
+        });
+        true
+    }
+
+    /// Where the list ends now: to drop or reorder what is added after it.
+    pub fn mark(&mut self) -> Mark {
+        let segment = self.segments.len().max(1) - 1;
+        let seg = self.last();
+        Mark {
+            segment,
+            pieces: seg.pieces.len(),
+            text: seg.text.len(),
+        }
+    }
+
+    /// Drops the edits added since `mark` (with no [`Self::append`] in between).
+    pub fn truncate(&mut self, mark: Mark) {
+        let seg = &mut self.segments[mark.segment];
+        seg.pieces.truncate(mark.pieces);
+        seg.text.truncate(mark.text);
+    }
+
+    /// Sorts the edits added since `mark` (with no [`Self::append`] in between) by where they
+    /// start, keeping the order of those that start at one place (a stable sort: insertions
+    /// there stay in the order given).
+    pub fn sort_since(&mut self, mark: Mark) {
+        self.segments[mark.segment].pieces[mark.pieces..].sort_by_key(|p| p.start);
+    }
+
+    /// The edits as `krl::Edit`s, in the order they were made.
+    pub fn to_edits(&self) -> Vec<Edit> {
+        self.segments
+            .iter()
+            .flat_map(|s| {
+                s.pieces.iter().map(|p| Edit {
+                    range: p.range(),
+                    bytes: s.bytes(p).to_vec(),
+                })
+            })
+            .collect()
     }
 
     /// Bytes of replacement text.
     pub fn text_len(&self) -> usize {
-        self.text.len()
+        self.segments.iter().map(|s| s.text.len()).sum()
     }
 
-    /// Moves the edits of `other` to the end of this list.
+    /// Moves the edits of `other` to the end of this list (its segments, not copied).
     pub fn append(&mut self, other: &mut EditList) {
-        let shift = self.text.len();
-        self.pieces.extend(other.pieces.drain(..).map(|p| Piece {
-            at: p.at + shift,
-            ..p
-        }));
-        self.text.append(&mut other.text);
+        self.segments
+            .retain(|s| !s.pieces.is_empty() || !s.text.is_empty());
+        self.segments
+            .extend(other.segments.drain(..).filter(|s| !s.pieces.is_empty()));
     }
 
-    fn range(p: &Piece) -> Range<usize> {
-        p.start as usize..p.end as usize
+    fn pieces(&self) -> impl Iterator<Item = (&Segment, &Piece)> + '_ {
+        self.segments
+            .iter()
+            .flat_map(|s| s.pieces.iter().map(move |p| (s, p)))
     }
 
     /// `source` with `first` (an insertion or replacement that goes before any edit of the
     /// list at the same place) and the edits applied (see `krl::apply`).
     pub fn apply(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
-        self.apply_in(source, 0..source.len(), Some(first))
+        let out_of_bounds = |r: Range<usize>| {
+            (r.start > r.end || r.end > source.len()).then_some(EditError::OutOfBounds {
+                range: r,
+                len: source.len(),
+            })
+        };
+        if let Some(e) = out_of_bounds(first.range.clone()) {
+            return Err(e);
+        }
+        if let Some(e) = self.pieces().find_map(|(_, p)| out_of_bounds(p.range())) {
+            return Err(e);
+        }
+        let mut keys = self.pieces().map(|(_, p)| p.key());
+        let in_order = match keys.next() {
+            Some(k0) => keys
+                .try_fold(k0, |prev, k| (prev <= k).then_some(k))
+                .is_some(),
+            None => true,
+        };
+        if !in_order {
+            return self.flattened().apply_sorting(source, first);
+        }
+        self.apply_in_order(source, first)
     }
 
     /// The bytes `within` of `source` with the edits inside them applied (and `first`, as in
     /// [`EditList::apply`], when it is inside them); edits elsewhere are left out, an edit
-    /// across the bounds is an error.
+    /// across the bounds is an error. An insertion at the end of `within` belongs to the
+    /// bytes after it (unless they end the source).
     pub fn apply_in(
         &self,
         source: &[u8],
         within: Range<usize>,
         first: Option<&Edit>,
     ) -> Result<Vec<u8>, EditError> {
-        // Index 0 is `first`, i + 1 the list's i-th edit: a stable sort keeps their order.
-        let range = |k: u32| match k {
-            0 => first.map_or(0..0, |f| f.range.clone()),
-            k => Self::range(&self.pieces[k as usize - 1]),
-        };
-        let bytes = |k: u32| match k {
-            0 => first.map_or(&[][..], |f| &f.bytes[..]),
-            k => {
-                let p = &self.pieces[k as usize - 1];
-                &self.text[p.at..p.at + p.len as usize]
-            }
-        };
-        let n = self.pieces.len() as u32 + 1;
-        let whole = within.start == 0 && within.end == source.len();
-        let mut order: Vec<u32> = Vec::with_capacity(n as usize);
-        for k in 0..n {
-            let r = range(k);
+        let mut items: Vec<(Range<usize>, &[u8])> = Vec::new();
+        let all = first
+            .map(|f| (f.range.clone(), &f.bytes[..]))
+            .into_iter()
+            .chain(self.pieces().map(|(s, p)| (p.range(), s.bytes(p))));
+        for (r, bytes) in all {
             if r.start > r.end || r.end > source.len() {
                 return Err(EditError::OutOfBounds {
                     range: r,
                     len: source.len(),
                 });
             }
-            if k == 0 && first.is_none() {
-                continue;
-            }
-            // An insertion at the end of `within` belongs to the bytes after it.
             let inside = within.start <= r.start
                 && r.end <= within.end
                 && !(r.is_empty() && r.start == within.end && within.end < source.len());
             let straddles = (r.start < within.start && r.end > within.start)
                 || (r.start < within.end && r.end > within.end);
-            if whole || inside {
-                order.push(k);
+            if inside {
+                items.push((r, bytes));
             } else if straddles {
                 return Err(EditError::OutOfBounds {
                     range: r,
@@ -135,7 +246,164 @@ impl EditList {
                 });
             }
         }
-        // Already in order for a CAM program's fast path: the stable sort sees one run.
+        // Stable: `first` and insertions at one offset keep their order.
+        items.sort_by_key(|(r, _)| (r.start, r.end));
+        for w in items.windows(2) {
+            if w[1].0.start < w[0].0.end {
+                return Err(EditError::Overlap {
+                    first: w[0].0.clone(),
+                    second: w[1].0.clone(),
+                });
+            }
+        }
+        let removed: usize = items.iter().map(|(r, _)| r.len()).sum();
+        let added: usize = items.iter().map(|(_, b)| b.len()).sum();
+        let mut out = Vec::with_capacity(within.len() - removed + added);
+        let mut at = within.start;
+        for (r, bytes) in items {
+            out.extend_from_slice(&source[at..r.start]);
+            out.extend_from_slice(bytes);
+            at = r.end;
+        }
+        out.extend_from_slice(&source[at..within.end]);
+        Ok(out)
+    }
+
+    /// [`Self::apply`] for edits already in order: `first` goes before the first edit not
+    /// ahead of it (where a stable sort with `first` in front would put it). The merged
+    /// sequence is cut into runs that are measured and then written in parallel, each into
+    /// its own part of the output.
+    fn apply_in_order(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
+        use rayon::prelude::*;
+        /// Edits per run (a few in tests, so that they cut runs everywhere).
+        const RUN: usize = if cfg!(test) { 3 } else { 1 << 16 };
+        let first_key = (first.range.start as u32, first.range.end as u32);
+        let mut runs = Vec::new();
+        let pieces = |seg: usize, from: usize, to: usize, runs: &mut Vec<Run>| {
+            for a in (from..to).step_by(RUN) {
+                runs.push(Run::Pieces {
+                    seg,
+                    from: a,
+                    to: (a + RUN).min(to),
+                });
+            }
+        };
+        let mut placed = false;
+        for (seg, s) in self.segments.iter().enumerate() {
+            let mut from = 0;
+            if !placed {
+                let at = s.pieces.partition_point(|p| p.key() < first_key);
+                if at < s.pieces.len() {
+                    pieces(seg, 0, at, &mut runs);
+                    runs.push(Run::First);
+                    placed = true;
+                    from = at;
+                }
+            }
+            pieces(seg, from, s.pieces.len(), &mut runs);
+        }
+        if !placed {
+            runs.push(Run::First);
+        }
+        let item = |run: &Run, k: usize| -> (Range<usize>, &[u8]) {
+            match *run {
+                Run::First => (first.range.clone(), &first.bytes[..]),
+                Run::Pieces { seg, from, .. } => {
+                    let s = &self.segments[seg];
+                    let p = &s.pieces[from + k];
+                    (p.range(), s.bytes(p))
+                }
+            }
+        };
+        let count = |run: &Run| match *run {
+            Run::First => 1,
+            Run::Pieces { from, to, .. } => to - from,
+        };
+        let last_end = |j: usize| item(&runs[j], count(&runs[j]) - 1).0.end;
+        // Measure each run (and find the first overlap, the one with the previous run first).
+        let measured: Vec<Result<(usize, usize), EditError>> = (0..runs.len())
+            .into_par_iter()
+            .map(|j| {
+                let mut last = (j > 0).then(|| item(&runs[j - 1], count(&runs[j - 1]) - 1).0);
+                let (mut removed, mut added) = (0, 0);
+                for k in 0..count(&runs[j]) {
+                    let (r, bytes) = item(&runs[j], k);
+                    if let Some(a) = &last {
+                        if r.start < a.end {
+                            return Err(EditError::Overlap {
+                                first: a.clone(),
+                                second: r,
+                            });
+                        }
+                    }
+                    removed += r.len();
+                    added += bytes.len();
+                    last = Some(r);
+                }
+                Ok((removed, added))
+            })
+            .collect();
+        let mut lengths = Vec::with_capacity(runs.len());
+        for (j, m) in measured.into_iter().enumerate() {
+            let (removed, added) = m?;
+            let start = if j == 0 { 0 } else { last_end(j - 1) };
+            lengths.push(last_end(j) - start - removed + added);
+        }
+        let tail = &source[runs.len().checked_sub(1).map_or(0, last_end)..];
+        let total: usize = lengths.iter().sum::<usize>() + tail.len();
+        let mut out = vec![0u8; total];
+        let mut parts = Vec::with_capacity(runs.len());
+        let mut rest = &mut out[..];
+        for &len in &lengths {
+            let (part, after) = rest.split_at_mut(len);
+            parts.push(part);
+            rest = after;
+        }
+        rest.copy_from_slice(tail);
+        parts.into_par_iter().enumerate().for_each(|(j, part)| {
+            let mut at = if j == 0 { 0 } else { last_end(j - 1) };
+            let mut w = 0;
+            for k in 0..count(&runs[j]) {
+                let (r, bytes) = item(&runs[j], k);
+                let keep = &source[at..r.start];
+                part[w..w + keep.len()].copy_from_slice(keep);
+                w += keep.len();
+                part[w..w + bytes.len()].copy_from_slice(bytes);
+                w += bytes.len();
+                at = r.end;
+            }
+        });
+        Ok(out)
+    }
+
+    /// The list as one segment (for the general, sorting apply).
+    fn flattened(&self) -> Segment {
+        let mut flat = Segment::default();
+        for (s, p) in self.pieces() {
+            flat.pieces.push(Piece {
+                at: flat.text.len(),
+                ..*p
+            });
+            flat.text.extend_from_slice(s.bytes(p));
+        }
+        flat
+    }
+}
+
+impl Segment {
+    /// [`EditList::apply`] for edits in any order: sorted (stably) by position first.
+    fn apply_sorting(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
+        // Index 0 is `first`, i + 1 the list's i-th edit: a stable sort keeps their order.
+        let range = |k: u32| match k {
+            0 => first.range.clone(),
+            k => self.pieces[k as usize - 1].range(),
+        };
+        let bytes = |k: u32| match k {
+            0 => &first.bytes[..],
+            k => self.bytes(&self.pieces[k as usize - 1]),
+        };
+        let n = self.pieces.len() as u32 + 1;
+        let mut order: Vec<u32> = (0..n).collect();
         order.sort_by_key(|&k| {
             let r = range(k);
             (r.start, r.end)
@@ -151,15 +419,15 @@ impl EditList {
         }
         let removed: usize = order.iter().map(|&k| range(k).len()).sum();
         let added: usize = order.iter().map(|&k| bytes(k).len()).sum();
-        let mut out = Vec::with_capacity(within.len() - removed + added);
-        let mut at = within.start;
+        let mut out = Vec::with_capacity(source.len() - removed + added);
+        let mut at = 0;
         for k in order {
             let r = range(k);
             out.extend_from_slice(&source[at..r.start]);
             out.extend_from_slice(bytes(k));
             at = r.end;
         }
-        out.extend_from_slice(&source[at..within.end]);
+        out.extend_from_slice(&source[at..]);
         Ok(out)
     }
 }
@@ -242,6 +510,38 @@ mod tests {
                 }
             }
             prop_assert_eq!(pieces, whole);
+        }
+
+        /// Edits made in order (the streaming path), in up to three segments, with `first`
+        /// anywhere: the same as `krl::apply`, overlaps included.
+        #[test]
+        fn ordered_edits_apply_like_krl_apply(
+            src in "[a-z]{0,40}",
+            steps in proptest::collection::vec((0usize..4, 0usize..3, "[A-Z]{0,3}"), 0..14),
+            first_at in 0usize..44,
+            first_len in 0usize..2,
+            cuts in (0usize..14, 0usize..14),
+        ) {
+            let mut at = 0;
+            let mut edits = Vec::new();
+            for (gap, len, text) in &steps {
+                at += gap;
+                edits.push(edit(at, at + len, text));
+                at += len;
+            }
+            let first = edit(first_at, first_at + first_len, "#");
+            let (c1, c2) = (cuts.0.min(cuts.1), cuts.0.max(cuts.1));
+            let mut lists = [EditList::new(), EditList::new(), EditList::new()];
+            for (i, e) in edits.iter().enumerate() {
+                lists[usize::from(i >= c1) + usize::from(i >= c2)].push(e.clone());
+            }
+            let [mut a, mut b, mut c] = lists;
+            a.append(&mut b);
+            a.append(&mut c);
+            prop_assert_eq!(a.to_edits(), edits.clone());
+            let mut all = vec![first.clone()];
+            all.extend(edits);
+            prop_assert_eq!(a.apply(src.as_bytes(), &first), crate::krl::apply(src.as_bytes(), &all));
         }
     }
 

@@ -599,7 +599,9 @@ pub(super) struct Tally {
 }
 
 impl Tally {
-    /// The targets `sim.stops[first..]` with their `outcomes`.
+    /// The targets `sim.stops[first..]` with their `outcomes`; `rw` the rewrite of `sim`
+    /// when it has been made (it holds the command change of every target it wrote).
+    #[allow(clippy::too_many_arguments)]
     pub fn add(
         &mut self,
         ws: &Workspace,
@@ -607,6 +609,7 @@ impl Tally {
         first: usize,
         outcomes: &[Outcome],
         robot: &RobotDescription,
+        rw: Option<&Rewrite>,
         points: bool,
     ) {
         use rayon::prelude::*;
@@ -623,11 +626,14 @@ impl Tally {
                 if !o.changed {
                     return (0.0, 0.0);
                 }
+                if let Some(c) = rw.and_then(|rw| rw.correction(first + i)) {
+                    return c;
+                }
                 let tool: &Frame = &sim.frames[stop.tool as usize];
-                let cmd = arm.tcp(&o.axes_deg, tool);
-                let nominal = arm.tcp(&stop.nominal_axes, tool);
-                let (cp, cr) = frame::norms(&frame::error(&cmd, &nominal));
-                (cp * 1e3, cr.to_degrees() * 1e3)
+                rewrite::correction(
+                    &arm.tcp(&o.axes_deg, tool),
+                    &arm.tcp(&stop.nominal_axes, tool),
+                )
             })
             .collect();
         if points {

@@ -38,6 +38,24 @@ pub struct Rewrite {
     pub diagnostics: Vec<Diagnostic>,
     /// Declared points split into copies (original name, new names).
     pub splits: Vec<(String, Vec<String>)>,
+    /// Per stop, the command change at the TCP of a written target ([`correction`]; NaN
+    /// for the others): the report's figure, from the chain evaluation the rewrite needs.
+    pub corrections: Vec<(f64, f64)>,
+}
+
+impl Rewrite {
+    /// The command change at the TCP of stop `i`, when the rewrite wrote it.
+    pub fn correction(&self, i: usize) -> Option<(f64, f64)> {
+        self.corrections.get(i).copied().filter(|c| !c.0.is_nan())
+    }
+}
+
+/// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
+/// that of the controller's axes for the programmed target.
+pub fn correction(command_tcp: &Frame, nominal_tcp: &Frame) -> (f64, f64) {
+    let (cp, cr) =
+        crate::motion::frame::norms(&crate::motion::frame::error(command_tcp, nominal_tcp));
+    (cp * 1e3, cr.to_degrees() * 1e3)
 }
 
 /// The edits of one target's aggregate: replacements of member values and insertions of
@@ -58,6 +76,7 @@ fn new_values(
     outcomes: &[Outcome],
     stop: &Stop,
     axes: &[f64; 6],
+    command_tcp: &Frame,
     original: &[Option<f64>; 6],
     robot: &crate::kinematics::RobotDescription,
 ) -> Option<[f64; 6]> {
@@ -74,7 +93,7 @@ fn new_values(
     let tool = &sim.frames[stop.tool as usize];
     let base = &sim.frames[stop.base as usize];
     let arm = Nominal(robot);
-    let p_c = base.inverse().compose(&arm.tcp(axes, tool));
+    let p_c = base.inverse().compose(command_tcp);
     let near = |k: usize| original[k].unwrap_or(0.0);
     let abc_near = [near(3), near(4), near(5)];
     match stop.rel {
@@ -187,61 +206,84 @@ fn separators(file: &SourceFile, agg: &Aggregate, file_sep: Option<&[u8]>) -> (V
     (sep, nv)
 }
 
-/// Edits of `agg` (in `file`) writing `values` for the components in `write`.
+/// A position component of an aggregate: its member and, when its value is a literal,
+/// where that literal is and what it says.
+#[derive(Clone, Copy, Debug)]
+struct Component {
+    /// The whole member (`X 1.5`): missing members are inserted next to it.
+    member: Span,
+    /// The span a new number replaces and the literal's own text ([`literal_span`]).
+    literal: Option<(Span, Span)>,
+    /// The literal's value ([`value::literal`]).
+    value: Option<f64>,
+}
+
+/// The position components (`X..C`, or `A1..A6` for `axis`) of `agg`, in one pass over its
+/// members (each packed number is read from the source once); a component written twice is
+/// the later one.
+fn components(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<Component>; 6] {
+    let src = file.source();
+    let mut out = [None; 6];
+    for m in file.members(agg) {
+        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
+            if is_axis == axis {
+                out[k] = Some(Component {
+                    member: m.span(),
+                    literal: literal_span(&m.value),
+                    value: value::literal(&m.value),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// Appends to `out` the edits of `agg` (in `file`, components `present`) writing `values` for
+/// the components in `write`, sorted by position; false (and nothing added) when a number
+/// to replace is not a literal.
+#[allow(clippy::too_many_arguments)]
 fn aggregate_edits(
     file: &SourceFile,
     agg: &Aggregate,
     axis: bool,
+    present: &[Option<Component>; 6],
     values: &[f64; 6],
     write: [bool; 6],
     relative: bool,
+    out: &mut EditList,
     file_sep: Option<&[u8]>,
-) -> Option<TargetEdits> {
-    let src = file.source();
+) -> bool {
+    let mark = out.mark();
     let names = if axis { AXIS_NAMES } else { CARTESIAN_NAMES };
-    let mut present: [Option<krl::Member>; 6] = Default::default();
-    for m in file.members(agg) {
-        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
-            if is_axis == axis {
-                present[k] = Some(m);
-            }
-        }
-    }
     // Decimals of inserted numbers: as many as the aggregate's most precise number.
     let decimals = |k: usize| {
         let most = present
             .iter()
             .flatten()
-            .filter_map(|m| literal_span(&m.value))
-            .map(|(_, lit)| {
-                let t = file.text(lit);
-                t.iter().position(|&b| b == b'.').map_or(0, |p| {
-                    t[p + 1..].iter().take_while(|b| b.is_ascii_digit()).count()
-                })
-            })
+            .filter_map(|c| c.literal)
+            .map(|(_, lit)| literal_decimals(file.text(lit)))
             .max()
             .unwrap_or(0);
         most.max(min_decimals(axis, k))
     };
-    let mut edits = Vec::new();
-    let mut any = false;
     for k in 0..6 {
         if !write[k] {
             continue;
         }
         match &present[k] {
-            Some(m) => {
-                let (replace, lit) = literal_span(&m.value)?;
-                let orig_value = value::literal(&m.value)?;
-                let Some(new) =
-                    replacement(file.text(lit), orig_value, values[k], min_decimals(axis, k))
-                else {
-                    continue;
+            Some(c) => {
+                let (Some((replace, lit)), Some(orig_value)) = (c.literal, c.value) else {
+                    out.truncate(mark);
+                    return false;
                 };
-                any = true;
-                edits.push(Edit {
-                    range: replace.range(),
-                    bytes: new.into_bytes(),
+                out.replace_with(replace.range(), |text| {
+                    replacement(
+                        file.text(lit),
+                        orig_value,
+                        values[k],
+                        min_decimals(axis, k),
+                        text,
+                    )
                 });
             }
             None => {
@@ -255,7 +297,6 @@ fn aggregate_edits(
                 if relative && zero {
                     continue;
                 }
-                any = true;
                 let (sep, nv) = separators(file, agg, file_sep);
                 let text = if zero {
                     text.trim_start_matches('-').to_string()
@@ -269,29 +310,23 @@ fn aggregate_edits(
                 // the last present one.
                 if let Some(next) = (k + 1..6).find_map(|j| present[j].as_ref()) {
                     entry.extend_from_slice(&sep);
-                    edits.push(Edit {
-                        range: next.span().start as usize..next.span().start as usize,
-                        bytes: entry,
-                    });
+                    let at = next.member.start as usize;
+                    out.replace(at..at, &entry);
                 } else if let Some(prev) = (0..k).rev().find_map(|j| present[j].as_ref()) {
                     let mut text = sep.clone();
                     text.extend_from_slice(&entry);
-                    edits.push(Edit {
-                        range: prev.span().end as usize..prev.span().end as usize,
-                        bytes: text,
-                    });
+                    let at = prev.member.end as usize;
+                    out.replace(at..at, &text);
                 } else {
-                    return None;
+                    out.truncate(mark);
+                    return false;
                 }
             }
         }
     }
-    if !any {
-        return Some(Vec::new());
-    }
     // Insertions at one offset must keep X..C order: they were pushed in that order.
-    edits.sort_by_key(|e| e.range.start);
-    Some(edits)
+    out.sort_since(mark);
+    true
 }
 
 /// Whether a literal is written plainly: `-?digits[.digits]` (no exponent, sign `+` or leading
@@ -317,41 +352,64 @@ fn units(value: f64, decimals: usize) -> Option<i64> {
     (scaled.abs() < 9.0e15).then_some(scaled as i64)
 }
 
-/// A plain literal of `units` at `decimals` (`-0.000` written `0.000`).
-fn plain_text(units: i64, decimals: usize) -> String {
-    let digits = units.unsigned_abs().to_string();
-    let mut out = String::with_capacity(digits.len() + decimals + 3);
+/// Appends the plain literal of `units` at `decimals` (`-0.000` written `0.000`): digits by
+/// integer division into a stack buffer, no formatting machinery.
+fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
+    let mut buf = [0u8; 20];
+    let mut at = buf.len();
+    let mut n = units.unsigned_abs();
+    loop {
+        at -= 1;
+        buf[at] = b'0' + (n % 10) as u8;
+        n /= 10;
+        if n == 0 {
+            break;
+        }
+    }
+    let digits = &buf[at..];
     if units < 0 {
-        out.push('-');
+        out.push(b'-');
     }
     if decimals == 0 {
-        out.push_str(&digits);
-        return out;
-    }
-    if digits.len() <= decimals {
-        out.push_str("0.");
-        out.push_str(&"0".repeat(decimals - digits.len()));
-        out.push_str(&digits);
+        out.extend_from_slice(digits);
+    } else if digits.len() <= decimals {
+        out.extend_from_slice(b"0.");
+        out.resize(out.len() + decimals - digits.len(), b'0');
+        out.extend_from_slice(digits);
     } else {
         let (int, frac) = digits.split_at(digits.len() - decimals);
-        out.push_str(int);
-        out.push('.');
-        out.push_str(frac);
+        out.extend_from_slice(int);
+        out.push(b'.');
+        out.extend_from_slice(frac);
     }
-    out
 }
 
-/// The new text of a literal `orig_text` (value `orig`) for `value`, or `None` when the
-/// written number would not change.
-fn replacement(orig_text: &[u8], orig: f64, value: f64, min: usize) -> Option<String> {
+/// A plain literal of `units` at `decimals` (see [`write_plain`]).
+fn plain_text(units: i64, decimals: usize) -> String {
+    let mut out = Vec::with_capacity(24 + decimals);
+    write_plain(units, decimals, &mut out);
+    String::from_utf8(out).expect("digits, sign and dot are ASCII")
+}
+
+/// Appends to `out` the new text of a literal `orig_text` (value `orig`) for `value`; false
+/// (nothing appended) when the written number would not change.
+fn replacement(orig_text: &[u8], orig: f64, value: f64, min: usize, out: &mut Vec<u8>) -> bool {
     let decimals = literal_decimals(orig_text).max(min);
     if plain_literal(orig_text) {
         if let (Some(new), Some(old)) = (units(value, decimals), units(orig, decimals)) {
-            return (new != old).then(|| plain_text(new, decimals));
+            if new == old {
+                return false;
+            }
+            write_plain(new, decimals, out);
+            return true;
         }
     }
     let new = format_like(orig_text, value, min);
-    (new != format_like(orig_text, orig, min)).then_some(new)
+    if new == format_like(orig_text, orig, min) {
+        return false;
+    }
+    out.extend_from_slice(new.as_bytes());
+    true
 }
 
 /// Decimals a literal is written with.
@@ -367,31 +425,12 @@ fn literal_decimals(text: &[u8]) -> usize {
 /// The decimals each component of `agg` will be written with: its own literal's (never fewer
 /// than 3 in mm and 4 in degrees), or for a missing one the aggregate's most precise.
 pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
-    let src = file.source();
-    let mut own = [None; 6];
-    for m in file.members(agg) {
-        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
-            if is_axis == axis {
-                own[k] = literal_span(&m.value).map(|(_, lit)| literal_decimals(file.text(lit)));
-            }
-        }
-    }
+    let own = components(file, agg, axis).map(|c| {
+        c.and_then(|c| c.literal)
+            .map(|(_, lit)| literal_decimals(file.text(lit)))
+    });
     let most = own.iter().flatten().copied().max().unwrap_or(0);
     std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
-}
-
-/// The original component values of an aggregate (`None` where not given).
-fn original_values(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<f64>; 6] {
-    let src = file.source();
-    let mut out = [None; 6];
-    for m in file.members(agg) {
-        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
-            if is_axis == axis {
-                out[k] = value::literal(&m.value);
-            }
-        }
-    }
-    out
 }
 
 /// The place a point is named from: file and name span.
@@ -423,35 +462,67 @@ pub fn rewrite(
         Relative(usize),
         NotLiteral(usize),
     }
-    let per_stop = |i: usize| -> Option<Result<Use, Skip>> {
-        let (stop, o) = (&sim.stops[i], &outcomes[i]);
-        let origin = stop.origin?;
-        if !stop.compensable || !o.changed || o.error.is_some() {
-            return None;
-        }
-        let file = &ws.get(origin.file).file;
-        let original = original_values(file, origin.agg, stop.axis);
-        let Some(values) = new_values(sim, outcomes, stop, &o.axes_deg, &original, robot) else {
-            return Some(Err(Skip::Relative(i)));
+    // One target's edits appended to a list: `None` for a target not to be written.
+    // One target's edits appended to a list (its correction to `corr`): `None` for a
+    // target not to be written.
+    type Corrections = Vec<(u32, (f64, f64))>;
+    let edits_into =
+        |i: usize, list: &mut EditList, corr: &mut Corrections| -> Option<Result<(), Skip>> {
+            let (stop, o) = (&sim.stops[i], &outcomes[i]);
+            let origin = stop.origin?;
+            if !stop.compensable || !o.changed || o.error.is_some() {
+                return None;
+            }
+            let tool = &sim.frames[stop.tool as usize];
+            let arm = Nominal(robot);
+            let command_tcp = arm.tcp(&o.axes_deg, tool);
+            corr.push((
+                i as u32,
+                correction(&command_tcp, &arm.tcp(&stop.nominal_axes, tool)),
+            ));
+            let file = &ws.get(origin.file).file;
+            let present = components(file, origin.agg, stop.axis);
+            let original = present.map(|c| c.and_then(|c| c.value));
+            let Some(values) = new_values(
+                sim,
+                outcomes,
+                stop,
+                &o.axes_deg,
+                &command_tcp,
+                &original,
+                robot,
+            ) else {
+                return Some(Err(Skip::Relative(i)));
+            };
+            let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
+            let written = aggregate_edits(
+                file,
+                origin.agg,
+                stop.axis,
+                &present,
+                &values,
+                write,
+                stop.rel.is_some(),
+                list,
+                separator,
+            );
+            Some(if written {
+                Ok(())
+            } else {
+                Err(Skip::NotLiteral(i))
+            })
         };
-        let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
-        match aggregate_edits(
-            file,
-            origin.agg,
-            stop.axis,
-            &values,
-            write,
-            stop.rel.is_some(),
-            separator,
-        ) {
-            Some(edits) => Some(Ok(Use {
+    let per_stop = |i: usize, corr: &mut Corrections| -> Option<Result<Use, Skip>> {
+        let mut list = EditList::new();
+        let stop = &sim.stops[i];
+        edits_into(i, &mut list, corr).map(|r| {
+            r.map(|()| Use {
                 stop: i,
-                edits,
+                edits: list.to_edits(),
                 site: (stop.file, stop.reference),
-                origin,
-            })),
-            None => Some(Err(Skip::NotLiteral(i))),
-        }
+                origin: stop.origin.expect("written for its origin"),
+            })
+        })
     };
     // Which aggregates are written by more than one execution: sort the (origin, stop)
     // keys; an origin used once (every target of a CAM program) takes the fast path.
@@ -496,51 +567,46 @@ pub fn rewrite(
     };
     // Fast path, in parallel: the edits straight into one list per file.
     // (Keys are sorted by file: a chunk's edits are runs of one file each.)
-    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>);
+    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>, Corrections);
     let single: Vec<Chunk> = (0..keys.len())
         .into_par_iter()
         .with_min_len(1024)
         .filter(|&k| !shared(k))
         .fold(
-            || (Vec::new(), Vec::new()),
-            |(mut edits, mut skips): Chunk, k| {
-                match per_stop(keys[k].2 as usize) {
-                    Some(Ok(u)) => {
-                        let file = keys[k].0;
-                        if edits.last().map_or(true, |(f, _)| *f != file) {
-                            edits.push((file, EditList::new()));
-                        }
-                        let list = &mut edits.last_mut().expect("pushed").1;
-                        list.extend(u.edits);
-                    }
-                    Some(Err(s)) => skips.push(s),
-                    None => {}
+            || (Vec::new(), Vec::new(), Vec::new()),
+            |(mut edits, mut skips, mut corr): Chunk, k| {
+                let file = keys[k].0;
+                if edits.last().map_or(true, |(f, _)| *f != file) {
+                    edits.push((file, EditList::new()));
                 }
-                (edits, skips)
+                let list = &mut edits.last_mut().expect("pushed").1;
+                if let Some(Err(s)) = edits_into(keys[k].2 as usize, list, &mut corr) {
+                    skips.push(s);
+                }
+                (edits, skips, corr)
             },
         )
         .collect();
-    // Exact room first: growing a list of millions of edits by doubling would hold up to
-    // three times its size at once.
-    let mut room: BTreeMap<FileId, (usize, usize)> = BTreeMap::new();
-    for (file, list) in single.iter().flat_map(|(edits, _)| edits) {
-        let r = room.entry(*file).or_default();
-        r.0 += list.len();
-        r.1 += list.text_len();
-    }
-    for (file, (n, text)) in room {
-        out.edits.entry(file).or_default().reserve(n, text);
-    }
-    for (edits, s) in single {
+    // Joined by moving each chunk's segment (see `EditList::append`), not copying.
+    out.corrections = vec![(f64::NAN, f64::NAN); sim.stops.len()];
+    for (edits, s, corr) in single {
         for (file, mut list) in edits {
             out.edits.entry(file).or_default().append(&mut list);
         }
         skips.extend(s);
+        for (i, c) in corr {
+            out.corrections[i as usize] = c;
+        }
     }
     // Shared origins, grouped, in execution order.
     let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
     for k in (0..keys.len()).filter(|&k| shared(k)) {
-        match per_stop(keys[k].2 as usize) {
+        let mut corr = Vec::new();
+        let used = per_stop(keys[k].2 as usize, &mut corr);
+        for (i, c) in corr {
+            out.corrections[i as usize] = c;
+        }
+        match used {
             Some(Ok(u)) => {
                 let key = (keys[k].0, keys[k].1);
                 match uses.last_mut() {
@@ -875,5 +941,68 @@ fn rename_in_fold(
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The literal text by `format!` (the formatter the digit writer replaced): the integer
+    /// count of units as a decimal string, the dot put in by hand.
+    fn plain_by_format(units: i64, decimals: usize) -> String {
+        let digits = units.unsigned_abs().to_string();
+        let sign = if units < 0 { "-" } else { "" };
+        if decimals == 0 {
+            return format!("{sign}{digits}");
+        }
+        let padded = format!("{digits:0>width$}", width = decimals + 1);
+        let (int, frac) = padded.split_at(padded.len() - decimals);
+        format!("{sign}{int}.{frac}")
+    }
+
+    proptest! {
+        #[test]
+        fn digit_writer_matches_format(units in any::<i64>(), decimals in 0usize..14) {
+            prop_assert_eq!(plain_text(units, decimals), plain_by_format(units, decimals));
+        }
+
+        /// A plain literal's replacement equals `format_like` of the new value whenever the
+        /// rounded number changes and the value is not a tie between two last digits.
+        #[test]
+        fn replacement_matches_format_like(
+            orig_units in -10_000_000i64..10_000_000,
+            delta in -5.0f64..5.0,
+            decimals in 0usize..6,
+            min in 3usize..5,
+        ) {
+            let orig_text = plain_by_format(orig_units, decimals);
+            let orig: f64 = orig_text.parse().unwrap();
+            let value = orig + delta;
+            let d = decimals.max(min);
+            let scaled = value * 10f64.powi(d as i32);
+            prop_assume!((scaled.fract().abs() - 0.5).abs() > 1e-6);
+            let mut out = Vec::new();
+            let changed = replacement(orig_text.as_bytes(), orig, value, min, &mut out);
+            let by_format = format_like(orig_text.as_bytes(), value, min);
+            let unchanged = by_format == format_like(orig_text.as_bytes(), orig, min);
+            prop_assert_eq!(changed, !unchanged);
+            if changed {
+                prop_assert_eq!(String::from_utf8(out).unwrap(), by_format);
+            } else {
+                prop_assert!(out.is_empty());
+            }
+        }
+    }
+
+    #[test]
+    fn plain_literals_by_hand() {
+        assert_eq!(plain_text(0, 3), "0.000");
+        assert_eq!(plain_text(-5, 3), "-0.005");
+        assert_eq!(plain_text(12345, 3), "12.345");
+        assert_eq!(plain_text(-1234500, 4), "-123.4500");
+        assert_eq!(plain_text(7, 0), "7");
+        assert_eq!(plain_text(i64::MIN, 2), "-92233720368547758.08");
     }
 }

@@ -56,8 +56,8 @@ impl<'a> Segments<'a> {
 
     /// Compensates `sim.stops[from..]` after the carried history (the stops executed just
     /// before them: the leading ghosts stand for its last ones) and gives their outcomes,
-    /// ghosts' included.
-    fn segment(&mut self, ws: &Workspace, sim: &Simulation, from: usize) -> Vec<Outcome> {
+    /// ghosts' included, and the number of ghosts. The caller tallies them.
+    fn segment(&mut self, ws: &Workspace, sim: &Simulation, from: usize) -> (Vec<Outcome>, usize) {
         let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
         debug_assert!(ghosts <= self.history.len());
         let first = from + ghosts;
@@ -74,14 +74,6 @@ impl<'a> Segments<'a> {
             },
         );
         self.diagnose(ws, sim, first, &outcomes);
-        self.tally.add(
-            ws,
-            sim,
-            first,
-            &outcomes,
-            &self.model.robot,
-            self.options.points,
-        );
         let mut all: Vec<Outcome> = self.history[self.history.len() - ghosts..]
             .iter()
             .map(|c| c.outcome)
@@ -97,17 +89,30 @@ impl<'a> Segments<'a> {
         let extra = self.history.len().saturating_sub(LOOK_BACK);
         self.history.drain(..extra);
         all.extend(outcomes);
-        all
+        (all, ghosts)
     }
 
     /// Near-singular targets (compensated in the least-squares sense there, where small
     /// Cartesian changes turn axes a lot) and targets left as written.
     fn diagnose(&mut self, ws: &Workspace, sim: &Simulation, first: usize, outcomes: &[Outcome]) {
+        use rayon::prelude::*;
         let robot = &self.model.robot;
+        let stops = &sim.stops[first..];
+        // The singularity test of every stop in parallel (a million cost 0.2 s alone), the
+        // warnings in program order.
+        let singular: Vec<Option<crate::kinematics::Singularity>> = stops
+            .par_iter()
+            .with_min_len(4096)
+            .map(|stop| {
+                stop.compensable
+                    .then(|| crate::kinematics::singularity(robot, &stop.nominal_axes))
+                    .flatten()
+            })
+            .collect();
         let mut seen = std::collections::HashSet::new();
-        for (stop, o) in sim.stops[first..].iter().zip(outcomes) {
-            if let Some(sing) = crate::kinematics::singularity(robot, &stop.nominal_axes) {
-                if stop.compensable && seen.insert((stop.file, stop.stmt.head.start)) {
+        for ((stop, o), sing) in stops.iter().zip(outcomes).zip(singular) {
+            if let Some(sing) = sing {
+                if seen.insert((stop.file, stop.stmt.head.start)) {
                     self.singular.push(ws.diagnostic(
                         Severity::Warning,
                         stop.file,
@@ -135,7 +140,17 @@ impl<'a> Segments<'a> {
     /// The skeleton's stops from `from` on (the rest after the walk).
     pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
         debug_assert_eq!(from, self.skeleton.len());
-        let outcomes = self.segment(ws, sim, from);
+        let (outcomes, ghosts) = self.segment(ws, sim, from);
+        let points = self.options.points;
+        self.tally.add(
+            ws,
+            sim,
+            from + ghosts,
+            &outcomes[ghosts..],
+            &self.model.robot,
+            None,
+            points,
+        );
         self.skeleton.extend(outcomes);
     }
 }
@@ -148,12 +163,22 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
 
     fn window(&mut self, ws: &Workspace, sim: &Simulation<'_>) {
         let seg = &mut *self.1;
-        let outcomes = seg.segment(ws, sim, 0);
+        let (outcomes, ghosts) = seg.segment(ws, sim, 0);
         let main = seg.main;
         let separator = seg
             .separator
             .get_or_insert_with(|| rewrite::file_separator(main));
         let mut rw = rewrite::rewrite(ws, sim, &outcomes, &seg.model.robot, Some(separator));
+        let points = seg.options.points;
+        seg.tally.add(
+            ws,
+            sim,
+            ghosts,
+            &outcomes[ghosts..],
+            &seg.model.robot,
+            Some(&rw),
+            points,
+        );
         seg.rewrite_diagnostics.append(&mut rw.diagnostics);
         let Some(edits) = rw.edits.remove(&0).filter(|e| !e.is_empty()) else {
             return;

@@ -305,10 +305,26 @@ pub struct Arrival {
 /// at its end then depends on its two ends only, so it can be computed later, in parallel).
 pub fn lin_needs_no_samples(start: &Frame, end: &Frame) -> bool {
     let length = (end.position - start.position).norm();
-    let turn = frame::log_so3(&(end.rotation * start.rotation.transpose()))
-        .norm()
-        .to_degrees();
-    length <= PITCH_MM && turn <= PITCH_DEG
+    if length.is_nan() || length > PITCH_MM {
+        return false;
+    }
+    let r = end.rotation * start.rotation.transpose();
+    // The turn is atan2(s, c) (see `log_so3`): far from the pitch, the sine alone decides
+    // (sin 4.59° = 0.08, sin 5.16° = 0.09, rounding is 1e-15 of that); near it, and for
+    // anything odd, the exact angle.
+    let s = 0.5
+        * ((r[(2, 1)] - r[(1, 2)]).powi(2)
+            + (r[(0, 2)] - r[(2, 0)]).powi(2)
+            + (r[(1, 0)] - r[(0, 1)]).powi(2))
+        .sqrt();
+    let c = (r.trace() - 1.0) * 0.5;
+    if c > 0.9 && s < 0.08 {
+        return true;
+    }
+    if c <= 0.0 || (c > 0.0 && s > 0.09) {
+        return false;
+    }
+    frame::log_so3(&r).norm().to_degrees() <= PITCH_DEG
 }
 
 /// How every axis arrives at the end of a segment from `start` to `end` (TCP, axes).
@@ -340,6 +356,20 @@ pub fn arrival_along(
     q0: &[f64; 6],
     q1: &[f64; 6],
 ) -> Result<Arrival, PathError> {
+    arrival_and_end(robot, tool, cart, u_end, q0, q1).map(|(a, _)| a)
+}
+
+/// [`arrival_along`], with the nominal TCP at the arrival's end axes (`Nominal::tcp` of
+/// `Arrival::end`, bit for bit: it comes from the same chain evaluation as the Jacobian), which
+/// the next segment's start may reuse.
+pub fn arrival_and_end(
+    robot: &RobotDescription,
+    tool: &Frame,
+    cart: &Cartesian,
+    u_end: f64,
+    q0: &[f64; 6],
+    q1: &[f64; 6],
+) -> Result<(Arrival, Frame), PathError> {
     let mut q1 = *q1;
     let (length, turn) = cart.extent();
     let n = ((length * u_end / PITCH_MM)
@@ -347,9 +377,9 @@ pub fn arrival_along(
         .ceil() as usize)
         .clamp(1, MAX_SAMPLES);
     // Walk the path; keep the last sample at which each axis still differed from its end.
+    // (The start is a sample too; a short segment has no other and allocates nothing.)
     let mut q = *q0;
-    let mut samples = Vec::with_capacity(n);
-    samples.push((*q0, 0.0));
+    let mut samples = Vec::with_capacity(n - 1);
     for j in 1..n {
         let u = u_end * j as f64 / n as f64;
         q = nominal::local_ik(robot, &cart.pose(u), tool, &q)
@@ -381,7 +411,7 @@ pub fn arrival_along(
     }
     let q1 = &q1;
     let mut last_moving: [Option<([f64; 6], f64)>; 6] = [None; 6];
-    for (qs, u) in samples.iter().rev() {
+    for (qs, u) in samples.iter().rev().chain([(*q0, 0.0)].iter()) {
         for i in 0..6 {
             if last_moving[i].is_none() && (q1[i] - qs[i]).abs() >= REST_DEG {
                 last_moving[i] = Some((*qs, *u));
@@ -389,9 +419,9 @@ pub fn arrival_along(
         }
     }
     // The exact rate at the end, where the Jacobian is regular.
-    let (_, jac) = Nominal(robot).tcp_jacobian(q1, tool);
+    let (end, jac) = Nominal(robot).tcp_jacobian(q1, tool);
     let rate = jac.lu().solve(&(cart.twist(u_end) * u_end));
-    Ok(Arrival {
+    let arrival = Arrival {
         rate: std::array::from_fn(|i| {
             let r = rate.map_or(0.0, |r| r[i]);
             if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
@@ -403,7 +433,8 @@ pub fn arrival_along(
             }
         }),
         end: *q1,
-    })
+    };
+    Ok((arrival, end))
 }
 
 fn rest(d: f64) -> f64 {
@@ -437,6 +468,34 @@ mod tests {
 
     fn fk(q: &[f64; 6]) -> Frame {
         Nominal(&robot()).tcp(q, &Frame::identity())
+    }
+
+    proptest::proptest! {
+        /// The shortcut decides like the exact angle, on both sides of the pitch.
+        #[test]
+        fn short_segment_test_matches_the_exact_angle(
+            axis in proptest::array::uniform3(-1.0f64..1.0),
+            angle_deg in proptest::prop_oneof![0.0f64..200.0, 4.4f64..5.3, 4.99999f64..5.00001],
+            length in 0.0f64..40.0,
+            start in proptest::array::uniform3(-3.0f64..3.0),
+        ) {
+            let w = Vector3::from(axis);
+            proptest::prop_assume!(w.norm() > 1e-3);
+            let a = Frame {
+                rotation: exp_so3(&Vector3::from(start)),
+                position: Vector3::new(100.0, -50.0, 800.0),
+            };
+            let b = Frame {
+                rotation: exp_so3(&(w.normalize() * angle_deg.to_radians())) * a.rotation,
+                position: a.position + Vector3::new(length, 0.0, 0.0),
+            };
+            let exact = (b.position - a.position).norm() <= PITCH_MM
+                && frame::log_so3(&(b.rotation * a.rotation.transpose()))
+                    .norm()
+                    .to_degrees()
+                    <= PITCH_DEG;
+            proptest::prop_assert_eq!(lin_needs_no_samples(&a, &b), exact);
+        }
     }
 
     #[test]

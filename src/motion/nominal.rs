@@ -385,4 +385,21 @@ mod tests {
             }
         }
     }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The TCP that comes with the Jacobian is the plain TCP bit for bit (the simulation
+        /// hands it on as the next segment's start instead of evaluating the chain again).
+        #[test]
+        fn jacobian_tcp_is_the_tcp_exactly(
+            axes in proptest::array::uniform6(-350.0f64..350.0),
+            tool in proptest::array::uniform6(-200.0f64..200.0),
+        ) {
+            let robot = RobotDescription::kr30ha();
+            let tool = Frame::from_kuka(&tool);
+            let arm = Nominal(&robot);
+            prop_assert_eq!(arm.tcp_jacobian(&axes, &tool).0, arm.tcp(&axes, &tool));
+        }
+    }
 }

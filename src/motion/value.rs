@@ -182,6 +182,33 @@ pub fn aggregate<'f>(
     };
     for m in file.members(agg) {
         let name = &src[m.name.range()];
+        // Position components first: nearly every member is one (no name is both a component
+        // and one of the words below).
+        if let Some((is_axis, k)) = component(name) {
+            let v = match literal(&m.value) {
+                Some(v) => v,
+                None => match eval(&m.value).as_f64() {
+                    Some(v) => {
+                        // Computed: the number cannot be written back in place.
+                        pos.origin = None;
+                        v
+                    }
+                    None => {
+                        return Value::Unknown(format!(
+                            "{} of the position is computed at run time",
+                            String::from_utf8_lossy(name)
+                        ))
+                    }
+                },
+            };
+            pos.v[k] = Some(v);
+            if is_axis {
+                axis = true;
+            } else {
+                cartesian = true;
+            }
+            continue;
+        }
         let is = |word: &str| name.eq_ignore_ascii_case(word.as_bytes());
         match () {
             _ if is("S") || is("T") => {
@@ -214,33 +241,8 @@ pub fn aggregate<'f>(
                 is_fdat = true;
                 fdat.external_tcp = matches!(&*m.value, Expr::Enum(s) if file.text(*s).eq_ignore_ascii_case(b"#TCP"));
             }
-            _ => {
-                if let Some((is_axis, k)) = component(name) {
-                    let v = match literal(&m.value) {
-                        Some(v) => v,
-                        None => match eval(&m.value).as_f64() {
-                            Some(v) => {
-                                // Computed: the number cannot be written back in place.
-                                pos.origin = None;
-                                v
-                            }
-                            None => {
-                                return Value::Unknown(format!(
-                                    "{} of the position is computed at run time",
-                                    String::from_utf8_lossy(name)
-                                ))
-                            }
-                        },
-                    };
-                    pos.v[k] = Some(v);
-                    if is_axis {
-                        axis = true;
-                    } else {
-                        cartesian = true;
-                    }
-                }
-                // E1..E6 and other members are carried unchanged.
-            }
+            // E1..E6 and other members are carried unchanged.
+            _ => {}
         }
     }
     if is_fdat {

@@ -191,32 +191,53 @@ pub fn simulate<'f>(
 /// and the start the walk recorded (the previous stop's axes).
 fn finish(sim: &mut Simulation, robot: &RobotDescription) {
     use rayon::prelude::*;
-    let rates: Vec<Option<[f64; 6]>> = (0..sim.stops.len())
-        .into_par_iter()
-        .with_min_len(1024)
-        .map(|k| {
-            let stop = &sim.stops[k];
-            if !stop.deferred {
-                return None;
+    /// Stops per task: consecutive stops share a chain evaluation (below).
+    const CHUNK: usize = 2048;
+    let mut rates: Vec<Option<[f64; 6]>> = vec![None; sim.stops.len()];
+    rates
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, out)| {
+            // The nominal TCP at the end of the stop just done, with its index and tool: the
+            // next stop's start when it starts there (a CAM path), bit for bit what
+            // `Nominal::tcp` of the previous axes gives.
+            let mut carry: Option<(u32, u32, Frame)> = None;
+            for (j, slot) in out.iter_mut().enumerate() {
+                let k = c * CHUNK + j;
+                let stop = &sim.stops[k];
+                if !stop.deferred {
+                    continue;
+                }
+                let Some(p) = stop.prev else { continue };
+                let prev = &sim.stops[p as usize];
+                let tool = &sim.frames[stop.tool as usize];
+                let start = match carry {
+                    Some((i, t, tcp)) if i == p && t == stop.tool => tcp,
+                    _ => Nominal(robot).tcp(&prev.nominal_axes, tool),
+                };
+                carry = None;
+                let Ok(cart) = Cartesian::new(&start, &stop.goal, &Path::Lin) else {
+                    continue;
+                };
+                let a = interpolate::arrival_and_end(
+                    robot,
+                    tool,
+                    &cart,
+                    1.0,
+                    &prev.nominal_axes,
+                    &stop.nominal_axes,
+                );
+                *slot = Some(match a {
+                    Ok((a, end)) => {
+                        if a.end == stop.nominal_axes {
+                            carry = Some((k as u32, stop.tool, end));
+                        }
+                        a.rate
+                    }
+                    Err(_) => std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
+                });
             }
-            let prev = &sim.stops[stop.prev? as usize];
-            let tool = &sim.frames[stop.tool as usize];
-            let start = Nominal(robot).tcp(&prev.nominal_axes, tool);
-            let cart = Cartesian::new(&start, &stop.goal, &Path::Lin).ok()?;
-            let a = interpolate::arrival_along(
-                robot,
-                tool,
-                &cart,
-                1.0,
-                &prev.nominal_axes,
-                &stop.nominal_axes,
-            );
-            Some(match a {
-                Ok(a) => a.rate,
-                Err(_) => std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
-            })
-        })
-        .collect();
+        });
     for (stop, rate) in sim.stops.iter_mut().zip(rates) {
         if stop.deferred {
             stop.arrival = rate;

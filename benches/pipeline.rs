@@ -1,0 +1,85 @@
+//! Per-target CPU of the phases around the solver on the CAM fixture
+//! `fixtures/programs/cam/pocket_milling.src` (22 506 LIN targets, the paper's full model):
+//! motion simulation, rewrite (edits of every compensated target), applying the edits, and
+//! the whole program in process. rayon's global pool is this one thread
+//! (`use_current_thread`), so the benchmark thread's CPU time (the machine is shared) is all
+//! the work, parallel parts included: divide by the target count for the CPU per target.
+
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
+
+use std::path::Path;
+
+use cpu_time::ThreadCpuTime;
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use robopost::compensate::{self, files, program, Calibrated};
+
+const PROGRAM: &str = "fixtures/programs/cam/pocket_milling.src";
+const CAL: &str = "calibrations/kr30ha-handset.json";
+
+fn phases(c: &mut Criterion<ThreadCpuTime>) {
+    let cal_bytes = std::fs::read(CAL).expect("calibration");
+    let cal = robopost::calibration::parse(&String::from_utf8_lossy(&cal_bytes), Path::new(CAL))
+        .expect("valid calibration");
+    let model = cal.model();
+    let calibrated = Calibrated::new(&model, "kr30ha-handset.json", &cal_bytes);
+    let bytes = std::fs::read(PROGRAM).expect("fixture");
+    let ws = files::load_program(Some(Path::new(PROGRAM)), &bytes, None).expect("parses");
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .use_current_thread()
+        .build_global()
+        .expect("the global pool is this thread");
+    {
+        let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
+        let targets = program::targets(&ws, &sim, 0..sim.stops.len());
+        let n = targets.len();
+        let outcomes = compensate::compensate(
+            &model,
+            &sim.frames,
+            &targets,
+            [Default::default(); 6],
+            &compensate::Options::default(),
+        );
+        let rw = compensate::rewrite::rewrite(&ws, &sim, &outcomes, &model.robot, None);
+        let edits = rw.edits.values().next().expect("the program is rewritten");
+        let header = robopost::krl::Edit {
+            range: 0..0,
+            bytes: b"; header\n".to_vec(),
+        };
+        let mut g = c.benchmark_group(format!("pipeline 1 thread, pocket_milling ({n} targets)"));
+        g.sample_size(10);
+        g.bench_function("simulate", |b| {
+            b.iter(|| black_box(robopost::motion::simulate(&ws, &model.robot, &[])))
+        });
+        g.bench_function("rewrite", |b| {
+            b.iter(|| {
+                black_box(compensate::rewrite::rewrite(
+                    &ws,
+                    &sim,
+                    &outcomes,
+                    &model.robot,
+                    None,
+                ))
+            })
+        });
+        g.bench_function("apply edits", |b| {
+            b.iter(|| black_box(edits.apply(ws.get(ws.main).file.source(), &header)))
+        });
+        let options = program::Options::default();
+        g.bench_function("whole program in process", |b| {
+            b.iter(|| black_box(compensate::compensate_program(&ws, &calibrated, &options)))
+        });
+        g.finish();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .with_measurement(ThreadCpuTime::new())
+        .measurement_time(std::time::Duration::from_secs(5))
+        .warm_up_time(std::time::Duration::from_secs(1));
+    targets = phases
+}
+criterion_main!(benches);
