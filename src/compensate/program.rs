@@ -245,8 +245,10 @@ fn axes_list(mask: &[bool; 6]) -> Vec<String> {
 
 /// The compensation targets of the stops `range` of a simulation.
 pub fn targets(ws: &Workspace, sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
+    use rayon::prelude::*;
     sim.stops[range]
-        .iter()
+        .par_iter()
+        .with_min_len(1024)
         .map(|s| Target {
             goal: s.goal,
             tool: s.tool,
@@ -440,6 +442,16 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     lap("simulate and compensate");
     if std::env::var_os("ROBOPOST_TIMING").is_some() {
         let (state, motion) = sequence::resolved_counts();
+        let ms = |a: &std::sync::atomic::AtomicU64| {
+            a.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6
+        };
+        use crate::motion::simulate::stream_timing as st;
+        eprintln!(
+            "  windows: parse {:.0} ms, walk {:.0} ms, compensate+rewrite {:.0} ms",
+            ms(&st::PARSE_NS),
+            ms(&st::WALK_NS),
+            ms(&st::SINK_NS)
+        );
         eprintln!(
             "  re-solved: {state} for the compensated state, {motion} for the compensated motion"
         );

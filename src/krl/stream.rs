@@ -26,11 +26,11 @@ pub struct StreamOptions {
 
 impl Default for StreamOptions {
     fn default() -> StreamOptions {
-        // A window of 8k motions holds a few MB of tree, stops and results; a run of a few
-        // thousand lines is already worth not holding as a tree.
+        // A window of 4k motions holds ~1 MB of tree and a few of stops and results; a run
+        // of a few thousand lines is already worth not holding as a tree.
         StreamOptions {
             min_run: 2_048,
-            window: 8_192,
+            window: 4_096,
         }
     }
 }

@@ -31,6 +31,10 @@ mod target;
 
 pub use spline::SplineEnds;
 pub use stream::{simulate_streaming, RunSink};
+/// Time per part of the streamed walk (`ROBOPOST_TIMING`).
+pub mod stream_timing {
+    pub use super::stream::{PARSE_NS, SINK_NS, WALK_NS};
+}
 
 /// Calls nested deeper than this are not followed (recursion).
 const MAX_CALL_DEPTH: usize = 64;

@@ -19,8 +19,14 @@ use crate::krl::StreamedRun;
 /// Stops executed before a cut that the segment after it needs (see the module doc).
 const HISTORY: usize = 2;
 
-/// Windows parsed at a time (and at most held at once): a few MB of tree each.
-const WINDOWS_AHEAD: usize = 4;
+/// Time spent walking windows and handing them to the sink (what `ROBOPOST_TIMING` prints).
+pub static WALK_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+pub static PARSE_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+pub static SINK_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Windows parsed at a time (two groups are held at once: the one being walked and
+/// compensated, the next one being parsed): with windows of 4k lines, ~12 MB of tree each.
+const WINDOWS_AHEAD: usize = 16;
 
 /// Where the stops of a streamed walk go, segment by segment, in execution order.
 pub trait RunSink<'f> {
@@ -164,11 +170,12 @@ impl<'f> Simulator<'f> {
     }
 
     /// Walks run `run` window by window. The windows are parsed a group at a time (in
-    /// parallel), then one thread walks them in order while this one hands each walked window
-    /// to the sink (compensating it on rayon's pool): the walk, sequential by nature, overlaps
-    /// the compensation.
+    /// parallel); one thread walks a group's windows in order and then parses the next
+    /// group, while this one hands each walked window to the sink (compensating it on rayon's
+    /// pool): the walk, sequential by nature, and the parsing overlap the compensation.
     fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut dyn RunSink<'f>) {
         use rayon::prelude::*;
+        use std::sync::atomic::Ordering::Relaxed;
         self.finish_segment();
         sink.skeleton(&self.out, self.handed);
         self.handed = self.out.stops.len();
@@ -178,28 +185,44 @@ impl<'f> Simulator<'f> {
         let mut moved = false;
         let (all, file_tree) = (self.ws, &self.ws.get(file).file);
         let windows: Vec<(Span, u32)> = run.windows().collect();
-        for group in windows.chunks(WINDOWS_AHEAD) {
-            let parsed: Vec<Workspace> = group
+        let parse = |group: &[(Span, u32)]| -> Vec<Workspace> {
+            let t = std::time::Instant::now();
+            let parsed = group
                 .par_iter()
                 .map(|&w| all.window_of(file, file_tree.window(w)))
                 .collect();
+            PARSE_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
+            parsed
+        };
+        let groups: Vec<&[(Span, u32)]> = windows.chunks(WINDOWS_AHEAD).collect();
+        let mut next = groups.first().map_or_else(Vec::new, |g| parse(g));
+        for g in 0..groups.len() {
+            let parsed = std::mem::take(&mut next);
             let walked = std::thread::scope(|scope| {
                 let (tx, rx) = std::sync::mpsc::sync_channel(1);
                 let (this, history, moved) = (&mut *self, &mut history, &mut moved);
-                let parsed = &parsed;
+                let (parsed, next, groups, parse) = (&parsed, &mut next, &groups, &parse);
                 let walker = scope.spawn(move || {
                     for ws in parsed {
+                        let t = std::time::Instant::now();
                         let out = this.walk_window(ws, history);
+                        WALK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
                         *moved |= out.stops.iter().any(|s| !s.ghost);
                         let stop = this.steps >= MAX_STEPS || this.out.fatal;
                         if tx.send(out).is_err() || stop {
                             return false;
                         }
                     }
+                    drop(tx);
+                    if let Some(group) = groups.get(g + 1) {
+                        *next = parse(group);
+                    }
                     true
                 });
                 for (ws, out) in parsed.iter().zip(rx) {
+                    let t = std::time::Instant::now();
                     sink.window(ws, &out);
+                    SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
                 }
                 walker
                     .join()
