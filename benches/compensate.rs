@@ -5,6 +5,8 @@
 //! end-to-end runs on a generated 1 000 000-point program and a 1000 × 1000 batch are in
 //! `scripts/bench_compensate.sh` (wall time and peak memory with /usr/bin/time).
 
+#[path = "support/cam_fixture.rs"]
+mod cam_fixture;
 #[path = "support/cpu_time.rs"]
 mod cpu_time;
 
@@ -14,17 +16,11 @@ use cpu_time::ThreadCpuTime;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use robopost::compensate::{self, files, program, Calibrated};
 
-const PROGRAM: &str = "fixtures/programs/cam/pocket_milling.src";
-const CAL: &str = "calibrations/kr30ha-handset.json";
+use cam_fixture::PROGRAM;
 
 fn phases(c: &mut Criterion<ThreadCpuTime>) {
-    let cal_bytes = std::fs::read(CAL).expect("calibration");
-    let cal = robopost::calibration::parse(&String::from_utf8_lossy(&cal_bytes), Path::new(CAL))
-        .expect("valid calibration");
-    let model = cal.model();
+    let (model, cal_bytes, bytes, ws) = cam_fixture::load();
     let calibrated = Calibrated::new(&model, "kr30ha-handset.json", &cal_bytes);
-    let bytes = std::fs::read(PROGRAM).expect("fixture");
-    let ws = files::load_program(Some(Path::new(PROGRAM)), &bytes, None).expect("parses");
     let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
     let targets = program::targets(&ws, &sim, 0..sim.stops.len());
     let n = targets.len();

@@ -5,26 +5,18 @@
 //! (`use_current_thread`), so the benchmark thread's CPU time (the machine is shared) is all
 //! the work, parallel parts included: divide by the target count for the CPU per target.
 
+#[path = "support/cam_fixture.rs"]
+mod cam_fixture;
 #[path = "support/cpu_time.rs"]
 mod cpu_time;
 
-use std::path::Path;
-
 use cpu_time::ThreadCpuTime;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use robopost::compensate::{self, files, program, Calibrated};
-
-const PROGRAM: &str = "fixtures/programs/cam/pocket_milling.src";
-const CAL: &str = "calibrations/kr30ha-handset.json";
+use robopost::compensate::{self, program, Calibrated};
 
 fn phases(c: &mut Criterion<ThreadCpuTime>) {
-    let cal_bytes = std::fs::read(CAL).expect("calibration");
-    let cal = robopost::calibration::parse(&String::from_utf8_lossy(&cal_bytes), Path::new(CAL))
-        .expect("valid calibration");
-    let model = cal.model();
+    let (model, cal_bytes, _, ws) = cam_fixture::load();
     let calibrated = Calibrated::new(&model, "kr30ha-handset.json", &cal_bytes);
-    let bytes = std::fs::read(PROGRAM).expect("fixture");
-    let ws = files::load_program(Some(Path::new(PROGRAM)), &bytes, None).expect("parses");
     rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .use_current_thread()

@@ -67,20 +67,7 @@ fn ghost(stop: &Stop) -> Stop<'static> {
         block: None,
     });
     Stop {
-        file: stop.file,
         stmt,
-        kind: stop.kind,
-        role: stop.role,
-        goal: stop.goal,
-        tool: stop.tool,
-        base: stop.base,
-        nominal_axes: stop.nominal_axes,
-        arrival: stop.arrival,
-        axis: stop.axis,
-        programmed: stop.programmed,
-        keep_s: stop.keep_s,
-        keep_t: stop.keep_t,
-        rel: stop.rel,
         origin: None,
         reference: None,
         prev: None,
@@ -88,6 +75,7 @@ fn ghost(stop: &Stop) -> Stop<'static> {
         deferred: false,
         spline: None,
         ghost: true,
+        ..*stop
     }
 }
 
