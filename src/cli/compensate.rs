@@ -17,10 +17,10 @@ pub struct FrameArgs {
     /// The robot's `$config.dat` (BASE_DATA, TOOL_DATA).
     #[arg(long = "config", value_name = "CONFIG.dat")]
     pub config: Option<PathBuf>,
-    /// A base frame: `N=X,Y,Z,A,B,C` for BASE_DATA[N] (repeatable).
+    /// A base frame: `N=X,Y,Z,A,B,C` for `BASE_DATA[N]` (repeatable).
     #[arg(long = "base", value_name = "N=X,Y,Z,A,B,C", value_parser = parse_frame_arg, allow_hyphen_values = true)]
     pub base: Vec<(i64, [f64; 6])>,
-    /// A tool frame: `N=X,Y,Z,A,B,C` for TOOL_DATA[N] (repeatable).
+    /// A tool frame: `N=X,Y,Z,A,B,C` for `TOOL_DATA[N]` (repeatable).
     #[arg(long = "tool", value_name = "N=X,Y,Z,A,B,C", value_parser = parse_frame_arg, allow_hyphen_values = true)]
     pub tool: Vec<(i64, [f64; 6])>,
 }

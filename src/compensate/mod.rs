@@ -12,7 +12,9 @@
 pub mod batch;
 pub mod edits;
 pub mod files;
+pub mod output;
 pub mod program;
+pub mod report;
 pub mod rewrite;
 mod segments;
 pub mod sequence;

@@ -1,22 +1,22 @@
-//! One program end to end: simulate its motion, compensate every target, rewrite the files,
-//! and summarise what happened in a report. Input is a loaded [`Workspace`]; output the new
+//! One program end to end: simulate its motion, compensate every target (segment by segment
+//! as the walk hands the stops over, see `segments`), rewrite the files, and summarise what
+//! happened in a report (`report`). Input is a loaded [`Workspace`]; output the new
 //! bytes of every file that belongs to the program (main `.src`/`.dat` and called modules),
 //! the report and the diagnostics. Writing files is the caller's business.
 
-use serde::Serialize;
-
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::kinematics::RobotDescription;
 use crate::krl::{self, StmtKind};
-use crate::model::{Direction, Model};
-use crate::motion::frame::{self, Frame};
-use crate::motion::nominal::{Arm, Nominal};
+use crate::model::Model;
 use crate::motion::workspace::Role as FileRole;
 use crate::motion::{self, FileId, GivenFrame, Role, Simulation, Workspace};
 
-use super::rewrite::{self, Rewrite};
+use super::output::Chunk;
+pub use super::output::Output;
+pub(super) use super::report::Tally;
+pub use super::report::{CalibrationRef, MaxMean, PointReport, PoseStats, Report, SplitReport};
+use super::rewrite;
 use super::segments::Segments;
-use super::sequence::{self, Interp, Keep, Outcome, Quantum, Resolution, Target};
+use super::sequence::{self, Interp, Keep, Quantum, Target};
 use super::solve::Method;
 
 /// The first words of the header comment robopost writes; a file carrying it was compensated.
@@ -64,82 +64,6 @@ pub struct FileOutput {
     pub changed: bool,
 }
 
-/// A file's new bytes in pieces: rewritten stretches, and stretches of the source left as
-/// they were (shared with the loaded file, not copied: a program of a million motions is
-/// written without a second copy of it in memory).
-#[derive(Clone, Debug, Default)]
-pub struct Output {
-    chunks: Vec<Chunk>,
-}
-
-#[derive(Clone, Debug)]
-enum Chunk {
-    Owned(Vec<u8>),
-    Shared(std::sync::Arc<Vec<u8>>, std::ops::Range<usize>),
-}
-
-impl Output {
-    /// The pieces in order.
-    pub fn pieces(&self) -> Vec<&[u8]> {
-        self.chunks
-            .iter()
-            .map(|c| match c {
-                Chunk::Owned(b) => &b[..],
-                Chunk::Shared(src, r) => &src[r.clone()],
-            })
-            .filter(|p| !p.is_empty())
-            .collect()
-    }
-
-    /// The bytes in one buffer.
-    pub fn to_vec(&self) -> Vec<u8> {
-        self.pieces().concat()
-    }
-
-    pub fn len(&self) -> usize {
-        self.pieces().iter().map(|p| p.len()).sum()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    fn source(file: &krl::SourceFile) -> Output {
-        let src = file.shared_source();
-        let len = src.len();
-        Output {
-            chunks: vec![Chunk::Shared(src, 0..len)],
-        }
-    }
-}
-
-impl From<Vec<u8>> for Output {
-    fn from(bytes: Vec<u8>) -> Output {
-        Output {
-            chunks: vec![Chunk::Owned(bytes)],
-        }
-    }
-}
-
-impl PartialEq<&[u8]> for Output {
-    fn eq(&self, other: &&[u8]) -> bool {
-        self == *other
-    }
-}
-
-impl PartialEq<[u8]> for Output {
-    fn eq(&self, other: &[u8]) -> bool {
-        let mut at = 0;
-        for p in self.pieces() {
-            if other.get(at..at + p.len()) != Some(p) {
-                return false;
-            }
-            at += p.len();
-        }
-        at == other.len()
-    }
-}
-
 /// What compensating a program produced.
 #[derive(Debug)]
 pub struct ProgramResult {
@@ -151,96 +75,6 @@ pub struct ProgramResult {
     pub rejected: bool,
     /// Targets rejected (left unchanged) by an error of their own.
     pub target_errors: usize,
-}
-
-/// Statistics of one quantity over the targets.
-#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
-pub struct MaxMean {
-    pub max: f64,
-    pub mean: f64,
-}
-
-#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
-pub struct PoseStats {
-    pub position_um: MaxMean,
-    pub orientation_mdeg: MaxMean,
-}
-
-/// One target in the report.
-#[derive(Clone, Debug, Serialize)]
-pub struct PointReport {
-    pub file: String,
-    pub line: u32,
-    pub motion: &'static str,
-    pub role: &'static str,
-    /// Command change at the TCP: µm and mdeg.
-    pub correction_um: f64,
-    pub correction_mdeg: f64,
-    /// Predicted TCP error of the original command, and left at the new one.
-    pub before_um: f64,
-    pub residual_um: f64,
-    pub residual_mdeg: f64,
-    pub iterations: u32,
-    /// `+`, `-` or `0` (unknown) per axis on arrival, compensated motion.
-    pub directions: String,
-    /// Axes whose direction differs from the nominal motion's.
-    pub flipped: Vec<String>,
-    /// `consistent`, `rebranched`, `held:A1,A4`, `branch`.
-    pub resolution: String,
-    pub compensated: bool,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub error: Option<String>,
-}
-
-/// The per-program report (`--report FILE.json`).
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct Report {
-    pub program: String,
-    pub calibration: CalibrationRef,
-    pub method: &'static str,
-    /// Motion targets simulated (auxiliary points included).
-    pub targets: usize,
-    /// Targets whose numbers changed.
-    pub compensated: usize,
-    pub rejected: usize,
-    pub correction: PoseStats,
-    pub predicted_before: PoseStats,
-    pub predicted_after: PoseStats,
-    /// Targets where an axis's compensated direction differs from the nominal one.
-    pub direction_flips: usize,
-    /// Targets resolved by holding an axis or choosing a branch (backlash oscillation).
-    pub oscillations_resolved: usize,
-    pub split_points: Vec<SplitReport>,
-    pub warnings: Vec<String>,
-    pub errors: Vec<String>,
-    pub points: Vec<PointReport>,
-}
-
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct CalibrationRef {
-    pub file: String,
-    pub sha256: String,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct SplitReport {
-    pub point: String,
-    pub copies: Vec<String>,
-}
-
-fn dir_char(d: Direction) -> char {
-    match d {
-        Direction::Positive => '+',
-        Direction::Negative => '-',
-        Direction::Unknown => '0',
-    }
-}
-
-fn axes_list(mask: &[bool; 6]) -> Vec<String> {
-    (0..6)
-        .filter(|&i| mask[i])
-        .map(|i| format!("A{}", i + 1))
-        .collect()
 }
 
 /// The compensation targets of the stops `range` of a simulation.
@@ -558,7 +392,7 @@ fn apply(
                     chunks.push(Chunk::Owned(
                         list.apply_in(src, at..src.len(), Some(&first)).map_err(failed)?,
                     ));
-                    Output { chunks }
+                    Output::from_chunks(chunks)
                 }
             };
             Ok(FileOutput {
@@ -568,197 +402,4 @@ fn apply(
             })
         })
         .collect()
-}
-
-/// A running maximum and mean (summed in the order given).
-#[derive(Clone, Copy, Debug, Default)]
-struct Running {
-    max: f64,
-    sum: f64,
-    n: usize,
-}
-
-impl Running {
-    fn add(&mut self, v: f64) {
-        self.max = self.max.max(v);
-        self.sum += v;
-        self.n += 1;
-    }
-
-    fn get(&self) -> MaxMean {
-        MaxMean {
-            max: self.max,
-            mean: if self.n > 0 {
-                self.sum / self.n as f64
-            } else {
-                0.0
-            },
-        }
-    }
-}
-
-/// The report's figures, gathered segment by segment in execution order.
-#[derive(Debug, Default)]
-pub(super) struct Tally {
-    targets: usize,
-    compensated: usize,
-    rejected: usize,
-    /// Correction, predicted error before and after: position and orientation each.
-    figures: [Running; 6],
-    direction_flips: usize,
-    oscillations_resolved: usize,
-    points: Vec<PointReport>,
-}
-
-impl Tally {
-    /// The targets `sim.stops[first..]` with their `outcomes`; `rw` the rewrite of `sim`
-    /// when it has been made (it holds the command change of every target it wrote).
-    #[allow(clippy::too_many_arguments)]
-    pub fn add(
-        &mut self,
-        ws: &Workspace,
-        sim: &Simulation,
-        first: usize,
-        outcomes: &[Outcome],
-        robot: &RobotDescription,
-        rw: Option<&Rewrite>,
-        points: bool,
-    ) {
-        use rayon::prelude::*;
-        let stops = &sim.stops[first..first + outcomes.len()];
-        let arm = Nominal(robot);
-        let compensated =
-            |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && stops[i].compensable;
-        // Command change at the TCP, µm and mdeg.
-        let corr: Vec<(f64, f64)> = (0..outcomes.len())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|i| {
-                let (stop, o) = (&stops[i], &outcomes[i]);
-                if !o.changed {
-                    return (0.0, 0.0);
-                }
-                if let Some(c) = rw.and_then(|rw| rw.correction(first + i)) {
-                    return c;
-                }
-                let tool: &Frame = &sim.frames[stop.tool as usize];
-                rewrite::correction(
-                    &arm.tcp(&o.axes_deg, tool),
-                    &arm.tcp(&stop.nominal_axes, tool),
-                )
-            })
-            .collect();
-        if points {
-            for (i, (stop, o)) in stops.iter().zip(outcomes).enumerate() {
-                self.points
-                    .push(point_report(ws, stop, o, corr[i], compensated(i)));
-            }
-        }
-        self.targets += outcomes.len();
-        self.rejected += outcomes.iter().filter(|o| o.error.is_some()).count();
-        for i in (0..outcomes.len()).filter(|&i| compensated(i)) {
-            self.compensated += 1;
-            let o = &outcomes[i];
-            let (bp, br) = frame::norms(&o.before);
-            let (rp, rr) = frame::norms(&o.residual);
-            let values = [
-                corr[i].0,
-                corr[i].1,
-                bp * 1e3,
-                br.to_degrees() * 1e3,
-                rp * 1e3,
-                rr.to_degrees() * 1e3,
-            ];
-            for (f, v) in self.figures.iter_mut().zip(values) {
-                f.add(v);
-            }
-        }
-        self.direction_flips += outcomes
-            .iter()
-            .filter(|o| o.flipped().iter().any(|&f| f))
-            .count();
-        self.oscillations_resolved += outcomes
-            .iter()
-            .filter(|o| matches!(o.resolution, Resolution::Held(_) | Resolution::Branch))
-            .count();
-    }
-
-    /// The report with the figures, the split points and the diagnostics.
-    pub fn fill(&mut self, report: &mut Report, rw: &Rewrite, diagnostics: &[Diagnostic]) {
-        let f = &self.figures;
-        report.targets = self.targets;
-        report.compensated = self.compensated;
-        report.rejected = self.rejected;
-        report.correction = PoseStats {
-            position_um: f[0].get(),
-            orientation_mdeg: f[1].get(),
-        };
-        report.predicted_before = PoseStats {
-            position_um: f[2].get(),
-            orientation_mdeg: f[3].get(),
-        };
-        report.predicted_after = PoseStats {
-            position_um: f[4].get(),
-            orientation_mdeg: f[5].get(),
-        };
-        report.direction_flips = self.direction_flips;
-        report.oscillations_resolved = self.oscillations_resolved;
-        report.points = std::mem::take(&mut self.points);
-        report.split_points = rw
-            .splits
-            .iter()
-            .map(|(p, c)| SplitReport {
-                point: p.clone(),
-                copies: c.clone(),
-            })
-            .collect();
-        for d in diagnostics {
-            let line = format!("{}:{}:{}: {}", d.file, d.line, d.col, d.message);
-            match d.severity {
-                Severity::Warning => report.warnings.push(line),
-                Severity::Error => report.errors.push(line),
-            }
-        }
-    }
-}
-
-fn point_report(
-    ws: &Workspace,
-    stop: &motion::Stop,
-    o: &Outcome,
-    (correction_um, correction_mdeg): (f64, f64),
-    compensated: bool,
-) -> PointReport {
-    let (bp, _) = frame::norms(&o.before);
-    let (rp, rr) = frame::norms(&o.residual);
-    let flipped = o.flipped();
-    PointReport {
-        file: ws.get(stop.file).name.clone(),
-        line: stop.stmt.line,
-        motion: stop.kind.keyword(),
-        role: match stop.role {
-            Role::Target => "target",
-            Role::Aux => "aux",
-        },
-        correction_um,
-        correction_mdeg,
-        before_um: bp * 1e3,
-        residual_um: rp * 1e3,
-        residual_mdeg: rr.to_degrees() * 1e3,
-        iterations: o.iterations,
-        directions: o.directions.iter().map(|d| dir_char(*d)).collect(),
-        flipped: axes_list(&flipped),
-        resolution: match o.resolution {
-            Resolution::Consistent => "consistent".into(),
-            Resolution::Rebranched => "rebranched".into(),
-            Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
-            Resolution::Branch => "branch".into(),
-        } + &if o.turn_held.iter().any(|&h| h) {
-            format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
-        } else {
-            String::new()
-        },
-        compensated,
-        error: o.error.map(|e| e.to_string()),
-    }
 }

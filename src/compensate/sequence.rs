@@ -666,7 +666,7 @@ static RESOLVED: [std::sync::atomic::AtomicUsize; 2] = [
     std::sync::atomic::AtomicUsize::new(0),
 ];
 
-/// [`RESOLVED`]'s two counts.
+/// The two counts of `RESOLVED`.
 pub fn resolved_counts() -> (usize, usize) {
     use std::sync::atomic::Ordering::Relaxed;
     (RESOLVED[0].load(Relaxed), RESOLVED[1].load(Relaxed))

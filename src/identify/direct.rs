@@ -1,4 +1,4 @@
-//! The paper's direct method (section 2.3 and its reference [8]), the starting point of the
+//! The paper's direct method (section 2.3 and its reference \[8\]), the starting point of the
 //! global refinement:
 //! 1. every *indexing test* in the data — a test label whose measured rows move exactly one
 //!    axis over at least five angles while the others stand still — gets its best-fit circle

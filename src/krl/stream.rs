@@ -6,7 +6,7 @@
 //! byte for byte) and records it as a [`StreamedRun`] cut into windows of whole lines;
 //! [`super::SourceFile::window`] parses one window into a file of its own that shares the
 //! source bytes, with the spans and line numbers of the whole-file parse. Only lines whose
-//! meaning depends on nothing but themselves qualify (see [`is_plain`]), so the statements of
+//! meaning depends on nothing but themselves qualify (see `is_plain`), so the statements of
 //! a run can be executed in order without the variables of the routine around them.
 
 use super::expr::Expr;

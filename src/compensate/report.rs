@@ -1,0 +1,298 @@
+//! The per-program report (`--report FILE.json`) and how its figures are gathered: segment
+//! by segment in execution order, as the program is compensated (`Tally`), each sum over the
+//! compensated targets in program order (the same bits as summed in one go).
+
+use serde::Serialize;
+
+use crate::diagnostic::{Diagnostic, Severity};
+use crate::kinematics::RobotDescription;
+use crate::model::Direction;
+use crate::motion::frame::{self, Frame};
+use crate::motion::nominal::{Arm, Nominal};
+use crate::motion::{self, Role, Simulation, Workspace};
+
+use super::rewrite::{self, Rewrite};
+use super::sequence::{Outcome, Resolution};
+
+/// Statistics of one quantity over the targets.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct MaxMean {
+    pub max: f64,
+    pub mean: f64,
+}
+
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct PoseStats {
+    pub position_um: MaxMean,
+    pub orientation_mdeg: MaxMean,
+}
+
+/// One target in the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct PointReport {
+    pub file: String,
+    pub line: u32,
+    pub motion: &'static str,
+    pub role: &'static str,
+    /// Command change at the TCP: µm and mdeg.
+    pub correction_um: f64,
+    pub correction_mdeg: f64,
+    /// Predicted TCP error of the original command, and left at the new one.
+    pub before_um: f64,
+    pub residual_um: f64,
+    pub residual_mdeg: f64,
+    pub iterations: u32,
+    /// `+`, `-` or `0` (unknown) per axis on arrival, compensated motion.
+    pub directions: String,
+    /// Axes whose direction differs from the nominal motion's.
+    pub flipped: Vec<String>,
+    /// `consistent`, `rebranched`, `held:A1,A4`, `branch`.
+    pub resolution: String,
+    pub compensated: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// The per-program report (`--report FILE.json`).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Report {
+    pub program: String,
+    pub calibration: CalibrationRef,
+    pub method: &'static str,
+    /// Motion targets simulated (auxiliary points included).
+    pub targets: usize,
+    /// Targets whose numbers changed.
+    pub compensated: usize,
+    pub rejected: usize,
+    pub correction: PoseStats,
+    pub predicted_before: PoseStats,
+    pub predicted_after: PoseStats,
+    /// Targets where an axis's compensated direction differs from the nominal one.
+    pub direction_flips: usize,
+    /// Targets resolved by holding an axis or choosing a branch (backlash oscillation).
+    pub oscillations_resolved: usize,
+    pub split_points: Vec<SplitReport>,
+    pub warnings: Vec<String>,
+    pub errors: Vec<String>,
+    pub points: Vec<PointReport>,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct CalibrationRef {
+    pub file: String,
+    pub sha256: String,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SplitReport {
+    pub point: String,
+    pub copies: Vec<String>,
+}
+
+fn dir_char(d: Direction) -> char {
+    match d {
+        Direction::Positive => '+',
+        Direction::Negative => '-',
+        Direction::Unknown => '0',
+    }
+}
+
+fn axes_list(mask: &[bool; 6]) -> Vec<String> {
+    (0..6)
+        .filter(|&i| mask[i])
+        .map(|i| format!("A{}", i + 1))
+        .collect()
+}
+
+/// A running maximum and mean (summed in the order given).
+#[derive(Clone, Copy, Debug, Default)]
+struct Running {
+    max: f64,
+    sum: f64,
+    n: usize,
+}
+
+impl Running {
+    fn add(&mut self, v: f64) {
+        self.max = self.max.max(v);
+        self.sum += v;
+        self.n += 1;
+    }
+
+    fn get(&self) -> MaxMean {
+        MaxMean {
+            max: self.max,
+            mean: if self.n > 0 {
+                self.sum / self.n as f64
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+/// The report's figures, gathered segment by segment in execution order.
+#[derive(Debug, Default)]
+pub(super) struct Tally {
+    targets: usize,
+    compensated: usize,
+    rejected: usize,
+    /// Correction, predicted error before and after: position and orientation each.
+    figures: [Running; 6],
+    direction_flips: usize,
+    oscillations_resolved: usize,
+    points: Vec<PointReport>,
+}
+
+impl Tally {
+    /// The targets `sim.stops[first..]` with their `outcomes`; `rw` the rewrite of `sim`
+    /// when it has been made (it holds the command change of every target it wrote).
+    #[allow(clippy::too_many_arguments)]
+    pub fn add(
+        &mut self,
+        ws: &Workspace,
+        sim: &Simulation,
+        first: usize,
+        outcomes: &[Outcome],
+        robot: &RobotDescription,
+        rw: Option<&Rewrite>,
+        points: bool,
+    ) {
+        use rayon::prelude::*;
+        let stops = &sim.stops[first..first + outcomes.len()];
+        let arm = Nominal(robot);
+        let compensated =
+            |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && stops[i].compensable;
+        // Command change at the TCP, µm and mdeg.
+        let corr: Vec<(f64, f64)> = (0..outcomes.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|i| {
+                let (stop, o) = (&stops[i], &outcomes[i]);
+                if !o.changed {
+                    return (0.0, 0.0);
+                }
+                if let Some(c) = rw.and_then(|rw| rw.correction(first + i)) {
+                    return c;
+                }
+                let tool: &Frame = &sim.frames[stop.tool as usize];
+                rewrite::correction(
+                    &arm.tcp(&o.axes_deg, tool),
+                    &arm.tcp(&stop.nominal_axes, tool),
+                )
+            })
+            .collect();
+        if points {
+            for (i, (stop, o)) in stops.iter().zip(outcomes).enumerate() {
+                self.points
+                    .push(point_report(ws, stop, o, corr[i], compensated(i)));
+            }
+        }
+        self.targets += outcomes.len();
+        self.rejected += outcomes.iter().filter(|o| o.error.is_some()).count();
+        for i in (0..outcomes.len()).filter(|&i| compensated(i)) {
+            self.compensated += 1;
+            let o = &outcomes[i];
+            let (bp, br) = frame::norms(&o.before);
+            let (rp, rr) = frame::norms(&o.residual);
+            let values = [
+                corr[i].0,
+                corr[i].1,
+                bp * 1e3,
+                br.to_degrees() * 1e3,
+                rp * 1e3,
+                rr.to_degrees() * 1e3,
+            ];
+            for (f, v) in self.figures.iter_mut().zip(values) {
+                f.add(v);
+            }
+        }
+        self.direction_flips += outcomes
+            .iter()
+            .filter(|o| o.flipped().iter().any(|&f| f))
+            .count();
+        self.oscillations_resolved += outcomes
+            .iter()
+            .filter(|o| matches!(o.resolution, Resolution::Held(_) | Resolution::Branch))
+            .count();
+    }
+
+    /// The report with the figures, the split points and the diagnostics.
+    pub fn fill(&mut self, report: &mut Report, rw: &Rewrite, diagnostics: &[Diagnostic]) {
+        let f = &self.figures;
+        report.targets = self.targets;
+        report.compensated = self.compensated;
+        report.rejected = self.rejected;
+        report.correction = PoseStats {
+            position_um: f[0].get(),
+            orientation_mdeg: f[1].get(),
+        };
+        report.predicted_before = PoseStats {
+            position_um: f[2].get(),
+            orientation_mdeg: f[3].get(),
+        };
+        report.predicted_after = PoseStats {
+            position_um: f[4].get(),
+            orientation_mdeg: f[5].get(),
+        };
+        report.direction_flips = self.direction_flips;
+        report.oscillations_resolved = self.oscillations_resolved;
+        report.points = std::mem::take(&mut self.points);
+        report.split_points = rw
+            .splits
+            .iter()
+            .map(|(p, c)| SplitReport {
+                point: p.clone(),
+                copies: c.clone(),
+            })
+            .collect();
+        for d in diagnostics {
+            let line = format!("{}:{}:{}: {}", d.file, d.line, d.col, d.message);
+            match d.severity {
+                Severity::Warning => report.warnings.push(line),
+                Severity::Error => report.errors.push(line),
+            }
+        }
+    }
+}
+
+fn point_report(
+    ws: &Workspace,
+    stop: &motion::Stop,
+    o: &Outcome,
+    (correction_um, correction_mdeg): (f64, f64),
+    compensated: bool,
+) -> PointReport {
+    let (bp, _) = frame::norms(&o.before);
+    let (rp, rr) = frame::norms(&o.residual);
+    let flipped = o.flipped();
+    PointReport {
+        file: ws.get(stop.file).name.clone(),
+        line: stop.stmt.line,
+        motion: stop.kind.keyword(),
+        role: match stop.role {
+            Role::Target => "target",
+            Role::Aux => "aux",
+        },
+        correction_um,
+        correction_mdeg,
+        before_um: bp * 1e3,
+        residual_um: rp * 1e3,
+        residual_mdeg: rr.to_degrees() * 1e3,
+        iterations: o.iterations,
+        directions: o.directions.iter().map(|d| dir_char(*d)).collect(),
+        flipped: axes_list(&flipped),
+        resolution: match o.resolution {
+            Resolution::Consistent => "consistent".into(),
+            Resolution::Rebranched => "rebranched".into(),
+            Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
+            Resolution::Branch => "branch".into(),
+        } + &if o.turn_held.iter().any(|&h| h) {
+            format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
+        } else {
+            String::new()
+        },
+        compensated,
+        error: o.error.map(|e| e.to_string()),
+    }
+}
