@@ -268,6 +268,10 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     let model = cal.model;
     let mut seg = Segments::new(ws, model, options);
     let sim = motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg));
+    if sim.needs_whole_tree {
+        drop((sim, seg));
+        return compensate_program(&ws.whole(), cal, options);
+    }
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
         return rejected(report, diagnostics, 0);

@@ -220,6 +220,30 @@ impl Workspace {
         &self.files[id as usize]
     }
 
+    /// The same files with the main one parsed whole (no streamed runs).
+    pub fn whole(&self) -> Workspace {
+        let files = self
+            .files
+            .iter()
+            .enumerate()
+            .map(|(i, f)| Loaded {
+                path: f.path.clone(),
+                name: f.name.clone(),
+                file: if i as FileId == self.main && !f.file.streamed_runs().is_empty() {
+                    krl::parse_recovering(f.file.source(), FileKind::Src)
+                } else {
+                    f.file.clone()
+                },
+                partner: f.partner,
+                role: f.role,
+            })
+            .collect();
+        Workspace {
+            files,
+            main: self.main,
+        }
+    }
+
     /// A workspace holding one window of a streamed run of file `id` as its only file.
     pub fn window_of(&self, id: FileId, window: SourceFile) -> Workspace {
         let f = self.get(id);

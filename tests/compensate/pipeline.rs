@@ -162,6 +162,46 @@ fn streamed_runs_give_the_whole_programs_result() {
     );
 }
 
+/// A main routine called again (here by a routine it calls, until the call depth runs out):
+/// its streamed runs are not in the tree, so the main job walks the whole tree instead — the
+/// same result as without streaming.
+#[test]
+fn main_routine_called_again_is_walked_whole() {
+    let src = "DEF again( )\r\n$BASE = {X 900, Y 0, Z 600}\r\n$TOOL = {X 0, Y 0, Z 200}\r\nPTP {A1 0, A2 -80, A3 100, A4 0, A5 60, A6 0}\r\nLIN {X 10, Y 0, Z 0, A 0, B 90, C 0}\r\nLIN {X 20, Y 5, Z 0, A 0, B 90, C 0} C_DIS\r\nLIN {X 30, Y 5, Z 10, A 0, B 90, C 0}\r\nonce_more()\r\nEND\r\nDEF once_more( )\r\nLIN {X 0, Y 0, Z 50, A 0, B 90, C 0}\r\nagain()\r\nEND\r\n";
+    let opts = robopost::krl::StreamOptions {
+        min_run: 1,
+        window: 2,
+    };
+    let streamed_ws =
+        files::load_program_streaming(None, src.as_bytes().to_vec(), None, Some(opts)).unwrap();
+    assert!(!streamed_ws.get(0).file.streamed_runs().is_empty());
+    let whole_ws = files::load_program(None, src.as_bytes(), None).unwrap();
+    let streamed = run(
+        &streamed_ws,
+        "kr30ha-handset.json",
+        compensate::Method::Iterate,
+    );
+    let whole = run(
+        &whole_ws,
+        "kr30ha-handset.json",
+        compensate::Method::Iterate,
+    );
+    assert!(
+        whole.report.targets > 10,
+        "the recursion is walked: {}",
+        whole.report.targets
+    );
+    assert_eq!(streamed.report.targets, whole.report.targets);
+    assert_eq!(
+        streamed.files[0].bytes.to_vec(),
+        whole.files[0].bytes.to_vec()
+    );
+    assert_eq!(
+        serde_json::to_value(&streamed.report).unwrap(),
+        serde_json::to_value(&whole.report).unwrap()
+    );
+}
+
 /// Arbitrary aggregates in the styles controllers and CAM systems write: with the nominal
 /// calibration nothing changes.
 fn number() -> impl Strategy<Value = String> {

@@ -78,6 +78,20 @@ impl<'f> Simulator<'f> {
             };
             inner.vars.insert(upper(callee.text(p.name)), v);
         }
+        if target_file == self.ws.main
+            && !self.src(target_file).streamed_runs().is_empty()
+            && self
+                .src(target_file)
+                .routines()
+                .next()
+                .is_some_and(|(main, _)| std::ptr::eq(main, stmt))
+        {
+            // The main routine called again: its streamed runs are not in the tree, so the
+            // program must be walked from the whole tree (the caller does it again so).
+            self.out.needs_whole_tree = true;
+            self.state.current = None;
+            return;
+        }
         self.depth += 1;
         self.routine(target_file, stmt, &mut inner);
         self.depth -= 1;

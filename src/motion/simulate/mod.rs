@@ -124,6 +124,9 @@ pub struct Simulation<'f> {
     pub fatal: bool,
     /// Targets the robot cannot reach (errors of their own; the program goes on).
     pub unreachable: usize,
+    /// The streamed walk met what only the whole tree can follow (the main routine called
+    /// again): walk the program parsed without streamed runs instead.
+    pub needs_whole_tree: bool,
 }
 
 impl Simulation<'_> {
