@@ -24,9 +24,22 @@ pub static WALK_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64:
 pub static PARSE_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 pub static SINK_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
-/// Windows parsed at a time (two groups are held at once: the one being walked and
-/// compensated, the next one being parsed): with windows of 4k lines, ~12 MB of tree each.
-const WINDOWS_AHEAD: usize = 16;
+/// Windows walked ahead of the compensation (the walker goes on while the compensation is in
+/// its sequential parts; each waiting window holds its tree and stops, ~2.5 MB).
+const WALKED_AHEAD: usize = 3;
+
+/// Windows parsed at a time (in parallel) by the walker thread.
+const PARSED_AHEAD: usize = 4;
+
+self_cell::self_cell!(
+    /// A window's workspace with the simulation of its stops, which borrows it: one value,
+    /// sent from the walker thread to the compensation.
+    struct Walked {
+        owner: Workspace,
+        #[covariant]
+        dependent: Simulation,
+    }
+);
 
 /// Where the stops of a streamed walk go, segment by segment, in execution order.
 pub trait RunSink<'f> {
@@ -157,10 +170,11 @@ impl<'f> Simulator<'f> {
         Flow::Next
     }
 
-    /// Walks run `run` window by window. The windows are parsed a group at a time (in
-    /// parallel); one thread walks a group's windows in order and then parses the next
-    /// group, while this one hands each walked window to the sink (compensating it on rayon's
-    /// pool): the walk, sequential by nature, and the parsing overlap the compensation.
+    /// Walks run `run` window by window: one thread parses the windows (a few at a time, in
+    /// parallel) and walks them in order, handing each walked window (its files and stops, one
+    /// self-referential value) to this thread, which hands it to the sink (compensating it on
+    /// rayon's pool): the walk, sequential by nature, overlaps the compensation, and only the
+    /// windows in flight are held.
     fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut dyn RunSink<'f>) {
         use rayon::prelude::*;
         use std::sync::atomic::Ordering::Relaxed;
@@ -173,52 +187,41 @@ impl<'f> Simulator<'f> {
         let mut moved = false;
         let (all, file_tree) = (self.ws, &self.ws.get(file).file);
         let windows: Vec<(Span, u32)> = run.windows().collect();
-        let parse = |group: &[(Span, u32)]| -> Vec<Workspace> {
-            let t = std::time::Instant::now();
-            let parsed = group
-                .par_iter()
-                .map(|&w| all.window_of(file, file_tree.window(w)))
-                .collect();
-            PARSE_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
-            parsed
-        };
-        let groups: Vec<&[(Span, u32)]> = windows.chunks(WINDOWS_AHEAD).collect();
-        let mut next = groups.first().map_or_else(Vec::new, |g| parse(g));
-        for g in 0..groups.len() {
-            let parsed = std::mem::take(&mut next);
-            let walked = std::thread::scope(|scope| {
-                let (tx, rx) = std::sync::mpsc::sync_channel(1);
-                let (this, history, moved) = (&mut *self, &mut history, &mut moved);
-                let (parsed, next, groups, parse) = (&parsed, &mut next, &groups, &parse);
-                let walker = scope.spawn(move || {
+        let walked_all = std::thread::scope(|scope| {
+            let (tx, rx) = std::sync::mpsc::sync_channel::<Walked>(WALKED_AHEAD);
+            let (this, history, moved, windows) = (&mut *self, &mut history, &mut moved, &windows);
+            let walker = scope.spawn(move || {
+                for batch in windows.chunks(PARSED_AHEAD) {
+                    let t = std::time::Instant::now();
+                    let parsed: Vec<Workspace> = batch
+                        .par_iter()
+                        .map(|&w| all.window_of(file, file_tree.window(w)))
+                        .collect();
+                    PARSE_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
                     for ws in parsed {
                         let t = std::time::Instant::now();
-                        let out = this.walk_window(ws, history);
+                        let walked = Walked::new(ws, |ws| this.walk_window(ws, history));
                         WALK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
-                        *moved |= out.stops.iter().any(|s| !s.ghost);
+                        *moved |= walked.borrow_dependent().stops.iter().any(|s| !s.ghost);
                         let stop = this.steps >= MAX_STEPS || this.out.fatal;
-                        if tx.send(out).is_err() || stop {
+                        if tx.send(walked).is_err() || stop {
                             return false;
                         }
                     }
-                    drop(tx);
-                    if let Some(group) = groups.get(g + 1) {
-                        *next = parse(group);
-                    }
-                    true
-                });
-                for (ws, out) in parsed.iter().zip(rx) {
-                    let t = std::time::Instant::now();
-                    sink.window(ws, &out);
-                    SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
                 }
-                walker
-                    .join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+                true
             });
-            if !walked {
-                return;
+            for walked in rx {
+                let t = std::time::Instant::now();
+                walked.with_dependent(|ws, sim| sink.window(ws, sim));
+                SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
             }
+            walker
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+        });
+        if !walked_all {
+            return;
         }
         if moved {
             // The skeleton goes on from the run's last stops.
