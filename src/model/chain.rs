@@ -59,19 +59,12 @@ fn sin_cos(x: f64) -> (f64, f64) {
 /// columns perpendicular to `coord` (12 products instead of a 27-product matrix product).
 fn rotate(r: &mut Matrix3<f64>, coord: usize, angle: f64) {
     let (s, c) = sin_cos(angle);
-    // Columns (i, j) such that Rot_coord maps e_i → c·e_i + s·e_j.
-    let (i, j) = match coord {
-        0 => (1, 2),
-        1 => (2, 0),
-        _ => (0, 1),
-    };
-    let (ci, cj) = (r.column(i).into_owned(), r.column(j).into_owned());
-    r.set_column(i, &(ci * c + cj * s));
-    r.set_column(j, &(cj * c - ci * s));
+    rotate_sc(r, coord, s, c);
 }
 
 /// `r ← r · Rot_coord(θ)` given `(sin θ, cos θ)`.
 fn rotate_sc(r: &mut Matrix3<f64>, coord: usize, s: f64, c: f64) {
+    // Columns (i, j) such that Rot_coord maps e_i → c·e_i + s·e_j.
     let (i, j) = match coord {
         0 => (1, 2),
         1 => (2, 0),
