@@ -205,7 +205,7 @@ impl EditList {
             None => true,
         };
         if !in_order {
-            return self.flattened().apply_sorting(source, first);
+            return self.apply_in(source, 0..source.len(), Some(first));
         }
         self.apply_in_order(source, first)
     }
@@ -373,61 +373,6 @@ impl EditList {
                 at = r.end;
             }
         });
-        Ok(out)
-    }
-
-    /// The list as one segment (for the general, sorting apply).
-    fn flattened(&self) -> Segment {
-        let mut flat = Segment::default();
-        for (s, p) in self.pieces() {
-            flat.pieces.push(Piece {
-                at: flat.text.len(),
-                ..*p
-            });
-            flat.text.extend_from_slice(s.bytes(p));
-        }
-        flat
-    }
-}
-
-impl Segment {
-    /// [`EditList::apply`] for edits in any order: sorted (stably) by position first.
-    fn apply_sorting(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
-        // Index 0 is `first`, i + 1 the list's i-th edit: a stable sort keeps their order.
-        let range = |k: u32| match k {
-            0 => first.range.clone(),
-            k => self.pieces[k as usize - 1].range(),
-        };
-        let bytes = |k: u32| match k {
-            0 => &first.bytes[..],
-            k => self.bytes(&self.pieces[k as usize - 1]),
-        };
-        let n = self.pieces.len() as u32 + 1;
-        let mut order: Vec<u32> = (0..n).collect();
-        order.sort_by_key(|&k| {
-            let r = range(k);
-            (r.start, r.end)
-        });
-        for w in order.windows(2) {
-            let (a, b) = (range(w[0]), range(w[1]));
-            if b.start < a.end {
-                return Err(EditError::Overlap {
-                    first: a,
-                    second: b,
-                });
-            }
-        }
-        let removed: usize = order.iter().map(|&k| range(k).len()).sum();
-        let added: usize = order.iter().map(|&k| bytes(k).len()).sum();
-        let mut out = Vec::with_capacity(source.len() - removed + added);
-        let mut at = 0;
-        for k in order {
-            let r = range(k);
-            out.extend_from_slice(&source[at..r.start]);
-            out.extend_from_slice(bytes(k));
-            at = r.end;
-        }
-        out.extend_from_slice(&source[at..]);
         Ok(out)
     }
 }
