@@ -266,102 +266,25 @@ pub fn compensate_after(
     start: [Direction; 6],
     options: &Options,
 ) -> (Vec<Outcome>, Vec<bool>) {
-    let nominal_start = match history.last() {
-        Some(c) => c.outcome.nominal_directions,
-        None => start,
+    let h = history.len();
+    let (nominal_start, state_start) = match history.last() {
+        Some(c) => (c.outcome.nominal_directions, c.outcome.directions),
+        None => (start, start),
     };
-    let first = first_passes(model, tools, targets, nominal_start, options);
-    settle(model, tools, history, targets, start, first, options)
-}
-
-/// Passes 1 and 2 of a segment: what needs nothing of the targets before it but the nominal
-/// directions they leave (`nominal_start`), so it may run while the segment before is still
-/// being settled.
-pub struct FirstPasses {
-    outcomes: Vec<Outcome>,
-    /// Signs of the first-pass arrival motions; those of the first [`LOOK_BACK`] targets
-    /// depend on the history's commands and are computed by [`settle`].
-    rates: Vec<Option<[i8; 6]>>,
-}
-
-impl FirstPasses {
-    /// The nominal directions after the segment (the next segment's `nominal_start`).
-    pub fn nominal_end(&self) -> Option<[Direction; 6]> {
-        self.outcomes.last().map(|o| o.nominal_directions)
-    }
-}
-
-/// Passes 1 and 2 of `targets`, the nominal directions before the first given.
-pub fn first_passes(
-    model: &Model,
-    tools: &[Frame],
-    targets: &[Target],
-    nominal_start: [Direction; 6],
-    options: &Options,
-) -> FirstPasses {
     let nominal = nominal_directions(targets, nominal_start);
     let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
-    let outcomes: Vec<Outcome> = if options.parallel {
-        (0..targets.len())
+    let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
+    outcomes.extend(history.iter().map(|c| c.outcome));
+    if options.parallel {
+        let solved: Vec<Outcome> = (0..targets.len())
             .into_par_iter()
             .with_min_len(256)
             .map(first)
-            .collect()
-    } else {
-        (0..targets.len()).map(first).collect()
-    };
-    let ctx = Ctx {
-        model,
-        tools,
-        targets,
-        method: options.method,
-    };
-    // Arrival motions of the first-pass commands, chunk by chunk: each rate needs its
-    // neighbours' written TCPs, computed once per chunk (plus the few around its ends), and
-    // the re-check needs only the signs.
-    let cmd = |j: usize| outcomes[j].axes_deg;
-    let n = targets.len();
-    let chunk = |c: usize| -> Vec<Option<[i8; 6]>> {
-        let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
-        let from = a.saturating_sub(2);
-        let tcps: Vec<Frame> = (from..(b + 1).min(n))
-            .map(|k| ctx.tcp(k, &outcomes[k].axes_deg))
             .collect();
-        (a..b)
-            .map(|k| match k < LOOK_BACK {
-                true => None,
-                false => signs(ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some((from, &tcps)))),
-            })
-            .collect()
-    };
-    let chunks = n.div_ceil(RATE_CHUNK);
-    let rates: Vec<Option<[i8; 6]>> = if options.parallel {
-        (0..chunks).into_par_iter().flat_map_iter(chunk).collect()
+        outcomes.extend(solved);
     } else {
-        (0..chunks).flat_map(chunk).collect()
-    };
-    FirstPasses { outcomes, rates }
-}
-
-/// Pass 3 of `targets` after the carried `history` (see [`compensate_after`]), from their
-/// [`first_passes`].
-pub fn settle(
-    model: &Model,
-    tools: &[Frame],
-    history: &[Carried],
-    targets: &[Target],
-    start: [Direction; 6],
-    first: FirstPasses,
-    options: &Options,
-) -> (Vec<Outcome>, Vec<bool>) {
-    let h = history.len();
-    let state_start = match history.last() {
-        Some(c) => c.outcome.directions,
-        None => start,
-    };
-    let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
-    outcomes.extend(history.iter().map(|c| c.outcome));
-    outcomes.extend(first.outcomes);
+        outcomes.extend((0..targets.len()).map(first));
+    }
     let all: std::borrow::Cow<[Target]> = if h == 0 {
         std::borrow::Cow::Borrowed(targets)
     } else {
@@ -379,16 +302,30 @@ pub fn settle(
         targets: &all,
         method: options.method,
     };
+    // Arrival motions of the first-pass commands, chunk by chunk: each rate needs its
+    // neighbours' written TCPs, computed once per chunk (plus the few around its ends), and
+    // the re-check needs only the signs.
+    let cmd = |j: usize| outcomes[j].axes_deg;
+    let n = all.len();
+    let chunk = |c: usize| -> Vec<Option<[i8; 6]>> {
+        let (a, b) = (h + c * RATE_CHUNK, (h + (c + 1) * RATE_CHUNK).min(n));
+        let from = a.saturating_sub(2);
+        let tcps: Vec<Frame> = (from..(b + 1).min(n))
+            .map(|k| ctx.tcp(k, &outcomes[k].axes_deg))
+            .collect();
+        (a..b)
+            .map(|k| signs(ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some((from, &tcps)))))
+            .collect()
+    };
+    let chunks = (n - h).div_ceil(RATE_CHUNK);
+    let rates: Vec<Option<[i8; 6]>> = if options.parallel {
+        (0..chunks).into_par_iter().flat_map_iter(chunk).collect()
+    } else {
+        (0..chunks).flat_map(chunk).collect()
+    };
     let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
-    resolved.resize(all.len(), false);
-    recheck(
-        &ctx,
-        state_start,
-        h,
-        &mut outcomes,
-        &first.rates,
-        &mut resolved,
-    );
+    resolved.resize(n, false);
+    recheck(&ctx, state_start, h, &mut outcomes, &rates, &mut resolved);
     outcomes.drain(..h);
     resolved.drain(..h);
     (outcomes, resolved)
@@ -694,11 +631,7 @@ fn recheck(
             resolved[k] = true;
             n_expected += 1;
         }
-        // The first targets' arrivals depend on the history's commands (see `first_passes`).
-        let stale = k - from < LOOK_BACK
-            || resolved[k]
-            || (k >= 1 && resolved[k - 1])
-            || (k >= 2 && resolved[k - 2]);
+        let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
         let rate = if stale {
             let snapshot = |j: usize| outcomes[j].axes_deg;
             signs(ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None))
