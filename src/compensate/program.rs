@@ -297,7 +297,11 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     let target_errors = sim.unreachable + seg.target_errors.len();
     diagnostics.append(&mut seg.singular);
     diagnostics.append(&mut seg.target_errors);
-    let mut rw = rewrite::rewrite(ws, &sim, &seg.skeleton, &model.robot, None);
+    let placed = rewrite::Placed {
+        from: 0,
+        commands: &seg.skeleton_commands,
+    };
+    let mut rw = rewrite::rewrite_placed(ws, &sim, &seg.skeleton, placed, &model.robot, None);
     lap("rewrite");
     diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());

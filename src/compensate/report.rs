@@ -5,14 +5,12 @@
 use serde::Serialize;
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::kinematics::RobotDescription;
 use crate::model::Direction;
-use crate::motion::frame::{self, Frame};
-use crate::motion::nominal::{Arm, Nominal};
+use crate::motion::frame;
 use crate::motion::{self, Role, Simulation, Workspace};
 
-use super::rewrite::{self, Rewrite};
-use super::sequence::{Outcome, Resolution};
+use super::rewrite::Rewrite;
+use super::sequence::{Command, Outcome, Resolution};
 
 /// Statistics of one quantity over the targets.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
@@ -145,47 +143,25 @@ pub(super) struct Tally {
 }
 
 impl Tally {
-    /// The targets `sim.stops[first..]` with their `outcomes`; `rw` the rewrite of `sim`
-    /// when it has been made (it holds the command change of every target it wrote).
-    #[allow(clippy::too_many_arguments)]
+    /// The targets `sim.stops[first..]` with their `outcomes` and `commands`.
     pub fn add(
         &mut self,
         ws: &Workspace,
         sim: &Simulation,
         first: usize,
         outcomes: &[Outcome],
-        robot: &RobotDescription,
-        rw: Option<&Rewrite>,
+        commands: &[Command],
         points: bool,
     ) {
-        use rayon::prelude::*;
         let stops = &sim.stops[first..first + outcomes.len()];
-        let arm = Nominal(robot);
         let compensated =
             |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && stops[i].compensable;
         // Command change at the TCP, µm and mdeg.
-        let corr: Vec<(f64, f64)> = (0..outcomes.len())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|i| {
-                let (stop, o) = (&stops[i], &outcomes[i]);
-                if !o.changed {
-                    return (0.0, 0.0);
-                }
-                if let Some(c) = rw.and_then(|rw| rw.correction(first + i)) {
-                    return c;
-                }
-                let tool: &Frame = &sim.frames[stop.tool as usize];
-                rewrite::correction(
-                    &arm.tcp(&o.axes_deg, tool),
-                    &arm.tcp(&stop.nominal_axes, tool),
-                )
-            })
-            .collect();
+        let corr = |i: usize| commands[i].correction;
         if points {
             for (i, (stop, o)) in stops.iter().zip(outcomes).enumerate() {
                 self.points
-                    .push(point_report(ws, stop, o, corr[i], compensated(i)));
+                    .push(point_report(ws, stop, o, corr(i), compensated(i)));
             }
         }
         self.targets += outcomes.len();
@@ -195,9 +171,10 @@ impl Tally {
             let o = &outcomes[i];
             let (bp, br) = frame::norms(&o.before);
             let (rp, rr) = frame::norms(&o.residual);
+            let (cp, cr) = corr(i);
             let values = [
-                corr[i].0,
-                corr[i].1,
+                cp,
+                cr,
                 bp * 1e3,
                 br.to_degrees() * 1e3,
                 rp * 1e3,

@@ -23,7 +23,8 @@ use crate::motion::value::{self, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
 use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
 
 use super::edits::EditList;
-use super::sequence::Outcome;
+pub use super::sequence::correction;
+use super::sequence::{Command, Outcome};
 
 /// Fewest decimals written for millimetres and degrees.
 pub const MIN_DECIMALS_MM: usize = 3;
@@ -38,24 +39,21 @@ pub struct Rewrite {
     pub diagnostics: Vec<Diagnostic>,
     /// Declared points split into copies (original name, new names).
     pub splits: Vec<(String, Vec<String>)>,
-    /// Per stop, the command change at the TCP of a written target ([`correction`]; NaN
-    /// for the others): the report's figure, from the chain evaluation the rewrite needs.
-    pub corrections: Vec<(f64, f64)>,
 }
 
-impl Rewrite {
-    /// The command change at the TCP of stop `i`, when the rewrite wrote it.
-    pub fn correction(&self, i: usize) -> Option<(f64, f64)> {
-        self.corrections.get(i).copied().filter(|c| !c.0.is_nan())
+/// The commands the compensation placed already ([`Command`]): those of the stops
+/// `from..`; the others' are computed from their axes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Placed<'a> {
+    pub from: usize,
+    pub commands: &'a [Command],
+}
+
+impl Placed<'_> {
+    fn tcp(&self, i: usize) -> Option<&Frame> {
+        let c = self.commands.get(i.checked_sub(self.from)?)?;
+        Some(&c.tcp)
     }
-}
-
-/// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
-/// that of the controller's axes for the programmed target.
-pub fn correction(command_tcp: &Frame, nominal_tcp: &Frame) -> (f64, f64) {
-    let (cp, cr) =
-        crate::motion::frame::norms(&crate::motion::frame::error(command_tcp, nominal_tcp));
-    (cp * 1e3, cr.to_degrees() * 1e3)
 }
 
 /// The edits of one target's aggregate: replacements of member values and insertions of
@@ -454,6 +452,18 @@ pub fn rewrite(
     robot: &crate::kinematics::RobotDescription,
     separator: Option<&[u8]>,
 ) -> Rewrite {
+    rewrite_placed(ws, sim, outcomes, Placed::default(), robot, separator)
+}
+
+/// [`rewrite`] with the commands the compensation placed (their TCPs are not computed again).
+pub fn rewrite_placed(
+    ws: &Workspace,
+    sim: &Simulation,
+    outcomes: &[Outcome],
+    placed: Placed,
+    robot: &crate::kinematics::RobotDescription,
+    separator: Option<&[u8]>,
+) -> Rewrite {
     let mut out = Rewrite::default();
     // Each compensated target's edits, in parallel.
     /// Why a target's numbers cannot be written (the diagnostic is built afterwards: a
@@ -463,23 +473,16 @@ pub fn rewrite(
         NotLiteral(usize),
     }
     // One target's edits appended to a list: `None` for a target not to be written.
-    // One target's edits appended to a list (its correction to `corr`): `None` for a
-    // target not to be written.
-    type Corrections = Vec<(u32, (f64, f64))>;
-    let edits_into =
-        |i: usize, list: &mut EditList, corr: &mut Corrections| -> Option<Result<(), Skip>> {
+    let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
             let (stop, o) = (&sim.stops[i], &outcomes[i]);
             let origin = stop.origin?;
             if !stop.compensable || !o.changed || o.error.is_some() {
                 return None;
             }
-            let tool = &sim.frames[stop.tool as usize];
-            let arm = Nominal(robot);
-            let command_tcp = arm.tcp(&o.axes_deg, tool);
-            corr.push((
-                i as u32,
-                correction(&command_tcp, &arm.tcp(&stop.nominal_axes, tool)),
-            ));
+            let command_tcp = match placed.tcp(i) {
+                Some(tcp) => *tcp,
+                None => Nominal(robot).tcp(&o.axes_deg, &sim.frames[stop.tool as usize]),
+            };
             let file = &ws.get(origin.file).file;
             let present = components(file, origin.agg, stop.axis);
             let original = present.map(|c| c.and_then(|c| c.value));
@@ -512,10 +515,10 @@ pub fn rewrite(
                 Err(Skip::NotLiteral(i))
             })
         };
-    let per_stop = |i: usize, corr: &mut Corrections| -> Option<Result<Use, Skip>> {
+    let per_stop = |i: usize| -> Option<Result<Use, Skip>> {
         let mut list = EditList::new();
         let stop = &sim.stops[i];
-        edits_into(i, &mut list, corr).map(|r| {
+        edits_into(i, &mut list).map(|r| {
             r.map(|()| Use {
                 stop: i,
                 edits: list.to_edits(),
@@ -567,46 +570,37 @@ pub fn rewrite(
     };
     // Fast path, in parallel: the edits straight into one list per file.
     // (Keys are sorted by file: a chunk's edits are runs of one file each.)
-    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>, Corrections);
+    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>);
     let single: Vec<Chunk> = (0..keys.len())
         .into_par_iter()
         .with_min_len(1024)
         .filter(|&k| !shared(k))
         .fold(
-            || (Vec::new(), Vec::new(), Vec::new()),
-            |(mut edits, mut skips, mut corr): Chunk, k| {
+            || (Vec::new(), Vec::new()),
+            |(mut edits, mut skips): Chunk, k| {
                 let file = keys[k].0;
                 if edits.last().map_or(true, |(f, _)| *f != file) {
                     edits.push((file, EditList::new()));
                 }
                 let list = &mut edits.last_mut().expect("pushed").1;
-                if let Some(Err(s)) = edits_into(keys[k].2 as usize, list, &mut corr) {
+                if let Some(Err(s)) = edits_into(keys[k].2 as usize, list) {
                     skips.push(s);
                 }
-                (edits, skips, corr)
+                (edits, skips)
             },
         )
         .collect();
     // Joined by moving each chunk's segment (see `EditList::append`), not copying.
-    out.corrections = vec![(f64::NAN, f64::NAN); sim.stops.len()];
-    for (edits, s, corr) in single {
+    for (edits, s) in single {
         for (file, mut list) in edits {
             out.edits.entry(file).or_default().append(&mut list);
         }
         skips.extend(s);
-        for (i, c) in corr {
-            out.corrections[i as usize] = c;
-        }
     }
     // Shared origins, grouped, in execution order.
     let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
     for k in (0..keys.len()).filter(|&k| shared(k)) {
-        let mut corr = Vec::new();
-        let used = per_stop(keys[k].2 as usize, &mut corr);
-        for (i, c) in corr {
-            out.corrections[i as usize] = c;
-        }
-        match used {
+        match per_stop(keys[k].2 as usize) {
             Some(Ok(u)) => {
                 let key = (keys[k].0, keys[k].1);
                 match uses.last_mut() {
