@@ -327,19 +327,19 @@ fn aggregate_edits(
     true
 }
 
-/// Whether a literal is written plainly: `-?digits[.digits]` (no exponent, sign `+` or leading
-/// dot), the style of nearly every program; those are formatted here without allocation
-/// beyond the result, the others by `format_like`.
-fn plain_literal(text: &[u8]) -> bool {
+/// The decimals of a literal written plainly: `-?digits[.digits]` (no exponent, sign `+` or
+/// leading dot), the style of nearly every program; those are formatted here without
+/// allocation beyond the result, the others (`None`) by `format_like`.
+fn plain_decimals(text: &[u8]) -> Option<usize> {
     let body = text.strip_prefix(b"-").unwrap_or(text);
     let int = body.iter().take_while(|b| b.is_ascii_digit()).count();
     if int == 0 {
-        return false;
+        return None;
     }
     match &body[int..] {
-        [] => true,
-        [b'.', rest @ ..] => rest.iter().all(u8::is_ascii_digit),
-        _ => false,
+        [] => Some(0),
+        [b'.', rest @ ..] => rest.iter().all(u8::is_ascii_digit).then_some(rest.len()),
+        _ => None,
     }
 }
 
@@ -353,16 +353,28 @@ fn units(value: f64, decimals: usize) -> Option<i64> {
 /// Appends the plain literal of `units` at `decimals` (`-0.000` written `0.000`): digits by
 /// integer division into a stack buffer, no formatting machinery.
 fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
+    // Two digits per division, from a table of the pairs 00..99.
+    const PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
+        2021222324252627282930313233343536373839\
+        4041424344454647484950515253545556575859\
+        6061626364656667686970717273747576777879\
+        8081828384858687888990919293949596979899";
     let mut buf = [0u8; 20];
     let mut at = buf.len();
     let mut n = units.unsigned_abs();
-    loop {
+    while n >= 100 {
+        let pair = (n % 100) as usize * 2;
+        n /= 100;
+        at -= 2;
+        buf[at..at + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
+    }
+    if n >= 10 {
+        let pair = n as usize * 2;
+        at -= 2;
+        buf[at..at + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
+    } else {
         at -= 1;
-        buf[at] = b'0' + (n % 10) as u8;
-        n /= 10;
-        if n == 0 {
-            break;
-        }
+        buf[at] = b'0' + n as u8;
     }
     let digits = &buf[at..];
     if units < 0 {
@@ -392,8 +404,8 @@ fn plain_text(units: i64, decimals: usize) -> String {
 /// Appends to `out` the new text of a literal `orig_text` (value `orig`) for `value`; false
 /// (nothing appended) when the written number would not change.
 fn replacement(orig_text: &[u8], orig: f64, value: f64, min: usize, out: &mut Vec<u8>) -> bool {
-    let decimals = literal_decimals(orig_text).max(min);
-    if plain_literal(orig_text) {
+    if let Some(own) = plain_decimals(orig_text) {
+        let decimals = own.max(min);
         if let (Some(new), Some(old)) = (units(value, decimals), units(orig, decimals)) {
             if new == old {
                 return false;
