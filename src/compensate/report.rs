@@ -153,33 +153,47 @@ impl Tally {
         commands: &[Command],
         points: bool,
     ) {
+        use rayon::prelude::*;
         let stops = &sim.stops[first..first + outcomes.len()];
         let compensated =
             |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && stops[i].compensable;
         // Command change at the TCP, µm and mdeg.
         let corr = |i: usize| commands[i].correction;
         if points {
-            for (i, (stop, o)) in stops.iter().zip(outcomes).enumerate() {
-                self.points
-                    .push(point_report(ws, stop, o, corr(i), compensated(i)));
-            }
+            let mut listed = Vec::new();
+            (0..outcomes.len())
+                .into_par_iter()
+                .with_min_len(512)
+                .map(|i| point_report(ws, &stops[i], &outcomes[i], corr(i), compensated(i)))
+                .collect_into_vec(&mut listed);
+            self.points.append(&mut listed);
         }
+        // Each target's figures in parallel; summed in execution order (the means are
+        // those of one sequential sum).
+        let figures: Vec<Option<[f64; 6]>> = (0..outcomes.len())
+            .into_par_iter()
+            .with_min_len(512)
+            .map(|i| {
+                let o = &outcomes[i];
+                compensated(i).then(|| {
+                    let (bp, br) = frame::norms(&o.before);
+                    let (rp, rr) = frame::norms(&o.residual);
+                    let (cp, cr) = corr(i);
+                    [
+                        cp,
+                        cr,
+                        bp * 1e3,
+                        br.to_degrees() * 1e3,
+                        rp * 1e3,
+                        rr.to_degrees() * 1e3,
+                    ]
+                })
+            })
+            .collect();
         self.targets += outcomes.len();
         self.rejected += outcomes.iter().filter(|o| o.error.is_some()).count();
-        for i in (0..outcomes.len()).filter(|&i| compensated(i)) {
+        for values in figures.into_iter().flatten() {
             self.compensated += 1;
-            let o = &outcomes[i];
-            let (bp, br) = frame::norms(&o.before);
-            let (rp, rr) = frame::norms(&o.residual);
-            let (cp, cr) = corr(i);
-            let values = [
-                cp,
-                cr,
-                bp * 1e3,
-                br.to_degrees() * 1e3,
-                rp * 1e3,
-                rr.to_degrees() * 1e3,
-            ];
             for (f, v) in self.figures.iter_mut().zip(values) {
                 f.add(v);
             }

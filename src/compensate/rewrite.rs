@@ -543,7 +543,7 @@ pub fn rewrite_placed(
     // keys; an origin used once (every target of a CAM program) takes the fast path.
     let mut keys: Vec<(FileId, u32, u32)> = (0..sim.stops.len())
         .into_par_iter()
-        .with_min_len(4096)
+        .with_min_len(1024)
         .filter_map(|i| {
             let (stop, o) = (&sim.stops[i], &outcomes[i]);
             let origin = stop.origin?;

@@ -120,11 +120,11 @@ impl<'a> Segments<'a> {
         use rayon::prelude::*;
         let robot = &self.model.robot;
         let stops = &sim.stops[first..];
-        // The singularity test of every stop in parallel (a million cost 0.2 s alone), the
-        // warnings in program order.
+        // The singularity test of every stop in parallel (a million cost 0.2 s alone; a
+        // window's in a few parts, not on the calling thread), the warnings in program order.
         let singular: Vec<Option<crate::kinematics::Singularity>> = stops
             .par_iter()
-            .with_min_len(4096)
+            .with_min_len(1024)
             .map(|stop| {
                 stop.compensable
                     .then(|| crate::kinematics::singularity(robot, &stop.nominal_axes))
