@@ -24,7 +24,7 @@ use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
 
 use super::edits::EditList;
 pub use super::sequence::correction;
-use super::sequence::{Command, Outcome};
+use super::sequence::{self, Command, Outcome};
 
 /// Fewest decimals written for millimetres and degrees.
 pub const MIN_DECIMALS_MM: usize = 3;
@@ -346,48 +346,61 @@ fn plain_decimals(text: &[u8]) -> Option<usize> {
 /// `value` rounded to `decimals` as an integer count of units, the way the compensation's
 /// direction check rounds commands (`sequence::Quantum`).
 fn units(value: f64, decimals: usize) -> Option<i64> {
-    let scaled = (value * 10f64.powi(decimals as i32)).round();
+    let scaled = (value * sequence::ten_to(decimals)).round();
     (scaled.abs() < 9.0e15).then_some(scaled as i64)
 }
 
 /// Appends the plain literal of `units` at `decimals` (`-0.000` written `0.000`): digits by
-/// integer division into a stack buffer, no formatting machinery.
+/// integer division into a stack buffer, appended at once, no formatting machinery.
 fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
-    // Two digits per division, from a table of the pairs 00..99.
-    const PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
-        2021222324252627282930313233343536373839\
-        4041424344454647484950515253545556575859\
-        6061626364656667686970717273747576777879\
-        8081828384858687888990919293949596979899";
-    let mut buf = [0u8; 20];
+    /// Fraction digits the buffer takes (10^18 < 2^64); more go the long way.
+    const MAX_DECIMALS: usize = 18;
+    if decimals > MAX_DECIMALS {
+        return write_plain_long(units, decimals, out);
+    }
+    // Sign, 20 integer digits, dot, fraction; the fraction's leading zeros are there already.
+    let mut buf = [b'0'; 40];
     let mut at = buf.len();
-    let mut n = units.unsigned_abs();
-    while n >= 100 {
-        let pair = (n % 100) as usize * 2;
-        n /= 100;
-        at -= 2;
-        buf[at..at + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
+    let n = units.unsigned_abs();
+    let unit = 10u64.pow(decimals as u32);
+    let (mut int, mut frac) = (n / unit, n % unit);
+    if decimals > 0 {
+        let dot = at - decimals - 1;
+        while frac > 0 {
+            at -= 1;
+            buf[at] = b'0' + (frac % 10) as u8;
+            frac /= 10;
+        }
+        at = dot;
+        buf[at] = b'.';
     }
-    if n >= 10 {
-        let pair = n as usize * 2;
-        at -= 2;
-        buf[at..at + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
-    } else {
+    loop {
         at -= 1;
-        buf[at] = b'0' + n as u8;
+        buf[at] = b'0' + (int % 10) as u8;
+        int /= 10;
+        if int == 0 {
+            break;
+        }
     }
-    let digits = &buf[at..];
+    if units < 0 {
+        at -= 1;
+        buf[at] = b'-';
+    }
+    out.extend_from_slice(&buf[at..]);
+}
+
+/// [`write_plain`] for any number of decimals.
+fn write_plain_long(units: i64, decimals: usize, out: &mut Vec<u8>) {
+    let digits = units.unsigned_abs().to_string();
     if units < 0 {
         out.push(b'-');
     }
-    if decimals == 0 {
-        out.extend_from_slice(digits);
-    } else if digits.len() <= decimals {
+    if digits.len() <= decimals {
         out.extend_from_slice(b"0.");
         out.resize(out.len() + decimals - digits.len(), b'0');
-        out.extend_from_slice(digits);
+        out.extend_from_slice(digits.as_bytes());
     } else {
-        let (int, frac) = digits.split_at(digits.len() - decimals);
+        let (int, frac) = digits.as_bytes().split_at(digits.len() - decimals);
         out.extend_from_slice(int);
         out.push(b'.');
         out.extend_from_slice(frac);
@@ -970,7 +983,7 @@ mod tests {
 
     proptest! {
         #[test]
-        fn digit_writer_matches_format(units in any::<i64>(), decimals in 0usize..14) {
+        fn digit_writer_matches_format(units in any::<i64>(), decimals in 0usize..30) {
             prop_assert_eq!(plain_text(units, decimals), plain_by_format(units, decimals));
         }
 
@@ -1010,5 +1023,8 @@ mod tests {
         assert_eq!(plain_text(-1234500, 4), "-123.4500");
         assert_eq!(plain_text(7, 0), "7");
         assert_eq!(plain_text(i64::MIN, 2), "-92233720368547758.08");
+        assert_eq!(plain_text(-12, 18), "-0.000000000000000012");
+        assert_eq!(plain_text(12, 20), "0.00000000000000000012");
+        assert_eq!(plain_text(i64::MAX, 18), "9.223372036854775807");
     }
 }
