@@ -232,11 +232,17 @@ fn arrive_signs(before: &[Direction; 6], v: Option<[i8; 6]>) -> [Direction; 6] {
 
 /// Directions of the nominal motion at every target, from the directions before the first.
 pub fn nominal_directions(targets: &[Target], start: [Direction; 6]) -> Vec<[Direction; 6]> {
+    let signs: Vec<Option<[i8; 6]>> = targets.iter().map(|t| signs(t.arrival)).collect();
+    directions_after(&signs, start)
+}
+
+/// The direction states after arriving with motions of `signs` one after another.
+fn directions_after(signs: &[Option<[i8; 6]>], start: [Direction; 6]) -> Vec<[Direction; 6]> {
     let mut state = start;
-    targets
+    signs
         .iter()
-        .map(|t| {
-            state = arrive(&state, t.arrival);
+        .map(|&v| {
+            state = arrive_signs(&state, v);
             state
         })
         .collect()
@@ -328,7 +334,18 @@ pub fn compensate_after(
         Some(c) => (c.outcome.nominal_directions, c.outcome.directions),
         None => (start, start),
     };
-    let nominal = nominal_directions(targets, nominal_start);
+    // The nominal motions' signs in parallel (the re-check needs them again), their
+    // directions in order.
+    let nominal_signs: Vec<Option<[i8; 6]>> = if options.parallel {
+        targets
+            .par_iter()
+            .with_min_len(1024)
+            .map(|t| signs(t.arrival))
+            .collect()
+    } else {
+        targets.iter().map(|t| signs(t.arrival)).collect()
+    };
+    let nominal = directions_after(&nominal_signs, nominal_start);
     let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
     let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
     outcomes.extend(history.iter().map(|c| c.outcome));
@@ -385,7 +402,14 @@ pub fn compensate_after(
     };
     let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
     resolved.resize(n, false);
-    recheck(&ctx, state_start, h, &mut outcomes, &rates, &mut resolved);
+    recheck(
+        &ctx,
+        state_start,
+        h,
+        &mut outcomes,
+        (&nominal_signs, &rates),
+        &mut resolved,
+    );
     // The commands' changes at the TCP, the command of a target the re-check re-solved anew.
     let arm = Nominal(&model.robot);
     let command = |(i, tcp): (usize, Frame)| {
@@ -733,14 +757,14 @@ impl Ctx<'_> {
 
 /// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
 /// they were solved with. `rates[k]` is the arrival motion's signs at k with the first-pass
-/// commands; it is recomputed when a command it depends on changed since.
-/// Targets before `from` are settled (history); `rates[k - from]`.
+/// commands; it is recomputed when a command it depends on changed since; `nominal[k]` the
+/// nominal motion's. Targets before `from` are settled (history); `rates[k - from]`.
 fn recheck(
     ctx: &Ctx,
     start: [Direction; 6],
     from: usize,
     outcomes: &mut [Outcome],
-    rates: &[Option<[i8; 6]>],
+    (nominal, rates): (&[Option<[i8; 6]>], &[Option<[i8; 6]>]),
     resolved: &mut [bool],
 ) {
     let mut state = start;
@@ -751,7 +775,7 @@ fn recheck(
         let fixed = !target.compensate || outcomes[k].error.is_some();
         // The nominal motion's signs, but resting axes keep the *compensated* state: after an
         // earlier flip this differs from the nominal directions the first pass assumed.
-        let expected = arrive(&state, target.arrival);
+        let expected = arrive_signs(&state, nominal[k - from]);
         if expected != outcomes[k].directions && !fixed {
             let mut o = first_pass(ctx.model, ctx.tools, target, &expected, ctx.method);
             o.nominal_directions = outcomes[k].nominal_directions;
