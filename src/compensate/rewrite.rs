@@ -499,47 +499,47 @@ pub fn rewrite_placed(
     }
     // One target's edits appended to a list: `None` for a target not to be written.
     let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
-            let (stop, o) = (&sim.stops[i], &outcomes[i]);
-            let origin = stop.origin?;
-            if !stop.compensable || !o.changed || o.error.is_some() {
-                return None;
-            }
-            let command_tcp = match placed.tcp(i) {
-                Some(tcp) => *tcp,
-                None => Nominal(robot).tcp(&o.axes_deg, &sim.frames[stop.tool as usize]),
-            };
-            let file = &ws.get(origin.file).file;
-            let present = components(file, origin.agg, stop.axis);
-            let original = present.map(|c| c.and_then(|c| c.value));
-            let Some(values) = new_values(
-                sim,
-                outcomes,
-                stop,
-                &o.axes_deg,
-                &command_tcp,
-                &original,
-                robot,
-            ) else {
-                return Some(Err(Skip::Relative(i)));
-            };
-            let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
-            let written = aggregate_edits(
-                file,
-                origin.agg,
-                stop.axis,
-                &present,
-                &values,
-                write,
-                stop.rel.is_some(),
-                list,
-                separator,
-            );
-            Some(if written {
-                Ok(())
-            } else {
-                Err(Skip::NotLiteral(i))
-            })
+        let (stop, o) = (&sim.stops[i], &outcomes[i]);
+        let origin = stop.origin?;
+        if !stop.compensable || !o.changed || o.error.is_some() {
+            return None;
+        }
+        let command_tcp = match placed.tcp(i) {
+            Some(tcp) => *tcp,
+            None => Nominal(robot).tcp(&o.axes_deg, &sim.frames[stop.tool as usize]),
         };
+        let file = &ws.get(origin.file).file;
+        let present = components(file, origin.agg, stop.axis);
+        let original = present.map(|c| c.and_then(|c| c.value));
+        let Some(values) = new_values(
+            sim,
+            outcomes,
+            stop,
+            &o.axes_deg,
+            &command_tcp,
+            &original,
+            robot,
+        ) else {
+            return Some(Err(Skip::Relative(i)));
+        };
+        let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
+        let written = aggregate_edits(
+            file,
+            origin.agg,
+            stop.axis,
+            &present,
+            &values,
+            write,
+            stop.rel.is_some(),
+            list,
+            separator,
+        );
+        Some(if written {
+            Ok(())
+        } else {
+            Err(Skip::NotLiteral(i))
+        })
+    };
     let per_stop = |i: usize| -> Option<Result<Use, Skip>> {
         let mut list = EditList::new();
         let stop = &sim.stops[i];

@@ -196,14 +196,8 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
             commands: &part.done.commands,
         };
         let robot = &seg.model.robot;
-        let mut rw = rewrite::rewrite_placed(
-            ws,
-            sim,
-            part.outcomes(),
-            placed,
-            robot,
-            Some(separator),
-        );
+        let mut rw =
+            rewrite::rewrite_placed(ws, sim, part.outcomes(), placed, robot, Some(separator));
         let points = seg.options.points;
         seg.tally.add(
             ws,

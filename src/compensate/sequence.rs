@@ -80,8 +80,8 @@ fn round_to(v: f64, decimals: u8) -> f64 {
 /// 2^53: every power up to it is a double, and so is every product `powi` forms on the way).
 pub(super) fn ten_to(decimals: usize) -> f64 {
     const TABLE: [f64; 23] = [
-        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
-        1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+        1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
     ];
     match TABLE.get(decimals) {
         Some(&p) => p,
@@ -308,8 +308,7 @@ pub fn compensate(
     start: [Direction; 6],
     options: &Options,
 ) -> Vec<Outcome> {
-    compensate_after(model, tools, &[], targets, start, options)
-        .outcomes
+    compensate_after(model, tools, &[], targets, start, options).outcomes
 }
 
 /// How far back the re-check of a target looks: its arrival depends on the commands of the
@@ -624,7 +623,9 @@ impl Ctx<'_> {
 
     /// The TCP commanded at target `k` with `axes`, as written (rounded) when it is written.
     fn tcp(&self, k: usize, axes: &[f64; 6]) -> Frame {
-        self.written(k, axes, || Nominal(&self.model.robot).tcp(axes, self.tool(k)))
+        self.written(k, axes, || {
+            Nominal(&self.model.robot).tcp(axes, self.tool(k))
+        })
     }
 
     /// [`Self::tcp`] given the unrounded TCP of `axes`, `raw` (not called for axis commands:
@@ -742,7 +743,9 @@ impl Ctx<'_> {
         let j = match jacobian {
             Some(j) => j,
             None => {
-                computed = Nominal(&self.model.robot).tcp_jacobian(axes, self.tool(k)).1;
+                computed = Nominal(&self.model.robot)
+                    .tcp_jacobian(axes, self.tool(k))
+                    .1;
                 &computed
             }
         };
