@@ -199,8 +199,11 @@ pub struct Options {
 /// Targets per chunk of the parallel arrival-rate pass.
 const RATE_CHUNK: usize = 1024;
 
+/// The signs of an arrival motion ([`signs`]); `None` when it comes from an unknown place.
+type Signs = Option<[i8; 6]>;
+
 /// What the direction logic uses of an arrival motion: per axis −1, +1, or 0 at rest.
-fn signs(v: Option<[f64; 6]>) -> Option<[i8; 6]> {
+fn signs(v: Option<[f64; 6]>) -> Signs {
     v.map(|v| {
         v.map(|x| {
             if x.abs() < REST_DEG {
@@ -220,7 +223,7 @@ fn arrive(before: &[Direction; 6], v: Option<[f64; 6]>) -> [Direction; 6] {
 }
 
 /// [`arrive`] from the motion's [`signs`].
-fn arrive_signs(before: &[Direction; 6], v: Option<[i8; 6]>) -> [Direction; 6] {
+fn arrive_signs(before: &[Direction; 6], v: Signs) -> [Direction; 6] {
     match v {
         None => [Direction::Unknown; 6],
         Some(v) => std::array::from_fn(|i| match v[i] {
@@ -232,12 +235,12 @@ fn arrive_signs(before: &[Direction; 6], v: Option<[i8; 6]>) -> [Direction; 6] {
 
 /// Directions of the nominal motion at every target, from the directions before the first.
 pub fn nominal_directions(targets: &[Target], start: [Direction; 6]) -> Vec<[Direction; 6]> {
-    let signs: Vec<Option<[i8; 6]>> = targets.iter().map(|t| signs(t.arrival)).collect();
+    let signs: Vec<Signs> = targets.iter().map(|t| signs(t.arrival)).collect();
     directions_after(&signs, start)
 }
 
 /// The direction states after arriving with motions of `signs` one after another.
-fn directions_after(signs: &[Option<[i8; 6]>], start: [Direction; 6]) -> Vec<[Direction; 6]> {
+fn directions_after(signs: &[Signs], start: [Direction; 6]) -> Vec<[Direction; 6]> {
     let mut state = start;
     signs
         .iter()
@@ -335,7 +338,7 @@ pub fn compensate_after(
     };
     // The nominal motions' signs in parallel (the re-check needs them again), their
     // directions in order.
-    let nominal_signs: Vec<Option<[i8; 6]>> = if options.parallel {
+    let nominal_signs: Vec<Signs> = if options.parallel {
         targets
             .par_iter()
             .with_min_len(1024)
@@ -372,7 +375,7 @@ pub fn compensate_after(
     // (kept for the rewrite) and, for a Cartesian arrival, its Jacobian.
     let cmd = |j: usize| outcomes[j].axes_deg;
     let n = h + targets.len();
-    let chunk = |c: usize| -> Vec<(Option<[i8; 6]>, Frame)> {
+    let chunk = |c: usize| -> Vec<(Signs, Frame)> {
         let (a, b) = (h + c * RATE_CHUNK, (h + (c + 1) * RATE_CHUNK).min(n));
         let from = a.saturating_sub(2);
         let forward: Vec<(Frame, Option<Matrix6<f64>>)> = (a..b)
@@ -394,7 +397,7 @@ pub fn compensate_after(
             .collect()
     };
     let chunks = targets.len().div_ceil(RATE_CHUNK);
-    let (rates, tcps): (Vec<Option<[i8; 6]>>, Vec<Frame>) = if options.parallel {
+    let (rates, tcps): (Vec<Signs>, Vec<Frame>) = if options.parallel {
         (0..chunks).into_par_iter().flat_map_iter(chunk).unzip()
     } else {
         (0..chunks).flat_map(chunk).unzip()
@@ -767,7 +770,7 @@ fn recheck(
     start: [Direction; 6],
     from: usize,
     outcomes: &mut [Outcome],
-    (nominal, rates): (&[Option<[i8; 6]>], &[Option<[i8; 6]>]),
+    (nominal, rates): (&[Signs], &[Signs]),
     resolved: &mut [bool],
 ) {
     let mut state = start;
