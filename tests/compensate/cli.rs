@@ -256,10 +256,11 @@ fn a_compensated_program_is_refused_naming_the_header_line() {
     let once = dir.path().join("once/p2.src");
     let st = main_job(&input, CAL, &once);
     assert_eq!(st.status.code(), Some(0));
-    // The header in lower case is still the header (the mark is compared ignoring case).
-    let text = std::fs::read_to_string(&once)
-        .unwrap()
-        .replace("; robopost: compensated with", "; ROBOPOST: Compensated with");
+    // The header in another case is still the header (the mark is compared ignoring case).
+    let text = std::fs::read_to_string(&once).unwrap().replace(
+        "; robopost: compensated with",
+        "; ROBOPOST: Compensated with",
+    );
     std::fs::write(&once, &text).unwrap();
     let line = 1 + text
         .lines()
