@@ -197,17 +197,21 @@ impl EditList {
         if let Some(e) = self.pieces().find_map(|(_, p)| out_of_bounds(p.range())) {
             return Err(e);
         }
+        if !self.in_order() {
+            return self.apply_in(source, 0..source.len(), Some(first));
+        }
+        self.apply_in_order(source, first)
+    }
+
+    /// Whether the edits were made in the order a stable sort by position would put them.
+    fn in_order(&self) -> bool {
         let mut keys = self.pieces().map(|(_, p)| p.key());
-        let in_order = match keys.next() {
+        match keys.next() {
             Some(k0) => keys
                 .try_fold(k0, |prev, k| (prev <= k).then_some(k))
                 .is_some(),
             None => true,
-        };
-        if !in_order {
-            return self.apply_in(source, 0..source.len(), Some(first));
         }
-        self.apply_in_order(source, first)
     }
 
     /// The bytes `within` of `source` with the edits inside them applied (and `first`, as in
@@ -215,6 +219,19 @@ impl EditList {
     /// across the bounds is an error. An insertion at the end of `within` belongs to the
     /// bytes after it (unless they end the source).
     pub fn apply_in(
+        &self,
+        source: &[u8],
+        within: Range<usize>,
+        first: Option<&Edit>,
+    ) -> Result<Vec<u8>, EditError> {
+        if first.is_none() && self.in_order() {
+            return self.apply_in_ordered(source, within);
+        }
+        self.apply_in_sorted(source, within, first)
+    }
+
+    /// [`Self::apply_in`] of edits in any order: gathered and sorted.
+    fn apply_in_sorted(
         &self,
         source: &[u8],
         within: Range<usize>,
@@ -264,6 +281,59 @@ impl EditList {
             out.extend_from_slice(&source[at..r.start]);
             out.extend_from_slice(bytes);
             at = r.end;
+        }
+        out.extend_from_slice(&source[at..within.end]);
+        Ok(out)
+    }
+
+    /// [`Self::apply_in`] without `first` for edits already in order (a streamed window's):
+    /// the same checks in the same order — bounds of every edit first, then overlaps — and
+    /// the output written straight from the pieces, with no list to gather and sort.
+    fn apply_in_ordered(&self, source: &[u8], within: Range<usize>) -> Result<Vec<u8>, EditError> {
+        let inside = |r: &Range<usize>| {
+            within.start <= r.start
+                && r.end <= within.end
+                && !(r.is_empty() && r.start == within.end && within.end < source.len())
+        };
+        let (mut removed, mut added) = (0, 0);
+        for (s, p) in self.pieces() {
+            let r = p.range();
+            if r.start > r.end || r.end > source.len() {
+                return Err(EditError::OutOfBounds {
+                    range: r,
+                    len: source.len(),
+                });
+            }
+            if inside(&r) {
+                removed += r.len();
+                added += s.bytes(p).len();
+            } else if (r.start < within.start && r.end > within.start)
+                || (r.start < within.end && r.end > within.end)
+            {
+                return Err(EditError::OutOfBounds {
+                    range: r,
+                    len: within.end,
+                });
+            }
+        }
+        let mut out = Vec::with_capacity(within.len() - removed + added);
+        let mut at = within.start;
+        let mut last: Option<Range<usize>> = None;
+        for (s, p) in self.pieces() {
+            let r = p.range();
+            if !inside(&r) {
+                continue;
+            }
+            if let Some(l) = last.filter(|l| r.start < l.end) {
+                return Err(EditError::Overlap {
+                    first: l,
+                    second: r,
+                });
+            }
+            out.extend_from_slice(&source[at..r.start]);
+            out.extend_from_slice(s.bytes(p));
+            at = r.end;
+            last = Some(r);
         }
         out.extend_from_slice(&source[at..within.end]);
         Ok(out)
@@ -487,6 +557,40 @@ mod tests {
             let mut all = vec![first.clone()];
             all.extend(edits);
             prop_assert_eq!(a.apply(src.as_bytes(), &first), crate::krl::apply(src.as_bytes(), &all));
+        }
+    }
+
+    proptest! {
+        /// A stretch of edits made in order (or not), without `first`: the streamed path of
+        /// `apply_in` gives what gathering and sorting gives, errors included.
+        #[test]
+        fn ordered_stretch_applies_like_sorted(
+            src in "[a-z]{1,40}",
+            steps in proptest::collection::vec((-2i64..4, 0usize..3, "[A-Z]{0,3}"), 0..14),
+            shuffle in any::<bool>(),
+            bounds in (0usize..44, 0usize..44),
+        ) {
+            let n = src.len();
+            let mut at = 0usize;
+            let mut edits = Vec::new();
+            for (gap, len, text) in &steps {
+                // A step back now and then (an overlap), past the end too (out of bounds).
+                at = (at as i64 + gap).max(0) as usize;
+                edits.push(edit(at, at + len, text));
+                at += len;
+            }
+            if shuffle {
+                edits.reverse();
+            }
+            let mut list = EditList::new();
+            for e in &edits {
+                list.push(e.clone());
+            }
+            let (a, b) = (bounds.0.min(bounds.1).min(n), bounds.0.max(bounds.1).min(n));
+            prop_assert_eq!(
+                list.apply_in(src.as_bytes(), a..b, None),
+                list.apply_in_sorted(src.as_bytes(), a..b, None)
+            );
         }
     }
 

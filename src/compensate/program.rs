@@ -119,16 +119,12 @@ fn already_compensated(file: &krl::SourceFile) -> Option<usize> {
     let src = file.source();
     let mark = HEADER_MARK.as_bytes();
     // The mark starts with `;`: compare only there (a whole-file window scan costs 0.1 s on a
-    // 70 MB program).
-    src.iter()
-        .enumerate()
-        .filter(|&(_, &b)| b == b';')
-        .map(|(i, _)| i)
-        .find(|&i| {
-            src[i..]
-                .get(..mark.len())
-                .is_some_and(|w| w.eq_ignore_ascii_case(mark))
-        })
+    // 70 MB program, a byte loop to find them 40 ms).
+    memchr::memchr_iter(b';', src).find(|&i| {
+        src[i..]
+            .get(..mark.len())
+            .is_some_and(|w| w.eq_ignore_ascii_case(mark))
+    })
 }
 
 /// The header comment line and where it goes: after the `&ACCESS`-style directives.
@@ -297,7 +293,11 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     let target_errors = sim.unreachable + seg.target_errors.len();
     diagnostics.append(&mut seg.singular);
     diagnostics.append(&mut seg.target_errors);
-    let mut rw = rewrite::rewrite(ws, &sim, &seg.skeleton, &model.robot, None);
+    let placed = rewrite::Placed {
+        from: 0,
+        commands: &seg.skeleton_commands,
+    };
+    let mut rw = rewrite::rewrite_placed(ws, &sim, &seg.skeleton, placed, &model.robot, None);
     lap("rewrite");
     diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());

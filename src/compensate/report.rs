@@ -5,14 +5,12 @@
 use serde::Serialize;
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::kinematics::RobotDescription;
 use crate::model::Direction;
-use crate::motion::frame::{self, Frame};
-use crate::motion::nominal::{Arm, Nominal};
+use crate::motion::frame;
 use crate::motion::{self, Role, Simulation, Workspace};
 
-use super::rewrite::{self, Rewrite};
-use super::sequence::{Outcome, Resolution};
+use super::rewrite::Rewrite;
+use super::sequence::{Command, Outcome, Resolution};
 
 /// Statistics of one quantity over the targets.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
@@ -145,64 +143,57 @@ pub(super) struct Tally {
 }
 
 impl Tally {
-    /// The targets `sim.stops[first..]` with their `outcomes`; `rw` the rewrite of `sim`
-    /// when it has been made (it holds the command change of every target it wrote).
-    #[allow(clippy::too_many_arguments)]
+    /// The targets `sim.stops[first..]` with their `outcomes` and `commands`.
     pub fn add(
         &mut self,
         ws: &Workspace,
         sim: &Simulation,
         first: usize,
         outcomes: &[Outcome],
-        robot: &RobotDescription,
-        rw: Option<&Rewrite>,
+        commands: &[Command],
         points: bool,
     ) {
         use rayon::prelude::*;
         let stops = &sim.stops[first..first + outcomes.len()];
-        let arm = Nominal(robot);
         let compensated =
             |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && stops[i].compensable;
         // Command change at the TCP, µm and mdeg.
-        let corr: Vec<(f64, f64)> = (0..outcomes.len())
+        let corr = |i: usize| commands[i].correction;
+        if points {
+            let mut listed = Vec::new();
+            (0..outcomes.len())
+                .into_par_iter()
+                .with_min_len(512)
+                .map(|i| point_report(ws, &stops[i], &outcomes[i], corr(i), compensated(i)))
+                .collect_into_vec(&mut listed);
+            self.points.append(&mut listed);
+        }
+        // Each target's figures in parallel; summed in execution order (the means are
+        // those of one sequential sum).
+        let figures: Vec<Option<[f64; 6]>> = (0..outcomes.len())
             .into_par_iter()
-            .with_min_len(4096)
+            .with_min_len(512)
             .map(|i| {
-                let (stop, o) = (&stops[i], &outcomes[i]);
-                if !o.changed {
-                    return (0.0, 0.0);
-                }
-                if let Some(c) = rw.and_then(|rw| rw.correction(first + i)) {
-                    return c;
-                }
-                let tool: &Frame = &sim.frames[stop.tool as usize];
-                rewrite::correction(
-                    &arm.tcp(&o.axes_deg, tool),
-                    &arm.tcp(&stop.nominal_axes, tool),
-                )
+                let o = &outcomes[i];
+                compensated(i).then(|| {
+                    let (bp, br) = frame::norms(&o.before);
+                    let (rp, rr) = frame::norms(&o.residual);
+                    let (cp, cr) = corr(i);
+                    [
+                        cp,
+                        cr,
+                        bp * 1e3,
+                        br.to_degrees() * 1e3,
+                        rp * 1e3,
+                        rr.to_degrees() * 1e3,
+                    ]
+                })
             })
             .collect();
-        if points {
-            for (i, (stop, o)) in stops.iter().zip(outcomes).enumerate() {
-                self.points
-                    .push(point_report(ws, stop, o, corr[i], compensated(i)));
-            }
-        }
         self.targets += outcomes.len();
         self.rejected += outcomes.iter().filter(|o| o.error.is_some()).count();
-        for i in (0..outcomes.len()).filter(|&i| compensated(i)) {
+        for values in figures.into_iter().flatten() {
             self.compensated += 1;
-            let o = &outcomes[i];
-            let (bp, br) = frame::norms(&o.before);
-            let (rp, rr) = frame::norms(&o.residual);
-            let values = [
-                corr[i].0,
-                corr[i].1,
-                bp * 1e3,
-                br.to_degrees() * 1e3,
-                rp * 1e3,
-                rr.to_degrees() * 1e3,
-            ];
             for (f, v) in self.figures.iter_mut().zip(values) {
                 f.add(v);
             }

@@ -23,7 +23,8 @@ use crate::motion::value::{self, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
 use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
 
 use super::edits::EditList;
-use super::sequence::Outcome;
+pub use super::sequence::correction;
+use super::sequence::{self, Command, Outcome};
 
 /// Fewest decimals written for millimetres and degrees.
 pub const MIN_DECIMALS_MM: usize = 3;
@@ -38,24 +39,21 @@ pub struct Rewrite {
     pub diagnostics: Vec<Diagnostic>,
     /// Declared points split into copies (original name, new names).
     pub splits: Vec<(String, Vec<String>)>,
-    /// Per stop, the command change at the TCP of a written target ([`correction`]; NaN
-    /// for the others): the report's figure, from the chain evaluation the rewrite needs.
-    pub corrections: Vec<(f64, f64)>,
 }
 
-impl Rewrite {
-    /// The command change at the TCP of stop `i`, when the rewrite wrote it.
-    pub fn correction(&self, i: usize) -> Option<(f64, f64)> {
-        self.corrections.get(i).copied().filter(|c| !c.0.is_nan())
+/// The commands the compensation placed already ([`Command`]): those of the stops
+/// `from..`; the others' are computed from their axes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Placed<'a> {
+    pub from: usize,
+    pub commands: &'a [Command],
+}
+
+impl Placed<'_> {
+    fn tcp(&self, i: usize) -> Option<&Frame> {
+        let c = self.commands.get(i.checked_sub(self.from)?)?;
+        Some(&c.tcp)
     }
-}
-
-/// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
-/// that of the controller's axes for the programmed target.
-pub fn correction(command_tcp: &Frame, nominal_tcp: &Frame) -> (f64, f64) {
-    let (cp, cr) =
-        crate::motion::frame::norms(&crate::motion::frame::error(command_tcp, nominal_tcp));
-    (cp * 1e3, cr.to_degrees() * 1e3)
 }
 
 /// The edits of one target's aggregate: replacements of member values and insertions of
@@ -329,55 +327,80 @@ fn aggregate_edits(
     true
 }
 
-/// Whether a literal is written plainly: `-?digits[.digits]` (no exponent, sign `+` or leading
-/// dot), the style of nearly every program; those are formatted here without allocation
-/// beyond the result, the others by `format_like`.
-fn plain_literal(text: &[u8]) -> bool {
+/// The decimals of a literal written plainly: `-?digits[.digits]` (no exponent, sign `+` or
+/// leading dot), the style of nearly every program; those are formatted here without
+/// allocation beyond the result, the others (`None`) by `format_like`.
+fn plain_decimals(text: &[u8]) -> Option<usize> {
     let body = text.strip_prefix(b"-").unwrap_or(text);
     let int = body.iter().take_while(|b| b.is_ascii_digit()).count();
     if int == 0 {
-        return false;
+        return None;
     }
     match &body[int..] {
-        [] => true,
-        [b'.', rest @ ..] => rest.iter().all(u8::is_ascii_digit),
-        _ => false,
+        [] => Some(0),
+        [b'.', rest @ ..] => rest.iter().all(u8::is_ascii_digit).then_some(rest.len()),
+        _ => None,
     }
 }
 
 /// `value` rounded to `decimals` as an integer count of units, the way the compensation's
 /// direction check rounds commands (`sequence::Quantum`).
 fn units(value: f64, decimals: usize) -> Option<i64> {
-    let scaled = (value * 10f64.powi(decimals as i32)).round();
+    let scaled = (value * sequence::ten_to(decimals)).round();
     (scaled.abs() < 9.0e15).then_some(scaled as i64)
 }
 
 /// Appends the plain literal of `units` at `decimals` (`-0.000` written `0.000`): digits by
-/// integer division into a stack buffer, no formatting machinery.
+/// integer division into a stack buffer, appended at once, no formatting machinery.
 fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
-    let mut buf = [0u8; 20];
+    /// Fraction digits the buffer takes (10^18 < 2^64); more go the long way.
+    const MAX_DECIMALS: usize = 18;
+    if decimals > MAX_DECIMALS {
+        return write_plain_long(units, decimals, out);
+    }
+    // Sign, 20 integer digits, dot, fraction; the fraction's leading zeros are there already.
+    let mut buf = [b'0'; 40];
     let mut at = buf.len();
-    let mut n = units.unsigned_abs();
+    let n = units.unsigned_abs();
+    let unit = 10u64.pow(decimals as u32);
+    let (mut int, mut frac) = (n / unit, n % unit);
+    if decimals > 0 {
+        let dot = at - decimals - 1;
+        while frac > 0 {
+            at -= 1;
+            buf[at] = b'0' + (frac % 10) as u8;
+            frac /= 10;
+        }
+        at = dot;
+        buf[at] = b'.';
+    }
     loop {
         at -= 1;
-        buf[at] = b'0' + (n % 10) as u8;
-        n /= 10;
-        if n == 0 {
+        buf[at] = b'0' + (int % 10) as u8;
+        int /= 10;
+        if int == 0 {
             break;
         }
     }
-    let digits = &buf[at..];
+    if units < 0 {
+        at -= 1;
+        buf[at] = b'-';
+    }
+    out.extend_from_slice(&buf[at..]);
+}
+
+/// [`write_plain`] for any number of decimals.
+fn write_plain_long(units: i64, decimals: usize, out: &mut Vec<u8>) {
+    let digits = units.unsigned_abs().to_string();
     if units < 0 {
         out.push(b'-');
     }
-    if decimals == 0 {
-        out.extend_from_slice(digits);
-    } else if digits.len() <= decimals {
+    if digits.len() <= decimals {
         out.extend_from_slice(b"0.");
         out.resize(out.len() + decimals - digits.len(), b'0');
-        out.extend_from_slice(digits);
+        out.extend_from_slice(digits.as_bytes());
     } else {
-        let (int, frac) = digits.split_at(digits.len() - decimals);
+        let (int, frac) = digits.as_bytes().split_at(digits.len() - decimals);
         out.extend_from_slice(int);
         out.push(b'.');
         out.extend_from_slice(frac);
@@ -394,8 +417,8 @@ fn plain_text(units: i64, decimals: usize) -> String {
 /// Appends to `out` the new text of a literal `orig_text` (value `orig`) for `value`; false
 /// (nothing appended) when the written number would not change.
 fn replacement(orig_text: &[u8], orig: f64, value: f64, min: usize, out: &mut Vec<u8>) -> bool {
-    let decimals = literal_decimals(orig_text).max(min);
-    if plain_literal(orig_text) {
+    if let Some(own) = plain_decimals(orig_text) {
+        let decimals = own.max(min);
         if let (Some(new), Some(old)) = (units(value, decimals), units(orig, decimals)) {
             if new == old {
                 return false;
@@ -454,6 +477,18 @@ pub fn rewrite(
     robot: &crate::kinematics::RobotDescription,
     separator: Option<&[u8]>,
 ) -> Rewrite {
+    rewrite_placed(ws, sim, outcomes, Placed::default(), robot, separator)
+}
+
+/// [`rewrite`] with the commands the compensation placed (their TCPs are not computed again).
+pub fn rewrite_placed(
+    ws: &Workspace,
+    sim: &Simulation,
+    outcomes: &[Outcome],
+    placed: Placed,
+    robot: &crate::kinematics::RobotDescription,
+    separator: Option<&[u8]>,
+) -> Rewrite {
     let mut out = Rewrite::default();
     // Each compensated target's edits, in parallel.
     /// Why a target's numbers cannot be written (the diagnostic is built afterwards: a
@@ -463,59 +498,52 @@ pub fn rewrite(
         NotLiteral(usize),
     }
     // One target's edits appended to a list: `None` for a target not to be written.
-    // One target's edits appended to a list (its correction to `corr`): `None` for a
-    // target not to be written.
-    type Corrections = Vec<(u32, (f64, f64))>;
-    let edits_into =
-        |i: usize, list: &mut EditList, corr: &mut Corrections| -> Option<Result<(), Skip>> {
-            let (stop, o) = (&sim.stops[i], &outcomes[i]);
-            let origin = stop.origin?;
-            if !stop.compensable || !o.changed || o.error.is_some() {
-                return None;
-            }
-            let tool = &sim.frames[stop.tool as usize];
-            let arm = Nominal(robot);
-            let command_tcp = arm.tcp(&o.axes_deg, tool);
-            corr.push((
-                i as u32,
-                correction(&command_tcp, &arm.tcp(&stop.nominal_axes, tool)),
-            ));
-            let file = &ws.get(origin.file).file;
-            let present = components(file, origin.agg, stop.axis);
-            let original = present.map(|c| c.and_then(|c| c.value));
-            let Some(values) = new_values(
-                sim,
-                outcomes,
-                stop,
-                &o.axes_deg,
-                &command_tcp,
-                &original,
-                robot,
-            ) else {
-                return Some(Err(Skip::Relative(i)));
-            };
-            let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
-            let written = aggregate_edits(
-                file,
-                origin.agg,
-                stop.axis,
-                &present,
-                &values,
-                write,
-                stop.rel.is_some(),
-                list,
-                separator,
-            );
-            Some(if written {
-                Ok(())
-            } else {
-                Err(Skip::NotLiteral(i))
-            })
+    let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
+        let (stop, o) = (&sim.stops[i], &outcomes[i]);
+        let origin = stop.origin?;
+        if !stop.compensable || !o.changed || o.error.is_some() {
+            return None;
+        }
+        let command_tcp = match placed.tcp(i) {
+            Some(tcp) => *tcp,
+            None => Nominal(robot).tcp(&o.axes_deg, &sim.frames[stop.tool as usize]),
         };
-    let per_stop = |i: usize, corr: &mut Corrections| -> Option<Result<Use, Skip>> {
+        let file = &ws.get(origin.file).file;
+        let present = components(file, origin.agg, stop.axis);
+        let original = present.map(|c| c.and_then(|c| c.value));
+        let Some(values) = new_values(
+            sim,
+            outcomes,
+            stop,
+            &o.axes_deg,
+            &command_tcp,
+            &original,
+            robot,
+        ) else {
+            return Some(Err(Skip::Relative(i)));
+        };
+        let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
+        let written = aggregate_edits(
+            file,
+            origin.agg,
+            stop.axis,
+            &present,
+            &values,
+            write,
+            stop.rel.is_some(),
+            list,
+            separator,
+        );
+        Some(if written {
+            Ok(())
+        } else {
+            Err(Skip::NotLiteral(i))
+        })
+    };
+    let per_stop = |i: usize| -> Option<Result<Use, Skip>> {
         let mut list = EditList::new();
         let stop = &sim.stops[i];
-        edits_into(i, &mut list, corr).map(|r| {
+        edits_into(i, &mut list).map(|r| {
             r.map(|()| Use {
                 stop: i,
                 edits: list.to_edits(),
@@ -528,7 +556,7 @@ pub fn rewrite(
     // keys; an origin used once (every target of a CAM program) takes the fast path.
     let mut keys: Vec<(FileId, u32, u32)> = (0..sim.stops.len())
         .into_par_iter()
-        .with_min_len(4096)
+        .with_min_len(1024)
         .filter_map(|i| {
             let (stop, o) = (&sim.stops[i], &outcomes[i]);
             let origin = stop.origin?;
@@ -567,46 +595,37 @@ pub fn rewrite(
     };
     // Fast path, in parallel: the edits straight into one list per file.
     // (Keys are sorted by file: a chunk's edits are runs of one file each.)
-    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>, Corrections);
+    type Chunk = (Vec<(FileId, EditList)>, Vec<Skip>);
     let single: Vec<Chunk> = (0..keys.len())
         .into_par_iter()
         .with_min_len(1024)
         .filter(|&k| !shared(k))
         .fold(
-            || (Vec::new(), Vec::new(), Vec::new()),
-            |(mut edits, mut skips, mut corr): Chunk, k| {
+            || (Vec::new(), Vec::new()),
+            |(mut edits, mut skips): Chunk, k| {
                 let file = keys[k].0;
                 if edits.last().map_or(true, |(f, _)| *f != file) {
                     edits.push((file, EditList::new()));
                 }
                 let list = &mut edits.last_mut().expect("pushed").1;
-                if let Some(Err(s)) = edits_into(keys[k].2 as usize, list, &mut corr) {
+                if let Some(Err(s)) = edits_into(keys[k].2 as usize, list) {
                     skips.push(s);
                 }
-                (edits, skips, corr)
+                (edits, skips)
             },
         )
         .collect();
     // Joined by moving each chunk's segment (see `EditList::append`), not copying.
-    out.corrections = vec![(f64::NAN, f64::NAN); sim.stops.len()];
-    for (edits, s, corr) in single {
+    for (edits, s) in single {
         for (file, mut list) in edits {
             out.edits.entry(file).or_default().append(&mut list);
         }
         skips.extend(s);
-        for (i, c) in corr {
-            out.corrections[i as usize] = c;
-        }
     }
     // Shared origins, grouped, in execution order.
     let mut uses: Vec<((FileId, u32), Vec<Use>)> = Vec::new();
     for k in (0..keys.len()).filter(|&k| shared(k)) {
-        let mut corr = Vec::new();
-        let used = per_stop(keys[k].2 as usize, &mut corr);
-        for (i, c) in corr {
-            out.corrections[i as usize] = c;
-        }
-        match used {
+        match per_stop(keys[k].2 as usize) {
             Some(Ok(u)) => {
                 let key = (keys[k].0, keys[k].1);
                 match uses.last_mut() {
@@ -964,7 +983,7 @@ mod tests {
 
     proptest! {
         #[test]
-        fn digit_writer_matches_format(units in any::<i64>(), decimals in 0usize..14) {
+        fn digit_writer_matches_format(units in any::<i64>(), decimals in 0usize..30) {
             prop_assert_eq!(plain_text(units, decimals), plain_by_format(units, decimals));
         }
 
@@ -1004,5 +1023,8 @@ mod tests {
         assert_eq!(plain_text(-1234500, 4), "-123.4500");
         assert_eq!(plain_text(7, 0), "7");
         assert_eq!(plain_text(i64::MIN, 2), "-92233720368547758.08");
+        assert_eq!(plain_text(-12, 18), "-0.000000000000000012");
+        assert_eq!(plain_text(12, 20), "0.00000000000000000012");
+        assert_eq!(plain_text(i64::MAX, 18), "9.223372036854775807");
     }
 }

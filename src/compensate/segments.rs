@@ -13,7 +13,22 @@ use crate::motion::{RunSink, Simulation, Workspace};
 
 use super::program::{targets, Options, Tally};
 use super::rewrite;
-use super::sequence::{self, Carried, Outcome, LOOK_BACK};
+use super::sequence::{self, Carried, Command, Compensated, Outcome, LOOK_BACK};
+
+/// One compensated segment: the outcomes of its stops are `done.outcomes[skip..]` (the
+/// ghosts' first, carried from the history).
+struct Segment {
+    done: Compensated,
+    skip: usize,
+    ghosts: usize,
+    ghost_commands: Vec<Command>,
+}
+
+impl Segment {
+    fn outcomes(&self) -> &[Outcome] {
+        &self.done.outcomes[self.skip..]
+    }
+}
 
 pub(super) struct Segments<'a> {
     /// The main file (its skeleton): where windows take their style from.
@@ -22,8 +37,9 @@ pub(super) struct Segments<'a> {
     model: &'a Model,
     options: &'a Options,
     history: Vec<Carried>,
-    /// Outcomes of the skeleton's stops (ghosts included), in order.
+    /// Outcomes of the skeleton's stops (ghosts included), in order, and their commands.
     pub skeleton: Vec<Outcome>,
+    pub skeleton_commands: Vec<Command>,
     /// The windows whose numbers changed: their bytes in the main file and the new bytes.
     pub windows: Vec<(Span, Vec<u8>)>,
     pub tally: Tally,
@@ -45,6 +61,7 @@ impl<'a> Segments<'a> {
             options,
             history: Vec::new(),
             skeleton: Vec::new(),
+            skeleton_commands: Vec::new(),
             windows: Vec::new(),
             tally: Tally::default(),
             singular: Vec::new(),
@@ -55,14 +72,13 @@ impl<'a> Segments<'a> {
     }
 
     /// Compensates `sim.stops[from..]` after the carried history (the stops executed just
-    /// before them: the leading ghosts stand for its last ones) and gives their outcomes,
-    /// ghosts' included, and the number of ghosts. The caller tallies them.
-    fn segment(&mut self, ws: &Workspace, sim: &Simulation, from: usize) -> (Vec<Outcome>, usize) {
+    /// before them: the leading ghosts stand for its last ones). The caller tallies them.
+    fn segment(&mut self, ws: &Workspace, sim: &Simulation, from: usize) -> Segment {
         let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
         debug_assert!(ghosts <= self.history.len());
         let first = from + ghosts;
         let targets = targets(ws, sim, first..sim.stops.len());
-        let (outcomes, resolved) = sequence::compensate_after(
+        let done = sequence::compensate_after(
             self.model,
             &sim.frames,
             &self.history,
@@ -73,23 +89,29 @@ impl<'a> Segments<'a> {
                 parallel: self.options.parallel,
             },
         );
-        self.diagnose(ws, sim, first, &outcomes);
-        let mut all: Vec<Outcome> = self.history[self.history.len() - ghosts..]
+        self.diagnose(ws, sim, first, done.targets());
+        // The next history: the last (up to LOOK_BACK) targets of the carried and these.
+        let carried = |k: usize| Carried {
+            target: targets[k],
+            outcome: done.targets()[k],
+            resolved: done.resolved[k],
+            command: done.commands[k],
+        };
+        let keep = targets.len().min(LOOK_BACK);
+        let extra = (self.history.len() + keep).saturating_sub(LOOK_BACK);
+        let ghost_commands: Vec<Command> = self.history[self.history.len() - ghosts..]
             .iter()
-            .map(|c| c.outcome)
+            .map(|c| c.command)
             .collect();
-        self.history
-            .extend(targets.iter().zip(&outcomes).zip(&resolved).map(
-                |((&target, &outcome), &resolved)| Carried {
-                    target,
-                    outcome,
-                    resolved,
-                },
-            ));
-        let extra = self.history.len().saturating_sub(LOOK_BACK);
         self.history.drain(..extra);
-        all.extend(outcomes);
-        (all, ghosts)
+        self.history
+            .extend((targets.len() - keep..targets.len()).map(carried));
+        Segment {
+            skip: done.history - ghosts,
+            ghost_commands,
+            done,
+            ghosts,
+        }
     }
 
     /// Near-singular targets (compensated in the least-squares sense there, where small
@@ -98,11 +120,11 @@ impl<'a> Segments<'a> {
         use rayon::prelude::*;
         let robot = &self.model.robot;
         let stops = &sim.stops[first..];
-        // The singularity test of every stop in parallel (a million cost 0.2 s alone), the
-        // warnings in program order.
+        // The singularity test of every stop in parallel (a million cost 0.2 s alone; a
+        // window's in a few parts, not on the calling thread), the warnings in program order.
         let singular: Vec<Option<crate::kinematics::Singularity>> = stops
             .par_iter()
-            .with_min_len(4096)
+            .with_min_len(1024)
             .map(|stop| {
                 stop.compensable
                     .then(|| crate::kinematics::singularity(robot, &stop.nominal_axes))
@@ -140,18 +162,19 @@ impl<'a> Segments<'a> {
     /// The skeleton's stops from `from` on (the rest after the walk).
     pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
         debug_assert_eq!(from, self.skeleton.len());
-        let (outcomes, ghosts) = self.segment(ws, sim, from);
+        let seg = self.segment(ws, sim, from);
         let points = self.options.points;
         self.tally.add(
             ws,
             sim,
-            from + ghosts,
-            &outcomes[ghosts..],
-            &self.model.robot,
-            None,
+            from + seg.ghosts,
+            seg.done.targets(),
+            &seg.done.commands,
             points,
         );
-        self.skeleton.extend(outcomes);
+        self.skeleton.extend_from_slice(seg.outcomes());
+        self.skeleton_commands.extend(seg.ghost_commands);
+        self.skeleton_commands.extend(seg.done.commands);
     }
 }
 
@@ -163,20 +186,25 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
 
     fn window(&mut self, ws: &Workspace, sim: &Simulation<'_>) {
         let seg = &mut *self.1;
-        let (outcomes, ghosts) = seg.segment(ws, sim, 0);
+        let part = seg.segment(ws, sim, 0);
         let main = seg.main;
         let separator = seg
             .separator
             .get_or_insert_with(|| rewrite::file_separator(main));
-        let mut rw = rewrite::rewrite(ws, sim, &outcomes, &seg.model.robot, Some(separator));
+        let placed = rewrite::Placed {
+            from: part.ghosts,
+            commands: &part.done.commands,
+        };
+        let robot = &seg.model.robot;
+        let mut rw =
+            rewrite::rewrite_placed(ws, sim, part.outcomes(), placed, robot, Some(separator));
         let points = seg.options.points;
         seg.tally.add(
             ws,
             sim,
-            ghosts,
-            &outcomes[ghosts..],
-            &seg.model.robot,
-            Some(&rw),
+            part.ghosts,
+            part.done.targets(),
+            &part.done.commands,
             points,
         );
         seg.rewrite_diagnostics.append(&mut rw.diagnostics);

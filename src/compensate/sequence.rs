@@ -18,7 +18,7 @@
 //! linearly in axis space, `arrival` is the nominal step) and to first order in the
 //! correction for LIN/CIRC (whose joint path moves by the interpolated correction).
 
-use nalgebra::{Vector3, Vector6};
+use nalgebra::{Matrix6, Vector3, Vector6};
 use rayon::prelude::*;
 
 use super::solve::{self, weighted_norm, Method, Problem, SolveError};
@@ -72,8 +72,21 @@ pub struct Quantum {
 }
 
 fn round_to(v: f64, decimals: u8) -> f64 {
-    let scale = 10f64.powi(decimals as i32);
+    let scale = ten_to(decimals as usize);
     (v * scale).round() / scale
+}
+
+/// `10f64.powi(decimals)`, from a table where that is exact (10^22 = 2^22·5^22 and 5^22 <
+/// 2^53: every power up to it is a double, and so is every product `powi` forms on the way).
+pub(super) fn ten_to(decimals: usize) -> f64 {
+    const TABLE: [f64; 23] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+        1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+    ];
+    match TABLE.get(decimals) {
+        Some(&p) => p,
+        None => 10f64.powi(decimals as i32),
+    }
 }
 
 /// How the controller interpolates the motion reaching a target (from the previous one).
@@ -186,8 +199,11 @@ pub struct Options {
 /// Targets per chunk of the parallel arrival-rate pass.
 const RATE_CHUNK: usize = 1024;
 
+/// The signs of an arrival motion ([`signs`]); `None` when it comes from an unknown place.
+type Signs = Option<[i8; 6]>;
+
 /// What the direction logic uses of an arrival motion: per axis −1, +1, or 0 at rest.
-fn signs(v: Option<[f64; 6]>) -> Option<[i8; 6]> {
+fn signs(v: Option<[f64; 6]>) -> Signs {
     v.map(|v| {
         v.map(|x| {
             if x.abs() < REST_DEG {
@@ -207,7 +223,7 @@ fn arrive(before: &[Direction; 6], v: Option<[f64; 6]>) -> [Direction; 6] {
 }
 
 /// [`arrive`] from the motion's [`signs`].
-fn arrive_signs(before: &[Direction; 6], v: Option<[i8; 6]>) -> [Direction; 6] {
+fn arrive_signs(before: &[Direction; 6], v: Signs) -> [Direction; 6] {
     match v {
         None => [Direction::Unknown; 6],
         Some(v) => std::array::from_fn(|i| match v[i] {
@@ -219,11 +235,17 @@ fn arrive_signs(before: &[Direction; 6], v: Option<[i8; 6]>) -> [Direction; 6] {
 
 /// Directions of the nominal motion at every target, from the directions before the first.
 pub fn nominal_directions(targets: &[Target], start: [Direction; 6]) -> Vec<[Direction; 6]> {
+    let signs: Vec<Signs> = targets.iter().map(|t| signs(t.arrival)).collect();
+    directions_after(&signs, start)
+}
+
+/// The direction states after arriving with motions of `signs` one after another.
+fn directions_after(signs: &[Signs], start: [Direction; 6]) -> Vec<[Direction; 6]> {
     let mut state = start;
-    targets
+    signs
         .iter()
-        .map(|t| {
-            state = arrive(&state, t.arrival);
+        .map(|&v| {
+            state = arrive_signs(&state, v);
             state
         })
         .collect()
@@ -236,6 +258,48 @@ pub struct Carried {
     pub outcome: Outcome,
     /// Whether the re-check re-solved it.
     pub resolved: bool,
+    pub command: Command,
+}
+
+/// A target's command as the nominal robot places it.
+#[derive(Clone, Copy, Debug)]
+pub struct Command {
+    /// The nominal TCP of the command axes, robot base frame, unrounded: what the rewrite
+    /// turns into the new numbers.
+    pub tcp: Frame,
+    /// Its change against the TCP of the nominal command ([`correction`]); zero when the
+    /// command is the nominal one.
+    pub correction: (f64, f64),
+}
+
+/// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
+/// that of the controller's axes for the programmed target.
+pub fn correction(command_tcp: &Frame, nominal_tcp: &Frame) -> (f64, f64) {
+    let (cp, cr) =
+        crate::motion::frame::norms(&crate::motion::frame::error(command_tcp, nominal_tcp));
+    (cp * 1e3, cr.to_degrees() * 1e3)
+}
+
+/// What [`compensate_after`] gives: the outcomes of the history and of the targets, and for
+/// the targets what the rewrite and the next segment need.
+#[derive(Debug, Default)]
+pub struct Compensated {
+    /// The history's outcomes (as carried) followed by those of the targets: callers take
+    /// the slice they need without copying the rest.
+    pub outcomes: Vec<Outcome>,
+    /// How many outcomes are the history's.
+    pub history: usize,
+    /// Per target, whether the re-check re-solved it.
+    pub resolved: Vec<bool>,
+    /// Per target, its command's TCP (computed once, by the arrival-rate pass) and change.
+    pub commands: Vec<Command>,
+}
+
+impl Compensated {
+    /// The outcomes of the targets.
+    pub fn targets(&self) -> &[Outcome] {
+        &self.outcomes[self.history..]
+    }
 }
 
 /// Compensates `targets` (tools indexed by `Target::tool`), directions before the first
@@ -247,7 +311,7 @@ pub fn compensate(
     start: [Direction; 6],
     options: &Options,
 ) -> Vec<Outcome> {
-    compensate_after(model, tools, &[], targets, start, options).0
+    compensate_after(model, tools, &[], targets, start, options).outcomes
 }
 
 /// How far back the re-check of a target looks: its arrival depends on the commands of the
@@ -257,7 +321,8 @@ pub const LOOK_BACK: usize = 2;
 /// [`compensate`] of a sequence cut in segments: `history` holds the last (up to
 /// [`LOOK_BACK`]) targets before `targets`, already compensated; `start` counts only when
 /// there is none. Gives the outcomes of `targets` exactly as compensating the whole sequence
-/// at once would, and whether each was re-solved (the history of the next segment).
+/// at once would, whether each was re-solved and its command's TCP (the history of the next
+/// segment).
 pub fn compensate_after(
     model: &Model,
     tools: &[Frame],
@@ -265,70 +330,122 @@ pub fn compensate_after(
     targets: &[Target],
     start: [Direction; 6],
     options: &Options,
-) -> (Vec<Outcome>, Vec<bool>) {
+) -> Compensated {
     let h = history.len();
     let (nominal_start, state_start) = match history.last() {
         Some(c) => (c.outcome.nominal_directions, c.outcome.directions),
         None => (start, start),
     };
-    let nominal = nominal_directions(targets, nominal_start);
+    // The nominal motions' signs in parallel (the re-check needs them again), their
+    // directions in order.
+    let nominal_signs: Vec<Signs> = if options.parallel {
+        targets
+            .par_iter()
+            .with_min_len(1024)
+            .map(|t| signs(t.arrival))
+            .collect()
+    } else {
+        targets.iter().map(|t| signs(t.arrival)).collect()
+    };
+    let nominal = directions_after(&nominal_signs, nominal_start);
     let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
     let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
     outcomes.extend(history.iter().map(|c| c.outcome));
     if options.parallel {
-        let solved: Vec<Outcome> = (0..targets.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .map(first)
-            .collect();
-        outcomes.extend(solved);
+        // Collected in place after the history's (an indexed iterator: no second copy).
+        outcomes.par_extend(
+            (0..targets.len())
+                .into_par_iter()
+                .with_min_len(256)
+                .map(first),
+        );
     } else {
         outcomes.extend((0..targets.len()).map(first));
     }
-    let all: std::borrow::Cow<[Target]> = if h == 0 {
-        std::borrow::Cow::Borrowed(targets)
-    } else {
-        std::borrow::Cow::Owned(
-            history
-                .iter()
-                .map(|c| c.target)
-                .chain(targets.iter().copied())
-                .collect(),
-        )
-    };
     let ctx = Ctx {
         model,
         tools,
-        targets: &all,
+        history,
+        targets,
         method: options.method,
     };
     // Arrival motions of the first-pass commands, chunk by chunk: each rate needs its
     // neighbours' written TCPs, computed once per chunk (plus the few around its ends), and
-    // the re-check needs only the signs.
+    // the re-check needs only the signs. The chain is evaluated once per target: its TCP
+    // (kept for the rewrite) and, for a Cartesian arrival, its Jacobian.
     let cmd = |j: usize| outcomes[j].axes_deg;
-    let n = all.len();
-    let chunk = |c: usize| -> Vec<Option<[i8; 6]>> {
+    let n = h + targets.len();
+    let chunk = |c: usize| -> Vec<(Signs, Frame)> {
         let (a, b) = (h + c * RATE_CHUNK, (h + (c + 1) * RATE_CHUNK).min(n));
         let from = a.saturating_sub(2);
+        let forward: Vec<(Frame, Option<Matrix6<f64>>)> = (a..b)
+            .map(|k| ctx.forward(k, &outcomes[k].axes_deg))
+            .collect();
         let tcps: Vec<Frame> = (from..(b + 1).min(n))
-            .map(|k| ctx.tcp(k, &outcomes[k].axes_deg))
+            .map(|k| match k.checked_sub(a).and_then(|i| forward.get(i)) {
+                Some((raw, _)) => ctx.written(k, &outcomes[k].axes_deg, || *raw),
+                None => ctx.tcp(k, &outcomes[k].axes_deg),
+            })
             .collect();
         (a..b)
-            .map(|k| signs(ctx.rate(k, &outcomes[k].axes_deg, &cmd, Some((from, &tcps)))))
+            .zip(forward)
+            .map(|(k, (raw, jacobian))| {
+                let cache = Some((from, &tcps[..]));
+                let rate = ctx.rate(k, &outcomes[k].axes_deg, &cmd, cache, jacobian.as_ref());
+                (signs(rate), raw)
+            })
             .collect()
     };
-    let chunks = (n - h).div_ceil(RATE_CHUNK);
-    let rates: Vec<Option<[i8; 6]>> = if options.parallel {
-        (0..chunks).into_par_iter().flat_map_iter(chunk).collect()
+    let chunks = targets.len().div_ceil(RATE_CHUNK);
+    let (rates, tcps): (Vec<Signs>, Vec<Frame>) = if options.parallel {
+        (0..chunks).into_par_iter().flat_map_iter(chunk).unzip()
     } else {
-        (0..chunks).flat_map(chunk).collect()
+        (0..chunks).flat_map(chunk).unzip()
     };
     let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
     resolved.resize(n, false);
-    recheck(&ctx, state_start, h, &mut outcomes, &rates, &mut resolved);
-    outcomes.drain(..h);
+    recheck(
+        &ctx,
+        state_start,
+        h,
+        &mut outcomes,
+        (&nominal_signs, &rates),
+        &mut resolved,
+    );
+    // The commands' changes at the TCP, the command of a target the re-check re-solved anew.
+    let arm = Nominal(&model.robot);
+    let command = |(i, tcp): (usize, Frame)| {
+        let (k, t) = (h + i, &targets[i]);
+        let o = &outcomes[k];
+        let tool = ctx.tool(k);
+        let tcp = if resolved[k] {
+            arm.tcp(&o.axes_deg, tool)
+        } else {
+            tcp
+        };
+        let correction = if o.changed {
+            correction(&tcp, &arm.tcp(&t.nominal_axes, tool))
+        } else {
+            (0.0, 0.0)
+        };
+        Command { tcp, correction }
+    };
+    let commands: Vec<Command> = if options.parallel {
+        tcps.into_par_iter()
+            .enumerate()
+            .with_min_len(1024)
+            .map(command)
+            .collect()
+    } else {
+        tcps.into_iter().enumerate().map(command).collect()
+    };
     resolved.drain(..h);
-    (outcomes, resolved)
+    Compensated {
+        outcomes,
+        history: h,
+        resolved,
+        commands,
+    }
 }
 
 fn tcp_error(
@@ -480,38 +597,69 @@ fn first_pass(
     out
 }
 
-/// What the re-check needs besides the outcomes.
+/// What the re-check needs besides the outcomes: the targets are the history's followed by
+/// the segment's (indexed as the outcomes are).
 struct Ctx<'a> {
     model: &'a Model,
     tools: &'a [Frame],
+    history: &'a [Carried],
     targets: &'a [Target],
     method: Method,
 }
 
 impl Ctx<'_> {
+    /// Target `k` of the history and segment together.
+    fn target(&self, k: usize) -> &Target {
+        match self.history.get(k) {
+            Some(c) => &c.target,
+            None => &self.targets[k - self.history.len()],
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.history.len() + self.targets.len()
+    }
+
     fn tool(&self, k: usize) -> &Frame {
-        &self.tools[self.targets[k].tool as usize]
+        &self.tools[self.target(k).tool as usize]
     }
 
     /// The TCP commanded at target `k` with `axes`, as written (rounded) when it is written.
     fn tcp(&self, k: usize, axes: &[f64; 6]) -> Frame {
-        let arm = Nominal(&self.model.robot);
-        let tool = self.tool(k);
-        match self.targets[k].quantum {
+        self.written(k, axes, || {
+            Nominal(&self.model.robot).tcp(axes, self.tool(k))
+        })
+    }
+
+    /// [`Self::tcp`] given the unrounded TCP of `axes`, `raw` (not called for axis commands:
+    /// they are written as rounded axes).
+    fn written(&self, k: usize, axes: &[f64; 6], raw: impl FnOnce() -> Frame) -> Frame {
+        match self.target(k).quantum {
             Some(q) if q.axis => {
                 let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], q.decimals[i]));
-                arm.tcp(&r, tool)
+                Nominal(&self.model.robot).tcp(&r, self.tool(k))
             }
             Some(q) => {
                 let base = &self.tools[q.base as usize];
-                let p = base
-                    .inverse()
-                    .compose(&arm.tcp(axes, tool))
-                    .to_kuka_near(&[0.0; 3]);
+                let p = base.inverse().compose(&raw()).to_kuka_near(&[0.0; 3]);
                 let r: [f64; 6] = std::array::from_fn(|i| round_to(p[i], q.decimals[i]));
                 base.compose(&Frame::from_kuka(&r))
             }
-            None => arm.tcp(axes, tool),
+            None => raw(),
+        }
+    }
+
+    /// The nominal TCP of `axes` at target `k` and, when its arrival rate needs one (a
+    /// Cartesian interpolation), the Jacobian there: one chain evaluation.
+    fn forward(&self, k: usize, axes: &[f64; 6]) -> (Frame, Option<Matrix6<f64>>) {
+        let t = self.target(k);
+        let arm = Nominal(&self.model.robot);
+        let tool = self.tool(k);
+        if k > 0 && t.arrival.is_some() && t.interp != Interp::Joint {
+            let (tcp, j) = arm.tcp_jacobian(axes, tool);
+            (tcp, Some(j))
+        } else {
+            (arm.tcp(axes, tool), None)
         }
     }
 
@@ -524,8 +672,9 @@ impl Ctx<'_> {
         axes: &[f64; 6],
         cmd: &dyn Fn(usize) -> [f64; 6],
         cache: Option<(usize, &[Frame])>,
+        jacobian: Option<&Matrix6<f64>>,
     ) -> Option<[f64; 6]> {
-        let t = &self.targets[k];
+        let t = self.target(k);
         let nominal = t.arrival?;
         if k == 0 {
             return Some(nominal);
@@ -561,12 +710,12 @@ impl Ctx<'_> {
                 p[n + 1] = b.position;
                 let at = n + 1;
                 n += 2;
-                if !last && k + 1 < self.targets.len() {
+                if !last && k + 1 < self.len() {
                     // The next point moved by this one's correction: the re-check runs
                     // forward, the next command is not settled yet (and the correction varies
                     // slowly along a dense spline).
                     let shift = b.position - t.goal.position;
-                    p[n] = self.targets[k + 1].goal.position + shift;
+                    p[n] = self.target(k + 1).goal.position + shift;
                     n += 1;
                 }
                 let v =
@@ -581,7 +730,7 @@ impl Ctx<'_> {
                     Err(_) => return Some(step),
                 }
             }
-            Interp::CircAux if k + 1 < self.targets.len() => {
+            Interp::CircAux if k + 1 < self.len() => {
                 let (start, aux, end) = (tcp(k - 1), tcp(k).position, tcp(k + 1));
                 match Cartesian::new(&start, &end, &Path::Circ { aux }) {
                     Ok(c) => {
@@ -593,8 +742,17 @@ impl Ctx<'_> {
             }
             _ => return Some(step),
         };
-        let (_, j) = Nominal(&self.model.robot).tcp_jacobian(axes, self.tool(k));
-        let rate = crate::motion::lu6::Lu6::new(&j).solve(&twist);
+        let computed;
+        let j = match jacobian {
+            Some(j) => j,
+            None => {
+                computed = Nominal(&self.model.robot)
+                    .tcp_jacobian(axes, self.tool(k))
+                    .1;
+                &computed
+            }
+        };
+        let rate = crate::motion::lu6::Lu6::new(j).solve(&twist);
         Some(std::array::from_fn(|i| match rate {
             Some(r) if r[i].is_finite() && r[i].abs() >= REST_DEG => r[i],
             // A turning point right at the target: the sign of the whole step.
@@ -605,25 +763,25 @@ impl Ctx<'_> {
 
 /// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
 /// they were solved with. `rates[k]` is the arrival motion's signs at k with the first-pass
-/// commands; it is recomputed when a command it depends on changed since.
-/// Targets before `from` are settled (history); `rates[k - from]`.
+/// commands; it is recomputed when a command it depends on changed since; `nominal[k]` the
+/// nominal motion's. Targets before `from` are settled (history); `rates[k - from]`.
 fn recheck(
     ctx: &Ctx,
     start: [Direction; 6],
     from: usize,
     outcomes: &mut [Outcome],
-    rates: &[Option<[i8; 6]>],
+    (nominal, rates): (&[Signs], &[Signs]),
     resolved: &mut [bool],
 ) {
     let mut state = start;
     let (mut n_expected, mut n_actual) = (0usize, 0usize);
-    for k in from..ctx.targets.len() {
-        let target = &ctx.targets[k];
+    for k in from..ctx.len() {
+        let target = ctx.target(k);
         let tool = ctx.tool(k);
         let fixed = !target.compensate || outcomes[k].error.is_some();
         // The nominal motion's signs, but resting axes keep the *compensated* state: after an
         // earlier flip this differs from the nominal directions the first pass assumed.
-        let expected = arrive(&state, target.arrival);
+        let expected = arrive_signs(&state, nominal[k - from]);
         if expected != outcomes[k].directions && !fixed {
             let mut o = first_pass(ctx.model, ctx.tools, target, &expected, ctx.method);
             o.nominal_directions = outcomes[k].nominal_directions;
@@ -634,7 +792,7 @@ fn recheck(
         let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
         let rate = if stale {
             let snapshot = |j: usize| outcomes[j].axes_deg;
-            signs(ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None))
+            signs(ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None, None))
         } else {
             rates[k - from]
         };
@@ -691,11 +849,11 @@ fn resettle(
     actual: [Direction; 6],
 ) -> Outcome {
     let (model, method) = (ctx.model, ctx.method);
-    let target = &ctx.targets[k];
+    let target = ctx.target(k);
     let tool = ctx.tool(k);
     let first = &outcomes[k];
     let cmd = |j: usize| outcomes[j].axes_deg;
-    let directions_at = |axes: &[f64; 6]| arrive(state, ctx.rate(k, axes, &cmd, None));
+    let directions_at = |axes: &[f64; 6]| arrive(state, ctx.rate(k, axes, &cmd, None, None));
     let mut out = *first;
     // The first solution, evaluated with the direction its motion really has.
     let mut candidates = vec![Candidate {
@@ -802,4 +960,18 @@ fn resettle(
     out.resolution = best.resolution;
     out.changed = best.axes != target.nominal_axes;
     out
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn powers_of_ten_from_the_table_are_powi() {
+        for d in 0..40 {
+            assert_eq!(
+                super::ten_to(d).to_bits(),
+                10f64.powi(d as i32).to_bits(),
+                "10^{d}"
+            );
+        }
+    }
 }

@@ -248,3 +248,31 @@ fn check_reports_without_writing() {
     );
     assert!(String::from_utf8_lossy(&st.stderr).contains("bad.json"));
 }
+
+#[test]
+fn a_compensated_program_is_refused_naming_the_header_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = copy_fixture(dir.path(), "paper_path2.src");
+    let once = dir.path().join("once/p2.src");
+    let st = main_job(&input, CAL, &once);
+    assert_eq!(st.status.code(), Some(0));
+    // The header in another case is still the header (the mark is compared ignoring case).
+    let text = std::fs::read_to_string(&once).unwrap().replace(
+        "; robopost: compensated with",
+        "; ROBOPOST: Compensated with",
+    );
+    std::fs::write(&once, &text).unwrap();
+    let line = 1 + text
+        .lines()
+        .position(|l| l.starts_with("; ROBOPOST: Compensated with"))
+        .expect("a header line");
+    let twice = dir.path().join("twice/p2.src");
+    let st = main_job(&once, CAL, &twice);
+    assert_ne!(st.status.code(), Some(0));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(
+        err.contains("already compensated") && err.contains(&format!("p2.src:{line}:1")),
+        "{err}"
+    );
+    assert!(!twice.exists(), "nothing written");
+}
