@@ -56,6 +56,16 @@ pub struct Options {
     pub points: bool,
 }
 
+impl Options {
+    /// What the per-target solving takes of them.
+    pub fn sequence(&self) -> super::sequence::Options {
+        super::sequence::Options {
+            method: self.method,
+            parallel: self.parallel,
+        }
+    }
+}
+
 /// The new contents of one file of the program.
 #[derive(Clone, Debug)]
 pub struct FileOutput {

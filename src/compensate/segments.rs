@@ -3,17 +3,22 @@
 //! compensated, reported and (windows) rewritten at once, so that nothing of a window is
 //! kept but its new bytes. The direction logic's look-back crosses the cuts through the
 //! carried last targets ([`sequence::compensate_after`]), so the result is the one of the
-//! whole sequence at once. The skeleton is rewritten after the walk (a `.dat` point may be
-//! reached before and after a run: splitting it needs every use).
+//! whole sequence at once. A window is worked in two halves: what needs nothing of the
+//! windows before it ([`Prepared`]: targets, first-pass solves, singularity tests) runs while
+//! the window before is settled against the history, tallied and rewritten, so the
+//! sequential parts of the one overlap the parallel parts of the other. The skeleton is
+//! rewritten after the walk (a `.dat` point may be reached before and after a run: splitting
+//! it needs every use).
 
 use crate::diagnostic::{Diagnostic, Severity};
+use crate::kinematics::Singularity;
 use crate::krl::Span;
 use crate::model::{Direction, Model};
-use crate::motion::{RunSink, Simulation, Workspace};
+use crate::motion::{RunSink, Simulation, Walked, Workspace};
 
 use super::program::{targets, Options, Tally};
 use super::rewrite;
-use super::sequence::{self, Carried, Command, Compensated, Outcome, LOOK_BACK};
+use super::sequence::{self, Carried, Command, Compensated, Outcome, Target, LOOK_BACK};
 
 /// One compensated segment: the outcomes of its stops are `done.outcomes[skip..]` (the
 /// ghosts' first, carried from the history).
@@ -30,12 +35,77 @@ impl Segment {
     }
 }
 
+/// The part of a segment's work that needs nothing of the segments before it (their nominal
+/// directions aside): it runs while the segment before is still being settled.
+pub(super) struct Prepared {
+    /// Leading ghosts of the segment's stops (their outcomes are in the history).
+    ghosts: usize,
+    targets: Vec<Target>,
+    first: sequence::FirstPasses,
+    /// The singularity test of every (non-ghost) stop.
+    singular: Vec<Option<Singularity>>,
+}
+
+/// Prepares segments ([`Prepared`]): read-only, so one may run beside [`Segments::settle`].
+#[derive(Clone, Copy)]
+struct Preparer<'a> {
+    model: &'a Model,
+    options: &'a Options,
+}
+
+impl Preparer<'_> {
+    fn prepare(
+        self,
+        ws: &Workspace,
+        sim: &Simulation,
+        from: usize,
+        nominal_start: &mut [Direction; 6],
+    ) -> Prepared {
+        use rayon::prelude::*;
+        let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
+        let first = from + ghosts;
+        let targets = targets(ws, sim, first..sim.stops.len());
+        let passes = sequence::first_passes(
+            self.model,
+            &sim.frames,
+            &targets,
+            *nominal_start,
+            &self.options.sequence(),
+        );
+        if let Some(end) = passes.nominal_end() {
+            *nominal_start = end;
+        }
+        let robot = &self.model.robot;
+        // The singularity test of every stop in parallel (a million cost 0.2 s alone; a
+        // window's in a few parts, not on the calling thread).
+        let singular = sim.stops[first..]
+            .par_iter()
+            .with_min_len(1024)
+            .map(|stop| {
+                stop.compensable
+                    .then(|| crate::kinematics::singularity(robot, &stop.nominal_axes))
+                    .flatten()
+            })
+            .collect();
+        Prepared {
+            ghosts,
+            targets,
+            first: passes,
+            singular,
+        }
+    }
+}
+
 pub(super) struct Segments<'a> {
     /// The main file (its skeleton): where windows take their style from.
     main: &'a crate::krl::SourceFile,
     separator: Option<Vec<u8>>,
     model: &'a Model,
     options: &'a Options,
+    /// The nominal directions after the last prepared segment.
+    nominal_end: [Direction; 6],
+    /// The last window, prepared but not settled yet.
+    pending: Option<(Walked, Prepared)>,
     history: Vec<Carried>,
     /// Outcomes of the skeleton's stops (ghosts included), in order, and their commands.
     pub skeleton: Vec<Outcome>,
@@ -59,6 +129,8 @@ impl<'a> Segments<'a> {
             separator: None,
             model,
             options,
+            nominal_end: [Direction::Unknown; 6],
+            pending: None,
             history: Vec::new(),
             skeleton: Vec::new(),
             skeleton_commands: Vec::new(),
@@ -71,25 +143,41 @@ impl<'a> Segments<'a> {
         }
     }
 
-    /// Compensates `sim.stops[from..]` after the carried history (the stops executed just
-    /// before them: the leading ghosts stand for its last ones). The caller tallies them.
-    fn segment(&mut self, ws: &Workspace, sim: &Simulation, from: usize) -> Segment {
-        let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
+    fn preparer(&self) -> Preparer<'a> {
+        Preparer {
+            model: self.model,
+            options: self.options,
+        }
+    }
+
+    /// Settles the prepared segment `sim.stops[from..]` after the carried history (the stops
+    /// executed just before them: the leading ghosts stand for its last ones). The caller
+    /// tallies them.
+    fn settle(
+        &mut self,
+        ws: &Workspace,
+        sim: &Simulation,
+        from: usize,
+        prepared: Prepared,
+    ) -> Segment {
+        let Prepared {
+            ghosts,
+            targets,
+            first: passes,
+            singular,
+        } = prepared;
         debug_assert!(ghosts <= self.history.len());
         let first = from + ghosts;
-        let targets = targets(ws, sim, first..sim.stops.len());
-        let done = sequence::compensate_after(
+        let done = sequence::settle(
             self.model,
             &sim.frames,
             &self.history,
             &targets,
             [Direction::Unknown; 6],
-            &sequence::Options {
-                method: self.options.method,
-                parallel: self.options.parallel,
-            },
+            passes,
+            &self.options.sequence(),
         );
-        self.diagnose(ws, sim, first, done.targets());
+        self.diagnose(ws, sim, first, done.targets(), singular);
         // The next history: the last (up to LOOK_BACK) targets of the carried and these.
         let carried = |k: usize| Carried {
             target: targets[k],
@@ -115,22 +203,16 @@ impl<'a> Segments<'a> {
     }
 
     /// Near-singular targets (compensated in the least-squares sense there, where small
-    /// Cartesian changes turn axes a lot) and targets left as written.
-    fn diagnose(&mut self, ws: &Workspace, sim: &Simulation, first: usize, outcomes: &[Outcome]) {
-        use rayon::prelude::*;
-        let robot = &self.model.robot;
+    /// Cartesian changes turn axes a lot) and targets left as written, in program order.
+    fn diagnose(
+        &mut self,
+        ws: &Workspace,
+        sim: &Simulation,
+        first: usize,
+        outcomes: &[Outcome],
+        singular: Vec<Option<Singularity>>,
+    ) {
         let stops = &sim.stops[first..];
-        // The singularity test of every stop in parallel (a million cost 0.2 s alone; a
-        // window's in a few parts, not on the calling thread), the warnings in program order.
-        let singular: Vec<Option<crate::kinematics::Singularity>> = stops
-            .par_iter()
-            .with_min_len(1024)
-            .map(|stop| {
-                stop.compensable
-                    .then(|| crate::kinematics::singularity(robot, &stop.nominal_axes))
-                    .flatten()
-            })
-            .collect();
         let mut seen = std::collections::HashSet::new();
         for ((stop, o), sing) in stops.iter().zip(outcomes).zip(singular) {
             if let Some(sing) = sing {
@@ -162,7 +244,11 @@ impl<'a> Segments<'a> {
     /// The skeleton's stops from `from` on (the rest after the walk).
     pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
         debug_assert_eq!(from, self.skeleton.len());
-        let seg = self.segment(ws, sim, from);
+        self.flush();
+        let prepared = self
+            .preparer()
+            .prepare(ws, sim, from, &mut self.nominal_end);
+        let seg = self.settle(ws, sim, from, prepared);
         let points = self.options.points;
         self.tally.add(
             ws,
@@ -176,30 +262,23 @@ impl<'a> Segments<'a> {
         self.skeleton_commands.extend(seg.ghost_commands);
         self.skeleton_commands.extend(seg.done.commands);
     }
-}
 
-impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
-    fn skeleton(&mut self, sim: &Simulation<'f>, from: usize) {
-        let ws = self.0;
-        self.1.skeleton_from(ws, sim, from);
-    }
-
-    fn window(&mut self, ws: &Workspace, sim: &Simulation<'_>) {
-        let seg = &mut *self.1;
-        let part = seg.segment(ws, sim, 0);
-        let main = seg.main;
-        let separator = seg
+    /// Settles, tallies and rewrites a prepared window.
+    fn window_done(&mut self, ws: &Workspace, sim: &Simulation, prepared: Prepared) {
+        let part = self.settle(ws, sim, 0, prepared);
+        let main = self.main;
+        let separator = self
             .separator
             .get_or_insert_with(|| rewrite::file_separator(main));
         let placed = rewrite::Placed {
             from: part.ghosts,
             commands: &part.done.commands,
         };
-        let robot = &seg.model.robot;
+        let robot = &self.model.robot;
         let mut rw =
             rewrite::rewrite_placed(ws, sim, part.outcomes(), placed, robot, Some(separator));
-        let points = seg.options.points;
-        seg.tally.add(
+        let points = self.options.points;
+        self.tally.add(
             ws,
             sim,
             part.ghosts,
@@ -207,16 +286,16 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
             &part.done.commands,
             points,
         );
-        seg.rewrite_diagnostics.append(&mut rw.diagnostics);
+        self.rewrite_diagnostics.append(&mut rw.diagnostics);
         let Some(edits) = rw.edits.remove(&0).filter(|e| !e.is_empty()) else {
             return;
         };
         let file = &ws.get(0).file;
         let extent = file.extent();
         match edits.apply_in(file.source(), extent.range(), None) {
-            Ok(bytes) => seg.windows.push((extent, bytes)),
+            Ok(bytes) => self.windows.push((extent, bytes)),
             Err(e) => {
-                seg.failed.get_or_insert_with(|| {
+                self.failed.get_or_insert_with(|| {
                     Box::new(Diagnostic::new(
                         Severity::Error,
                         &ws.get(0).name,
@@ -225,5 +304,46 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
                 });
             }
         }
+    }
+
+    /// Finishes the window still pending, if any.
+    pub fn flush(&mut self) {
+        if let Some((walked, prepared)) = self.pending.take() {
+            walked.with_dependent(|ws, sim| self.window_done(ws, sim, prepared));
+        }
+    }
+}
+
+impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
+    fn skeleton(&mut self, sim: &Simulation<'f>, from: usize) {
+        let ws = self.0;
+        self.1.skeleton_from(ws, sim, from);
+    }
+
+    /// Prepares this window while the one before is settled and rewritten (which needs the
+    /// history up to it): the two overlap on rayon's pool, so the sequential parts of the one
+    /// fill the gaps of the other's parallel parts.
+    fn window(&mut self, walked: Walked) {
+        let seg = &mut *self.1;
+        let preparer = seg.preparer();
+        let mut nominal = seg.nominal_end;
+        let pending = seg.pending.take();
+        let prepared = walked.with_dependent(|ws, sim| {
+            rayon::join(
+                || preparer.prepare(ws, sim, 0, &mut nominal),
+                || {
+                    if let Some((w, p)) = pending {
+                        w.with_dependent(|ws, sim| seg.window_done(ws, sim, p));
+                    }
+                },
+            )
+            .0
+        });
+        seg.nominal_end = nominal;
+        seg.pending = Some((walked, prepared));
+    }
+
+    fn run_end(&mut self) {
+        self.1.flush();
     }
 }

@@ -331,11 +331,42 @@ pub fn compensate_after(
     start: [Direction; 6],
     options: &Options,
 ) -> Compensated {
-    let h = history.len();
-    let (nominal_start, state_start) = match history.last() {
-        Some(c) => (c.outcome.nominal_directions, c.outcome.directions),
-        None => (start, start),
+    let nominal_start = match history.last() {
+        Some(c) => c.outcome.nominal_directions,
+        None => start,
     };
+    let first = first_passes(model, tools, targets, nominal_start, options);
+    settle(model, tools, history, targets, start, first, options)
+}
+
+/// Passes 1 and 2 of a segment: what needs nothing of the targets before it but the nominal
+/// directions they leave (`nominal_start`), so it may run while the segment before is still
+/// being settled ([`settle`]).
+pub struct FirstPasses {
+    outcomes: Vec<Outcome>,
+    nominal_signs: Vec<Signs>,
+    /// Signs of the first-pass arrival motions; those of the first [`LOOK_BACK`] targets
+    /// depend on the history's commands and are left to [`settle`].
+    rates: Vec<Signs>,
+    /// The unrounded TCP of every first-pass command.
+    tcps: Vec<Frame>,
+}
+
+impl FirstPasses {
+    /// The nominal directions after the segment (the next segment's `nominal_start`).
+    pub fn nominal_end(&self) -> Option<[Direction; 6]> {
+        self.outcomes.last().map(|o| o.nominal_directions)
+    }
+}
+
+/// Passes 1 and 2 of `targets`, the nominal directions before the first given.
+pub fn first_passes(
+    model: &Model,
+    tools: &[Frame],
+    targets: &[Target],
+    nominal_start: [Direction; 6],
+    options: &Options,
+) -> FirstPasses {
     // The nominal motions' signs in parallel (the re-check needs them again), their
     // directions in order.
     let nominal_signs: Vec<Signs> = if options.parallel {
@@ -349,23 +380,20 @@ pub fn compensate_after(
     };
     let nominal = directions_after(&nominal_signs, nominal_start);
     let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
-    let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
-    outcomes.extend(history.iter().map(|c| c.outcome));
-    if options.parallel {
-        // Collected in place after the history's (an indexed iterator: no second copy).
-        outcomes.par_extend(
-            (0..targets.len())
-                .into_par_iter()
-                .with_min_len(256)
-                .map(first),
-        );
+    let outcomes: Vec<Outcome> = if options.parallel {
+        (0..targets.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(first)
+            .collect()
     } else {
-        outcomes.extend((0..targets.len()).map(first));
-    }
+        (0..targets.len()).map(first).collect()
+    };
+    // The segment alone: target k of the segment is k here.
     let ctx = Ctx {
         model,
         tools,
-        history,
+        history: &[],
         targets,
         method: options.method,
     };
@@ -374,9 +402,9 @@ pub fn compensate_after(
     // the re-check needs only the signs. The chain is evaluated once per target: its TCP
     // (kept for the rewrite) and, for a Cartesian arrival, its Jacobian.
     let cmd = |j: usize| outcomes[j].axes_deg;
-    let n = h + targets.len();
+    let n = targets.len();
     let chunk = |c: usize| -> Vec<(Signs, Frame)> {
-        let (a, b) = (h + c * RATE_CHUNK, (h + (c + 1) * RATE_CHUNK).min(n));
+        let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
         let from = a.saturating_sub(2);
         let forward: Vec<(Frame, Option<Matrix6<f64>>)> = (a..b)
             .map(|k| ctx.forward(k, &outcomes[k].axes_deg))
@@ -390,26 +418,63 @@ pub fn compensate_after(
         (a..b)
             .zip(forward)
             .map(|(k, (raw, jacobian))| {
+                if k < LOOK_BACK {
+                    return (None, raw);
+                }
                 let cache = Some((from, &tcps[..]));
                 let rate = ctx.rate(k, &outcomes[k].axes_deg, &cmd, cache, jacobian.as_ref());
                 (signs(rate), raw)
             })
             .collect()
     };
-    let chunks = targets.len().div_ceil(RATE_CHUNK);
+    let chunks = n.div_ceil(RATE_CHUNK);
     let (rates, tcps): (Vec<Signs>, Vec<Frame>) = if options.parallel {
         (0..chunks).into_par_iter().flat_map_iter(chunk).unzip()
     } else {
         (0..chunks).flat_map(chunk).unzip()
     };
+    FirstPasses {
+        outcomes,
+        nominal_signs,
+        rates,
+        tcps,
+    }
+}
+
+/// Pass 3 of `targets` after the carried `history` (see [`compensate_after`]), from their
+/// [`first_passes`], and the commands' TCPs.
+pub fn settle(
+    model: &Model,
+    tools: &[Frame],
+    history: &[Carried],
+    targets: &[Target],
+    start: [Direction; 6],
+    first: FirstPasses,
+    options: &Options,
+) -> Compensated {
+    let h = history.len();
+    let state_start = match history.last() {
+        Some(c) => c.outcome.directions,
+        None => start,
+    };
+    let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
+    outcomes.extend(history.iter().map(|c| c.outcome));
+    outcomes.extend(first.outcomes);
+    let ctx = Ctx {
+        model,
+        tools,
+        history,
+        targets,
+        method: options.method,
+    };
     let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
-    resolved.resize(n, false);
+    resolved.resize(h + targets.len(), false);
     recheck(
         &ctx,
         state_start,
         h,
         &mut outcomes,
-        (&nominal_signs, &rates),
+        (&first.nominal_signs, &first.rates),
         &mut resolved,
     );
     // The commands' changes at the TCP, the command of a target the re-check re-solved anew.
@@ -431,13 +496,15 @@ pub fn compensate_after(
         Command { tcp, correction }
     };
     let commands: Vec<Command> = if options.parallel {
-        tcps.into_par_iter()
+        first
+            .tcps
+            .into_par_iter()
             .enumerate()
             .with_min_len(1024)
             .map(command)
             .collect()
     } else {
-        tcps.into_iter().enumerate().map(command).collect()
+        first.tcps.into_iter().enumerate().map(command).collect()
     };
     resolved.drain(..h);
     Compensated {
@@ -626,9 +693,7 @@ impl Ctx<'_> {
 
     /// The TCP commanded at target `k` with `axes`, as written (rounded) when it is written.
     fn tcp(&self, k: usize, axes: &[f64; 6]) -> Frame {
-        self.written(k, axes, || {
-            Nominal(&self.model.robot).tcp(axes, self.tool(k))
-        })
+        self.written(k, axes, || self.forward(k, axes).0)
     }
 
     /// [`Self::tcp`] given the unrounded TCP of `axes`, `raw` (not called for axis commands:
@@ -655,7 +720,9 @@ impl Ctx<'_> {
         let t = self.target(k);
         let arm = Nominal(&self.model.robot);
         let tool = self.tool(k);
-        if k > 0 && t.arrival.is_some() && t.interp != Interp::Joint {
+        // Not on the target's place in the sequence: a target's TCP comes from the same
+        // evaluation whichever segment it falls in (windowed = whole, to the bit).
+        if t.arrival.is_some() && t.interp != Interp::Joint {
             let (tcp, j) = arm.tcp_jacobian(axes, tool);
             (tcp, Some(j))
         } else {
@@ -789,7 +856,11 @@ fn recheck(
             resolved[k] = true;
             n_expected += 1;
         }
-        let stale = resolved[k] || (k >= 1 && resolved[k - 1]) || (k >= 2 && resolved[k - 2]);
+        // The first targets' arrivals depend on the history's commands (see `first_passes`).
+        let stale = k - from < LOOK_BACK
+            || resolved[k]
+            || (k >= 1 && resolved[k - 1])
+            || (k >= 2 && resolved[k - 2]);
         let rate = if stale {
             let snapshot = |j: usize| outcomes[j].axes_deg;
             signs(ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None, None))

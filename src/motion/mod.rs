@@ -15,6 +15,7 @@ pub mod workspace;
 
 pub use simulate::{
     simulate, simulate_streaming, GivenFrame, Rel, Role, RunSink, Simulation, SplineEnds, Stop,
+    Walked,
 };
 pub use workspace::{FileId, Workspace};
 

@@ -30,7 +30,7 @@ mod stream;
 mod target;
 
 pub use spline::SplineEnds;
-pub use stream::{simulate_streaming, RunSink};
+pub use stream::{simulate_streaming, RunSink, Walked};
 /// Time per part of the streamed walk (`ROBOPOST_TIMING`).
 pub mod stream_timing {
     pub use super::stream::{PARSE_NS, SINK_NS, WALK_NS};

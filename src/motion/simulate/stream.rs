@@ -34,7 +34,7 @@ const PARSED_AHEAD: usize = 4;
 self_cell::self_cell!(
     /// A window's workspace with the simulation of its stops, which borrows it: one value,
     /// sent from the walker thread to the compensation.
-    struct Walked {
+    pub struct Walked {
         owner: Workspace,
         #[covariant]
         dependent: Simulation,
@@ -46,9 +46,12 @@ pub trait RunSink<'f> {
     /// The walk reached a run: `sim.stops[from..]` are the skeleton's stops since the last
     /// call (ghosts first when the previous segment was a run), their arrivals final.
     fn skeleton(&mut self, sim: &Simulation<'f>, from: usize);
-    /// One window of a run, walked: `ws` holds the window as its only file (id 0), `sim` its
-    /// stops, ghosts first.
-    fn window(&mut self, ws: &Workspace, sim: &Simulation<'_>);
+    /// One window of a run, walked: its workspace holds the window as its only file (id 0),
+    /// its simulation the window's stops, ghosts first. The sink may keep it until the next
+    /// window or [`RunSink::run_end`].
+    fn window(&mut self, walked: Walked);
+    /// The run's last window was handed over.
+    fn run_end(&mut self);
 }
 
 /// [`simulate`] of a workspace whose main file may have streamed runs; the skeleton's stops
@@ -213,9 +216,12 @@ impl<'f> Simulator<'f> {
             });
             for walked in rx {
                 let t = std::time::Instant::now();
-                walked.with_dependent(|ws, sim| sink.window(ws, sim));
+                sink.window(walked);
                 SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
             }
+            let t = std::time::Instant::now();
+            sink.run_end();
+            SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
             walker
                 .join()
                 .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
