@@ -53,7 +53,29 @@ impl Geometry {
     /// point on the line A2–A3), ±180° folded.
     #[inline]
     pub fn elbow(&self, theta3: f64) -> f64 {
-        theta3 + self.links.l4x.atan2(self.links.l3z)
+        theta3 + self.psi()
+    }
+
+    /// ψ = atan2(l4x, l3z), remembered per thread for the last robot asked about: the
+    /// library `atan2` of two constants cost as much as the rest of `status_turn`, which the
+    /// walk calls for every path target.
+    #[inline]
+    pub fn psi(&self) -> f64 {
+        use std::cell::Cell;
+        thread_local! {
+            static LAST: Cell<(u64, u64, f64)> = const { Cell::new((u64::MAX, u64::MAX, f64::NAN)) };
+        }
+        let (y, x) = (self.links.l4x, self.links.l3z);
+        let key = (y.to_bits(), x.to_bits());
+        LAST.with(|last| {
+            let (ky, kx, psi) = last.get();
+            if (ky, kx) == key {
+                return psi;
+            }
+            let psi = y.atan2(x);
+            last.set((key.0, key.1, psi));
+            psi
+        })
     }
 }
 

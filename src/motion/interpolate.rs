@@ -15,6 +15,7 @@
 use nalgebra::{Vector3, Vector6};
 
 use super::frame::{self, exp_so3, Frame};
+use super::lu6::Lu6;
 use super::nominal::{self, Arm, Nominal};
 use crate::kinematics::RobotDescription;
 
@@ -420,7 +421,7 @@ pub fn arrival_and_end(
     }
     // The exact rate at the end, where the Jacobian is regular.
     let (end, jac) = Nominal(robot).tcp_jacobian(q1, tool);
-    let rate = jac.lu().solve(&(cart.twist(u_end) * u_end));
+    let rate = Lu6::new(&jac).solve_dividing(&(cart.twist(u_end) * u_end));
     let arrival = Arrival {
         rate: std::array::from_fn(|i| {
             let r = rate.map_or(0.0, |r| r[i]);
