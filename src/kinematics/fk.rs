@@ -81,7 +81,7 @@ impl Geometry {
 
 /// Planar arm coordinates of the wrist point in the A1 frame: (x', z'), and the angle θ2+θ3.
 #[inline]
-fn arm_plane(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64) {
+pub(crate) fn arm_plane(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64) {
     let (s2, c2) = t2.sin_cos();
     let (s23, c23) = (t2 + t3).sin_cos();
     let x = g.links.l1x + g.links.l2 * s2 + g.links.l4x * c23 + g.links.l3z * s23;

@@ -4,9 +4,7 @@
 //! singular), on fixed-size arrays the compiler unrolls: the generic version walks matrix
 //! views and cost a quarter of the per-target solve. The solve multiplies by the pivots'
 //! reciprocals, kept from the factorisation, where nalgebra divides: a chain of six
-//! divisions was most of a solve's latency (results differ from nalgebra's in the last bits);
-//! [`Lu6::solve_dividing`] divides as nalgebra does, for callers whose results must stay
-//! bit for bit what `Matrix::lu().solve` gave.
+//! divisions was most of a solve's latency (results differ from nalgebra's in the last bits).
 
 use nalgebra::{Matrix6, Vector6};
 
@@ -90,34 +88,6 @@ impl Lu6 {
         }
         Some(Vector6::from(x))
     }
-
-    /// [`Lu6::solve`] dividing by the pivots as nalgebra's `LU::solve` does (same operations
-    /// in the same order: `y ← y + (−c)·l` per column, then `x_i = y_i / u_ii`): its result
-    /// bit for bit, without nalgebra's generic views.
-    #[allow(clippy::needless_range_loop)] // x and the factors indexed alike, as in the formulas
-    pub fn solve_dividing(&self, b: &Vector6<f64>) -> Option<Vector6<f64>> {
-        let mut x: [f64; 6] = (*b).into();
-        for (i, &s) in self.swap.iter().enumerate() {
-            x.swap(i, s);
-        }
-        for i in 0..5 {
-            let coeff = x[i];
-            for r in i + 1..6 {
-                x[r] += -coeff * self.a[r][i];
-            }
-        }
-        if !self.is_invertible() {
-            return None;
-        }
-        for i in (0..6).rev() {
-            let coeff = x[i] / self.a[i][i];
-            x[i] = coeff;
-            for r in 0..i {
-                x[r] += -coeff * self.a[r][i];
-            }
-        }
-        Some(Vector6::from(x))
-    }
 }
 
 #[cfg(test)]
@@ -167,24 +137,6 @@ mod tests {
             if let (Some(x), Some(y)) = (x, y) {
                 let scale = y.amax().max(1.0);
                 assert!((x - y).amax() <= 1e-12 * scale, "{m}: {x} vs {y}");
-            }
-        }
-    }
-
-    /// The dividing solve is nalgebra's bit for bit (the simulation's arrival rates must not
-    /// change by a bit when it moved from `Matrix::lu` to this type).
-    #[test]
-    fn dividing_solve_is_nalgebras_bit_for_bit() {
-        let mut rhs = 0.37f64;
-        for m in matrices() {
-            rhs = (rhs * 7.1).fract() - 0.5;
-            let b = Vector6::new(rhs, -1.0, 2.0 * rhs, 1e-3, -4e-4, 7.0 + rhs);
-            let (x, y) = (Lu6::new(&m).solve_dividing(&b), m.lu().solve(&b));
-            assert_eq!(x.is_some(), y.is_some(), "{m}");
-            if let (Some(x), Some(y)) = (x, y) {
-                for i in 0..6 {
-                    assert_eq!(x[i].to_bits(), y[i].to_bits(), "{m}: {x} vs {y}");
-                }
             }
         }
     }
