@@ -161,31 +161,6 @@ fn exact(negative: bool, m: u64, e10: i64) -> Option<f64> {
 /// [`scan`] and [`value`] read it; both give the same answer where both apply).
 #[inline]
 pub(crate) fn read_plain(i: &[u8]) -> Option<(usize, f64, bool)> {
-    let p = scan_plain(i)?;
-    let v = exact(p.negative, p.mantissa, -(p.frac_digits as i64))?;
-    Some((p.len, v, !p.dot))
-}
-
-/// The length of the literal [`read_plain`] reads at the start of `i` (the same `None`s),
-/// without computing its value: what the parser needs to record a member it reads later.
-#[inline]
-pub(crate) fn plain_len(i: &[u8]) -> Option<usize> {
-    let p = scan_plain(i)?;
-    // `exact` declines only a mantissa above 2^53 (the exponent is −19..0 here).
-    (p.mantissa <= 1u64 << 53).then_some(p.len)
-}
-
-/// The shape of a plain literal (see [`read_plain`]).
-struct Plain {
-    len: usize,
-    negative: bool,
-    mantissa: u64,
-    frac_digits: usize,
-    dot: bool,
-}
-
-#[inline]
-fn scan_plain(i: &[u8]) -> Option<Plain> {
     let mut p = 0;
     let negative = match i.first() {
         Some(b'-') => {
@@ -233,13 +208,15 @@ fn scan_plain(i: &[u8]) -> Option<Plain> {
     if matches!(i.get(p), Some(b'e' | b'E')) {
         return None;
     }
-    Some(Plain {
-        len: p,
-        negative,
-        mantissa: m,
-        frac_digits,
-        dot,
-    })
+    let v = exact(negative, m, -(frac_digits as i64))?;
+    Some((p, v, !dot))
+}
+
+/// The length of the literal [`read_plain`] reads at the start of `i` (the same `None`s),
+/// without computing its value: what the parser needs to record a member it reads later.
+#[inline]
+pub(crate) fn plain_len(i: &[u8]) -> Option<usize> {
+    read_plain(i).map(|(len, _, _)| len)
 }
 
 /// Writes `value` in the style of the literal `original`: the same number of decimals (never
@@ -411,18 +388,6 @@ mod tests {
             "- 1",
         ] {
             assert_eq!(read_plain(t.as_bytes()), None, "{t}");
-            assert_eq!(plain_len(t.as_bytes()), None, "{t}");
-        }
-    }
-
-    proptest::proptest! {
-        /// `plain_len` accepts exactly what `read_plain` reads, with its length.
-        #[test]
-        fn plain_len_is_read_plains_length(
-            t in "[-+]?[0-9]{0,21}(\\.[0-9]{0,21})?([eE][0-9])?[ ,}]?"
-        ) {
-            let b = t.as_bytes();
-            proptest::prop_assert_eq!(plain_len(b), read_plain(b).map(|(len, _, _)| len));
         }
     }
 
