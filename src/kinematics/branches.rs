@@ -103,7 +103,7 @@ impl<'h> Target<'h> {
             s1,
             x_front: wrist.x * c1 + wrist.y * s1,
             a1_front,
-            psi: g.links.l4x.atan2(g.links.l3z),
+            psi: g.psi(),
             hint,
         }
     }

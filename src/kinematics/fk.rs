@@ -53,13 +53,35 @@ impl Geometry {
     /// point on the line A2–A3), ±180° folded.
     #[inline]
     pub fn elbow(&self, theta3: f64) -> f64 {
-        theta3 + self.links.l4x.atan2(self.links.l3z)
+        theta3 + self.psi()
+    }
+
+    /// ψ = atan2(l4x, l3z), remembered per thread for the last robot asked about: the
+    /// library `atan2` of two constants cost as much as the rest of `status_turn`, which the
+    /// walk calls for every path target.
+    #[inline]
+    pub fn psi(&self) -> f64 {
+        use std::cell::Cell;
+        thread_local! {
+            static LAST: Cell<(u64, u64, f64)> = const { Cell::new((u64::MAX, u64::MAX, f64::NAN)) };
+        }
+        let (y, x) = (self.links.l4x, self.links.l3z);
+        let key = (y.to_bits(), x.to_bits());
+        LAST.with(|last| {
+            let (ky, kx, psi) = last.get();
+            if (ky, kx) == key {
+                return psi;
+            }
+            let psi = y.atan2(x);
+            last.set((key.0, key.1, psi));
+            psi
+        })
     }
 }
 
 /// Planar arm coordinates of the wrist point in the A1 frame: (x', z'), and the angle θ2+θ3.
 #[inline]
-fn arm_plane(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64) {
+pub(crate) fn arm_plane(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64) {
     let (s2, c2) = t2.sin_cos();
     let (s23, c23) = (t2 + t3).sin_cos();
     let x = g.links.l1x + g.links.l2 * s2 + g.links.l4x * c23 + g.links.l3z * s23;

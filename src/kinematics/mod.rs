@@ -8,6 +8,7 @@ mod branches;
 pub mod fk;
 pub mod ik;
 pub mod pose;
+mod rates;
 pub mod robot;
 mod turns;
 
@@ -17,4 +18,5 @@ pub use fk::{
 };
 pub use ik::{inverse, inverse_all, inverse_all_into, IkError, IkSolution, Select};
 pub use pose::{abc_to_matrix, matrix_to_abc, E6Axis, E6Pos, Pose};
+pub use rates::ArmState;
 pub use robot::{Gravity, Links, Payload, RobotDescription};

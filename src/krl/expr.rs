@@ -817,7 +817,7 @@ fn close_aggregate(
 }
 
 /// `NAME number` followed by blanks and `,` or `}` (not consumed), the number plain enough
-/// for `number::read_plain`; `None` sends the member to the general `member` parser, which
+/// for `number::read_plain` (`number::plain_len`); `None` sends the member to the general `member` parser, which
 /// reads these the same way.
 #[inline]
 fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Packed)> {
@@ -826,7 +826,7 @@ fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Packed)> {
     }
     let name_end = 1 + i[1..].iter().take_while(|&&b| is_ident_char(b)).count();
     let at = name_end + blanks(&i[name_end..]);
-    let (len, _, _) = number::read_plain(&i[at..])?;
+    let len = number::plain_len(&i[at..])?;
     let rest = &i[at + len..];
     if !matches!(rest.get(blanks(rest)), Some(b',' | b'}')) {
         return None;

@@ -112,6 +112,13 @@ impl Nodes {
         }
     }
 
+    /// Whether a member's value is a number, without reading it (a packed member's always
+    /// is: `pack` and the parser's plain path store only numbers `read_plain` reads whole).
+    #[inline]
+    pub fn member_is_number(&self, p: Packed) -> bool {
+        p.name_len != 0 || matches!(self.outline[p.at as usize].1, Expr::Number(_))
+    }
+
     /// A member with its value (a plain number is read again from `src`, the bytes the
     /// file was parsed from, giving the value the parser read).
     pub fn member<'n>(&'n self, src: &[u8], p: Packed) -> Member<'n> {

@@ -212,6 +212,13 @@ pub(crate) fn read_plain(i: &[u8]) -> Option<(usize, f64, bool)> {
     Some((p, v, !dot))
 }
 
+/// The length of the literal [`read_plain`] reads at the start of `i` (the same `None`s),
+/// without computing its value: what the parser needs to record a member it reads later.
+#[inline]
+pub(crate) fn plain_len(i: &[u8]) -> Option<usize> {
+    read_plain(i).map(|(len, _, _)| len)
+}
+
 /// Writes `value` in the style of the literal `original`: the same number of decimals (never
 /// fewer than `min_decimals`), the same exponent form, a leading `.` kept for values below 1,
 /// an explicit `+` kept for non-negative values. Negative zero is written without a sign.

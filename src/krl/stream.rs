@@ -83,8 +83,8 @@ pub(crate) fn is_plain_kind(kind: &StmtKind, nodes: &Nodes, src: &[u8]) -> bool 
             let m = &nodes.motions[id.0 as usize];
             use MotionKind::*;
             matches!(m.kind, Ptp | Lin | Circ | PtpRel | LinRel | CircRel)
-                && literal(&m.target, nodes, src)
-                && m.aux().map_or(true, |a| literal(a, nodes, src))
+                && literal(&m.target, nodes)
+                && m.aux().map_or(true, |a| literal(a, nodes))
                 && m.angle().is_none()
                 && m.with().is_empty()
         }
@@ -101,7 +101,7 @@ pub(crate) fn is_plain_kind(kind: &StmtKind, nodes: &Nodes, src: &[u8]) -> bool 
 }
 
 /// An aggregate of numbers only.
-fn literal(e: &Expr, nodes: &Nodes, src: &[u8]) -> bool {
+fn literal(e: &Expr, nodes: &Nodes) -> bool {
     let Expr::Aggregate(_, id) = e else {
         return false;
     };
@@ -109,7 +109,7 @@ fn literal(e: &Expr, nodes: &Nodes, src: &[u8]) -> bool {
     nodes
         .members_of(a)
         .iter()
-        .all(|&p| matches!(nodes.member(src, p).value.as_ref(), Expr::Number(_)))
+        .all(|&p| nodes.member_is_number(p))
 }
 
 /// A line of a stretch not yet long enough to be a run (parsed again into the tree if the

@@ -15,7 +15,7 @@
 use nalgebra::{Vector3, Vector6};
 
 use super::frame::{self, exp_so3, Frame};
-use super::nominal::{self, Arm, Nominal};
+use super::nominal;
 use crate::kinematics::RobotDescription;
 
 /// An axis whose arrival rate is below this (degrees per segment) is at rest: it keeps its
@@ -359,9 +359,9 @@ pub fn arrival_along(
     arrival_and_end(robot, tool, cart, u_end, q0, q1).map(|(a, _)| a)
 }
 
-/// [`arrival_along`], with the nominal TCP at the arrival's end axes (`Nominal::tcp` of
-/// `Arrival::end`, bit for bit: it comes from the same chain evaluation as the Jacobian), which
-/// the next segment's start may reuse.
+/// [`arrival_along`], with the nominal TCP at the arrival's end axes ([`end_tcp`] of
+/// `Arrival::end`, bit for bit: it comes from the same evaluation as the rates), which the
+/// next segment's start may reuse.
 pub fn arrival_and_end(
     robot: &RobotDescription,
     tool: &Frame,
@@ -419,8 +419,7 @@ pub fn arrival_and_end(
         }
     }
     // The exact rate at the end, where the Jacobian is regular.
-    let (end, jac) = Nominal(robot).tcp_jacobian(q1, tool);
-    let rate = jac.lu().solve(&(cart.twist(u_end) * u_end));
+    let (end, rate) = end_rate(robot, tool, q1, &(cart.twist(u_end) * u_end));
     let arrival = Arrival {
         rate: std::array::from_fn(|i| {
             let r = rate.map_or(0.0, |r| r[i]);
@@ -437,6 +436,35 @@ pub fn arrival_and_end(
     Ok((arrival, end))
 }
 
+/// The nominal TCP at axes `q` (the closed form of `kinematics`; agrees with
+/// `Nominal::tcp` to rounding): where [`arrival_and_end`] says a segment ends.
+pub fn end_tcp(robot: &RobotDescription, q: &[f64; 6], tool: &Frame) -> Frame {
+    let (r, p) = crate::kinematics::flange_frame(robot, q);
+    tcp_of_flange(&r, &p, tool)
+}
+
+fn tcp_of_flange(r: &nalgebra::Matrix3<f64>, p: &Vector3<f64>, tool: &Frame) -> Frame {
+    Frame {
+        rotation: r * tool.rotation,
+        position: p + r * tool.position,
+    }
+}
+
+/// The nominal TCP at `q` ([`end_tcp`], bit for bit) and the axis rates `J(q)⁻¹·twist`
+/// (`None` where the Jacobian is singular).
+fn end_rate(
+    robot: &RobotDescription,
+    tool: &Frame,
+    q: &[f64; 6],
+    twist: &Vector6<f64>,
+) -> (Frame, Option<[f64; 6]>) {
+    let arm = crate::kinematics::ArmState::new(robot, q);
+    let tcp = tcp_of_flange(&arm.flange_rotation, &arm.flange_position, tool);
+    let v = Vector3::new(twist[0], twist[1], twist[2]);
+    let w = Vector3::new(twist[3], twist[4], twist[5]);
+    (tcp, arm.rates(&tcp.position, &v, &w))
+}
+
 fn rest(d: f64) -> f64 {
     if d.abs() < REST_DEG {
         0.0
@@ -449,6 +477,7 @@ fn rest(d: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::kinematics::{inverse, Select};
+    use crate::motion::nominal::{Arm, Nominal};
     use approx::assert_relative_eq;
 
     fn robot() -> RobotDescription {
@@ -495,6 +524,31 @@ mod tests {
                     .to_degrees()
                     <= PITCH_DEG;
             proptest::prop_assert_eq!(lin_needs_no_samples(&a, &b), exact);
+        }
+    }
+
+    /// The closed-form end rates are the error-model chain's `J⁻¹·twist` (LU of its 6×6
+    /// nominal Jacobian, an independent evaluation), and the end TCP its TCP, to rounding.
+    #[test]
+    fn end_rates_match_the_chains_jacobian() {
+        let r = robot();
+        let tool = Frame::from_kuka(&[12.0, -30.0, 245.3, 10.0, -90.0, 5.0]);
+        for q in [
+            [10.0, -80.0, 100.0, 20.0, 50.0, -30.0],
+            [-120.0, -45.0, 70.0, -160.0, -80.0, 200.0],
+            [0.0, -90.0, 90.0, 0.0, 30.0, 0.0],
+        ] {
+            let twist = Vector6::new(3.0, -1.5, 0.7, 0.01, -0.02, 0.005);
+            let (tcp, rates) = end_rate(&r, &tool, &q, &twist);
+            let (chain_tcp, jac) = Nominal(&r).tcp_jacobian(&q, &tool);
+            let expected = jac.lu().solve(&twist).unwrap();
+            let rates = rates.unwrap();
+            for i in 0..6 {
+                assert_relative_eq!(rates[i], expected[i], max_relative = 1e-9, epsilon = 1e-12);
+            }
+            assert_relative_eq!(tcp.position, chain_tcp.position, epsilon = 1e-9);
+            assert_relative_eq!(tcp.rotation, chain_tcp.rotation, epsilon = 1e-12);
+            assert_eq!(tcp, end_tcp(&r, &q, &tool));
         }
     }
 

@@ -207,7 +207,7 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
         .for_each(|(c, out)| {
             // The nominal TCP at the end of the stop just done, with its index and tool: the
             // next stop's start when it starts there (a CAM path), bit for bit what
-            // `Nominal::tcp` of the previous axes gives.
+            // `interpolate::end_tcp` of the previous axes gives.
             let mut carry: Option<(u32, u32, Frame)> = None;
             for (j, slot) in out.iter_mut().enumerate() {
                 let k = c * CHUNK + j;
@@ -220,7 +220,7 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                 let tool = &sim.frames[stop.tool as usize];
                 let start = match carry {
                     Some((i, t, tcp)) if i == p && t == stop.tool => tcp,
-                    _ => Nominal(robot).tcp(&prev.nominal_axes, tool),
+                    _ => interpolate::end_tcp(robot, &prev.nominal_axes, tool),
                 };
                 carry = None;
                 let Ok(cart) = Cartesian::new(&start, &stop.goal, &Path::Lin) else {

@@ -84,6 +84,13 @@ impl<'f> Simulator<'f> {
     }
 
     fn push_stop(&mut self, stop: Stop<'f>) -> u32 {
+        if self.out.stops.len() == self.out.stops.capacity() && self.out.stops.capacity() < 64 {
+            // A streamed window's walker starts with room for its history only: one stop per
+            // top-level statement (a window is a flat list of them) saves regrowing a few MB
+            // of stops per window; loops beyond that grow as usual.
+            let statements: usize = self.ws.files.iter().map(|f| f.file.body().len()).sum();
+            self.out.stops.reserve(statements);
+        }
         self.out.stops.push(stop);
         (self.out.stops.len() - 1) as u32
     }

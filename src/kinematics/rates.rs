@@ -1,0 +1,185 @@
+//! Axis rates from a tool twist: the axis velocities that move a point rigid with the flange
+//! at velocity `v` while the flange turns at angular velocity `ω`, on the nominal arm of
+//! `fk.rs`. The Jacobian's column n is `[ω_n × (p − o_n); ω_n]` (ω_n the world axis of a
+//! positive KUKA degree of axis n, o_n a point on it); the three wrist axes meet at the wrist
+//! point C, so the 6×6 system splits into two 3×3 ones (kinematic decoupling, Siciliano et al.,
+//! *Robotics*, 2009, §3.5): the arm axes alone move C, `Σₙ₌₁³ ω_n × (C − o_n)·q̇_n = v − ω × (p − C)`,
+//! and the wrist axes make up the rest of the turn, `Σₙ₌₄⁶ ω_n·q̇_n = ω − Σₙ₌₁³ ω_n·q̇_n`. Each is
+//! solved by Cramer's rule: a few dozen products, where a pivoted LU of the 6×6 Jacobian costs
+//! a chain of six divisions and the frames of the general error-model chain.
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::fk::{arm_plane, Geometry};
+use super::robot::RobotDescription;
+
+/// The nominal arm at one axis set: its flange and the lines of its axes.
+#[derive(Clone, Copy, Debug)]
+pub struct ArmState {
+    /// Flange rotation and position in the robot base frame (`fk::flange_frame`).
+    pub flange_rotation: Matrix3<f64>,
+    pub flange_position: Vector3<f64>,
+    /// The wrist point (on A4, A5 and A6).
+    wrist: Vector3<f64>,
+    /// World direction of a positive KUKA degree of each axis (radians per degree).
+    axis: [Vector3<f64>; 6],
+    /// A point on each arm axis (A1..A3).
+    origin: [Vector3<f64>; 3],
+}
+
+impl ArmState {
+    pub fn new(robot: &RobotDescription, axes_deg: &[f64; 6]) -> ArmState {
+        let g = Geometry::new(robot);
+        let l = g.links;
+        let t: [f64; 6] = std::array::from_fn(|i| g.theta(i, axes_deg[i]));
+        let (s1, c1) = t[0].sin_cos();
+        let (s2, c2) = t[1].sin_cos();
+        let (x, z, s23, c23) = arm_plane(&g, t[1], t[2]);
+        let wrist = Vector3::new(c1 * x, s1 * x, z);
+        // R03 = Rz(θ1)·Ry(θ2+θ3), as in `fk::flange_frame`.
+        let r03 = Matrix3::new(
+            c1 * c23,
+            -s1,
+            c1 * s23,
+            s1 * c23,
+            c1,
+            s1 * s23,
+            -s23,
+            0.0,
+            c23,
+        );
+        let (sa, ca) = t[3].sin_cos();
+        let (sb, cb) = t[4].sin_cos();
+        let (sg, cg) = t[5].sin_cos();
+        let wrist_rotation = Matrix3::new(
+            cb,
+            sb * sg,
+            sb * cg,
+            sa * sb,
+            ca * cg - sa * cb * sg,
+            -ca * sg - sa * cb * cg,
+            -ca * sb,
+            sa * cg + ca * cb * sg,
+            -sa * sg + ca * cb * cg,
+        );
+        let r06 = r03 * wrist_rotation;
+        let approach = r06.column(0).into_owned();
+        let flange_rotation =
+            Matrix3::from_columns(&[-r06.column(2), r06.column(1).into_owned(), approach]);
+        // Model axes: A1 about ẑ, A2 and A3 about Rz(θ1)·ŷ, A4 about R03·x̂, A5 about
+        // R03·Rx(θ4)·ŷ, A6 about R06·x̂; a KUKA degree turns θ_n by sense_n·π/180.
+        let per_degree =
+            |n: usize, a: Vector3<f64>| a * (g.senses[n] * std::f64::consts::PI / 180.0);
+        let shoulder = Vector3::new(-s1, c1, 0.0);
+        let axis = [
+            per_degree(0, Vector3::z()),
+            per_degree(1, shoulder),
+            per_degree(2, shoulder),
+            per_degree(3, r03.column(0).into_owned()),
+            per_degree(4, r03.column(1) * ca + r03.column(2) * sa),
+            per_degree(5, approach),
+        ];
+        let a2 = Vector3::new(c1 * l.l1x, s1 * l.l1x, l.l1z);
+        let a3 = a2 + Vector3::new(c1 * l.l2 * s2, s1 * l.l2 * s2, l.l2 * c2);
+        ArmState {
+            flange_rotation,
+            flange_position: wrist + l.l5x * approach,
+            wrist,
+            axis,
+            origin: [Vector3::zeros(), a2, a3],
+        }
+    }
+
+    /// Axis rates (degrees per unit of whatever `v` and `w` are per) that move point `p`
+    /// (rigid with the flange, base frame) at `v` and turn the flange at `w` (rad); `None`
+    /// where either 3×3 system is singular (a zero determinant).
+    pub fn rates(&self, p: &Vector3<f64>, v: &Vector3<f64>, w: &Vector3<f64>) -> Option<[f64; 6]> {
+        let at_wrist = v - w.cross(&(p - self.wrist));
+        let arm: [Vector3<f64>; 3] =
+            std::array::from_fn(|n| self.axis[n].cross(&(self.wrist - self.origin[n])));
+        let [q1, q2, q3] = cramer(&arm, &at_wrist)?;
+        let rest = w - self.axis[0] * q1 - self.axis[1] * q2 - self.axis[2] * q3;
+        let [q4, q5, q6] = cramer(&[self.axis[3], self.axis[4], self.axis[5]], &rest)?;
+        Some([q1, q2, q3, q4, q5, q6])
+    }
+}
+
+/// `x` with `x₀·c₀ + x₁·c₁ + x₂·c₂ = b`, by Cramer's rule with triple products.
+fn cramer(c: &[Vector3<f64>; 3], b: &Vector3<f64>) -> Option<[f64; 3]> {
+    let c12 = c[1].cross(&c[2]);
+    let det = c[0].dot(&c12);
+    if det == 0.0 {
+        return None;
+    }
+    Some([
+        b.dot(&c12) / det,
+        c[0].dot(&b.cross(&c[2])) / det,
+        c[0].dot(&c[1].cross(b)) / det,
+    ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::flange_frame;
+
+    fn robot() -> RobotDescription {
+        RobotDescription::kr30ha()
+    }
+
+    /// The flange is `fk::flange_frame`'s, bit for bit (the same formula).
+    #[test]
+    fn flange_is_forward_kinematics() {
+        for q in [
+            [0.0, -90.0, 90.0, 0.0, 30.0, 0.0],
+            [20.0, -70.0, 110.0, 15.0, 40.0, -30.0],
+            [-135.0, -40.0, 60.0, -170.0, -95.0, 250.0],
+        ] {
+            let s = ArmState::new(&robot(), &q);
+            let (r, p) = flange_frame(&robot(), &q);
+            assert_eq!((s.flange_rotation, s.flange_position), (r, p));
+        }
+    }
+
+    proptest::proptest! {
+        /// The rates move the arm as asked: the flange point and rotation after a small step
+        /// `h·q̇` (by forward kinematics, central differences) match `h·v` and `h·ω`.
+        #[test]
+        fn rates_reproduce_the_twist(
+            q in proptest::array::uniform6(-150.0f64..150.0),
+            lever in proptest::array::uniform3(-200.0f64..200.0),
+            v in proptest::array::uniform3(-50.0f64..50.0),
+            w in proptest::array::uniform3(-0.2f64..0.2),
+        ) {
+            let r = robot();
+            let mut q = q;
+            q[1] = q[1].clamp(-130.0, 30.0);
+            q[2] = q[2].clamp(-110.0, 150.0);
+            // Away from the singularities, where the rates are large and differences poor.
+            proptest::prop_assume!(q[4].abs() > 10.0 && q[4].abs() < 170.0);
+            let d = crate::kinematics::singularity_distances(&r, &q);
+            proptest::prop_assume!(d.iter().all(|s| match s.kind {
+                crate::kinematics::SingularityKind::Shoulder => s.distance > 100.0,
+                _ => s.distance > 10.0,
+            }));
+            let s = ArmState::new(&r, &q);
+            let lever = Vector3::from(lever);
+            let p = s.flange_position + s.flange_rotation * lever;
+            let (v, w) = (Vector3::from(v), Vector3::from(w));
+            let rates = s.rates(&p, &v, &w).unwrap();
+            let h = 1e-6;
+            let at = |sign: f64| {
+                let qh: [f64; 6] = std::array::from_fn(|i| q[i] + sign * h * rates[i]);
+                flange_frame(&r, &qh)
+            };
+            let ((r1, p1), (r0, p0)) = (at(1.0), at(-1.0));
+            let dp = (p1 + r1 * lever - (p0 + r0 * lever)) / (2.0 * h);
+            let dr = r1 * r0.transpose();
+            let dw = Vector3::new(dr[(2, 1)] - dr[(1, 2)], dr[(0, 2)] - dr[(2, 0)], dr[(1, 0)] - dr[(0, 1)])
+                / (4.0 * h);
+            let scale = 1.0 + rates.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            proptest::prop_assert!((dp - v).norm() < 1e-5 * scale, "{dp} vs {v}");
+            proptest::prop_assert!((dw - w).norm() < 1e-8 * scale, "{dw} vs {w}");
+        }
+    }
+}
