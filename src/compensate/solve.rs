@@ -33,8 +33,8 @@ pub const TOL_ROTATION_RAD: f64 = 1e-7;
 pub struct Predicted<'a> {
     pub model: &'a Model,
     pub directions: [Direction; 6],
-    /// The errors that do not change with the command, summed once per target.
-    fixed: ChainErrors,
+    /// The errors that do not change with the command (time 0), summed once per model.
+    fixed: &'a ChainErrors,
     /// The joint sines and cosines of the first evaluation: the solve's later commands are
     /// millidegrees away (see [`JointTrig`]).
     trig: Cell<JointTrig>,
@@ -42,15 +42,10 @@ pub struct Predicted<'a> {
 
 impl<'a> Predicted<'a> {
     pub fn new(model: &'a Model, directions: [Direction; 6]) -> Self {
-        let fixed = model.fixed_errors(&AxisState {
-            axes_deg: [0.0; 6],
-            directions,
-            time_s: 0.0,
-        });
         Predicted {
             model,
             directions,
-            fixed,
+            fixed: model.fixed_errors_at_time_zero(),
             trig: Cell::default(),
         }
     }
@@ -72,7 +67,7 @@ impl<'a> Predicted<'a> {
     }
 
     fn errors(&self, axes: &[f64; 6]) -> ChainErrors {
-        let mut errors = self.fixed;
+        let mut errors = *self.fixed;
         self.model
             .add_varying_errors(&self.state(axes), &mut errors);
         errors
@@ -80,7 +75,7 @@ impl<'a> Predicted<'a> {
 
     /// The errors at `axes` and how they change with the axes.
     fn errors_with_slopes(&self, axes: &[f64; 6]) -> (ChainErrors, AxisSlopes) {
-        let mut errors = self.fixed;
+        let mut errors = *self.fixed;
         let mut slopes = AxisSlopes::default();
         self.model
             .add_varying_errors_with_slopes(&self.state(axes), &mut errors, &mut slopes);

@@ -109,6 +109,11 @@ impl Model {
         self.sum_fixed_errors(state)
     }
 
+    /// [`Self::fixed_errors`] at time 0 (compensation), by reference: summed once per model.
+    pub fn fixed_errors_at_time_zero(&self) -> &ChainErrors {
+        &self.merged().fixed_at_time_zero
+    }
+
     fn sum_fixed_errors(&self, state: &AxisState) -> ChainErrors {
         let ctx = self.context();
         let mut errors = ChainErrors::default();

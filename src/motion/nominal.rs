@@ -223,8 +223,8 @@ fn within(e: &Vector6<f64>, tol_p: f64, tol_r: f64) -> bool {
 pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
     let mut q = goal.start;
     // The Jacobian comes with the first evaluation: one chain evaluation for both.
-    let lin = arm.linearize(&q, goal.tool);
-    let (mut j, mut curvature) = (lin.jacobian, lin.curvature);
+    // Held in place (no copies of its kilobyte), replaced when the Jacobian is refreshed.
+    let mut lin = arm.linearize(&q, goal.tool);
     let mut e = frame::error(&lin.tcp, &goal.pose);
     let initial = e;
     if within(&e, goal.tol_mm, goal.tol_rad) {
@@ -246,17 +246,18 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         initial,
     };
     let least_squares = goal.hold.iter().any(|&h| h);
-    let mut stepper = Stepper::new(&j, &goal.hold);
+    let mut stepper = Stepper::new(&lin.jacobian, &goal.hold);
+    let mut fresh = true;
     let mut it = 0;
     while it < MAX_ITERATIONS {
         it += 1;
-        let mut dq = stepper.step(&j, &e, &goal.hold);
+        let mut dq = stepper.step(&lin.jacobian, &e, &goal.hold);
         // Right after a linearisation, the curvature's share of the step.
-        if let Some(fix) = curvature
-            .take()
-            .and_then(|c| stepper.curvature_fix(&c, &dq))
-        {
-            dq.iter_mut().zip(fix).for_each(|(d, f)| *d += f);
+        if std::mem::take(&mut fresh) {
+            let fix = lin.curvature.as_ref();
+            if let Some(fix) = fix.and_then(|c| stepper.curvature_fix(c, &dq)) {
+                dq.iter_mut().zip(fix).for_each(|(d, f)| *d += f);
+            }
         }
         for (a, d) in q.iter_mut().zip(dq.iter()) {
             *a += d;
@@ -285,9 +286,9 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         }
         // Refresh the Jacobian when progress is slow (large steps, strong table slopes).
         if it % 3 == 0 {
-            let lin = arm.linearize(&q, goal.tool);
-            (j, curvature) = (lin.jacobian, lin.curvature);
-            stepper = Stepper::new(&j, &goal.hold);
+            lin = arm.linearize(&q, goal.tool);
+            fresh = true;
+            stepper = Stepper::new(&lin.jacobian, &goal.hold);
         }
     }
     let (p, r) = frame::norms(&best.residual);
