@@ -7,8 +7,10 @@
 //! of a positive KUKA rotation and `o_n` its centre (from the chain's frames). The first
 //! Jacobian serves several steps (linear convergence at the rate of how much it changes, tiny
 //! for the small corrections and path steps solved here); a step larger than
-//! [`MAX_STEP_DEG`] means a near-singular Jacobian and is damped. With held axes the solve is
-//! weighted least squares over the free axes: position in mm, orientation in rad × [`LEVER_MM`].
+//! [`MAX_STEP_DEG`] means a near-singular Jacobian and is damped. An arm that also gives its
+//! [`Curvature`] (the calibrated model) has the chain's second-order term added to the first
+//! step after each linearisation. With held axes the solve is weighted least squares over the
+//! free axes: position in mm, orientation in rad × [`LEVER_MM`].
 
 use nalgebra::{Matrix6, Vector3, Vector6};
 
