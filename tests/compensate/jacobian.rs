@@ -186,3 +186,45 @@ fn one_step_reaches_the_tolerance() {
         }
     }
 }
+
+/// Smooth effects only (geometry, tilt of three axes, compliance of two by the numerical
+/// default), so that central differences hold at any pose.
+fn smooth_model() -> Model {
+    let mut model = super::nominal();
+    for (axis, scale) in [(2, 1.0), (3, -0.7), (5, 0.5)] {
+        let mut tilt = Tilt::zeros(axis);
+        tilt.values =
+            [0.004, -0.003, 0.002, 0.001, -0.002, 0.003, -0.001, 0.002].map(|v| v * scale);
+        model.push(Box::new(tilt));
+    }
+    for axis in [2, 3] {
+        model.push(Box::new(Compliance {
+            axis,
+            compliance: [0.03],
+        }));
+    }
+    model
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config::with_cases(64))]
+    /// The complete Jacobian is the derivative of the prediction anywhere in the workspace.
+    #[test]
+    fn complete_jacobian_is_the_derivative_anywhere(
+        a1 in -180.0f64..180.0, a2 in -130.0f64..30.0, a3 in -110.0f64..150.0,
+        a4 in -340.0f64..340.0, a5 in -115.0f64..115.0, a6 in -340.0f64..340.0,
+    ) {
+        let model = smooth_model();
+        let tool = tool();
+        let axes = [a1, a2, a3, a4, a5, a6];
+        let arm = Predicted::new(&model, [Direction::Positive; 6]);
+        let (_, j) = arm.tcp_jacobian(&axes, &tool);
+        let fd = finite_differences(&arm, &axes, &tool, 1e-4);
+        for n in 0..6 {
+            for r in 0..6 {
+                let tol = if r < 3 { 2e-7 } else { 2e-11 };
+                proptest::prop_assert!((j[(r, n)] - fd[n][r]).abs() < tol, "column {} row {}", n, r);
+            }
+        }
+    }
+}
