@@ -63,9 +63,43 @@ fn prediction(c: &mut Criterion<ThreadCpuTime>) {
     });
 }
 
+/// One target's compensation solve (the per-target work of the main job's first pass) with
+/// the hand-set calibration (the paper's full model): the goal is the nominal TCP of a
+/// state, the start its axes, so the correction is the model's whole error (~0.3 mm).
+fn solve_one_target(c: &mut Criterion<ThreadCpuTime>) {
+    use robopost::compensate::solve::{self, Problem};
+    use robopost::motion::frame::Frame;
+    use robopost::motion::nominal::{Arm, Nominal};
+    let model =
+        robopost::calibration::load(std::path::Path::new("calibrations/kr30ha-handset.json"))
+            .expect("hand-set calibration")
+            .model();
+    let tool = Frame::from_kuka(&[12.0, -5.0, 180.0, 0.0, 20.0, 0.0]);
+    let nominal = Nominal(&model.robot);
+    // Away from the wrist singularity (|A5| ≥ 10°), as CAM paths are.
+    let problems: Vec<Problem> = states()
+        .into_iter()
+        .filter(|s| s.axes_deg[4].abs() >= 10.0)
+        .map(|s| Problem {
+            goal: nominal.tcp(&s.axes_deg, &tool),
+            tool: &tool,
+            start: s.axes_deg,
+            directions: s.directions,
+            hold: [false; 6],
+        })
+        .collect();
+    let mut i = 0;
+    c.bench_function("solve one target (hand-set model)", |b| {
+        b.iter(|| {
+            i = (i + 1) % problems.len();
+            black_box(solve::solve(&model, black_box(&problems[i]), Default::default()).ok())
+        })
+    });
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().with_measurement(ThreadCpuTime::new()).measurement_time(std::time::Duration::from_secs(3)).warm_up_time(std::time::Duration::from_secs(1));
-    targets = prediction
+    targets = prediction, solve_one_target
 }
 criterion_main!(benches);

@@ -347,6 +347,14 @@ impl ChainFrames {
         t + w.cross(&(p - o))
     }
 
+    /// d(pose)/d(slot) of a frame carried by the A6 frame with origin `p`: the point's motion
+    /// (mm per unit) on top of the orientation's small rotation vector (rad per unit).
+    pub fn pose_partial(&self, slot: Slot, p: &Vector3<f64>) -> Vector6<f64> {
+        let (t, w, o) = self.slot_motion(slot);
+        let dp = t + w.cross(&(p - o));
+        Vector6::new(dp.x, dp.y, dp.z, w.x, w.y, w.z)
+    }
+
     /// d(target position)/d(slot) for every slot, indexed by [`Slot::index`].
     pub fn target_jacobian(&self, target_world: &Vector3<f64>) -> [Vector3<f64>; N_SLOTS] {
         std::array::from_fn(|i| self.point_partial(slot_of_index(i), target_world))
@@ -361,9 +369,7 @@ impl ChainFrames {
             if matches!(slot, Slot::Target { .. }) {
                 return Vector6::zeros();
             }
-            let (t, w, o) = self.slot_motion(slot);
-            let dp = t + w.cross(&(self.a6_origin - o));
-            Vector6::new(dp.x, dp.y, dp.z, w.x, w.y, w.z)
+            self.pose_partial(slot, &self.a6_origin)
         })
     }
 }

@@ -65,6 +65,36 @@ impl ChainErrors {
     }
 }
 
+/// How the chain errors change with the command angles at one state, in slot units (mm, rad)
+/// per degree of axis n: what makes the Jacobian of a predicted pose with respect to the
+/// command complete (a solver that froze the errors would step short by the table slopes).
+/// The angle slots (maps, backlash, crosstalk, compliance) are dense; the rest (tilt …) a
+/// short list, empty (and unallocated) for the paper's model.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AxisSlopes {
+    /// `angle[k][n]`: d(dθ of axis k+1)/d(A_{n+1}), rad per degree.
+    pub angle: [[f64; 6]; 6],
+    /// Every other slot: `(slot, n, d slot / d A_{n+1} per degree)`.
+    pub other: Vec<(Slot, usize, f64)>,
+}
+
+impl AxisSlopes {
+    /// Adds d `slot` / d A_{n+1} = `value` (per degree).
+    pub fn add(&mut self, slot: Slot, n: usize, value: f64) {
+        if value == 0.0 {
+            return;
+        }
+        match slot {
+            Slot::Angle { axis } => self.angle[axis as usize - 1][n] += value,
+            _ => self.other.push((slot, n, value)),
+        }
+    }
+}
+
+/// Step (degrees) of the central differences of [`Effect::add_with_axis_slopes`]'s default:
+/// small against the 1° pitch of tables, large against rounding (errors ~10⁻⁴ rad).
+pub const SLOPE_STEP_DEG: f64 = 1e-3;
+
 /// One model parameter as users see it (in reports, calibration files, standard errors).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Parameter {
@@ -103,6 +133,37 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn add_to(&self, state: &AxisState, ctx: &Context, errors: &mut ChainErrors);
     /// Pushes d(chain errors)/d(values) at `state` (stored units) as sparse entries.
     fn jacobian(&self, state: &AxisState, ctx: &Context, out: &mut Vec<Partial>);
+    /// [`Self::add_to`] plus how the contribution changes with each axis angle at `state`
+    /// (see [`AxisSlopes`]), for the complete Jacobian of a compensation solve. Effects whose
+    /// contribution varies with the axes override this with their analytic slopes; the
+    /// default differentiates [`Self::add_to`] numerically (central differences, 12 more
+    /// evaluations), so that a new effect is right without it, only slower.
+    fn add_with_axis_slopes(
+        &self,
+        state: &AxisState,
+        ctx: &Context,
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        self.add_to(state, ctx, errors);
+        if !self.varies_with_axes() {
+            return;
+        }
+        for n in 0..6 {
+            let at = |delta: f64| {
+                let mut moved = *state;
+                moved.axes_deg[n] += delta;
+                let mut out = ChainErrors::default();
+                self.add_to(&moved, ctx, &mut out);
+                out
+            };
+            let (plus, minus) = (at(SLOPE_STEP_DEG), at(-SLOPE_STEP_DEG));
+            for (i, (p, m)) in plus.0.iter().zip(&minus.0).enumerate() {
+                let slot = crate::model::chain::slot_of_index(i);
+                slopes.add(slot, n, (p - m) / (2.0 * SLOPE_STEP_DEG));
+            }
+        }
+    }
     /// Whether the contribution depends on the axis angles or directions. Effects that answer
     /// `false` (the axis lines' geometry, drift) depend on the time at most and are summed once
     /// when a solver evaluates many commands ([`Model::fixed_errors`](super::Model::fixed_errors)).

@@ -8,7 +8,7 @@
 
 use std::f64::consts::PI;
 
-use super::effect::{ChainErrors, Slot};
+use super::effect::{AxisSlopes, ChainErrors, Slot};
 use super::effects::ModelEffect;
 use super::state::Direction;
 use super::table::{Grid, Table1};
@@ -114,6 +114,23 @@ impl Merged {
             let n = sum.axis as usize - 1;
             let (value, _) = sum.tables[direction_index(directions[n])].eval(axes_deg[n]);
             errors.add(Slot::Angle { axis: sum.axis }, value);
+        }
+    }
+
+    /// [`Self::add_to`] with each table's slope along its axis (rad per degree).
+    pub fn add_with_slopes(
+        &self,
+        axes_deg: &[f64; 6],
+        directions: &[Direction; 6],
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        for sum in &self.axes {
+            let n = sum.axis as usize - 1;
+            let (value, slope) = sum.tables[direction_index(directions[n])].eval_slope(axes_deg[n]);
+            let slot = Slot::Angle { axis: sum.axis };
+            errors.add(slot, value);
+            slopes.add(slot, n, slope);
         }
     }
 }

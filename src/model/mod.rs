@@ -20,7 +20,9 @@ pub mod registry;
 pub mod state;
 pub mod table;
 
-pub use effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot, JOINT_SLOTS, N_SLOTS};
+pub use effect::{
+    AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Slot, JOINT_SLOTS, N_SLOTS,
+};
 pub use effects::{GridOptions, ModelEffect};
 pub use model::{JacobianScratch, Model};
 pub use record::{EffectRecord, RecordError, TableRecord};

@@ -9,7 +9,7 @@ use std::sync::OnceLock;
 use nalgebra::{Isometry3, Vector3, Vector6};
 
 use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
-use super::effect::{ChainErrors, Context, Parameter, Partial, Slot};
+use super::effect::{AxisSlopes, ChainErrors, Context, Parameter, Partial, Slot};
 use super::effects::{GridOptions, ModelEffect};
 use super::merged::Merged;
 use super::registry::EffectName;
@@ -109,6 +109,11 @@ impl Model {
         self.sum_fixed_errors(state)
     }
 
+    /// [`Self::fixed_errors`] at time 0 (compensation), by reference: summed once per model.
+    pub fn fixed_errors_at_time_zero(&self) -> &ChainErrors {
+        &self.merged().fixed_at_time_zero
+    }
+
     fn sum_fixed_errors(&self, state: &AxisState) -> ChainErrors {
         let ctx = self.context();
         let mut errors = ChainErrors::default();
@@ -136,6 +141,23 @@ impl Model {
         let ctx = self.context();
         for &i in &merged.rest {
             self.effects[i].add_to(state, &ctx, errors);
+        }
+    }
+
+    /// [`Self::add_varying_errors`] with how those errors change with the axes (see
+    /// [`AxisSlopes`]): the fixed errors do not change, so these are the slopes of the whole
+    /// model.
+    pub fn add_varying_errors_with_slopes(
+        &self,
+        state: &AxisState,
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        let merged = self.merged();
+        merged.add_with_slopes(&state.axes_deg, &state.directions, errors, slopes);
+        let ctx = self.context();
+        for &i in &merged.rest {
+            self.effects[i].add_with_axis_slopes(state, &ctx, errors, slopes);
         }
     }
 
@@ -169,11 +191,17 @@ impl Model {
     /// target slots of `errors`) is where the TCP really is; any other tool is taken as
     /// programmed (the target's correction says nothing about it).
     pub fn tool_as_identified(&self, tool_mm: &Vector3<f64>, errors: &ChainErrors) -> Vector3<f64> {
-        if (tool_mm - self.target_mm).norm() > TOOL_MATCH_MM {
+        if !self.tool_is_target(tool_mm) {
             return *tool_mm;
         }
         let t = Vector3::from_fn(|c, _| errors.get(Slot::Target { coord: c as u8 }));
         tool_mm + a6_to_flange().transpose() * t
+    }
+
+    /// Whether a tool (flange → TCP, mm) is the measurement target (see
+    /// [`Self::tool_as_identified`]).
+    pub fn tool_is_target(&self, tool_mm: &Vector3<f64>) -> bool {
+        (tool_mm - self.target_mm).norm() <= TOOL_MATCH_MM
     }
 
     /// Whether any table effect held `state` at its edge.

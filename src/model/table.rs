@@ -175,6 +175,27 @@ impl Table1 {
         let value = (1.0 - cell.w) * self.values[cell.lo] + cell.w * self.values[cell.hi];
         (value, cell)
     }
+
+    /// The interpolated value at `x` and its slope d value / d x: the slope of the cell
+    /// holding `x` (on a grid point, the cell to its right; at the last point the last cell),
+    /// zero outside the grid where the value is held.
+    pub fn eval_slope(&self, x: f64) -> (f64, f64) {
+        let (value, cell) = self.eval(x);
+        let slope = self
+            .grid
+            .slope(&cell, self.values[cell.lo], self.values[cell.hi]);
+        (value, slope)
+    }
+}
+
+impl Grid {
+    /// d value / d x in `cell` from the values at its ends (zero when clamped or one point).
+    fn slope(&self, cell: &Cell, at_lo: f64, at_hi: f64) -> f64 {
+        if cell.clamped || cell.lo == cell.hi {
+            return 0.0;
+        }
+        (at_hi - at_lo) / (self.points[cell.hi] - self.points[cell.lo])
+    }
 }
 
 /// A 2-D table over `rows × columns`, stored row-major: `values[i·columns + j]` belongs to
@@ -211,5 +232,29 @@ impl Table2 {
         ];
         let value = corners.iter().map(|&(i, w)| w * self.values[i]).sum();
         (value, corners, cr.clamped || cc.clamped)
+    }
+
+    /// The bilinear value at `(r, c)` (as [`Self::eval`]) and its slopes `(d/dr, d/dc)`:
+    /// along each grid as [`Table1::eval_slope`], interpolated across the other grid.
+    pub fn eval_slopes(&self, r: f64, c: f64) -> (f64, f64, f64) {
+        let (cr, cc) = (self.rows.locate(r), self.columns.locate(c));
+        let width = self.columns.len();
+        let v = |i: usize, j: usize| self.values[i * width + j];
+        let (ll, lh, hl, hh) = (
+            v(cr.lo, cc.lo),
+            v(cr.lo, cc.hi),
+            v(cr.hi, cc.lo),
+            v(cr.hi, cc.hi),
+        );
+        let value = (1.0 - cr.w) * (1.0 - cc.w) * ll
+            + (1.0 - cr.w) * cc.w * lh
+            + cr.w * (1.0 - cc.w) * hl
+            + cr.w * cc.w * hh;
+        let lerp = |a: f64, b: f64, w: f64| (1.0 - w) * a + w * b;
+        let d_row = self.rows.slope(&cr, lerp(ll, lh, cc.w), lerp(hl, hh, cc.w));
+        let d_column = self
+            .columns
+            .slope(&cc, lerp(ll, hl, cr.w), lerp(lh, hh, cr.w));
+        (value, d_row, d_column)
     }
 }

@@ -7,15 +7,17 @@
 //! of a positive KUKA rotation and `o_n` its centre (from the chain's frames). The first
 //! Jacobian serves several steps (linear convergence at the rate of how much it changes, tiny
 //! for the small corrections and path steps solved here); a step larger than
-//! [`MAX_STEP_DEG`] means a near-singular Jacobian and is damped. With held axes the solve is
-//! weighted least squares over the free axes: position in mm, orientation in rad × [`LEVER_MM`].
+//! [`MAX_STEP_DEG`] means a near-singular Jacobian and is damped. An arm that also gives its
+//! [`Curvature`] (the calibrated model) has the chain's second-order term added to the first
+//! step after each linearisation. With held axes the solve is weighted least squares over the
+//! free axes: position in mm, orientation in rad × [`LEVER_MM`].
 
-use nalgebra::{Matrix6, Vector6};
+use nalgebra::{Matrix6, Vector3, Vector6};
 
 use super::frame::{self, Frame};
 use super::lu6::Lu6;
 use crate::kinematics::RobotDescription;
-use crate::model::chain::{self, a6_to_flange, JointTrig};
+use crate::model::chain::{self, a6_to_flange, AxisLines, JointTrig};
 use crate::model::ChainErrors;
 
 /// Orientation weight of least-squares solves and of error comparisons: 1 rad ≙ 100 mm (a
@@ -32,6 +34,78 @@ pub trait Arm {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame;
     /// The TCP and d(TCP)/d(axes) per degree.
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>);
+    /// The TCP, its Jacobian and, where the arm provides it, its [`Curvature`] (which lets
+    /// the first step land to third order). By default [`Self::tcp_jacobian`] alone.
+    fn linearize(&self, axes: &[f64; 6], tool: &Frame) -> Linearized {
+        let (tcp, jacobian) = self.tcp_jacobian(axes, tool);
+        Linearized {
+            tcp,
+            jacobian,
+            curvature: None,
+        }
+    }
+}
+
+/// An arm linearised at a command (see [`Arm::linearize`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Linearized {
+    pub tcp: Frame,
+    /// d(TCP)/d(axes) per degree.
+    pub jacobian: Matrix6<f64>,
+    pub curvature: Option<Curvature>,
+}
+
+/// The second-order term of a serial chain's motion around a command. Joint k turns about
+/// its world line (unit axis `ω_k` through `o_k`) by `u_k = Σ_n T_kn·dq_n` for a command step
+/// `dq` (T: the identity, plus how the angle errors change with the command). Composing the
+/// joint rotations (product of exponentials, the distal joint applied first) moves a point
+/// `p` carried by the last body by
+/// `Σ_k v_k u_k + ½ Σ_k ω_k×v_k u_k² + Σ_{i<j} ω_i×v_j u_i u_j + O(u³)`, `v_k = ω_k×(p − o_k)`,
+/// and turns the orientation by `Σ_k ω_k u_k + ½ Σ_{i<j} ω_i×ω_j u_i u_j + O(u³)` (the
+/// Baker–Campbell–Hausdorff series to its commutator term). The Jacobian is the linear part;
+/// [`Self::second_order`] is the rest. For the corrections of compensation (u ≈ 10⁻³ rad)
+/// that rest is ~0.5 µrad — above the 0.1 µrad tolerance, so a plain first step falls short.
+#[derive(Clone, Copy, Debug)]
+pub struct Curvature {
+    /// `ω_k`, unit, world frame.
+    axis: [Vector3<f64>; 6],
+    /// `v_k = ω_k × (p − o_k)`, mm per rad.
+    velocity: [Vector3<f64>; 6],
+    /// `T_kn`, degrees of joint k per degree of command n.
+    turns: [[f64; 6]; 6],
+}
+
+impl Curvature {
+    /// From the chain's axis lines at the linearisation point, the TCP there and `turns`.
+    pub fn new(lines: &AxisLines, tcp: &Vector3<f64>, turns: [[f64; 6]; 6]) -> Curvature {
+        Curvature {
+            axis: lines.joint_axis,
+            velocity: std::array::from_fn(|k| lines.joint_axis[k].cross(&(tcp - lines.origin[k]))),
+            turns,
+        }
+    }
+
+    /// The pose change `[Δp (mm); Δr (rad)]` of command step `dq` (deg) beyond the linear
+    /// term: what is left after a step computed with the Jacobian alone.
+    pub fn second_order(&self, dq: &[f64; 6]) -> Vector6<f64> {
+        let u: [f64; 6] = std::array::from_fn(|k| {
+            let row = &self.turns[k];
+            (0..6).map(|n| row[n] * dq[n]).sum::<f64>().to_radians()
+        });
+        // Suffix sums over the distal joints j > i.
+        let mut later_v = Vector3::zeros();
+        let mut later_w = Vector3::zeros();
+        let mut dp = Vector3::zeros();
+        let mut dr = Vector3::zeros();
+        for i in (0..6).rev() {
+            let wu = self.axis[i] * u[i];
+            dp += wu.cross(&(self.velocity[i] * (0.5 * u[i]) + later_v));
+            dr += wu.cross(&later_w) * 0.5;
+            later_v += self.velocity[i] * u[i];
+            later_w += wu;
+        }
+        Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z)
+    }
 }
 
 /// The TCP of a chain evaluated with `errors`.
@@ -58,19 +132,36 @@ pub fn tcp_jacobian_of(
     tool: &Frame,
     trig: &mut JointTrig,
 ) -> (Frame, Matrix6<f64>) {
+    let (tcp, lines) = tcp_lines_of(robot, axes, errors, tool, trig);
+    (tcp, jacobian_of(&lines, &tcp))
+}
+
+/// The TCP of a chain evaluated with `errors`, with the chain's axis lines.
+pub fn tcp_lines_of(
+    robot: &RobotDescription,
+    axes: &[f64; 6],
+    errors: &ChainErrors,
+    tool: &Frame,
+    trig: &mut JointTrig,
+) -> (Frame, AxisLines) {
     let lines = chain::axis_lines(robot, axes, errors, trig);
     let rf = lines.a6_rotation * a6_to_flange();
     let tcp = Frame {
         rotation: rf * tool.rotation,
         position: lines.a6_origin + rf * tool.position,
     };
+    (tcp, lines)
+}
+
+/// The axis Jacobian (per degree, errors frozen) at `tcp` from the chain's axis lines.
+pub fn jacobian_of(lines: &AxisLines, tcp: &Frame) -> Matrix6<f64> {
     let mut j = Matrix6::zeros();
     for n in 0..6 {
         let w = lines.joint_axis[n] * std::f64::consts::PI / 180.0;
         let v = w.cross(&(tcp.position - lines.origin[n]));
         j.set_column(n, &Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z));
     }
-    (tcp, j)
+    j
 }
 
 /// The nominal chain's errors (a static: no 360-byte zeroing per evaluation).
@@ -134,8 +225,9 @@ fn within(e: &Vector6<f64>, tol_p: f64, tol_r: f64) -> bool {
 pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
     let mut q = goal.start;
     // The Jacobian comes with the first evaluation: one chain evaluation for both.
-    let (tcp0, mut j) = arm.tcp_jacobian(&q, goal.tool);
-    let mut e = frame::error(&tcp0, &goal.pose);
+    // Held in place (no copies of its kilobyte), replaced when the Jacobian is refreshed.
+    let mut lin = arm.linearize(&q, goal.tool);
+    let mut e = frame::error(&lin.tcp, &goal.pose);
     let initial = e;
     if within(&e, goal.tol_mm, goal.tol_rad) {
         return Ok(Solution {
@@ -156,11 +248,19 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         initial,
     };
     let least_squares = goal.hold.iter().any(|&h| h);
-    let mut stepper = Stepper::new(&j, &goal.hold);
+    let mut stepper = Stepper::new(&lin.jacobian, &goal.hold);
+    let mut fresh = true;
     let mut it = 0;
     while it < MAX_ITERATIONS {
         it += 1;
-        let dq = stepper.step(&j, &e, &goal.hold);
+        let mut dq = stepper.step(&lin.jacobian, &e, &goal.hold);
+        // Right after a linearisation, the curvature's share of the step.
+        if std::mem::take(&mut fresh) {
+            let fix = lin.curvature.as_ref();
+            if let Some(fix) = fix.and_then(|c| stepper.curvature_fix(c, &dq)) {
+                dq.iter_mut().zip(fix).for_each(|(d, f)| *d += f);
+            }
+        }
         for (a, d) in q.iter_mut().zip(dq.iter()) {
             *a += d;
         }
@@ -188,8 +288,9 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         }
         // Refresh the Jacobian when progress is slow (large steps, strong table slopes).
         if it % 3 == 0 {
-            j = arm.tcp_jacobian(&q, goal.tool).1;
-            stepper = Stepper::new(&j, &goal.hold);
+            lin = arm.linearize(&q, goal.tool);
+            fresh = true;
+            stepper = Stepper::new(&lin.jacobian, &goal.hold);
         }
     }
     let (p, r) = frame::norms(&best.residual);
@@ -252,6 +353,19 @@ impl Stepper {
             }
         }
         damped_least_squares(j, e, hold)
+    }
+
+    /// The correction `c` with `J·c = −second_order(dq)`, so that `dq + c` leaves only third
+    /// order terms; `None` for a least-squares step, and where `c` is not small against the
+    /// step (a near-singular Jacobian, where the series says nothing).
+    fn curvature_fix(&self, curvature: &Curvature, dq: &[f64; 6]) -> Option<[f64; 6]> {
+        let Stepper::Lu(lu) = self else {
+            return None;
+        };
+        let fix: [f64; 6] = lu.solve(&-curvature.second_order(dq))?.into();
+        let largest = |v: &[f64; 6]| v.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        let small = fix.iter().all(|f| f.is_finite()) && largest(&fix) <= 0.5 * largest(dq);
+        small.then_some(fix)
     }
 }
 

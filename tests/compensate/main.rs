@@ -2,6 +2,7 @@
 
 mod cli;
 mod core;
+mod jacobian;
 mod pipeline;
 mod spline;
 

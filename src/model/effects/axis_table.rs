@@ -4,7 +4,7 @@
 
 use std::f64::consts::PI;
 
-use crate::model::effect::{ChainErrors, Parameter, Partial, Slot};
+use crate::model::effect::{AxisSlopes, ChainErrors, Parameter, Partial, Slot};
 use crate::model::record::{self, EffectRecord, RecordError, TableRecord};
 use crate::model::table::{Grid, Table1};
 use crate::model::AxisState;
@@ -89,6 +89,23 @@ impl AxisTable {
         let (value, _) = self.table.eval(self.command(state));
         // `to_radians` multiplies by π/180 where `· π / 180` divided: the hot path of a solve.
         errors.add(Slot::Angle { axis: self.axis }, factor * value.to_radians());
+    }
+
+    /// [`Self::add_to`] with the table's slope along its own axis.
+    pub fn add_with_slopes(
+        &self,
+        state: &AxisState,
+        factor: f64,
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        if factor == 0.0 {
+            return;
+        }
+        let (value, slope) = self.table.eval_slope(self.command(state));
+        let slot = Slot::Angle { axis: self.axis };
+        errors.add(slot, factor * value.to_radians());
+        slopes.add(slot, self.axis as usize - 1, factor * slope.to_radians());
     }
 
     pub fn jacobian(&self, state: &AxisState, factor: f64, out: &mut Vec<Partial>) {

@@ -6,7 +6,7 @@
 use super::axis_table::AxisTable;
 use super::{GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
-use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial};
+use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial};
 use crate::model::merged::AxisFactor;
 use crate::model::record::{EffectRecord, RecordError};
 use crate::model::table::Table1;
@@ -46,6 +46,16 @@ impl Effect for Backlash {
     }
     fn add_to(&self, state: &AxisState, _ctx: &Context, errors: &mut ChainErrors) {
         self.0.add_to(state, self.direction(state), errors);
+    }
+    fn add_with_axis_slopes(
+        &self,
+        state: &AxisState,
+        _ctx: &Context,
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        self.0
+            .add_with_slopes(state, self.direction(state), errors, slopes);
     }
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
         self.0.jacobian(state, self.direction(state), out);

@@ -8,7 +8,7 @@ use std::f64::consts::PI;
 
 use super::{grid_label, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
-use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Slot};
 use crate::model::record::{self, EffectRecord, RecordError, TableRecord};
 use crate::model::table::{Grid, Table2};
 use crate::model::AxisState;
@@ -116,6 +116,23 @@ impl Effect for Crosstalk {
     fn add_to(&self, state: &AxisState, _ctx: &Context, errors: &mut ChainErrors) {
         let (value, _, _) = self.lookup(state);
         errors.add(Slot::Angle { axis: self.to }, value.to_radians());
+    }
+    fn add_with_axis_slopes(
+        &self,
+        state: &AxisState,
+        _ctx: &Context,
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        let (own, other) = (
+            state.axes_deg[self.to as usize - 1],
+            state.axes_deg[self.from as usize - 1],
+        );
+        let (value, d_own, d_other) = self.table.eval_slopes(own, other);
+        let slot = Slot::Angle { axis: self.to };
+        errors.add(slot, value.to_radians());
+        slopes.add(slot, self.to as usize - 1, d_own.to_radians());
+        slopes.add(slot, self.from as usize - 1, d_other.to_radians());
     }
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
         let (_, corners, _) = self.lookup(state);

@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 
 use super::ToRecord;
 use crate::model::chain::AXIS_COORD;
-use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Slot};
 use crate::model::record::{self, EffectRecord, RecordError};
 use crate::model::AxisState;
 
@@ -101,6 +101,30 @@ impl Effect for Tilt {
     fn add_to(&self, state: &AxisState, _ctx: &Context, errors: &mut ChainErrors) {
         for ((slot, gain), value) in self.gains(state).into_iter().zip(self.values) {
             errors.add(slot, gain * value);
+        }
+    }
+    fn add_with_axis_slopes(
+        &self,
+        state: &AxisState,
+        ctx: &Context,
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        self.add_to(state, ctx, errors);
+        // d/dA (per degree) of cos A, sin A, cos 2A, sin 2A.
+        let a = state.axes_deg[self.axis as usize - 1].to_radians();
+        let (s1, c1) = a.sin_cos();
+        let (s2, c2) = (2.0 * a).sin_cos();
+        let rate = PI / 180.0;
+        let harmonics = [-s1 * rate, c1 * rate, -2.0 * s2 * rate, 2.0 * c2 * rate];
+        let perp = self.perpendicular();
+        for (i, value) in self.values.iter().enumerate() {
+            let slot = Slot::Tilt {
+                axis: self.axis,
+                coord: perp[i / 4],
+            };
+            let d = harmonics[i % 4] * PI / 180.0 * value;
+            slopes.add(slot, self.axis as usize - 1, d);
         }
     }
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {

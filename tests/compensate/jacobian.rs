@@ -1,0 +1,230 @@
+//! The solver's linearisation of the predicted pose: the complete Jacobian (the chain's plus
+//! how the angle-dependent errors change with the axes) against central differences of the
+//! predicted TCP, the chain's second-order term against the chain itself, and the first
+//! step that together they make exact enough to need no second.
+
+use nalgebra::{Matrix3, Vector3, Vector6};
+use robopost::compensate::solve::{self, Predicted, Problem};
+use robopost::compensate::Method;
+use robopost::model::chain::JointTrig;
+use robopost::model::effects::compliance::Compliance;
+use robopost::model::effects::tilt::Tilt;
+use robopost::model::{AxisState, Direction, Model};
+use robopost::motion::frame::{self, Frame};
+use robopost::motion::nominal::{self, Arm, Nominal};
+
+use super::handset;
+
+fn tool() -> Frame {
+    Frame {
+        rotation: Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0),
+        position: Vector3::new(-120.0, -80.0, 180.0),
+    }
+}
+
+/// Poses away from the tables' grid points (5° and 10° pitches, crosstalk columns 58/105/153°
+/// for A3), where every map, backlash and crosstalk slope is that of one cell.
+const POSES: [[f64; 6]; 3] = [
+    [21.3, -72.4, 108.6, 16.2, 41.7, -31.1],
+    [-133.7, -41.2, 63.3, -167.9, -93.6, 247.2],
+    [3.1, -97.8, 121.4, 2.6, 58.3, 7.9],
+];
+
+fn directions() -> [[Direction; 6]; 3] {
+    use Direction::*;
+    [
+        [Positive; 6],
+        [Negative; 6],
+        [Positive, Negative, Positive, Negative, Unknown, Positive],
+    ]
+}
+
+/// The hand-set model plus a tilt effect (slopes in slots other than the angles) and a
+/// compliance effect (slopes by the trait's numerical default).
+fn full_model() -> Model {
+    let mut model = handset();
+    let mut tilt = Tilt::zeros(2);
+    tilt.values = [0.004, -0.003, 0.002, 0.001, -0.002, 0.003, -0.001, 0.002];
+    model.push(Box::new(tilt));
+    model.push(Box::new(Compliance {
+        axis: 3,
+        compliance: [0.02],
+    }));
+    model
+}
+
+/// d(TCP)/d(axes) per degree by central differences (h in degrees).
+fn finite_differences(arm: &impl Arm, axes: &[f64; 6], tool: &Frame, h: f64) -> [Vector6<f64>; 6] {
+    std::array::from_fn(|n| {
+        let moved = |d: f64| {
+            let mut q = *axes;
+            q[n] += d;
+            arm.tcp(&q, tool)
+        };
+        frame::error(&moved(h), &moved(-h)) / (2.0 * h)
+    })
+}
+
+/// The complete Jacobian is the derivative of the predicted TCP, for both backlash branches,
+/// with crosstalk, tilt and compliance; the chain's Jacobian alone (errors frozen) is not:
+/// it misses the tables' slopes by far more than the tolerance.
+#[test]
+fn complete_jacobian_matches_finite_differences_of_the_prediction() {
+    let tool = tool();
+    for model in [handset(), full_model()] {
+        for axes in POSES {
+            for dirs in directions() {
+                let arm = Predicted::new(&model, dirs);
+                let (tcp, j) = arm.tcp_jacobian(&axes, &tool);
+                let plain = arm.tcp(&axes, &tool);
+                assert!((tcp.position - plain.position).norm() < 1e-12);
+                let fd = finite_differences(&arm, &axes, &tool, 1e-4);
+                let frozen = frozen_jacobian(&model, dirs, &axes, &tool);
+                let mut missed = 0.0f64;
+                for n in 0..6 {
+                    for r in 0..6 {
+                        // Position mm/deg (values ~20), rotation rad/deg (0.017).
+                        let tol = if r < 3 { 2e-7 } else { 2e-11 };
+                        let (got, want) = (j[(r, n)], fd[n][r]);
+                        assert!(
+                            (got - want).abs() < tol,
+                            "axes {axes:?} dirs {dirs:?} column {n} row {r}: {got} vs {want}"
+                        );
+                        if r < 3 {
+                            missed = missed.max((frozen[(r, n)] - want).abs());
+                        }
+                    }
+                }
+                assert!(missed > 1e-4, "the slopes matter here: {missed}");
+            }
+        }
+    }
+}
+
+/// The chain's Jacobian with the errors of `axes` held fixed (the frozen-error
+/// linearisation the solver used before).
+fn frozen_jacobian(
+    model: &Model,
+    dirs: [Direction; 6],
+    axes: &[f64; 6],
+    tool: &Frame,
+) -> nalgebra::Matrix6<f64> {
+    let state = AxisState {
+        axes_deg: *axes,
+        directions: dirs,
+        time_s: 0.0,
+    };
+    let errors = model.chain_errors(&state);
+    let tool = Frame {
+        rotation: tool.rotation,
+        position: model.tool_as_identified(&tool.position, &errors),
+    };
+    nominal::tcp_jacobian_of(
+        &model.robot,
+        axes,
+        &errors,
+        &tool,
+        &mut JointTrig::default(),
+    )
+    .1
+}
+
+/// The second-order term of the linearisation is what a step really adds beyond the
+/// Jacobian's linear part: the left-over after subtracting it is third order (~100 times
+/// smaller for a 1 mrad step).
+#[test]
+fn curvature_is_the_chains_second_order_term() {
+    let tool = tool();
+    let model = full_model();
+    for axes in POSES {
+        let arm = Predicted::new(&model, [Direction::Positive; 6]);
+        let lin = arm.linearize(&axes, &tool);
+        let curvature = lin.curvature.expect("the model arm gives its curvature");
+        for step in [0.06, -0.04] {
+            let dq: [f64; 6] = std::array::from_fn(|n| step * (1.0 + 0.3 * n as f64));
+            let q: [f64; 6] = std::array::from_fn(|n| axes[n] + dq[n]);
+            let moved = arm.tcp(&q, &tool);
+            let actual = frame::error(&moved, &lin.tcp);
+            let linear = lin.jacobian * Vector6::from(dq);
+            let second = curvature.second_order(&dq);
+            let left = actual - linear - second;
+            let (sp, sr) = frame::norms(&second);
+            let (lp, lr) = frame::norms(&left);
+            assert!(sp > 1e-4 && sr > 1e-7, "a visible second order: {sp} {sr}");
+            assert!(lp < 0.03 * sp, "position: {lp} of {sp}");
+            assert!(lr < 0.03 * sr, "rotation: {lr} of {sr}");
+        }
+    }
+}
+
+/// With the complete Jacobian and the curvature, one step meets the tolerance (the plain
+/// chain Jacobian needed two): the goal is the nominal pose of a command, so the correction
+/// is the model's whole error (~0.3 mm, ~1 mrad).
+#[test]
+fn one_step_reaches_the_tolerance() {
+    let tool = tool();
+    let model = handset();
+    let nominal = Nominal(&model.robot);
+    for axes in POSES {
+        for dirs in directions() {
+            let problem = Problem {
+                goal: nominal.tcp(&axes, &tool),
+                tool: &tool,
+                start: axes,
+                directions: dirs,
+                hold: [false; 6],
+            };
+            let sol = solve::solve(&model, &problem, Method::Iterate).unwrap();
+            let (p0, _) = frame::norms(&sol.initial);
+            assert!(p0 > 0.1, "a real correction: {p0} mm");
+            assert_eq!(sol.iterations, 1, "{axes:?} {dirs:?}: {sol:?}");
+            let left = solve::predicted_error(&model, &dirs, &sol.axes_deg, &tool, &problem.goal);
+            assert!(solve::converged(&left));
+            // Far below the tolerance, not just under it: third-order terms only.
+            let (p, r) = frame::norms(&left);
+            assert!(p < 1e-5 && r < 1e-8, "{p} mm {r} rad");
+        }
+    }
+}
+
+/// Smooth effects only (geometry, tilt of three axes, compliance of two by the numerical
+/// default), so that central differences hold at any pose.
+fn smooth_model() -> Model {
+    let mut model = super::nominal();
+    for (axis, scale) in [(2, 1.0), (3, -0.7), (5, 0.5)] {
+        let mut tilt = Tilt::zeros(axis);
+        tilt.values =
+            [0.004, -0.003, 0.002, 0.001, -0.002, 0.003, -0.001, 0.002].map(|v| v * scale);
+        model.push(Box::new(tilt));
+    }
+    for axis in [2, 3] {
+        model.push(Box::new(Compliance {
+            axis,
+            compliance: [0.03],
+        }));
+    }
+    model
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config::with_cases(64))]
+    /// The complete Jacobian is the derivative of the prediction anywhere in the workspace.
+    #[test]
+    fn complete_jacobian_is_the_derivative_anywhere(
+        a1 in -180.0f64..180.0, a2 in -130.0f64..30.0, a3 in -110.0f64..150.0,
+        a4 in -340.0f64..340.0, a5 in -115.0f64..115.0, a6 in -340.0f64..340.0,
+    ) {
+        let model = smooth_model();
+        let tool = tool();
+        let axes = [a1, a2, a3, a4, a5, a6];
+        let arm = Predicted::new(&model, [Direction::Positive; 6]);
+        let (_, j) = arm.tcp_jacobian(&axes, &tool);
+        let fd = finite_differences(&arm, &axes, &tool, 1e-4);
+        for n in 0..6 {
+            for r in 0..6 {
+                let tol = if r < 3 { 2e-7 } else { 2e-11 };
+                proptest::prop_assert!((j[(r, n)] - fd[n][r]).abs() < tol, "column {} row {}", n, r);
+            }
+        }
+    }
+}
