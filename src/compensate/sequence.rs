@@ -18,11 +18,11 @@
 //! linearly in axis space, `arrival` is the nominal step) and to first order in the
 //! correction for LIN/CIRC (whose joint path moves by the interpolated correction).
 
-use nalgebra::{Matrix6, Vector3, Vector6};
+use nalgebra::{Vector3, Vector6};
 use rayon::prelude::*;
 
 use super::solve::{self, weighted_norm, Method, Problem, SolveError};
-use crate::kinematics::status_turn;
+use crate::kinematics::{status_turn, ArmState};
 use crate::model::{Direction, Model};
 use crate::motion::frame::Frame;
 use crate::motion::interpolate::{Cartesian, Path};
@@ -406,7 +406,7 @@ pub fn first_passes(
     let chunk = |c: usize| -> Vec<(Signs, Frame)> {
         let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
         let from = a.saturating_sub(2);
-        let forward: Vec<(Frame, Option<Matrix6<f64>>)> = (a..b)
+        let forward: Vec<(Frame, Option<ArmState>)> = (a..b)
             .map(|k| ctx.forward(k, &outcomes[k].axes_deg))
             .collect();
         let tcps: Vec<Frame> = (from..(b + 1).min(n))
@@ -714,19 +714,22 @@ impl Ctx<'_> {
         }
     }
 
-    /// The nominal TCP of `axes` at target `k` and, when its arrival rate needs one (a
-    /// Cartesian interpolation), the Jacobian there: one chain evaluation.
-    fn forward(&self, k: usize, axes: &[f64; 6]) -> (Frame, Option<Matrix6<f64>>) {
+    /// The nominal TCP of `axes` at target `k` and, when its arrival rate needs them (a
+    /// Cartesian interpolation), the arm's axis lines there — what `motion::interpolate`
+    /// solves the nominal arrival with, so both are computed alike.
+    fn forward(&self, k: usize, axes: &[f64; 6]) -> (Frame, Option<ArmState>) {
         let t = self.target(k);
-        let arm = Nominal(&self.model.robot);
         let tool = self.tool(k);
         // Not on the target's place in the sequence: a target's TCP comes from the same
         // evaluation whichever segment it falls in (windowed = whole, to the bit).
         if t.arrival.is_some() && t.interp != Interp::Joint {
-            let (tcp, j) = arm.tcp_jacobian(axes, tool);
-            (tcp, Some(j))
+            let arm = ArmState::new(&self.model.robot, axes);
+            (
+                crate::motion::interpolate::tcp_of_arm(&arm, tool),
+                Some(arm),
+            )
         } else {
-            (arm.tcp(axes, tool), None)
+            (Nominal(&self.model.robot).tcp(axes, tool), None)
         }
     }
 
@@ -739,7 +742,7 @@ impl Ctx<'_> {
         axes: &[f64; 6],
         cmd: &dyn Fn(usize) -> [f64; 6],
         cache: Option<(usize, &[Frame])>,
-        jacobian: Option<&Matrix6<f64>>,
+        arm: Option<&ArmState>,
     ) -> Option<[f64; 6]> {
         let t = self.target(k);
         let nominal = t.arrival?;
@@ -810,16 +813,16 @@ impl Ctx<'_> {
             _ => return Some(step),
         };
         let computed;
-        let j = match jacobian {
-            Some(j) => j,
+        let arm = match arm {
+            Some(arm) => arm,
             None => {
-                computed = Nominal(&self.model.robot)
-                    .tcp_jacobian(axes, self.tool(k))
-                    .1;
+                computed = ArmState::new(&self.model.robot, axes);
                 &computed
             }
         };
-        let rate = crate::motion::lu6::Lu6::new(j).solve(&twist);
+        let p = crate::motion::interpolate::tcp_of_arm(arm, self.tool(k)).position;
+        let (v, w) = (twist.fixed_rows::<3>(0), twist.fixed_rows::<3>(3));
+        let rate = arm.rates(&p, &v.into_owned(), &w.into_owned());
         Some(std::array::from_fn(|i| match rate {
             Some(r) if r[i].is_finite() && r[i].abs() >= REST_DEG => r[i],
             // A turning point right at the target: the sign of the whole step.

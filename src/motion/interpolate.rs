@@ -450,6 +450,11 @@ fn tcp_of_flange(r: &nalgebra::Matrix3<f64>, p: &Vector3<f64>, tool: &Frame) -> 
     }
 }
 
+/// The nominal TCP of the arm at `arm` with `tool` ([`end_tcp`] bit for bit).
+pub fn tcp_of_arm(arm: &crate::kinematics::ArmState, tool: &Frame) -> Frame {
+    tcp_of_flange(&arm.flange_rotation, &arm.flange_position, tool)
+}
+
 /// The nominal TCP at `q` ([`end_tcp`], bit for bit) and the axis rates `J(q)⁻¹·twist`
 /// (`None` where the Jacobian is singular).
 fn end_rate(
@@ -459,7 +464,7 @@ fn end_rate(
     twist: &Vector6<f64>,
 ) -> (Frame, Option<[f64; 6]>) {
     let arm = crate::kinematics::ArmState::new(robot, q);
-    let tcp = tcp_of_flange(&arm.flange_rotation, &arm.flange_position, tool);
+    let tcp = tcp_of_arm(&arm, tool);
     let v = Vector3::new(twist[0], twist[1], twist[2]);
     let w = Vector3::new(twist[3], twist[4], twist[5]);
     (tcp, arm.rates(&tcp.position, &v, &w))
