@@ -15,7 +15,7 @@ use std::collections::{BTreeMap, HashSet};
 use rayon::prelude::*;
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, SourceFile, Span};
+use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, RawMember, SourceFile, Span};
 
 use crate::motion::frame::Frame;
 use crate::motion::nominal::{Arm, Nominal};
@@ -222,16 +222,30 @@ struct Component {
 fn components(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<Component>; 6] {
     let src = file.source();
     let mut out = [None; 6];
-    for m in file.members(agg) {
-        if let Some((is_axis, k)) = value::component(&src[m.name.range()]) {
-            if is_axis == axis {
-                out[k] = Some(Component {
-                    member: m.span(),
-                    literal: literal_span(&m.value),
-                    value: value::literal(&m.value),
-                });
-            }
+    for m in file.raw_members(agg) {
+        let Some((is_axis, k)) = value::component(&src[m.name().range()]) else {
+            continue;
+        };
+        if is_axis != axis {
+            continue;
         }
+        out[k] = Some(match m {
+            // A plain number is its own literal (what `literal_span` and `value::literal`
+            // give for an `Expr::Number`), read here without building the expression.
+            RawMember::Plain { name, number } => {
+                let value = RawMember::plain_value(src, number);
+                Component {
+                    member: name.to(number),
+                    literal: value.map(|_| (number, number)),
+                    value,
+                }
+            }
+            RawMember::Outline { name, value: e } => Component {
+                member: name.to(e.span()),
+                literal: literal_span(e),
+                value: value::literal(e),
+            },
+        });
     }
     out
 }
@@ -448,10 +462,23 @@ fn literal_decimals(text: &[u8]) -> usize {
 /// The decimals each component of `agg` will be written with: its own literal's (never fewer
 /// than 3 in mm and 4 in degrees), or for a missing one the aggregate's most precise.
 pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
-    let own = components(file, agg, axis).map(|c| {
-        c.and_then(|c| c.literal)
-            .map(|(_, lit)| literal_decimals(file.text(lit)))
-    });
+    // Only the literals' text is needed: a plain number's span is its literal, not read.
+    let src = file.source();
+    let mut own = [None; 6];
+    for m in file.raw_members(agg) {
+        let Some((is_axis, k)) = value::component(&src[m.name().range()]) else {
+            continue;
+        };
+        if is_axis != axis {
+            continue;
+        }
+        let lit = match m {
+            // `Nodes::pack` stores only numbers that read back whole.
+            RawMember::Plain { number, .. } => Some(number),
+            RawMember::Outline { value: e, .. } => literal_span(e).map(|(_, lit)| lit),
+        };
+        own[k] = lit.map(|lit| literal_decimals(file.text(lit)));
+    }
     let most = own.iter().flatten().copied().max().unwrap_or(0);
     std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
 }

@@ -105,7 +105,7 @@ pub use fold::{Fold, FoldId, Ilf, IlfFrame, IlfMotion, IlfVelocity};
 pub use motion::{
     Approx, ApproxKind, Approxes, Motion, MotionKind, RelFrame, RelFrameKind, WithItem,
 };
-pub use nodes::{AggregateId, Members, MotionId};
+pub use nodes::{AggregateId, Members, MotionId, RawMember, RawMembers};
 pub use program::{LoadError, Program};
 pub use span::{LineIndex, Span};
 pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, Directive, For, Stmt, StmtKind};

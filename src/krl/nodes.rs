@@ -145,6 +145,21 @@ impl Nodes {
         }
     }
 
+    /// A member as stored, its plain number not read ([`RawMember`]).
+    #[inline]
+    pub fn raw_member(&self, p: Packed) -> RawMember<'_> {
+        if p.name_len == 0 {
+            let (name, value) = &self.outline[p.at as usize];
+            return RawMember::Outline { name: *name, value };
+        }
+        let name = self.member_name(p);
+        let start = name.end as usize + usize::from(p.gap);
+        RawMember::Plain {
+            name,
+            number: Span::new(start, start + usize::from(p.value_len)),
+        }
+    }
+
     /// The record of member `name` = `value` in `src`: packed when the value is a number
     /// `read_plain` gives back bit for bit, else out of line.
     pub fn pack(&mut self, src: &[u8], name: Span, value: Expr) -> Packed {
@@ -235,6 +250,57 @@ impl Packed {
         })
     }
 }
+
+/// A member as stored, for readers that need only spans (the rewrite's decimals and
+/// literal places): a plain `NAME number` member gives where its name and number are
+/// without reading the number (read it with [`RawMember::plain_value`] if needed), any other
+/// member its name and value expression.
+#[derive(Clone, Copy, Debug)]
+pub enum RawMember<'a> {
+    Plain { name: Span, number: Span },
+    Outline { name: Span, value: &'a Expr },
+}
+
+impl RawMember<'_> {
+    pub fn name(&self) -> Span {
+        match self {
+            RawMember::Plain { name, .. } | RawMember::Outline { name, .. } => *name,
+        }
+    }
+
+    /// The value of a plain member's number in `src` (the file's bytes): the value the
+    /// parser read (`Nodes::pack` keeps only numbers `read_plain` gives back bit for bit).
+    #[inline]
+    pub fn plain_value(src: &[u8], number: Span) -> Option<f64> {
+        match src.get(number.range()).and_then(number::read_plain) {
+            Some((len, value, _)) if len == number.len() => Some(value),
+            _ => None,
+        }
+    }
+}
+
+/// The members of an aggregate as stored (`SourceFile::raw_members`).
+#[derive(Clone)]
+pub struct RawMembers<'a> {
+    pub(crate) nodes: &'a Nodes,
+    pub(crate) packed: std::slice::Iter<'a, Packed>,
+}
+
+impl<'a> Iterator for RawMembers<'a> {
+    type Item = RawMember<'a>;
+
+    #[inline]
+    fn next(&mut self) -> Option<RawMember<'a>> {
+        let p = *self.packed.next()?;
+        Some(self.nodes.raw_member(p))
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.packed.size_hint()
+    }
+}
+
+impl ExactSizeIterator for RawMembers<'_> {}
 
 /// The members of an aggregate, in order, by value (`SourceFile::members`).
 #[derive(Clone)]

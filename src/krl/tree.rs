@@ -671,6 +671,15 @@ impl SourceFile {
         }
     }
 
+    /// The members of an aggregate as stored: spans, plain numbers not read
+    /// ([`RawMember`](super::nodes::RawMember)).
+    pub fn raw_members(&self, a: &Aggregate) -> super::nodes::RawMembers<'_> {
+        super::nodes::RawMembers {
+            nodes: &self.nodes,
+            packed: self.nodes.members_of(a).iter(),
+        }
+    }
+
     /// The member called `name` (case-insensitive).
     pub fn member(&self, a: &Aggregate, name: &str) -> Option<Member<'_>> {
         let p = self
