@@ -122,26 +122,29 @@ impl Nodes {
     /// A member with its value (a plain number is read again from `src`, the bytes the
     /// file was parsed from, giving the value the parser read).
     pub fn member<'n>(&'n self, src: &[u8], p: Packed) -> Member<'n> {
-        if p.name_len == 0 {
-            let (name, value) = &self.outline[p.at as usize];
-            return Member {
-                name: *name,
+        self.member_of_raw(src, self.raw_member(p))
+    }
+
+    /// A raw member with its value, a plain number read from `src` (see [`Nodes::member`]).
+    pub fn member_of_raw<'n>(&'n self, src: &[u8], raw: RawMember<'n>) -> Member<'n> {
+        match raw {
+            RawMember::Outline { name, value } => Member {
+                name,
                 value: Cow::Borrowed(value),
-            };
-        }
-        let name = self.member_name(p);
-        let start = name.end as usize + usize::from(p.gap);
-        let span = Span::new(start, start + usize::from(p.value_len));
-        let value = match src.get(span.range()).and_then(number::read_plain) {
-            Some((len, value, integer)) if len == span.len() => {
-                Expr::Number(Number::new(value, span, integer))
+            },
+            RawMember::Plain { name, number: span } => {
+                let value = match src.get(span.range()).and_then(number::read_plain) {
+                    Some((len, value, integer)) if len == span.len() => {
+                        Expr::Number(Number::new(value, span, integer))
+                    }
+                    // Unreachable: `pack` stores only numbers `read_plain` reads back whole.
+                    _ => Expr::Opaque(span),
+                };
+                Member {
+                    name,
+                    value: Cow::Owned(value),
+                }
             }
-            // Unreachable: `pack` stores only numbers `read_plain` reads back whole.
-            _ => Expr::Opaque(span),
-        };
-        Member {
-            name,
-            value: Cow::Owned(value),
         }
     }
 

@@ -680,6 +680,11 @@ impl SourceFile {
         }
     }
 
+    /// A raw member with its value (see [`SourceFile::members`]).
+    pub fn member_of<'a>(&'a self, raw: super::nodes::RawMember<'a>) -> Member<'a> {
+        self.nodes.member_of_raw(&self.src, raw)
+    }
+
     /// The member called `name` (case-insensitive).
     pub fn member(&self, a: &Aggregate, name: &str) -> Option<Member<'_>> {
         let p = self

@@ -180,8 +180,24 @@ pub fn aggregate<'f>(
         Cow::Owned(Expr::Number(n)) => number(n),
         Cow::Owned(e) => Value::Unknown(format!("a member value at {:?}", e.span())),
     };
-    for m in file.members(agg) {
-        let name = &src[m.name.range()];
+    for raw in file.raw_members(agg) {
+        let name = &src[raw.name().range()];
+        // A plain `NAME number` component (nearly every member of a CAM program) is read
+        // straight from its bytes, no expression built.
+        if let (crate::krl::RawMember::Plain { number, .. }, Some((is_axis, k))) =
+            (raw, component(name))
+        {
+            if let Some(v) = crate::krl::RawMember::plain_value(src, number) {
+                pos.v[k] = Some(v);
+                if is_axis {
+                    axis = true;
+                } else {
+                    cartesian = true;
+                }
+                continue;
+            }
+        }
+        let m = file.member_of(raw);
         // Position components first: nearly every member is one (no name is both a component
         // and one of the words below).
         if let Some((is_axis, k)) = component(name) {
