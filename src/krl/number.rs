@@ -161,6 +161,24 @@ fn exact(negative: bool, m: u64, e10: i64) -> Option<f64> {
 /// [`scan`] and [`value`] read it; both give the same answer where both apply).
 #[inline]
 pub(crate) fn read_plain(i: &[u8]) -> Option<(usize, f64, bool)> {
+    let p = scan_plain(i)?;
+    let v = exact(p.negative, p.m, -(p.frac_digits as i64))?;
+    Some((p.len, v, !p.dot))
+}
+
+/// A plain literal's parts as [`scan_plain`] reads them.
+struct PlainParts {
+    len: usize,
+    negative: bool,
+    /// Every digit, as one integer.
+    m: u64,
+    frac_digits: usize,
+    dot: bool,
+}
+
+/// The shape check and digits of [`read_plain`], its value not computed.
+#[inline]
+fn scan_plain(i: &[u8]) -> Option<PlainParts> {
     let mut p = 0;
     let negative = match i.first() {
         Some(b'-') => {
@@ -208,15 +226,22 @@ pub(crate) fn read_plain(i: &[u8]) -> Option<(usize, f64, bool)> {
     if matches!(i.get(p), Some(b'e' | b'E')) {
         return None;
     }
-    let v = exact(negative, m, -(frac_digits as i64))?;
-    Some((p, v, !dot))
+    Some(PlainParts {
+        len: p,
+        negative,
+        m,
+        frac_digits,
+        dot,
+    })
 }
 
 /// The length of the literal [`read_plain`] reads at the start of `i` (the same `None`s),
 /// without computing its value: what the parser needs to record a member it reads later.
+/// (The same test as [`exact`]'s, without its division.)
 #[inline]
 pub(crate) fn plain_len(i: &[u8]) -> Option<usize> {
-    read_plain(i).map(|(len, _, _)| len)
+    let p = scan_plain(i)?;
+    (p.m == 0 || (p.m <= (1u64 << 53) && p.frac_digits <= 22)).then_some(p.len)
 }
 
 /// Writes `value` in the style of the literal `original`: the same number of decimals (never
@@ -331,6 +356,29 @@ fn split_exp(v: f64, decimals: usize) -> (String, i64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The length-only reader declines exactly what the value reader declines (long
+        /// mantissas, 23+ decimals, exponents, non-numbers) and agrees on the length.
+        #[test]
+        fn plain_len_is_read_plain_length(t in "[-+]?[0-9]{0,21}(\\.[0-9]{0,25})?([eE,} x][0-9]?)?") {
+            prop_assert_eq!(plain_len(t.as_bytes()), read_plain(t.as_bytes()).map(|(len, _, _)| len));
+        }
+    }
+
+    /// The edges, by hand: 2^53 is in, 2^53 + 1 out; 19 digits in all are read, 20 are not
+    /// (so the 22-decimal limit of Clinger's path is never reached); zero is always exact.
+    #[test]
+    fn plain_len_at_the_exactness_edges() {
+        assert_eq!(plain_len(b"9007199254740992"), Some(16));
+        assert_eq!(plain_len(b"9007199254740993"), None);
+        assert_eq!(plain_len(b"0.000000000000000001"), Some(20));
+        assert_eq!(plain_len(b"0.0000000000000000001"), None);
+        assert_eq!(plain_len(b"-0.000000000000000000"), Some(21));
+        assert_eq!(plain_len(b"-1234567890123456789"), None);
+        assert_eq!(plain_len(b"1.5e3"), None);
+    }
 
     /// The one-pass reader agrees with scan + value wherever it accepts, bit for bit, and
     /// declines exponents, long mantissas and non-numbers.
