@@ -89,45 +89,84 @@ pub(crate) fn arm_plane(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64) 
     (x, z, s23, c23)
 }
 
+/// The nominal arm's frames at one axis set, the steps of its forward kinematics that
+/// [`flange_frame`] and the rate solver (`rates::ArmState`) share.
+pub(crate) struct ArmFrames {
+    /// Model angles θ1..θ6 (rad).
+    pub t: [f64; 6],
+    pub s1: f64,
+    pub c1: f64,
+    /// sin/cos θ4 (A5's axis turns with it).
+    pub s4: f64,
+    pub c4: f64,
+    /// The wrist point (on A4, A5 and A6).
+    pub wrist: Vector3<f64>,
+    /// R03 = Rz(θ1)·Ry(θ2+θ3) and R06 = R03·Rx(θ4)·Ry(θ5)·Rx(θ6).
+    pub r03: Matrix3<f64>,
+    pub r06: Matrix3<f64>,
+}
+
+impl ArmFrames {
+    pub fn new(g: &Geometry, axes_deg: &[f64; 6]) -> ArmFrames {
+        let t: [f64; 6] = std::array::from_fn(|i| g.theta(i, axes_deg[i]));
+        let (s1, c1) = t[0].sin_cos();
+        let (x, z, s23, c23) = arm_plane(g, t[1], t[2]);
+        let wrist = Vector3::new(c1 * x, s1 * x, z);
+        let r03 = Matrix3::new(
+            c1 * c23,
+            -s1,
+            c1 * s23,
+            s1 * c23,
+            c1,
+            s1 * s23,
+            -s23,
+            0.0,
+            c23,
+        );
+        // Rx(α)·Ry(β)·Rx(γ), α = θ4, β = θ5, γ = θ6.
+        let (sa, ca) = t[3].sin_cos();
+        let (sb, cb) = t[4].sin_cos();
+        let (sg, cg) = t[5].sin_cos();
+        let wrist_rotation = Matrix3::new(
+            cb,
+            sb * sg,
+            sb * cg,
+            sa * sb,
+            ca * cg - sa * cb * sg,
+            -ca * sg - sa * cb * cg,
+            -ca * sb,
+            sa * cg + ca * cb * sg,
+            -sa * sg + ca * cb * cg,
+        );
+        ArmFrames {
+            t,
+            s1,
+            c1,
+            s4: sa,
+            c4: ca,
+            wrist,
+            r03,
+            r06: r03 * wrist_rotation,
+        }
+    }
+
+    /// The flange (rotation, position): R06·Ry(90°) — its Z is the A6 axis x̂, its X the A6
+    /// frame's −ẑ — at the wrist point plus `l5x` along A6.
+    pub fn flange(&self, g: &Geometry) -> (Matrix3<f64>, Vector3<f64>) {
+        let approach = self.r06.column(0).into_owned();
+        let flange = Matrix3::from_columns(&[
+            -self.r06.column(2),
+            self.r06.column(1).into_owned(),
+            approach,
+        ]);
+        (flange, self.wrist + g.links.l5x * approach)
+    }
+}
+
 /// The flange of `axes_deg` as (rotation, position) in the base frame (mm).
 pub fn flange_frame(robot: &RobotDescription, axes_deg: &[f64; 6]) -> (Matrix3<f64>, Vector3<f64>) {
     let g = Geometry::new(robot);
-    let t: [f64; 6] = std::array::from_fn(|i| g.theta(i, axes_deg[i]));
-    let (s1, c1) = t[0].sin_cos();
-    let (x, z, s23, c23) = arm_plane(&g, t[1], t[2]);
-    let wrist = Vector3::new(c1 * x, s1 * x, z);
-    // R03 = Rz(θ1)·Ry(θ2+θ3).
-    let r03 = Matrix3::new(
-        c1 * c23,
-        -s1,
-        c1 * s23,
-        s1 * c23,
-        c1,
-        s1 * s23,
-        -s23,
-        0.0,
-        c23,
-    );
-    // Rx(α)·Ry(β)·Rx(γ), α = θ4, β = θ5, γ = θ6.
-    let (sa, ca) = t[3].sin_cos();
-    let (sb, cb) = t[4].sin_cos();
-    let (sg, cg) = t[5].sin_cos();
-    let wrist_rotation = Matrix3::new(
-        cb,
-        sb * sg,
-        sb * cg,
-        sa * sb,
-        ca * cg - sa * cb * sg,
-        -ca * sg - sa * cb * cg,
-        -ca * sb,
-        sa * cg + ca * cb * sg,
-        -sa * sg + ca * cb * cg,
-    );
-    let r06 = r03 * wrist_rotation;
-    // Flange = R06·Ry(90°): its Z is the A6 axis x̂, its X the A6 frame's −ẑ.
-    let approach = r06.column(0).into_owned();
-    let flange = Matrix3::from_columns(&[-r06.column(2), r06.column(1).into_owned(), approach]);
-    (flange, wrist + g.links.l5x * approach)
+    ArmFrames::new(&g, axes_deg).flange(&g)
 }
 
 /// The nominal flange frame of `axes_deg` (KUKA degrees) in the robot base frame.

@@ -10,7 +10,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::fk::{arm_plane, Geometry};
+use super::fk::{ArmFrames, Geometry};
 use super::robot::RobotDescription;
 
 /// The nominal arm at one axis set: its flange and the lines of its axes.
@@ -31,41 +31,10 @@ impl ArmState {
     pub fn new(robot: &RobotDescription, axes_deg: &[f64; 6]) -> ArmState {
         let g = Geometry::new(robot);
         let l = g.links;
-        let t: [f64; 6] = std::array::from_fn(|i| g.theta(i, axes_deg[i]));
-        let (s1, c1) = t[0].sin_cos();
-        let (s2, c2) = t[1].sin_cos();
-        let (x, z, s23, c23) = arm_plane(&g, t[1], t[2]);
-        let wrist = Vector3::new(c1 * x, s1 * x, z);
-        // R03 = Rz(θ1)·Ry(θ2+θ3), as in `fk::flange_frame`.
-        let r03 = Matrix3::new(
-            c1 * c23,
-            -s1,
-            c1 * s23,
-            s1 * c23,
-            c1,
-            s1 * s23,
-            -s23,
-            0.0,
-            c23,
-        );
-        let (sa, ca) = t[3].sin_cos();
-        let (sb, cb) = t[4].sin_cos();
-        let (sg, cg) = t[5].sin_cos();
-        let wrist_rotation = Matrix3::new(
-            cb,
-            sb * sg,
-            sb * cg,
-            sa * sb,
-            ca * cg - sa * cb * sg,
-            -ca * sg - sa * cb * cg,
-            -ca * sb,
-            sa * cg + ca * cb * sg,
-            -sa * sg + ca * cb * cg,
-        );
-        let r06 = r03 * wrist_rotation;
-        let approach = r06.column(0).into_owned();
-        let flange_rotation =
-            Matrix3::from_columns(&[-r06.column(2), r06.column(1).into_owned(), approach]);
+        let f = ArmFrames::new(&g, axes_deg);
+        let (flange_rotation, flange_position) = f.flange(&g);
+        let (s1, c1) = (f.s1, f.c1);
+        let (s2, c2) = f.t[1].sin_cos();
         // Model axes: A1 about ẑ, A2 and A3 about Rz(θ1)·ŷ, A4 about R03·x̂, A5 about
         // R03·Rx(θ4)·ŷ, A6 about R06·x̂; a KUKA degree turns θ_n by sense_n·π/180.
         let per_degree =
@@ -75,16 +44,16 @@ impl ArmState {
             per_degree(0, Vector3::z()),
             per_degree(1, shoulder),
             per_degree(2, shoulder),
-            per_degree(3, r03.column(0).into_owned()),
-            per_degree(4, r03.column(1) * ca + r03.column(2) * sa),
-            per_degree(5, approach),
+            per_degree(3, f.r03.column(0).into_owned()),
+            per_degree(4, f.r03.column(1) * f.c4 + f.r03.column(2) * f.s4),
+            per_degree(5, f.r06.column(0).into_owned()),
         ];
         let a2 = Vector3::new(c1 * l.l1x, s1 * l.l1x, l.l1z);
         let a3 = a2 + Vector3::new(c1 * l.l2 * s2, s1 * l.l2 * s2, l.l2 * c2);
         ArmState {
             flange_rotation,
-            flange_position: wrist + l.l5x * approach,
-            wrist,
+            flange_position,
+            wrist: f.wrist,
             axis,
             origin: [Vector3::zeros(), a2, a3],
         }
