@@ -77,10 +77,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
 
 criterion_group! {
     name = benches;
-    config = Criterion::default()
-        .with_measurement(ThreadCpuTime::new())
-        .measurement_time(std::time::Duration::from_secs(8))
-        .warm_up_time(std::time::Duration::from_secs(1));
+    config = cpu_time::criterion(8);
     targets = phases
 }
 criterion_main!(benches);

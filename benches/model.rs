@@ -99,7 +99,7 @@ fn solve_one_target(c: &mut Criterion<ThreadCpuTime>) {
 
 criterion_group! {
     name = benches;
-    config = Criterion::default().with_measurement(ThreadCpuTime::new()).measurement_time(std::time::Duration::from_secs(3)).warm_up_time(std::time::Duration::from_secs(1));
+    config = cpu_time::criterion(3);
     targets = prediction, solve_one_target
 }
 criterion_main!(benches);

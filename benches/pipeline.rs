@@ -68,10 +68,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
 
 criterion_group! {
     name = benches;
-    config = Criterion::default()
-        .with_measurement(ThreadCpuTime::new())
-        .measurement_time(std::time::Duration::from_secs(5))
-        .warm_up_time(std::time::Duration::from_secs(1));
+    config = cpu_time::criterion(5);
     targets = phases
 }
 criterion_main!(benches);

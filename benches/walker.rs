@@ -44,10 +44,7 @@ fn walker(c: &mut Criterion<ThreadCpuTime>) {
 
 criterion_group! {
     name = benches;
-    config = Criterion::default()
-        .with_measurement(ThreadCpuTime::new())
-        .measurement_time(std::time::Duration::from_secs(4))
-        .warm_up_time(std::time::Duration::from_secs(1));
+    config = cpu_time::criterion(4);
     targets = walker
 }
 criterion_main!(benches);

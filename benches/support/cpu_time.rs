@@ -49,3 +49,13 @@ impl Measurement for ThreadCpuTime {
         self.wall.formatter()
     }
 }
+
+/// Criterion measuring the calling thread's CPU time (not wall time: the machine is shared),
+/// `measure_s` seconds per benchmark after a one-second warm-up.
+#[allow(dead_code)] // each bench binary includes this module; not all call everything
+pub fn criterion(measure_s: u64) -> criterion::Criterion<ThreadCpuTime> {
+    criterion::Criterion::default()
+        .with_measurement(ThreadCpuTime::new())
+        .measurement_time(std::time::Duration::from_secs(measure_s))
+        .warm_up_time(std::time::Duration::from_secs(1))
+}
