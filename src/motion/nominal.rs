@@ -16,7 +16,8 @@ use nalgebra::{Matrix6, Vector3, Vector6};
 
 use super::frame::{self, Frame};
 use super::lu6::Lu6;
-use crate::kinematics::RobotDescription;
+use crate::kinematics::fk::{arm_plane, Geometry};
+use crate::kinematics::{status_turn, RobotDescription};
 use crate::model::chain::{self, a6_to_flange, AxisLines, JointTrig};
 use crate::model::ChainErrors;
 
@@ -162,6 +163,42 @@ pub fn jacobian_of(lines: &AxisLines, tcp: &Frame) -> Matrix6<f64> {
         j.set_column(n, &Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z));
     }
     j
+}
+
+/// The KUKA status and turn ([`status_turn`]) of a nominal command and of a solved command
+/// near it, the second without trigonometry where it can. Of the bits only S bit 0 (wrist
+/// point behind the A1 axis: `x < 0` in the arm plane) needs sines; `x` moves by at most
+/// `(|l2| + k)·|Δθ2| + k·|Δθ3|` (k = |A3 → wrist point|, the bounds of ∂x/∂θ2 and ∂x/∂θ3 in
+/// `arm_plane`), so where the nominal `|x|` exceeds that (plus a margin far above the
+/// rounding of `x`) the solved command's bit is the nominal's; elsewhere (a target within
+/// millimetres of the shoulder singularity) [`status_turn`] decides, so the result is always
+/// `(status_turn(nominal), status_turn(solved))`.
+pub fn status_turns(
+    robot: &RobotDescription,
+    nominal: &[f64; 6],
+    solved: &[f64; 6],
+) -> ((u8, u8), (u8, u8)) {
+    let g = Geometry::new(robot);
+    let (t2, t3) = (g.theta(1, nominal[1]), g.theta(2, nominal[2]));
+    let (x, _, _, _) = arm_plane(&g, t2, t3);
+    let of = |axes: &[f64; 6], behind: bool| {
+        // As `status_turn`: A3 − A3(stretched) = sense3·e.
+        let elbow = g.senses[2] * g.elbow(g.theta(2, axes[2]));
+        let s = u8::from(behind) | u8::from(elbow >= 0.0) << 1 | u8::from(axes[4] < 0.0) << 2;
+        let t = (0..6).fold(0u8, |t, i| t | u8::from(axes[i] < 0.0) << i);
+        (s, t)
+    };
+    let (d2, d3) = (
+        (g.theta(1, solved[1]) - t2).abs(),
+        (g.theta(2, solved[2]) - t3).abs(),
+    );
+    let reach = (g.links.l2.abs() + g.k) * d2 + g.k * d3;
+    let first = of(nominal, x < 0.0);
+    if x.abs() > reach + 1e-6 {
+        (first, of(solved, x < 0.0))
+    } else {
+        (first, status_turn(robot, solved))
+    }
 }
 
 /// The nominal chain's errors (a static: no 360-byte zeroing per evaluation).
@@ -498,6 +535,44 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The status and turn of a solved command near the nominal one are [`status_turn`]'s,
+    /// also across the shoulder singularity (x = 0), where the bound cannot decide.
+    #[test]
+    fn status_turns_are_status_turn() {
+        let robot = RobotDescription::kr30ha();
+        // A2 where the wrist point is over the A1 axis: x = 0 on the arm plane, found by
+        // bisection on the library's `status_turn` (S bit 0 flips there).
+        let behind = |a2: f64| status_turn(&robot, &[10.0, a2, 60.0, 5.0, 30.0, 0.0]).0 & 1;
+        let (mut lo, mut hi) = (-135.0, 35.0);
+        assert_ne!(behind(lo), behind(hi));
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if behind(mid) == behind(lo) {
+                lo = mid
+            } else {
+                hi = mid
+            }
+        }
+        let mut crossed = 0;
+        for (a2, step) in [
+            (lo, 1e-3),
+            (lo - 1e-4, 2e-4),
+            (hi + 1e-9, -1e-6),
+            (-60.0, 0.05),
+        ] {
+            let nominal = [10.0, a2, 60.0, 5.0, 30.0, 0.0];
+            for k in -3..=3 {
+                let d = step * f64::from(k);
+                let solved = [10.0 - d, a2 + d, 60.0 + 0.5 * d, -5.0, 30.0, -d];
+                let got = status_turns(&robot, &nominal, &solved);
+                let want = (status_turn(&robot, &nominal), status_turn(&robot, &solved));
+                assert_eq!(got, want, "A2 {a2} step {d}");
+                crossed += usize::from(want.0 .0 != want.1 .0);
+            }
+        }
+        assert!(crossed > 0, "some pair crosses x = 0");
     }
 
     use proptest::prelude::*;
