@@ -94,6 +94,7 @@ impl Grid {
     }
 
     /// The cell holding `x` and the linear weight inside it.
+    #[inline]
     pub fn locate(&self, x: f64) -> Cell {
         let n = self.points.len();
         let (first, last) = (self.points[0], self.points[n - 1]);
@@ -124,17 +125,20 @@ impl Grid {
         let p = &self.points;
         let (start, per_pitch) = self.guess;
         let mut lo = (((x - start) * per_pitch) as usize).min(n - 2);
-        // x lies in [p[lo], p[lo+1]): at most two steps from a good guess.
-        for _ in 0..2 {
-            if p[lo] > x {
-                lo -= 1; // p[0] < x here, so lo > 0
-            } else if p[lo + 1] <= x {
-                lo += 1; // x < p[n-1], so lo + 1 < n - 1
-            }
-        }
+        // x lies in [p[lo], p[lo+1]): on a uniform grid the guess itself, else at most two
+        // steps from a good guess.
         if !(p[lo] <= x && x < p[lo + 1]) {
-            // First point greater than x, minus one.
-            lo = p.partition_point(|&q| q <= x).saturating_sub(1).min(n - 2);
+            for _ in 0..2 {
+                if p[lo] > x {
+                    lo -= 1; // p[0] < x here, so lo > 0
+                } else if p[lo + 1] <= x {
+                    lo += 1; // x < p[n-1], so lo + 1 < n - 1
+                }
+            }
+            if !(p[lo] <= x && x < p[lo + 1]) {
+                // First point greater than x, minus one.
+                lo = p.partition_point(|&q| q <= x).saturating_sub(1).min(n - 2);
+            }
         }
         let (a, b) = (self.points[lo], self.points[lo + 1]);
         Cell {

@@ -21,9 +21,27 @@ pub struct Lu6 {
 
 impl Lu6 {
     pub fn new(m: &Matrix6<f64>) -> Lu6 {
-        let mut a: [[f64; 6]; 6] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]));
-        let mut swap = [0, 1, 2, 3, 4, 5];
-        let mut inv_diag = [f64::INFINITY; 6];
+        let mut lu = Lu6::singular();
+        lu.factor(m);
+        lu
+    }
+
+    /// The factors of the zero matrix: a place to [`Self::factor`] into.
+    pub fn singular() -> Lu6 {
+        Lu6 {
+            a: [[0.0; 6]; 6],
+            swap: [0, 1, 2, 3, 4, 5],
+            inv_diag: [f64::INFINITY; 6],
+        }
+    }
+
+    /// Factorises `m` in place of the factors held (a solver refactorising at every
+    /// linearisation moves no 384-byte factorisation around).
+    pub fn factor(&mut self, m: &Matrix6<f64>) {
+        let Lu6 { a, swap, inv_diag } = self;
+        *a = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]));
+        *swap = [0, 1, 2, 3, 4, 5];
+        *inv_diag = [f64::INFINITY; 6];
         for i in 0..6 {
             // The first row holding the largest magnitude (nalgebra's `icamax`).
             let mut piv = i;
@@ -53,7 +71,6 @@ impl Lu6 {
                 }
             }
         }
-        Lu6 { a, swap, inv_diag }
     }
 
     /// Whether no pivot is exactly zero.

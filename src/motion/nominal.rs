@@ -146,12 +146,16 @@ pub fn tcp_lines_of(
     trig: &mut JointTrig,
 ) -> (Frame, AxisLines) {
     let lines = chain::axis_lines(robot, axes, errors, trig);
+    (tcp_on(&lines, tool), lines)
+}
+
+/// The TCP of a chain evaluated to its axis lines.
+pub fn tcp_on(lines: &AxisLines, tool: &Frame) -> Frame {
     let rf = lines.a6_rotation * a6_to_flange();
-    let tcp = Frame {
+    Frame {
         rotation: rf * tool.rotation,
         position: lines.a6_origin + rf * tool.position,
-    };
-    (tcp, lines)
+    }
 }
 
 /// The axis Jacobian (per degree, errors frozen) at `tcp` from the chain's axis lines.
@@ -327,7 +331,7 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         if it % 3 == 0 {
             lin = arm.linearize(&q, goal.tool);
             fresh = true;
-            stepper = Stepper::new(&lin.jacobian, &goal.hold);
+            stepper.refactor(&lin.jacobian, &goal.hold);
         }
     }
     let (p, r) = frame::norms(&best.residual);
@@ -361,29 +365,35 @@ pub fn local_ik(
 
 /// Solves `J·dq = −e` (all axes free: LU, damped when near-singular) or the weighted least
 /// squares over the free axes.
-// The LU lives inline: boxing it cost one heap allocation per solved target.
-#[allow(clippy::large_enum_variant)]
-enum Stepper {
-    Lu(Lu6),
-    Damped,
+// The LU lives inline and is refactorised in place: boxing it cost one heap allocation per
+// solved target, moving it two 384-byte copies.
+struct Stepper {
+    lu: Lu6,
+    /// Least squares (held axes, or a singular `J`) instead of the LU.
+    damped: bool,
 }
 
 impl Stepper {
     fn new(j: &Matrix6<f64>, hold: &[bool; 6]) -> Stepper {
-        if hold.iter().any(|&h| h) {
-            return Stepper::Damped;
-        }
-        let lu = Lu6::new(j);
-        if lu.is_invertible() {
-            Stepper::Lu(lu)
-        } else {
-            Stepper::Damped
+        let mut stepper = Stepper {
+            lu: Lu6::singular(),
+            damped: true,
+        };
+        stepper.refactor(j, hold);
+        stepper
+    }
+
+    fn refactor(&mut self, j: &Matrix6<f64>, hold: &[bool; 6]) {
+        self.damped = hold.iter().any(|&h| h);
+        if !self.damped {
+            self.lu.factor(j);
+            self.damped = !self.lu.is_invertible();
         }
     }
 
     fn step(&self, j: &Matrix6<f64>, e: &Vector6<f64>, hold: &[bool; 6]) -> [f64; 6] {
-        if let Stepper::Lu(lu) = self {
-            if let Some(dq) = lu.solve(&-e) {
+        if !self.damped {
+            if let Some(dq) = self.lu.solve(&-e) {
                 if dq.iter().all(|d| d.is_finite() && d.abs() <= MAX_STEP_DEG) {
                     return dq.into();
                 }
@@ -396,10 +406,10 @@ impl Stepper {
     /// order terms; `None` for a least-squares step, and where `c` is not small against the
     /// step (a near-singular Jacobian, where the series says nothing).
     fn curvature_fix(&self, curvature: &Curvature, dq: &[f64; 6]) -> Option<[f64; 6]> {
-        let Stepper::Lu(lu) = self else {
+        if self.damped {
             return None;
-        };
-        let fix: [f64; 6] = lu.solve(&-curvature.second_order(dq))?.into();
+        }
+        let fix: [f64; 6] = self.lu.solve(&-curvature.second_order(dq))?.into();
         let largest = |v: &[f64; 6]| v.iter().fold(0.0f64, |m, d| m.max(d.abs()));
         let small = fix.iter().all(|f| f.is_finite()) && largest(&fix) <= 0.5 * largest(dq);
         small.then_some(fix)
