@@ -18,7 +18,7 @@
 //! `--one-step` is the paper's equation (3) literally: `p_c = p* − (p̂(p*) − p*)` (orientation
 //! likewise, as a world-frame rotation) followed by an exact (iterated) nominal IK.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 
 use nalgebra::{Matrix6, Vector6};
 
@@ -43,6 +43,8 @@ pub struct Predicted<'a> {
     /// millidegrees away (see [`JointTrig`]). Borrowed in place (a `Cell` copied its 150
     /// bytes in and out at every evaluation).
     trig: RefCell<JointTrig>,
+    /// The merged tables' cells of the last lookup, likewise (see `Grid::locate_near`).
+    cells: Cell<[usize; 6]>,
 }
 
 impl<'a> Predicted<'a> {
@@ -52,6 +54,7 @@ impl<'a> Predicted<'a> {
             directions,
             fixed: model.fixed_errors_at_time_zero(),
             trig: RefCell::default(),
+            cells: Cell::new([0; 6]),
         }
     }
 
@@ -73,8 +76,10 @@ impl<'a> Predicted<'a> {
 
     fn errors(&self, axes: &[f64; 6]) -> ChainErrors {
         let mut errors = *self.fixed;
+        let mut cells = self.cells.get();
         self.model
-            .add_varying_errors(&self.state(axes), &mut errors);
+            .add_varying_errors_near(&self.state(axes), &mut errors, &mut cells);
+        self.cells.set(cells);
         errors
     }
 
@@ -87,8 +92,14 @@ impl<'a> Predicted<'a> {
         slopes: &mut AxisSlopes,
     ) {
         *errors = *self.fixed;
-        self.model
-            .add_varying_errors_with_slopes(&self.state(axes), errors, slopes);
+        let mut cells = self.cells.get();
+        self.model.add_varying_errors_with_slopes_near(
+            &self.state(axes),
+            errors,
+            slopes,
+            &mut cells,
+        );
+        self.cells.set(cells);
     }
 }
 
