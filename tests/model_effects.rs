@@ -388,6 +388,31 @@ mod grid_lookup {
             }
             prop_assert_eq!(cell.clamped, x < first || x > last);
         }
+
+        /// Starting from any hint (right, wrong, past the end), the lookup near a cell is the
+        /// plain lookup, bit for bit, and leaves the hint on the cell found.
+        #[test]
+        fn cell_near_a_hint_is_the_cell(
+            points in grid(),
+            f in -0.1..1.1f64,
+            on_point in any::<bool>(),
+            hint in 0usize..45,
+        ) {
+            let (first, last) = (points[0], points[points.len() - 1]);
+            let mut x = first + f * (last - first);
+            if on_point {
+                x = points[hint % points.len()]; // grid points and the edges themselves
+            }
+            let grid = Grid::new(points.clone()).unwrap();
+            let mut near = hint;
+            let got = grid.locate_near(x, &mut near);
+            let want = grid.locate(x);
+            prop_assert_eq!(got.lo, want.lo);
+            prop_assert_eq!(got.hi, want.hi);
+            prop_assert_eq!(got.w.to_bits(), want.w.to_bits());
+            prop_assert_eq!(got.clamped, want.clamped);
+            prop_assert_eq!(near, want.lo);
+        }
     }
 }
 

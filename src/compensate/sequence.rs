@@ -26,7 +26,7 @@ use crate::kinematics::{status_turn, ArmState};
 use crate::model::{Direction, Model};
 use crate::motion::frame::Frame;
 use crate::motion::interpolate::{Cartesian, Path};
-use crate::motion::nominal::{Arm, Nominal};
+use crate::motion::nominal::{status_turns, Arm, Nominal};
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -565,8 +565,7 @@ fn solve_target(
     };
     let mut sol = solve_or_best(&problem, method)?;
     let mut turn_held = [false; 6];
-    let (s0, t0) = status_turn(robot, &target.nominal_axes);
-    let (mut s1, mut t1) = status_turn(robot, &sol.axes_deg);
+    let ((s0, t0), (mut s1, mut t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
     if target.keep.t && t0 != t1 && s0 == s1 {
         let mut start = sol.axes_deg;
         let mut hold = hold;

@@ -18,13 +18,13 @@
 //! `--one-step` is the paper's equation (3) literally: `p_c = p* − (p̂(p*) − p*)` (orientation
 //! likewise, as a world-frame rotation) followed by an exact (iterated) nominal IK.
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 
 use nalgebra::{Matrix6, Vector6};
 
 use std::ops::AddAssign;
 
-use crate::model::chain::{ChainFrames, JointTrig};
+use crate::model::chain::{axis_lines, ChainFrames, JointTrig};
 use crate::model::{AxisSlopes, AxisState, ChainErrors, Direction, Model, Slot};
 use crate::motion::frame::{self as pose, Frame};
 use crate::motion::nominal::{self, Arm, Curvature, Goal, Linearized, NotConverged, LEVER_MM};
@@ -40,8 +40,11 @@ pub struct Predicted<'a> {
     /// The errors that do not change with the command (time 0), summed once per model.
     fixed: &'a ChainErrors,
     /// The joint sines and cosines of the first evaluation: the solve's later commands are
-    /// millidegrees away (see [`JointTrig`]).
-    trig: Cell<JointTrig>,
+    /// millidegrees away (see [`JointTrig`]). Borrowed in place (a `Cell` copied its 150
+    /// bytes in and out at every evaluation).
+    trig: RefCell<JointTrig>,
+    /// The merged tables' cells of the last lookup, likewise (see `Grid::locate_near`).
+    cells: Cell<[usize; 6]>,
 }
 
 impl<'a> Predicted<'a> {
@@ -50,7 +53,8 @@ impl<'a> Predicted<'a> {
             model,
             directions,
             fixed: model.fixed_errors_at_time_zero(),
-            trig: Cell::default(),
+            trig: RefCell::default(),
+            cells: Cell::new([0; 6]),
         }
     }
 
@@ -72,18 +76,30 @@ impl<'a> Predicted<'a> {
 
     fn errors(&self, axes: &[f64; 6]) -> ChainErrors {
         let mut errors = *self.fixed;
+        let mut cells = self.cells.get();
         self.model
-            .add_varying_errors(&self.state(axes), &mut errors);
+            .add_varying_errors_near(&self.state(axes), &mut errors, &mut cells);
+        self.cells.set(cells);
         errors
     }
 
-    /// The errors at `axes` and how they change with the axes.
-    fn errors_with_slopes(&self, axes: &[f64; 6]) -> (ChainErrors, AxisSlopes) {
-        let mut errors = *self.fixed;
-        let mut slopes = AxisSlopes::default();
-        self.model
-            .add_varying_errors_with_slopes(&self.state(axes), &mut errors, &mut slopes);
-        (errors, slopes)
+    /// The errors at `axes` and how they change with the axes, into `errors` (set) and
+    /// `slopes` (zero on entry): written in place, not returned in a 700-byte pair.
+    fn errors_with_slopes(
+        &self,
+        axes: &[f64; 6],
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+    ) {
+        *errors = *self.fixed;
+        let mut cells = self.cells.get();
+        self.model.add_varying_errors_with_slopes_near(
+            &self.state(axes),
+            errors,
+            slopes,
+            &mut cells,
+        );
+        self.cells.set(cells);
     }
 }
 
@@ -128,10 +144,13 @@ impl Arm for Predicted<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
         let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);
-        let mut trig = self.trig.get();
-        let tcp = nominal::tcp_of(&self.model.robot, axes, &errors, &tool, &mut trig);
-        self.trig.set(trig);
-        tcp
+        nominal::tcp_of(
+            &self.model.robot,
+            axes,
+            &errors,
+            &tool,
+            &mut self.trig.borrow_mut(),
+        )
     }
     /// The complete Jacobian: the chain's, plus how the angle-dependent errors change with
     /// the axes (table slopes, crosstalk), so that one step lands on the fixed point up to
@@ -143,12 +162,18 @@ impl Arm for Predicted<'_> {
     /// The complete Jacobian and the chain's curvature, the joints turning by the command
     /// plus the angle errors' change (`I + slopes`).
     fn linearize(&self, axes: &[f64; 6], tool: &Frame) -> Linearized {
-        let (errors, slopes) = self.errors_with_slopes(axes);
+        let mut errors = ChainErrors::default();
+        let mut slopes = AxisSlopes::default();
+        self.errors_with_slopes(axes, &mut errors, &mut slopes);
         let model_tool = self.tool(tool, &errors);
-        let mut trig = self.trig.get();
-        let (tcp, lines) =
-            nominal::tcp_lines_of(&self.model.robot, axes, &errors, &model_tool, &mut trig);
-        self.trig.set(trig);
+        // The lines in place, not moved out of a (TCP, lines) pair.
+        let lines = axis_lines(
+            &self.model.robot,
+            axes,
+            &errors,
+            &mut self.trig.borrow_mut(),
+        );
+        let tcp = nominal::tcp_on(&lines, &model_tool);
         let mut jacobian = nominal::jacobian_of(&lines, &tcp);
         complete_jacobian(self, axes, &errors, &slopes, &tcp, tool, &mut jacobian);
         let turns = std::array::from_fn(|k| {

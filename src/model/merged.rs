@@ -110,24 +110,42 @@ impl Merged {
         directions: &[Direction; 6],
         errors: &mut ChainErrors,
     ) {
+        self.add_near(axes_deg, directions, errors, &mut [0; 6]);
+    }
+
+    /// [`Self::add_to`] looking each axis's table up from the cell in `cells` (see
+    /// [`Grid::locate_near`]), which then holds the cells used.
+    pub fn add_near(
+        &self,
+        axes_deg: &[f64; 6],
+        directions: &[Direction; 6],
+        errors: &mut ChainErrors,
+        cells: &mut [usize; 6],
+    ) {
         for sum in &self.axes {
             let n = sum.axis as usize - 1;
-            let (value, _) = sum.tables[direction_index(directions[n])].eval(axes_deg[n]);
-            errors.add(Slot::Angle { axis: sum.axis }, value);
+            let table = &sum.tables[direction_index(directions[n])];
+            let cell = table.grid.locate_near(axes_deg[n], &mut cells[n]);
+            errors.add(Slot::Angle { axis: sum.axis }, table.value_in(&cell));
         }
     }
 
-    /// [`Self::add_to`] with each table's slope along its axis (rad per degree).
+    /// [`Self::add_to`] with each table's slope along its axis (rad per degree); `cells`
+    /// receives the cells used.
     pub fn add_with_slopes(
         &self,
         axes_deg: &[f64; 6],
         directions: &[Direction; 6],
         errors: &mut ChainErrors,
         slopes: &mut AxisSlopes,
+        cells: &mut [usize; 6],
     ) {
         for sum in &self.axes {
             let n = sum.axis as usize - 1;
-            let (value, slope) = sum.tables[direction_index(directions[n])].eval_slope(axes_deg[n]);
+            let table = &sum.tables[direction_index(directions[n])];
+            let cell = table.grid.locate(axes_deg[n]);
+            cells[n] = cell.lo;
+            let (value, slope) = table.value_slope_in(&cell);
             let slot = Slot::Angle { axis: sum.axis };
             errors.add(slot, value);
             slopes.add(slot, n, slope);

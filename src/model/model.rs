@@ -136,8 +136,19 @@ impl Model {
     /// these is `chain_errors(s)` to rounding (the `map` and `backlash` tables of an axis are
     /// looked up merged, see [`Merged`]).
     pub fn add_varying_errors(&self, state: &AxisState, errors: &mut ChainErrors) {
+        self.add_varying_errors_near(state, errors, &mut [0; 6]);
+    }
+
+    /// [`Self::add_varying_errors`] looking the merged tables up from the cells in `cells`
+    /// (see [`Merged::add_near`]): the same sums, found faster near the last lookup.
+    pub fn add_varying_errors_near(
+        &self,
+        state: &AxisState,
+        errors: &mut ChainErrors,
+        cells: &mut [usize; 6],
+    ) {
         let merged = self.merged();
-        merged.add_to(&state.axes_deg, &state.directions, errors);
+        merged.add_near(&state.axes_deg, &state.directions, errors, cells);
         let ctx = self.context();
         for &i in &merged.rest {
             self.effects[i].add_to(state, &ctx, errors);
@@ -153,8 +164,20 @@ impl Model {
         errors: &mut ChainErrors,
         slopes: &mut AxisSlopes,
     ) {
+        self.add_varying_errors_with_slopes_near(state, errors, slopes, &mut [0; 6]);
+    }
+
+    /// [`Self::add_varying_errors_with_slopes`], leaving in `cells` the merged tables' cells
+    /// for [`Self::add_varying_errors_near`].
+    pub fn add_varying_errors_with_slopes_near(
+        &self,
+        state: &AxisState,
+        errors: &mut ChainErrors,
+        slopes: &mut AxisSlopes,
+        cells: &mut [usize; 6],
+    ) {
         let merged = self.merged();
-        merged.add_with_slopes(&state.axes_deg, &state.directions, errors, slopes);
+        merged.add_with_slopes(&state.axes_deg, &state.directions, errors, slopes, cells);
         let ctx = self.context();
         for &i in &merged.rest {
             self.effects[i].add_with_axis_slopes(state, &ctx, errors, slopes);

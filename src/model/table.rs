@@ -94,6 +94,7 @@ impl Grid {
     }
 
     /// The cell holding `x` and the linear weight inside it.
+    #[inline]
     pub fn locate(&self, x: f64) -> Cell {
         let n = self.points.len();
         let (first, last) = (self.points[0], self.points[n - 1]);
@@ -124,17 +125,20 @@ impl Grid {
         let p = &self.points;
         let (start, per_pitch) = self.guess;
         let mut lo = (((x - start) * per_pitch) as usize).min(n - 2);
-        // x lies in [p[lo], p[lo+1]): at most two steps from a good guess.
-        for _ in 0..2 {
-            if p[lo] > x {
-                lo -= 1; // p[0] < x here, so lo > 0
-            } else if p[lo + 1] <= x {
-                lo += 1; // x < p[n-1], so lo + 1 < n - 1
-            }
-        }
+        // x lies in [p[lo], p[lo+1]): on a uniform grid the guess itself, else at most two
+        // steps from a good guess.
         if !(p[lo] <= x && x < p[lo + 1]) {
-            // First point greater than x, minus one.
-            lo = p.partition_point(|&q| q <= x).saturating_sub(1).min(n - 2);
+            for _ in 0..2 {
+                if p[lo] > x {
+                    lo -= 1; // p[0] < x here, so lo > 0
+                } else if p[lo + 1] <= x {
+                    lo += 1; // x < p[n-1], so lo + 1 < n - 1
+                }
+            }
+            if !(p[lo] <= x && x < p[lo + 1]) {
+                // First point greater than x, minus one.
+                lo = p.partition_point(|&q| q <= x).saturating_sub(1).min(n - 2);
+            }
         }
         let (a, b) = (self.points[lo], self.points[lo + 1]);
         Cell {
@@ -143,6 +147,29 @@ impl Grid {
             w: ((x - a) / (b - a)).clamp(0.0, 1.0),
             clamped: false,
         }
+    }
+}
+
+impl Grid {
+    /// [`Self::locate`] trying the cell `hint` first, which then holds the cell found: a
+    /// solver evaluating commands millidegrees apart finds them in the cell of the first.
+    /// The same cell as [`Self::locate`]'s, since an inner abscissa lies in exactly one.
+    #[inline]
+    pub fn locate_near(&self, x: f64, hint: &mut usize) -> Cell {
+        let p = &self.points;
+        let (n, lo) = (p.len(), *hint);
+        if lo + 1 < n && p[0] < x && x < p[n - 1] && p[lo] <= x && x < p[lo + 1] {
+            let (a, b) = (p[lo], p[lo + 1]);
+            return Cell {
+                lo,
+                hi: lo + 1,
+                w: ((x - a) / (b - a)).clamp(0.0, 1.0),
+                clamped: false,
+            };
+        }
+        let cell = self.locate(x);
+        *hint = cell.lo;
+        cell
     }
 }
 
@@ -172,19 +199,29 @@ impl Table1 {
     /// The interpolated value at `x` and where it came from.
     pub fn eval(&self, x: f64) -> (f64, Cell) {
         let cell = self.grid.locate(x);
-        let value = (1.0 - cell.w) * self.values[cell.lo] + cell.w * self.values[cell.hi];
-        (value, cell)
+        (self.value_in(&cell), cell)
+    }
+
+    /// The interpolated value in a located cell.
+    #[inline]
+    pub fn value_in(&self, cell: &Cell) -> f64 {
+        (1.0 - cell.w) * self.values[cell.lo] + cell.w * self.values[cell.hi]
     }
 
     /// The interpolated value at `x` and its slope d value / d x: the slope of the cell
     /// holding `x` (on a grid point, the cell to its right; at the last point the last cell),
     /// zero outside the grid where the value is held.
     pub fn eval_slope(&self, x: f64) -> (f64, f64) {
-        let (value, cell) = self.eval(x);
+        self.value_slope_in(&self.grid.locate(x))
+    }
+
+    /// [`Self::eval_slope`] in a located cell.
+    #[inline]
+    pub fn value_slope_in(&self, cell: &Cell) -> (f64, f64) {
         let slope = self
             .grid
-            .slope(&cell, self.values[cell.lo], self.values[cell.hi]);
-        (value, slope)
+            .slope(cell, self.values[cell.lo], self.values[cell.hi]);
+        (self.value_in(cell), slope)
     }
 }
 

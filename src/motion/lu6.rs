@@ -13,17 +13,44 @@ use nalgebra::{Matrix6, Vector6};
 pub struct Lu6 {
     /// Row-major: `a[r][c]`; U on and above the diagonal, L's multipliers below it.
     a: [[f64; 6]; 6],
-    /// Row `i` was swapped with row `swap[i]` at step `i` (`swap[i] == i`: no swap).
-    swap: [usize; 6],
+    /// Row `i` of `P·J` is row `perm[i]` of `J` (the row swaps of the pivoting composed:
+    /// the solve gathers `P·b` at once instead of swapping through memory).
+    perm: [usize; 6],
+    /// No pivot is exactly zero.
+    invertible: bool,
     /// `1 / a[i][i]` (infinite for a zero pivot).
     inv_diag: [f64; 6],
 }
 
 impl Lu6 {
     pub fn new(m: &Matrix6<f64>) -> Lu6 {
-        let mut a: [[f64; 6]; 6] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]));
-        let mut swap = [0, 1, 2, 3, 4, 5];
-        let mut inv_diag = [f64::INFINITY; 6];
+        let mut lu = Lu6::singular();
+        lu.factor(m);
+        lu
+    }
+
+    /// The factors of the zero matrix: a place to [`Self::factor`] into.
+    pub fn singular() -> Lu6 {
+        Lu6 {
+            a: [[0.0; 6]; 6],
+            perm: [0, 1, 2, 3, 4, 5],
+            inv_diag: [f64::INFINITY; 6],
+            invertible: false,
+        }
+    }
+
+    /// Factorises `m` in place of the factors held (a solver refactorising at every
+    /// linearisation moves no 384-byte factorisation around).
+    pub fn factor(&mut self, m: &Matrix6<f64>) {
+        let Lu6 {
+            a,
+            perm,
+            inv_diag,
+            invertible,
+        } = self;
+        *a = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]));
+        *perm = [0, 1, 2, 3, 4, 5];
+        *inv_diag = [f64::INFINITY; 6];
         for i in 0..6 {
             // The first row holding the largest magnitude (nalgebra's `icamax`).
             let mut piv = i;
@@ -40,7 +67,7 @@ impl Lu6 {
             }
             if piv != i {
                 a.swap(i, piv);
-                swap[i] = piv;
+                perm.swap(i, piv);
             }
             let inv = 1.0 / diag;
             inv_diag[i] = inv;
@@ -53,21 +80,18 @@ impl Lu6 {
                 }
             }
         }
-        Lu6 { a, swap, inv_diag }
+        *invertible = (0..6).all(|i| a[i][i] != 0.0);
     }
 
     /// Whether no pivot is exactly zero.
     pub fn is_invertible(&self) -> bool {
-        (0..6).all(|i| self.a[i][i] != 0.0)
+        self.invertible
     }
 
     /// `x` with `J·x = b`, or `None` when a pivot is zero.
     #[allow(clippy::needless_range_loop)] // x and the factors indexed alike, as in the formulas
     pub fn solve(&self, b: &Vector6<f64>) -> Option<Vector6<f64>> {
-        let mut x: [f64; 6] = (*b).into();
-        for (i, &s) in self.swap.iter().enumerate() {
-            x.swap(i, s);
-        }
+        let mut x: [f64; 6] = std::array::from_fn(|i| b[self.perm[i]]);
         // L·y = P·b, unit diagonal.
         for i in 0..5 {
             let coeff = x[i];

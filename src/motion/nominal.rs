@@ -16,7 +16,8 @@ use nalgebra::{Matrix6, Vector3, Vector6};
 
 use super::frame::{self, Frame};
 use super::lu6::Lu6;
-use crate::kinematics::RobotDescription;
+use crate::kinematics::fk::{arm_plane, Geometry};
+use crate::kinematics::{status_turn, RobotDescription};
 use crate::model::chain::{self, a6_to_flange, AxisLines, JointTrig};
 use crate::model::ChainErrors;
 
@@ -145,12 +146,16 @@ pub fn tcp_lines_of(
     trig: &mut JointTrig,
 ) -> (Frame, AxisLines) {
     let lines = chain::axis_lines(robot, axes, errors, trig);
+    (tcp_on(&lines, tool), lines)
+}
+
+/// The TCP of a chain evaluated to its axis lines.
+pub fn tcp_on(lines: &AxisLines, tool: &Frame) -> Frame {
     let rf = lines.a6_rotation * a6_to_flange();
-    let tcp = Frame {
+    Frame {
         rotation: rf * tool.rotation,
         position: lines.a6_origin + rf * tool.position,
-    };
-    (tcp, lines)
+    }
 }
 
 /// The axis Jacobian (per degree, errors frozen) at `tcp` from the chain's axis lines.
@@ -162,6 +167,42 @@ pub fn jacobian_of(lines: &AxisLines, tcp: &Frame) -> Matrix6<f64> {
         j.set_column(n, &Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z));
     }
     j
+}
+
+/// The KUKA status and turn ([`status_turn`]) of a nominal command and of a solved command
+/// near it, the second without trigonometry where it can. Of the bits only S bit 0 (wrist
+/// point behind the A1 axis: `x < 0` in the arm plane) needs sines; `x` moves by at most
+/// `(|l2| + k)·|Δθ2| + k·|Δθ3|` (k = |A3 → wrist point|, the bounds of ∂x/∂θ2 and ∂x/∂θ3 in
+/// `arm_plane`), so where the nominal `|x|` exceeds that (plus a margin far above the
+/// rounding of `x`) the solved command's bit is the nominal's; elsewhere (a target within
+/// millimetres of the shoulder singularity) [`status_turn`] decides, so the result is always
+/// `(status_turn(nominal), status_turn(solved))`.
+pub fn status_turns(
+    robot: &RobotDescription,
+    nominal: &[f64; 6],
+    solved: &[f64; 6],
+) -> ((u8, u8), (u8, u8)) {
+    let g = Geometry::new(robot);
+    let (t2, t3) = (g.theta(1, nominal[1]), g.theta(2, nominal[2]));
+    let (x, _, _, _) = arm_plane(&g, t2, t3);
+    let of = |axes: &[f64; 6], behind: bool| {
+        // As `status_turn`: A3 − A3(stretched) = sense3·e.
+        let elbow = g.senses[2] * g.elbow(g.theta(2, axes[2]));
+        let s = u8::from(behind) | u8::from(elbow >= 0.0) << 1 | u8::from(axes[4] < 0.0) << 2;
+        let t = (0..6).fold(0u8, |t, i| t | u8::from(axes[i] < 0.0) << i);
+        (s, t)
+    };
+    let (d2, d3) = (
+        (g.theta(1, solved[1]) - t2).abs(),
+        (g.theta(2, solved[2]) - t3).abs(),
+    );
+    let reach = (g.links.l2.abs() + g.k) * d2 + g.k * d3;
+    let first = of(nominal, x < 0.0);
+    if x.abs() > reach + 1e-6 {
+        (first, of(solved, x < 0.0))
+    } else {
+        (first, status_turn(robot, solved))
+    }
 }
 
 /// The nominal chain's errors (a static: no 360-byte zeroing per evaluation).
@@ -290,7 +331,7 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         if it % 3 == 0 {
             lin = arm.linearize(&q, goal.tool);
             fresh = true;
-            stepper = Stepper::new(&lin.jacobian, &goal.hold);
+            stepper.refactor(&lin.jacobian, &goal.hold);
         }
     }
     let (p, r) = frame::norms(&best.residual);
@@ -324,29 +365,35 @@ pub fn local_ik(
 
 /// Solves `J·dq = −e` (all axes free: LU, damped when near-singular) or the weighted least
 /// squares over the free axes.
-// The LU lives inline: boxing it cost one heap allocation per solved target.
-#[allow(clippy::large_enum_variant)]
-enum Stepper {
-    Lu(Lu6),
-    Damped,
+// The LU lives inline and is refactorised in place: boxing it cost one heap allocation per
+// solved target, moving it two 384-byte copies.
+struct Stepper {
+    lu: Lu6,
+    /// Least squares (held axes, or a singular `J`) instead of the LU.
+    damped: bool,
 }
 
 impl Stepper {
     fn new(j: &Matrix6<f64>, hold: &[bool; 6]) -> Stepper {
-        if hold.iter().any(|&h| h) {
-            return Stepper::Damped;
-        }
-        let lu = Lu6::new(j);
-        if lu.is_invertible() {
-            Stepper::Lu(lu)
-        } else {
-            Stepper::Damped
+        let mut stepper = Stepper {
+            lu: Lu6::singular(),
+            damped: true,
+        };
+        stepper.refactor(j, hold);
+        stepper
+    }
+
+    fn refactor(&mut self, j: &Matrix6<f64>, hold: &[bool; 6]) {
+        self.damped = hold.iter().any(|&h| h);
+        if !self.damped {
+            self.lu.factor(j);
+            self.damped = !self.lu.is_invertible();
         }
     }
 
     fn step(&self, j: &Matrix6<f64>, e: &Vector6<f64>, hold: &[bool; 6]) -> [f64; 6] {
-        if let Stepper::Lu(lu) = self {
-            if let Some(dq) = lu.solve(&-e) {
+        if !self.damped {
+            if let Some(dq) = self.lu.solve(&-e) {
                 if dq.iter().all(|d| d.is_finite() && d.abs() <= MAX_STEP_DEG) {
                     return dq.into();
                 }
@@ -359,10 +406,10 @@ impl Stepper {
     /// order terms; `None` for a least-squares step, and where `c` is not small against the
     /// step (a near-singular Jacobian, where the series says nothing).
     fn curvature_fix(&self, curvature: &Curvature, dq: &[f64; 6]) -> Option<[f64; 6]> {
-        let Stepper::Lu(lu) = self else {
+        if self.damped {
             return None;
-        };
-        let fix: [f64; 6] = lu.solve(&-curvature.second_order(dq))?.into();
+        }
+        let fix: [f64; 6] = self.lu.solve(&-curvature.second_order(dq))?.into();
         let largest = |v: &[f64; 6]| v.iter().fold(0.0f64, |m, d| m.max(d.abs()));
         let small = fix.iter().all(|f| f.is_finite()) && largest(&fix) <= 0.5 * largest(dq);
         small.then_some(fix)
@@ -498,6 +545,44 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The status and turn of a solved command near the nominal one are [`status_turn`]'s,
+    /// also across the shoulder singularity (x = 0), where the bound cannot decide.
+    #[test]
+    fn status_turns_are_status_turn() {
+        let robot = RobotDescription::kr30ha();
+        // A2 where the wrist point is over the A1 axis: x = 0 on the arm plane, found by
+        // bisection on the library's `status_turn` (S bit 0 flips there).
+        let behind = |a2: f64| status_turn(&robot, &[10.0, a2, 60.0, 5.0, 30.0, 0.0]).0 & 1;
+        let (mut lo, mut hi) = (-135.0, 35.0);
+        assert_ne!(behind(lo), behind(hi));
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if behind(mid) == behind(lo) {
+                lo = mid
+            } else {
+                hi = mid
+            }
+        }
+        let mut crossed = 0;
+        for (a2, step) in [
+            (lo, 1e-3),
+            (lo - 1e-4, 2e-4),
+            (hi + 1e-9, -1e-6),
+            (-60.0, 0.05),
+        ] {
+            let nominal = [10.0, a2, 60.0, 5.0, 30.0, 0.0];
+            for k in -3..=3 {
+                let d = step * f64::from(k);
+                let solved = [10.0 - d, a2 + d, 60.0 + 0.5 * d, -5.0, 30.0, -d];
+                let got = status_turns(&robot, &nominal, &solved);
+                let want = (status_turn(&robot, &nominal), status_turn(&robot, &solved));
+                assert_eq!(got, want, "A2 {a2} step {d}");
+                crossed += usize::from(want.0 .0 != want.1 .0);
+            }
+        }
+        assert!(crossed > 0, "some pair crosses x = 0");
     }
 
     use proptest::prelude::*;
