@@ -7,8 +7,9 @@
 //! whose rounded value does not change keeps its bytes. An aggregate executed several times
 //! with different commands (reached with different rotation directions) is split when it is
 //! a declared point named at several places — a copy with a new name declared next to the
-//! original, and the place renamed (inline forms included) — otherwise written for its last
-//! execution, with a warning.
+//! original (a point assigned by a statement: its copy declared after the declaration and
+//! assigned after the assignment), and the place renamed (inline forms included) — otherwise
+//! written for its last execution, with a warning.
 
 use std::collections::{BTreeMap, HashSet};
 
@@ -19,7 +20,7 @@ use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, RawMember, So
 
 use crate::motion::frame::Frame;
 use crate::motion::nominal::{Arm, Nominal};
-use crate::motion::value::{self, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
+use crate::motion::value::{self, Declared, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
 use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
 
 use super::edits::EditList;
@@ -807,6 +808,10 @@ fn split(
         None => fresh_name(ws, &old, taken),
     };
     copy_declaration(ws, var.file, var.name, var.stmt, &new, edits, out);
+    if let Some(d) = &var.declared {
+        // Assigned by a statement: the copy needs a declaration of its own too.
+        declare_like(ws, d, &new, out);
+    }
     out.edits.entry(site_file).or_default().push(Edit {
         range: site.range(),
         bytes: new.clone(),
@@ -851,15 +856,52 @@ fn copy_declaration(
         range: name.start as usize - start..name.end as usize - start,
         bytes: new.to_vec(),
     });
-    let Ok(mut text) = krl::apply(&src[start..end], &local) else {
+    let Ok(text) = krl::apply(&src[start..end], &local) else {
         return;
     };
+    insert_line_after(ws, file, end, text, out);
+}
+
+/// A declaration of `new` of the type of the point declared at `d`, on a line of its own after
+/// that declaration's line, indented alike: `DECL E6AXIS XHOME_2`.
+fn declare_like(ws: &Workspace, d: &Declared, new: &[u8], out: &mut Rewrite) {
+    let f = &ws.get(d.file).file;
+    let src = f.source();
+    let lines = f.line_index();
+    let (line, _) = lines.line_col(d.stmt.start as usize);
+    let line_span = lines.line_span(src, line);
+    let start = line_span.start as usize;
+    let indent = src[start..]
+        .iter()
+        .take_while(|b| matches!(b, b' ' | b'\t'))
+        .count();
+    let mut end = line_span.end as usize;
+    while end > start && (src[end - 1] == b'\n' || src[end - 1] == b'\r') {
+        end -= 1;
+    }
+    let mut text = src[start..start + indent].to_vec();
+    text.extend_from_slice(b"DECL ");
+    text.extend_from_slice(f.text(d.ty));
+    text.push(b' ');
+    text.extend_from_slice(new);
+    insert_line_after(ws, d.file, end, text, out);
+}
+
+/// Inserts `text` as a line after the line whose content ends at `end` in `file`, with the
+/// file's line ending (or adds one at the end of the file).
+fn insert_line_after(
+    ws: &Workspace,
+    file: FileId,
+    end: usize,
+    mut text: Vec<u8>,
+    out: &mut Rewrite,
+) {
+    let src = ws.get(file).file.source();
     let newline: &[u8] = if src.windows(2).any(|w| w == b"\r\n") {
         b"\r\n"
     } else {
         b"\n"
     };
-    // Insert after the original line's ending (or add one at the end of the file).
     let after = src[end..]
         .iter()
         .position(|&b| b == b'\n')

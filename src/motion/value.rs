@@ -31,6 +31,19 @@ pub struct VarRef {
     /// The statement (line) that declares / initialises it.
     pub stmt: Span,
     pub element: bool,
+    /// For a point given its value by an assignment statement (`stmt`), its declaration
+    /// without a value: a copy of the point is declared there too.
+    pub declared: Option<Declared>,
+}
+
+/// The declaration (`DECL E6AXIS XHOME`) of a point assigned by a statement.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Declared {
+    pub file: FileId,
+    /// Where the declaration stands (its line is the one copied after).
+    pub stmt: Span,
+    /// The type's name in it.
+    pub ty: Span,
 }
 
 /// A (possibly partial) position.

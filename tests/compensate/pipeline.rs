@@ -456,6 +456,43 @@ fn a_point_reached_with_different_directions_is_split() {
     assert_ne!(lines[at], lines[at + 1].replace("P1_2", "P1"));
 }
 
+/// A point declared without a value and assigned by a statement in the `.src` (`XHOME` in
+/// the paper's paths), reached from two places with different rotation directions, is split
+/// too: a declaration and an assignment of the copy follow the original ones. The result is
+/// exactly what compensating the program with the point split by hand gives.
+#[test]
+fn an_assigned_point_reached_with_different_directions_is_split() {
+    let program = |split: bool| {
+        let (decl2, assign2, second) = if split {
+            (
+                "DECL E6POS P1_2\n",
+                "P1_2 = {X 100.0,Y 200.0,Z 0.0,A 0.0,B 0.0,C 180.0,S 2,T 34}\n",
+                "P1_2",
+            )
+        } else {
+            ("", "", "P1")
+        };
+        format!(
+            "DEF prog( )\nDECL E6POS P1\n{decl2}$BASE = {{X 900, Y -300, Z 500}}\n$TOOL = {{X 0, Y 0, Z 200}}\n\
+             P1 = {{X 100.0,Y 200.0,Z 0.0,A 0.0,B 0.0,C 180.0,S 2,T 34}}\n{assign2}\
+             PTP {{A1 0, A2 -80, A3 100, A4 0, A5 60, A6 0}}\nLIN P1\n\
+             LIN {{X 300, Y 200, Z 0, A 0, B 0, C 180}}\nLIN {{X 0, Y 400, Z 0}}\nLIN {second}\nEND\n"
+        )
+    };
+    let (out, _, r) = compensate_text(&program(false), None);
+    assert_eq!(r.report.split_points.len(), 1, "{:?}", r.report.warnings);
+    assert_eq!(r.report.split_points[0].copies, ["P1_2"]);
+    let (by_hand, _, _) = compensate_text(&program(true), None);
+    assert_eq!(out, by_hand);
+    // And the two uses really got different numbers.
+    let assigned: Vec<&str> = out.lines().filter(|l| l.starts_with("P1")).collect();
+    assert_eq!(assigned.len(), 2, "{out}");
+    assert_ne!(
+        assigned[0].replacen("P1 ", "", 1),
+        assigned[1].replacen("P1_2 ", "", 1)
+    );
+}
+
 /// A partial aggregate of a compensated target is completed: otherwise the missing
 /// components would come from the compensated previous position.
 #[test]

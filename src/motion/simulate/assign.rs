@@ -6,7 +6,7 @@ use crate::krl::{Access, Expr, Stmt};
 use super::eval::reason;
 use super::*;
 use crate::motion::frame::Frame;
-use crate::motion::value::{self, Value};
+use crate::motion::value::{self, Declared, Value, VarRef};
 use crate::motion::workspace::FileId;
 
 impl<'f> Simulator<'f> {
@@ -58,7 +58,12 @@ impl<'f> Simulator<'f> {
             if root.starts_with(b"$") {
                 return; // other system variables do not move the robot
             }
-            let v = self.eval(file, rhs, scope);
+            let mut v = self.eval(file, rhs, scope);
+            if let Value::Pos(pos) = &mut v {
+                if let Some(o) = pos.origin.as_mut().filter(|o| o.var.is_none()) {
+                    o.var = self.assigned_point(file, s, p.root, &root);
+                }
+            }
             self.set_var(&root, v, scope);
             return;
         }
@@ -100,6 +105,30 @@ impl<'f> Simulator<'f> {
             }
             _ => {}
         }
+    }
+
+    /// The point `name` (written at `at`) given a literal position by statement `s`, when it
+    /// is declared without a value in a file of the program (not `$config.dat`): a use of it
+    /// reached with other rotation directions than another can then get a copy of its own,
+    /// declared and assigned next to the original.
+    fn assigned_point(&self, file: FileId, s: &Stmt, at: Span, name: &[u8]) -> Option<VarRef> {
+        // Declared in this module (its .src or .dat): where the copy's declaration may go.
+        let own = *self.module_of.get(file as usize)?;
+        let sym = self.symbols.get(own)?.get(name)?;
+        if sym.var.init.is_some() || sym.var.dims.is_some() || sym.decl.constant.is_some() {
+            return None;
+        }
+        Some(VarRef {
+            file,
+            name: at,
+            stmt: s.head,
+            element: false,
+            declared: Some(Declared {
+                file: self.id_of(sym.file),
+                stmt: sym.var.span,
+                ty: sym.decl.ty.span,
+            }),
+        })
     }
 
     pub(super) fn is_tcp(&self, file: FileId, e: &'f Expr, scope: &Scope<'f>) -> bool {

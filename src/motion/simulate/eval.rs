@@ -187,6 +187,7 @@ impl<'f> Simulator<'f> {
                                     name: sym.var.name,
                                     stmt: sym.var.span,
                                     element: false,
+                                    declared: None,
                                 });
                             }
                             if sym.decl.ty.kind.is_axis() {
