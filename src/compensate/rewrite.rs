@@ -836,14 +836,7 @@ fn copy_declaration(
 ) {
     let f = &ws.get(file).file;
     let src = f.source();
-    let lines = f.line_index();
-    let (line, _) = lines.line_col(stmt.start as usize);
-    let line_span = lines.line_span(src, line);
-    let start = line_span.start as usize;
-    let mut end = line_span.end as usize;
-    while end > start && (src[end - 1] == b'\n' || src[end - 1] == b'\r') {
-        end -= 1;
-    }
+    let (start, end) = line_content(f, stmt.start as usize);
     let mut local: Vec<Edit> = edits
         .iter()
         .filter(|e| e.range.start >= start && e.range.end <= end)
@@ -867,24 +860,30 @@ fn copy_declaration(
 fn declare_like(ws: &Workspace, d: &Declared, new: &[u8], out: &mut Rewrite) {
     let f = &ws.get(d.file).file;
     let src = f.source();
-    let lines = f.line_index();
-    let (line, _) = lines.line_col(d.stmt.start as usize);
-    let line_span = lines.line_span(src, line);
-    let start = line_span.start as usize;
-    let indent = src[start..]
+    let (start, end) = line_content(f, d.stmt.start as usize);
+    let indent = src[start..end]
         .iter()
         .take_while(|b| matches!(b, b' ' | b'\t'))
         .count();
-    let mut end = line_span.end as usize;
-    while end > start && (src[end - 1] == b'\n' || src[end - 1] == b'\r') {
-        end -= 1;
-    }
     let mut text = src[start..start + indent].to_vec();
     text.extend_from_slice(b"DECL ");
     text.extend_from_slice(f.text(d.ty));
     text.push(b' ');
     text.extend_from_slice(new);
     insert_line_after(ws, d.file, end, text, out);
+}
+
+/// The byte range of the line holding `at` in `f`, without its line ending.
+fn line_content(f: &SourceFile, at: usize) -> (usize, usize) {
+    let src = f.source();
+    let lines = f.line_index();
+    let (line, _) = lines.line_col(at);
+    let span = lines.line_span(src, line);
+    let (start, mut end) = (span.start as usize, span.end as usize);
+    while end > start && (src[end - 1] == b'\n' || src[end - 1] == b'\r') {
+        end -= 1;
+    }
+    (start, end)
 }
 
 /// Inserts `text` as a line after the line whose content ends at `end` in `file`, with the

@@ -195,40 +195,38 @@ pub fn aggregate<'f>(
     };
     for raw in file.raw_members(agg) {
         let name = &src[raw.name().range()];
-        // A plain `NAME number` component (nearly every member of a CAM program) is read
-        // straight from its bytes, no expression built.
-        if let (crate::krl::RawMember::Plain { number, .. }, Some((is_axis, k))) =
-            (raw, component(name))
-        {
-            if let Some(v) = crate::krl::RawMember::plain_value(src, number) {
-                pos.v[k] = Some(v);
-                if is_axis {
-                    axis = true;
-                } else {
-                    cartesian = true;
-                }
-                continue;
-            }
-        }
-        let m = file.member_of(raw);
         // Position components first: nearly every member is one (no name is both a component
         // and one of the words below).
         if let Some((is_axis, k)) = component(name) {
-            let v = match literal(&m.value) {
+            // A plain `NAME number` (nearly every member of a CAM program) is read straight
+            // from its bytes, no expression built.
+            let plain = match raw {
+                crate::krl::RawMember::Plain { number, .. } => {
+                    crate::krl::RawMember::plain_value(src, number)
+                }
+                _ => None,
+            };
+            let v = match plain {
                 Some(v) => v,
-                None => match eval(&m.value).as_f64() {
-                    Some(v) => {
-                        // Computed: the number cannot be written back in place.
-                        pos.origin = None;
-                        v
+                None => {
+                    let m = file.member_of(raw);
+                    match literal(&m.value) {
+                        Some(v) => v,
+                        None => match eval(&m.value).as_f64() {
+                            Some(v) => {
+                                // Computed: the number cannot be written back in place.
+                                pos.origin = None;
+                                v
+                            }
+                            None => {
+                                return Value::Unknown(format!(
+                                    "{} of the position is computed at run time",
+                                    String::from_utf8_lossy(name)
+                                ))
+                            }
+                        },
                     }
-                    None => {
-                        return Value::Unknown(format!(
-                            "{} of the position is computed at run time",
-                            String::from_utf8_lossy(name)
-                        ))
-                    }
-                },
+                }
             };
             pos.v[k] = Some(v);
             if is_axis {
@@ -238,6 +236,7 @@ pub fn aggregate<'f>(
             }
             continue;
         }
+        let m = file.member_of(raw);
         let is = |word: &str| name.eq_ignore_ascii_case(word.as_bytes());
         match () {
             _ if is("S") || is("T") => {
