@@ -9,7 +9,9 @@
 //! a declared point named at several places — a copy with a new name declared next to the
 //! original (a point assigned by a statement: its copy declared after the declaration and
 //! assigned after the assignment), and the place renamed (inline forms included) — otherwise
-//! written for its last execution, with a warning.
+//! written for its last execution, with a warning. A point of `$config.dat`, which every
+//! program of the cell shares, is never written there: the program's data list gets a copy
+//! under a new name and the place is renamed the same way.
 
 use std::collections::{BTreeMap, HashSet};
 
@@ -598,7 +600,10 @@ pub fn rewrite_placed(
     keys.par_sort_unstable();
     let shared = |k: usize| {
         let same = |j: usize| keys[j].0 == keys[k].0 && keys[j].1 == keys[k].1;
-        (k > 0 && same(k - 1)) || (k + 1 < keys.len() && same(k + 1))
+        (k > 0 && same(k - 1))
+            || (k + 1 < keys.len() && same(k + 1))
+            // A `$config.dat` point is never written in place: copied (see `localize`).
+            || ws.get(keys[k].0).role == crate::motion::workspace::Role::Config
     };
     let mut skips: Vec<Skip> = Vec::new();
     let report = |skip: Skip, out: &mut Rewrite| match skip {
@@ -670,6 +675,10 @@ pub fn rewrite_placed(
     }
     let mut taken: HashSet<Vec<u8>> = HashSet::new();
     for ((file, _), list) in uses {
+        if ws.get(file).role == crate::motion::workspace::Role::Config {
+            localize(ws, &list, &mut taken, &mut out);
+            continue;
+        }
         let distinct = {
             let mut v: Vec<&TargetEdits> = Vec::new();
             for u in &list {
@@ -685,17 +694,15 @@ pub fn rewrite_placed(
             out.edits.entry(file).or_default().extend(first.edits);
             continue;
         }
-        // Group by the place that names the point.
-        let mut sites: Vec<(Site, Vec<&Use>)> = Vec::new();
+        let mut sites: Vec<Site> = Vec::new();
         for u in &list {
-            match sites.iter_mut().find(|(s, _)| *s == u.site) {
-                Some((_, v)) => v.push(u),
-                None => sites.push((u.site, vec![u])),
+            if !sites.contains(&u.site) {
+                sites.push(u.site);
             }
         }
         let splittable = origin.var.is_some_and(|v| !v.element)
             && sites.len() > 1
-            && sites.iter().all(|(s, _)| s.1.is_some());
+            && sites.iter().all(|s| s.1.is_some());
         if !splittable {
             let last = list.last().expect("non-empty");
             out.edits
@@ -717,16 +724,9 @@ pub fn rewrite_placed(
         }
         let var = origin.var.expect("checked");
         let mut new_names = Vec::new();
-        for (n, ((site_file, site_span), group)) in sites.iter().enumerate() {
-            let chosen = group.last().expect("non-empty");
-            if group.iter().any(|u| u.edits != chosen.edits) {
-                out.diagnostics.push(ws.diagnostic(
-                    Severity::Warning,
-                    *site_file,
-                    site_span.unwrap_or_default(),
-                    "this use of the point is executed several times with different rotation directions; written for its last execution",
-                ));
-            }
+        for (n, ((site_file, site_span), chosen)) in
+            by_site(ws, &list, &mut out).into_iter().enumerate()
+        {
             if n == 0 {
                 out.edits
                     .entry(file)
@@ -739,7 +739,7 @@ pub fn rewrite_placed(
                 sim,
                 &var,
                 &chosen.edits,
-                *site_file,
+                site_file,
                 site_span.expect("checked"),
                 &mut taken,
                 &mut out,
@@ -792,12 +792,27 @@ fn split(
     out: &mut Rewrite,
 ) -> String {
     let _ = sim;
-    let decl_file = &ws.get(var.file).file;
-    let old = decl_file.text(var.name).to_vec();
-    // Inline forms name the point `P1` and its position `XP1`: keep that pairing.
-    let use_file = &ws.get(site_file).file;
-    let ilf = ilf_of(use_file, site);
-    let new = match &ilf {
+    let old = ws.get(var.file).file.text(var.name);
+    let ilf = ilf_of(&ws.get(site_file).file, site);
+    let new = new_name(ws, old, &ilf, taken);
+    copy_declaration(ws, var.file, var.name, var.stmt, &new, edits, None, out);
+    if let Some(d) = &var.declared {
+        // Assigned by a statement: the copy needs a declaration of its own too.
+        declare_like(ws, d, &new, out);
+    }
+    rename_site(ws, site_file, site, ilf, &new, None, taken, out);
+    String::from_utf8_lossy(&new).into_owned()
+}
+
+/// A fresh name for a copy of point `old`; inline forms name the point `P1` and its position
+/// `XP1`: that pairing is kept.
+fn new_name(
+    ws: &Workspace,
+    old: &[u8],
+    ilf: &Option<(Span, Vec<u8>)>,
+    taken: &mut HashSet<Vec<u8>>,
+) -> Vec<u8> {
+    match ilf {
         Some((_, point)) => {
             let point_new = fresh_name(ws, point, taken);
             let mut n = b"X".to_vec();
@@ -805,26 +820,119 @@ fn split(
             taken.insert(n.to_ascii_uppercase());
             n
         }
-        None => fresh_name(ws, &old, taken),
-    };
-    copy_declaration(ws, var.file, var.name, var.stmt, &new, edits, out);
-    if let Some(d) = &var.declared {
-        // Assigned by a statement: the copy needs a declaration of its own too.
-        declare_like(ws, d, &new, out);
+        None => fresh_name(ws, old, taken),
     }
+}
+
+/// Renames the place `site` naming a point to `new` (and its inline form, whose frame data
+/// is copied `into` a data list when given, see [`copy_declaration`]).
+#[allow(clippy::too_many_arguments)]
+fn rename_site(
+    ws: &Workspace,
+    site_file: FileId,
+    site: Span,
+    ilf: Option<(Span, Vec<u8>)>,
+    new: &[u8],
+    into: Option<FileId>,
+    taken: &mut HashSet<Vec<u8>>,
+    out: &mut Rewrite,
+) {
     out.edits.entry(site_file).or_default().push(Edit {
         range: site.range(),
-        bytes: new.clone(),
+        bytes: new.to_vec(),
     });
     if let Some((fold_span, point)) = ilf {
         let point_new = &new[1..];
-        rename_in_fold(ws, site_file, fold_span, &point, point_new, out);
+        rename_in_fold(
+            ws, site_file, fold_span, &point, point_new, into, taken, out,
+        );
     }
-    String::from_utf8_lossy(&new).into_owned()
+}
+
+/// The uses of one point grouped by the place naming it, each place with the use it is
+/// written for: its last execution (a warning when its executions differ).
+fn by_site<'u, 'f>(
+    ws: &Workspace,
+    list: &'u [Use<'f>],
+    out: &mut Rewrite,
+) -> Vec<(Site, &'u Use<'f>)> {
+    let mut sites: Vec<(Site, Vec<&Use>)> = Vec::new();
+    for u in list {
+        match sites.iter_mut().find(|(s, _)| *s == u.site) {
+            Some((_, v)) => v.push(u),
+            None => sites.push((u.site, vec![u])),
+        }
+    }
+    sites
+        .into_iter()
+        .map(|((site_file, site_span), group)| {
+            let chosen = *group.last().expect("non-empty");
+            if group.iter().any(|u| u.edits != chosen.edits) {
+                out.diagnostics.push(ws.diagnostic(
+                    Severity::Warning,
+                    site_file,
+                    site_span.unwrap_or_default(),
+                    "this use of the point is executed several times with different rotation directions; written for its last execution",
+                ));
+            }
+            ((site_file, site_span), chosen)
+        })
+        .collect()
+}
+
+/// Copies of a `$config.dat` point for this program, which must not change a file every
+/// program of the cell shares: one per module data list and distinct numbers, declared at the
+/// end of that data list under a new name (without `GLOBAL`), each place naming the point
+/// renamed to its copy, inline forms included. What else names the point (`$H_POS=XHOME`)
+/// keeps the cell's point.
+fn localize(ws: &Workspace, list: &[Use], taken: &mut HashSet<Vec<u8>>, out: &mut Rewrite) {
+    let var = list[0]
+        .origin
+        .var
+        .expect("the walker compensates only named $config.dat points");
+    let old = ws.get(var.file).file.text(var.name);
+    let mut copies: Vec<(FileId, &TargetEdits, Vec<u8>)> = Vec::new();
+    for ((site_file, site_span), chosen) in by_site(ws, list, out) {
+        let (Some(dat), Some(site)) = (ws.get(site_file).partner, site_span) else {
+            continue; // the walker compensates only points named in a module with a .dat
+        };
+        let ilf = ilf_of(&ws.get(site_file).file, site);
+        let new = match copies
+            .iter()
+            .find(|(d, e, _)| *d == dat && **e == chosen.edits)
+        {
+            Some((_, _, n)) => n.clone(),
+            None => {
+                let new = new_name(ws, old, &ilf, taken);
+                let edits = &chosen.edits;
+                copy_declaration(
+                    ws,
+                    var.file,
+                    var.name,
+                    var.stmt,
+                    &new,
+                    edits,
+                    Some(dat),
+                    out,
+                );
+                copies.push((dat, edits, new.clone()));
+                new
+            }
+        };
+        rename_site(ws, site_file, site, ilf, &new, Some(dat), taken, out);
+    }
+    let names = copies
+        .iter()
+        .map(|(_, _, n)| String::from_utf8_lossy(n).into_owned())
+        .collect();
+    out.splits
+        .push((String::from_utf8_lossy(old).into_owned(), names));
 }
 
 /// Copies the declaration line of `name` (declared at `stmt` in `file`) under `new`, with
-/// `edits` applied, inserted after the original line.
+/// `edits` applied, inserted after the original line — or, `into` a data list, as its last
+/// declaration and without `GLOBAL` (a copy of a `$config.dat` point, local to its module).
+#[allow(clippy::too_many_arguments)]
 fn copy_declaration(
     ws: &Workspace,
     file: FileId,
@@ -832,6 +940,7 @@ fn copy_declaration(
     stmt: Span,
     new: &[u8],
     edits: &[Edit],
+    into: Option<FileId>,
     out: &mut Rewrite,
 ) {
     let f = &ws.get(file).file;
@@ -849,10 +958,59 @@ fn copy_declaration(
         range: name.start as usize - start..name.end as usize - start,
         bytes: new.to_vec(),
     });
+    let global = f
+        .declarations()
+        .find(|(_, d)| d.vars.iter().any(|v| v.name == name))
+        .and_then(|(_, d)| d.global);
+    if let (Some(g), Some(_)) = (global, into) {
+        // `GLOBAL ` with the blanks after it.
+        let after = src[g.end as usize..end]
+            .iter()
+            .take_while(|b| matches!(b, b' ' | b'\t'))
+            .count();
+        local.push(Edit {
+            range: g.start as usize - start..g.end as usize + after - start,
+            bytes: Vec::new(),
+        });
+    }
     let Ok(text) = krl::apply(&src[start..end], &local) else {
         return;
     };
-    insert_line_after(ws, file, end, text, out);
+    match into {
+        Some(dat) => insert_line_before_enddat(ws, dat, text, out),
+        None => insert_line_after(ws, file, end, text, out),
+    }
+}
+
+/// Inserts `text` as a line of data list `dat` just before its `ENDDAT` (at its end when it
+/// has none).
+fn insert_line_before_enddat(ws: &Workspace, dat: FileId, mut text: Vec<u8>, out: &mut Rewrite) {
+    let f = &ws.get(dat).file;
+    let enddat = f
+        .body()
+        .iter()
+        .find(|s| matches!(s.kind, krl::StmtKind::DefDat(_)))
+        .and_then(|s| s.block.as_ref()?.end.as_ref())
+        .map(|end| line_content(f, end.span.start as usize).0);
+    match enddat {
+        Some(at) => {
+            text.extend_from_slice(newline_of(f.source()));
+            out.edits.entry(dat).or_default().push(Edit {
+                range: at..at,
+                bytes: text,
+            });
+        }
+        None => insert_line_after(ws, dat, f.source().len(), text, out),
+    }
+}
+
+/// The line ending a file uses (CR LF when it has any).
+fn newline_of(src: &[u8]) -> &'static [u8] {
+    if src.windows(2).any(|w| w == b"\r\n") {
+        b"\r\n"
+    } else {
+        b"\n"
+    }
 }
 
 /// A declaration of `new` of the type of the point declared at `d`, on a line of its own after
@@ -896,11 +1054,7 @@ fn insert_line_after(
     out: &mut Rewrite,
 ) {
     let src = ws.get(file).file.source();
-    let newline: &[u8] = if src.windows(2).any(|w| w == b"\r\n") {
-        b"\r\n"
-    } else {
-        b"\n"
-    };
+    let newline = newline_of(src);
     let after = src[end..]
         .iter()
         .position(|&b| b == b'\n')
@@ -944,13 +1098,17 @@ fn ilf_of(file: &SourceFile, site: Span) -> Option<(Span, Vec<u8>)> {
 }
 
 /// Renames point `old` to `new` in an inline form: the fold title and parameters, and the
-/// frame data `F<old>` (declared anew as a copy) named inside the fold.
+/// frame data `F<old>` (declared anew as a copy, next to it or `into` a data list, once per
+/// name: `taken` remembers) named inside the fold.
+#[allow(clippy::too_many_arguments)]
 fn rename_in_fold(
     ws: &Workspace,
     file: FileId,
     fold: Span,
     old: &[u8],
     new: &[u8],
+    into: Option<FileId>,
+    taken: &mut HashSet<Vec<u8>>,
     out: &mut Rewrite,
 ) {
     let f = &ws.get(file).file;
@@ -1016,13 +1174,16 @@ fn rename_in_fold(
         }
     }
     out.edits.entry(file).or_default().extend(edits);
-    if used {
-        // Declare F<new> next to F<old>.
+    if used && taken.insert(fold_new.to_ascii_uppercase()) {
+        // Declare F<new> next to F<old> (or in the data list the point's copy went to).
         for (id, loaded) in ws.files.iter().enumerate() {
             for (_, d) in loaded.file.declarations() {
                 for v in &d.vars {
                     if loaded.file.text(v.name).eq_ignore_ascii_case(&fold_old) {
-                        copy_declaration(ws, id as FileId, v.name, v.span, &fold_new, &[], out);
+                        let into =
+                            into.filter(|_| loaded.role == crate::motion::workspace::Role::Config);
+                        let (id, stmt) = (id as FileId, v.span);
+                        copy_declaration(ws, id, v.name, stmt, &fold_new, &[], into, out);
                         return;
                     }
                 }

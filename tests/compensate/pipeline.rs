@@ -493,6 +493,80 @@ fn an_assigned_point_reached_with_different_directions_is_split() {
     );
 }
 
+/// A point of `$config.dat` is shared by every program of the cell, so it is never written
+/// there: the program gets a copy under a new name at the end of its own data list, and its
+/// use is renamed. The result is exactly what compensating the program with the copy made by
+/// hand gives (the by-hand copy is compensated as any `.dat` point); the cell's file is not
+/// among the outputs; a module without a data list leaves the use unchanged, with a warning.
+#[test]
+fn a_config_point_is_compensated_through_a_copy_in_the_programs_data_list() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("$config.dat");
+    std::fs::write(
+        &config,
+        "DEFDAT $CONFIG PUBLIC\nDECL GLOBAL FRAME BASE_DATA[32]\n\
+         DECL GLOBAL E6POS XAPPROACH={X 300.0,Y 200.0,Z 0.0,A 0.0,B 0.0,C 180.0,S 2,T 34}\nENDDAT\n",
+    )
+    .unwrap();
+    let compensate_with = |name: &str, src: &str, dat: Option<&str>| {
+        let sp = dir.path().join(format!("{name}.src"));
+        std::fs::write(&sp, src.replace("prog", name)).unwrap();
+        if let Some(d) = dat {
+            std::fs::write(
+                dir.path().join(format!("{name}.dat")),
+                d.replace("prog", name),
+            )
+            .unwrap();
+        }
+        let ws = files::load_program(Some(&sp), src.as_bytes(), Some(&config)).unwrap();
+        let r = run(&ws, "kr30ha-handset.json", compensate::Method::Iterate);
+        let text = |id| {
+            let f = r.files.iter().find(|f| f.file == id).unwrap();
+            String::from_utf8(f.bytes.to_vec())
+                .unwrap()
+                .replace(name, "prog")
+        };
+        let outs = (text(ws.main), ws.main_dat().map(text));
+        assert_eq!(
+            r.files.len(),
+            ws.files.len() - 1,
+            "the cell's file is no output"
+        );
+        (outs, r)
+    };
+    let program = |point: &str| {
+        format!("{HEAD}LIN {{X 0, Y 400, Z 0, A 0, B 0, C 180}}\nLIN {point}\nLIN {{X 0, Y 400, Z 0}}\nEND\n")
+    };
+    let ((src, dat), r) = compensate_with(
+        "mod_auto",
+        &program("XAPPROACH"),
+        Some("DEFDAT prog\nDECL E6POS XP1={X 1.0,Y 2.0,Z 3.0,A 0.0,B 0.0,C 180.0}\nENDDAT\n"),
+    );
+    assert_eq!(r.target_errors, 0, "{:?}", r.report.errors);
+    assert!(r.report.warnings.is_empty(), "{:?}", r.report.warnings);
+    assert_eq!(r.report.split_points[0].copies, ["XAPPROACH_2"]);
+    let ((src_hand, dat_hand), _) = compensate_with(
+        "mod_byhand",
+        &program("XAPPROACH_2"),
+        Some("DEFDAT prog\nDECL E6POS XP1={X 1.0,Y 2.0,Z 3.0,A 0.0,B 0.0,C 180.0}\n\
+              DECL E6POS XAPPROACH_2={X 300.0,Y 200.0,Z 0.0,A 0.0,B 0.0,C 180.0,S 2,T 34}\nENDDAT\n"),
+    );
+    assert_eq!(src, src_hand);
+    assert_eq!(dat, dat_hand);
+    // The copy really carries a correction.
+    let copy = dat.unwrap();
+    assert!(!copy.contains("{X 300.0,Y 200.0,Z 0.0"), "{copy}");
+    // Without a data list of its own, the module cannot hold a copy.
+    let ((src, dat), r) = compensate_with("mod_bare", &program("XAPPROACH"), None);
+    assert!(dat.is_none());
+    assert!(src.contains("\nLIN XAPPROACH\n"), "{src}");
+    assert!(
+        r.report.warnings.iter().any(|w| w.contains("$config.dat")),
+        "{:?}",
+        r.report.warnings
+    );
+}
+
 /// A partial aggregate of a compensated target is completed: otherwise the missing
 /// components would come from the compensated previous position.
 #[test]

@@ -465,8 +465,15 @@ impl<'f> Simulator<'f> {
         let in_config = pos
             .origin
             .is_some_and(|o| self.ws.get(o.file).role == crate::motion::workspace::Role::Config);
+        // A point of `$config.dat` is shared by every program of the cell: its compensated
+        // copy goes into this module's data list under a new name (see `compensate::rewrite`),
+        // which needs a data list and a point named here.
+        let localizable = in_config
+            && self.ws.get(file).partner.is_some()
+            && reference.is_some()
+            && pos.origin.and_then(|o| o.var).is_some_and(|v| !v.element);
         let compensable = pos.origin.is_some()
-            && !in_config
+            && (!in_config || localizable)
             && m.angle().is_none()
             && (!pos.axis || robot.within_limits(&q));
         if pos.origin.is_none() {
@@ -476,11 +483,11 @@ impl<'f> Simulator<'f> {
                 "the target is computed in the program (not a literal position): left unchanged",
             );
         }
-        if in_config {
+        if in_config && !localizable {
             self.warn(
                 file,
                 s.head,
-                "the target is declared in $config.dat, which robopost does not rewrite (every program shares it): left unchanged",
+                "the target is declared in $config.dat, which robopost does not rewrite (every program shares it), and cannot be copied into this module (it needs a .dat and a point named here): left unchanged",
             );
         }
         let stop = Stop {
