@@ -25,7 +25,7 @@ use super::solve::{self, weighted_norm, Method, Problem, SolveError};
 use crate::kinematics::{status_turn, ArmState};
 use crate::model::{Direction, Model};
 use crate::motion::frame::Frame;
-use crate::motion::interpolate::{Cartesian, Path};
+use crate::motion::interpolate::{self, Cartesian, Path};
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 
 pub use crate::motion::interpolate::REST_DEG;
@@ -105,6 +105,44 @@ pub enum Interp {
     CircAux,
     /// The end of a CIRC (its auxiliary point is the previous target).
     CircEnd,
+    /// The end of a circle with `CA` written by construction (`rewrite`): the controller
+    /// follows the circle through the start, the auxiliary point and the written target,
+    /// turning by `CA` — by construction the arc of `CA` from the start to the end in the
+    /// plane of the three ([`interpolate::circle_by_angle`]).
+    CircAngle(ArcAngle),
+    /// The auxiliary point of such a circle: it only sets the plane of the written circle
+    /// (its written position is on that circle, not its own command), so its directions are
+    /// the nominal ones, not re-checked.
+    CircAngleAux,
+}
+
+/// The `CA` of a circle written by construction, held as the bits of its degrees (so that
+/// [`Interp`] stays `Eq`), and its sense (`motion::CircularAngle::sense`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ArcAngle {
+    bits: u64,
+    negative: bool,
+}
+
+impl ArcAngle {
+    pub fn new(angle_deg: f64, sense: f64) -> ArcAngle {
+        ArcAngle {
+            bits: angle_deg.to_bits(),
+            negative: sense < 0.0,
+        }
+    }
+
+    pub fn degrees(self) -> f64 {
+        f64::from_bits(self.bits)
+    }
+
+    pub fn sense(self) -> f64 {
+        if self.negative {
+            -1.0
+        } else {
+            1.0
+        }
+    }
 }
 
 /// How a target's directions were settled.
@@ -799,6 +837,15 @@ impl Ctx<'_> {
                     Err(_) => return Some(step),
                 }
             }
+            Interp::CircAngle(a) if k >= 2 => {
+                let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
+                match interpolate::circle_by_angle(&start, &aux, &end, a.degrees(), a.sense(), None)
+                {
+                    Some(c) => c.twist(1.0),
+                    None => return Some(step),
+                }
+            }
+            Interp::CircAngleAux => return Some(nominal),
             Interp::CircAux if k + 1 < self.len() => {
                 let (start, aux, end) = (tcp(k - 1), tcp(k).position, tcp(k + 1));
                 match Cartesian::new(&start, &end, &Path::Circ { aux }) {

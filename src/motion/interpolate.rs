@@ -200,6 +200,15 @@ impl Cartesian {
         }
     }
 
+    /// The axis and turn (rad, positive about the axis) of an arc; `None` for a line or a
+    /// cubic.
+    pub fn arc_turn(&self) -> Option<(Vector3<f64>, f64)> {
+        match self.shape {
+            Shape::Arc { axis, angle, .. } => Some((axis, angle)),
+            _ => None,
+        }
+    }
+
     /// The path parameter at which an arc passes `point` (its angle from the start over the
     /// arc's angle); for a line, the projection onto it (for a cubic, onto its chord).
     pub fn fraction_at(&self, point: &Vector3<f64>) -> f64 {
@@ -288,6 +297,70 @@ fn arc(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Result<Shape, Pa
         radius0: r0,
         angle,
     })
+}
+
+/// The circle a controller follows for `CIRC aux, target, CA angle` when its start and end
+/// are given: the arc from `start` that turns by `angle_deg` about the unit `normal` (right
+/// hand; a negative angle turns the other way) and ends exactly at `end`, orientation slerped
+/// from the start's to the end's. `None` when no such circle exists: the chord vanishes or
+/// the turn is a whole number of turns (a full circle fixes no radius).
+///
+/// With chord `c = E − S`, midpoint `M` and turn `θ`, the centre lies in the plane ⟂ `normal`
+/// on the chord's bisector: `O = M + (n × c)·cot(θ/2)/2`, radius `|c| / (2|sin(θ/2)|)` (the
+/// isosceles triangle S O E with apex angle θ; cot changes sign past θ = 180°, putting the
+/// centre beyond the chord for the major arc, and with θ for the other sense).
+pub fn arc_about(start: &Frame, end: &Frame, angle_deg: f64, normal: &Vector3<f64>) -> Option<Cartesian> {
+    let theta = angle_deg.to_radians();
+    let half = 0.5 * theta;
+    let c = end.position - start.position;
+    // Within 1e-9 of a whole turn the centre is at infinity (or undefined): no circle.
+    if c.norm() < 1e-9 || half.sin().abs() < 1e-9 {
+        return None;
+    }
+    let n = normal.normalize();
+    // The chord must lie in the plane (it does when the normal was made from it).
+    let c = c - n * n.dot(&c);
+    let centre = start.position + 0.5 * c + n.cross(&c) * (0.5 * half.cos() / half.sin());
+    Some(Cartesian {
+        start: *start,
+        omega: frame::log_so3(&(end.rotation * start.rotation.transpose())),
+        shape: Shape::Arc {
+            centre,
+            axis: n,
+            radius0: start.position - centre,
+            angle: theta,
+        },
+    })
+}
+
+/// The normal of the plane through `start`, `aux` and `end` (positions), `sense` (±1) giving
+/// its sign: `sense · (A − S) × (E − S)` normalised; `None` when the three points are on a
+/// line (the plane is not defined by them).
+pub fn plane_normal(
+    start: &Vector3<f64>,
+    aux: &Vector3<f64>,
+    end: &Vector3<f64>,
+    sense: f64,
+) -> Option<Vector3<f64>> {
+    let (a, e) = (aux - start, end - start);
+    let n = a.cross(&e);
+    // Degenerate below 1e-6 rad between the two legs (µm over metres).
+    (n.norm() > 1e-6 * a.norm() * e.norm() && n.norm() > 0.0).then(|| n.normalize() * sense.signum())
+}
+
+/// The circle a controller follows for `CIRC aux, target, CA angle_deg` started at `start`
+/// when it must end at `end`: [`arc_about`] the normal of the plane through start, `aux` and
+/// end ([`plane_normal`] with `sense`), or `fallback` where those three are on a line.
+pub fn circle_by_angle(
+    start: &Frame,
+    aux: &Vector3<f64>,
+    end: &Frame,
+    angle_deg: f64,
+    sense: f64,
+    fallback: Option<&Vector3<f64>>,
+) -> Option<Cartesian> {
+    let normal = plane_normal(&start.position, aux, &end.position, sense).or(fallback.copied())?;
+    arc_about(start, end, angle_deg, &normal)
 }
 
 /// How a segment arrives at its end.

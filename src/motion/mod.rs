@@ -14,7 +14,7 @@ pub mod value;
 pub mod workspace;
 
 pub use simulate::{
-    simulate, simulate_streaming, GivenFrame, Rel, Role, RunSink, Simulation, SplineEnds, Stop,
+    simulate, simulate_streaming, CircularAngle, GivenFrame, Rel, Role, RunSink, Simulation, SplineEnds, Stop,
     Walked,
 };
 pub use workspace::{FileId, Workspace};
