@@ -615,7 +615,10 @@ pub fn rewrite_placed(
     // One target's edits appended to a list: `None` for a target not to be written.
     let command = |i: usize| match placed.tcp(i) {
         Some(tcp) => *tcp,
-        None => Nominal(robot).tcp(&outcomes[i].axes_deg, &sim.frames[sim.stops[i].tool as usize]),
+        None => Nominal(robot).tcp(
+            &outcomes[i].axes_deg,
+            &sim.frames[sim.stops[i].tool as usize],
+        ),
     };
     let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
         let (stop, o) = (&sim.stops[i], &outcomes[i]);
@@ -679,11 +682,7 @@ pub fn rewrite_placed(
         .with_min_len(1024)
         .filter_map(|i| {
             let origin = sim.stops[i].origin?;
-            written(sim, outcomes, i).then_some((
-                origin.file,
-                origin.agg.span.start,
-                i as u32,
-            ))
+            written(sim, outcomes, i).then_some((origin.file, origin.agg.span.start, i as u32))
         })
         .collect();
     keys.par_sort_unstable();

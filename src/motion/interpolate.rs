@@ -309,7 +309,12 @@ fn arc(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Result<Shape, Pa
 /// on the chord's bisector: `O = M + (n × c)·cot(θ/2)/2`, radius `|c| / (2|sin(θ/2)|)` (the
 /// isosceles triangle S O E with apex angle θ; cot changes sign past θ = 180°, putting the
 /// centre beyond the chord for the major arc, and with θ for the other sense).
-pub fn arc_about(start: &Frame, end: &Frame, angle_deg: f64, normal: &Vector3<f64>) -> Option<Cartesian> {
+pub fn arc_about(
+    start: &Frame,
+    end: &Frame,
+    angle_deg: f64,
+    normal: &Vector3<f64>,
+) -> Option<Cartesian> {
     let theta = angle_deg.to_radians();
     let half = 0.5 * theta;
     let c = end.position - start.position;
@@ -345,7 +350,8 @@ pub fn plane_normal(
     let (a, e) = (aux - start, end - start);
     let n = a.cross(&e);
     // Degenerate below 1e-6 rad between the two legs (µm over metres).
-    (n.norm() > 1e-6 * a.norm() * e.norm() && n.norm() > 0.0).then(|| n.normalize() * sense.signum())
+    (n.norm() > 1e-6 * a.norm() * e.norm() && n.norm() > 0.0)
+        .then(|| n.normalize() * sense.signum())
 }
 
 /// The circle a controller follows for `CIRC aux, target, CA angle_deg` started at `start`
@@ -602,6 +608,45 @@ mod tests {
                     .to_degrees()
                     <= PITCH_DEG;
             proptest::prop_assert_eq!(lin_needs_no_samples(&a, &b), exact);
+        }
+    }
+
+    proptest::proptest! {
+        /// The arc of a given turn between two points: it starts and ends there, turns by
+        /// the angle about the normal, and has the chord's radius |c| / (2|sin(θ/2)|); given
+        /// three points of a known circle (start, a point, the end at the turn) it is that
+        /// circle.
+        #[test]
+        fn an_arc_by_its_angle_joins_its_ends(
+            centre in proptest::array::uniform3(-500.0f64..500.0),
+            radius in 1.0f64..300.0,
+            tilt in proptest::array::uniform3(-3.0f64..3.0),
+            angle in proptest::prop_oneof![-354.0f64..-6.0, 6.0f64..354.0],
+            aux_at in 0.05f64..0.95,
+        ) {
+            let centre = Vector3::from(centre);
+            let r = exp_so3(&Vector3::from(tilt));
+            let normal = r * Vector3::z();
+            let on = |deg: f64| {
+                let a = deg.to_radians();
+                centre + r * Vector3::new(radius * a.cos(), radius * a.sin(), 0.0)
+            };
+            let frame = |p: Vector3<f64>| Frame { rotation: r, position: p };
+            let (s, e) = (frame(on(0.0)), frame(on(angle)));
+            let arc = arc_about(&s, &e, angle, &normal).unwrap();
+            proptest::prop_assert!((arc.pose(0.0).position - s.position).norm() < 1e-9);
+            proptest::prop_assert!((arc.pose(1.0).position - e.position).norm() < 1e-8);
+            proptest::prop_assert!((arc.pose(0.5).position - on(angle / 2.0)).norm() < 1e-8);
+            let chord = (e.position - s.position).norm();
+            let expected = chord / (2.0 * (angle.to_radians() / 2.0).sin().abs());
+            proptest::prop_assert!((arc.extent().0 / angle.to_radians().abs() - expected).abs() < 1e-8 * expected.max(1.0));
+            // Through a third point of the circle, the sense from it.
+            let aux = on(angle * aux_at);
+            let sense = plane_normal(&s.position, &aux, &e.position, 1.0).unwrap().dot(&normal).signum();
+            let again = circle_by_angle(&s, &aux, &e, angle, sense, None).unwrap();
+            for u in [0.25, 0.5, 0.75] {
+                proptest::prop_assert!((again.pose(u).position - on(angle * u)).norm() < 1e-7);
+            }
         }
     }
 

@@ -61,11 +61,8 @@ fn directions(ws: &Workspace, sim: &Simulation) -> Vec<[Direction; 6]> {
 /// turning by `angle_deg` in the sense a → b → c.
 fn turned(a: Vector3<f64>, b: Vector3<f64>, c: Vector3<f64>, angle_deg: f64) -> Vector3<f64> {
     let n = (b - a).cross(&(c - a));
-    let m = nalgebra::Matrix3::from_rows(&[
-        (b - a).transpose(),
-        (c - a).transpose(),
-        n.transpose(),
-    ]);
+    let m =
+        nalgebra::Matrix3::from_rows(&[(b - a).transpose(), (c - a).transpose(), n.transpose()]);
     let rhs = Vector3::new(
         0.5 * (b.norm_squared() - a.norm_squared()),
         0.5 * (c.norm_squared() - a.norm_squared()),
@@ -97,6 +94,25 @@ fn rounding_bound(pts: [Vector3<f64>; 3], angle_deg: f64, half_unit: f64) -> f64
     bound
 }
 
+/// Half the last written decimal: 3 decimals in mm (`rewrite::MIN_DECIMALS_MM`), 4 in degrees.
+const HALF_MM: f64 = 0.5e-3;
+const HALF_DEG: f64 = 0.5e-4;
+
+fn compensated(text: &[u8], stream: Option<robopost::krl::StreamOptions>) -> Vec<u8> {
+    let (model, bytes) = cal("kr30ha-example.json");
+    let ws = files::load_program_streaming(None, text.to_vec(), None, stream).unwrap();
+    let c = robopost::compensate::Calibrated::new(&model, "kr30ha-example.json", &bytes);
+    let options = program::Options {
+        method: Method::Iterate,
+        parallel: true,
+        frames: Vec::new(),
+        points: false,
+    };
+    let result = robopost::compensate::compensate_program(&ws, &c, &options);
+    assert!(!result.rejected, "{:?}", result.report.errors);
+    result.files[0].bytes.to_vec()
+}
+
 #[test]
 fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     let robot = RobotDescription::kr30ha();
@@ -104,11 +120,15 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     let ws = load(PROGRAM.as_bytes());
     let result = run(&ws, "kr30ha-example.json", Method::Iterate);
     assert!(!result.rejected, "{:?}", result.report.errors);
-    let warnings: Vec<String> = result.diagnostics.iter().map(|d| d.render()).collect();
-    assert!(
-        !warnings.iter().any(|w| w.contains("CA")),
-        "no CA warning: {warnings:#?}"
-    );
+    // Only the whole circle is reported (its end cannot be compensated).
+    let ca_warnings: Vec<String> = result
+        .diagnostics
+        .iter()
+        .map(|d| d.render())
+        .filter(|w| w.contains("CA"))
+        .collect();
+    assert_eq!(ca_warnings.len(), 1, "{ca_warnings:#?}");
+    assert!(ca_warnings[0].contains("a whole circle (CA 360) ends where it starts"));
     let written = result.files[0].bytes.to_vec();
     let text = String::from_utf8(written.clone()).unwrap();
 
@@ -120,7 +140,6 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     };
     assert_eq!(ca_of(&text), ca_of(PROGRAM));
     assert_eq!(ca_of(&text), ["90", "-45", "120", "360"]);
-    assert_ne!(text.lines().count(), 0);
 
     let sim0 = motion::simulate(&ws, &robot, &[]);
     let out = load(&written);
@@ -128,56 +147,101 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     assert!(!sim1.rejected());
     let (dirs0, dirs1) = (directions(&ws, &sim0), directions(&out, &sim1));
     let (c0, c1) = (circles(&sim0), circles(&sim1));
-    assert_eq!(c0.len(), 4);
-    assert_eq!(c1.len(), 4);
+    assert_eq!((c0.len(), c1.len()), (4, 4));
+    let norms = robopost::compensate::pose::norms;
+    // The model's error at stop k1 of the written program against stop k0's nominal pose.
+    let predicted = |k0: usize, k1: usize, sim: &Simulation, dirs: &[[Direction; 6]]| {
+        let tool = sim.frames[sim.stops[k1].tool as usize];
+        let e = solve::predicted_error(
+            &model,
+            &dirs[k1],
+            &sim.stops[k1].nominal_axes,
+            &tool,
+            &sim0.stops[k0].goal,
+        );
+        norms(&e)
+    };
     let angles = [90.0, -45.0, 120.0, 360.0];
-    for (n, (((a0, e0), (a1, e1)), angle)) in c0.iter().zip(&c1).zip(angles).enumerate() {
-        let (a0, e0, a1, e1) = (*a0, *e0, *a1, *e1);
-        let nominal_end = sim0.stops[e0].goal;
-        let tool = sim1.frames[sim1.stops[e1].tool as usize];
+    for (((_, e0), (a1, e1)), angle) in c0.iter().zip(&c1).zip(angles) {
+        let (e0, a1, e1) = (*e0, *a1, *e1);
         // Uncompensated: the model's error at the end of the original program.
-        let before = solve::predicted_error(
-            &model,
-            &dirs0[e0],
-            &sim0.stops[e0].nominal_axes,
-            &tool,
-            &nominal_end,
-        );
-        // Compensated: where the written program ends, predicted.
-        let after = solve::predicted_error(
-            &model,
-            &dirs1[e1],
-            &sim1.stops[e1].nominal_axes,
-            &tool,
-            &nominal_end,
-        );
-        let (bp, br) = robopost::compensate::pose::norms(&before);
-        let (ap, ar) = robopost::compensate::pose::norms(&after);
+        let (bp, br) = predicted(e0, e0, &sim0, &dirs0);
+        assert!(bp > 0.2, "CA {angle}: {bp} mm: a check that can fail");
         // The written circle: start (the previous stop, as written), aux', target'.
-        let start = sim1.stops[sim1.stops[a1].prev.unwrap() as usize].goal.position;
+        let start = sim1.stops[sim1.stops[a1].prev.unwrap() as usize]
+            .goal
+            .position;
         let aux = sim1.stops[a1].goal.position;
-        let target_stop = if angle == 360.0 { e1 - 1 } else { e1 };
+        let whole = angle == 360.0;
+        let target_stop = if whole { e1 - 1 } else { e1 };
         // The target as written: absolute in the base (`programmed` completes a relative
         // one), the base the robot's.
-        assert_eq!(sim1.frames[sim1.stops[target_stop].base as usize], Frame::identity());
+        assert_eq!(
+            sim1.frames[sim1.stops[target_stop].base as usize],
+            Frame::identity()
+        );
         let target = Frame::from_kuka(&sim1.stops[target_stop].programmed).position;
+        // Where the controller ends with the written numbers, by the independent circle.
+        let end = sim1.stops[e1].goal.position;
+        let independent = turned(start, aux, target, angle);
+        assert!(
+            (end - independent).norm() < 1e-6,
+            "CA {angle}: walker {end:?} vs circumcircle {independent:?}"
+        );
+        // Rounding the written numbers moves the end by at most `bound` (first order, the
+        // start's, aux''s and target''s coordinates each by half a unit; a relative circle's
+        // start shifts all three alike, at most half a unit per coordinate more); the model
+        // moves the predicted TCP with it (its Jacobian is 1 to 10⁻³), the solver leaves
+        // 0.1 µm. The orientation is the target's A, B, C, each rounded by half a unit.
+        let bound_mm =
+            rounding_bound([start, aux, target], angle, HALF_MM) * 1.01 + 3f64.sqrt() * HALF_MM;
+        let bound_rad = 3.0 * HALF_DEG.to_radians() + 0.1e-6;
+        if whole {
+            // The end is the start again, with the start's command: only the circle's
+            // points are compensated. The target as a plain circle's end.
+            assert!((end - start).norm() < 1e-9);
+            let (tp, tr) = predicted(e0 - 1, e1 - 1, &sim1, &dirs1);
+            let tb = 3f64.sqrt() * HALF_MM + 0.1e-3;
+            eprintln!(
+                "CA 360: target {:.3} µm {:.3} µrad (bound {:.3} µm)",
+                tp * 1e3,
+                tr * 1e6,
+                tb * 1e3
+            );
+            assert!(tp < tb && tr < bound_rad, "CA 360 target: {tp} mm {tr} rad");
+            let (ep, _) = predicted(e0, e1, &sim1, &dirs1);
+            eprintln!("CA 360: end {:.1} µm (before {:.1} µm)", ep * 1e3, bp * 1e3);
+            continue;
+        }
+        let (ap, ar) = predicted(e0, e1, &sim1, &dirs1);
         eprintln!(
-            "CA {angle}: before {:.1} µm {:.1} µrad, after {:.3} µm {:.3} µrad",
+            "CA {angle}: before {:.1} µm {:.1} µrad, after {:.3} µm {:.3} µrad (bound {:.3} µm {:.3} µrad)",
             bp * 1e3,
             br * 1e6,
             ap * 1e3,
-            ar * 1e6
+            ar * 1e6,
+            bound_mm * 1e3,
+            bound_rad * 1e6
         );
-        let pe = |k0: usize, k1: usize| {
-            let e = solve::predicted_error(&model, &dirs1[k1], &sim1.stops[k1].nominal_axes, &tool, &sim0.stops[k0].goal);
-            let (p, r) = robopost::compensate::pose::norms(&e);
-            format!("{:.3} µm {:.3} µrad dirs0 {:?} dirs1 {:?}", p * 1e3, r * 1e6, dirs0[k0], dirs1[k1])
-        };
-        eprintln!("  start {}", pe(sim0.stops[a0].prev.unwrap() as usize, sim1.stops[a1].prev.unwrap() as usize));
-        eprintln!("  aux {}", pe(a0, a1));
-        eprintln!("  end-1 {}", pe(e0 - 1, e1 - 1));
-        eprintln!("  end {}", pe(e0, e1));
-        assert!(bp > 0.1, "CA {angle}: the model's error is hundreds of µm ({bp} mm)");
-        let _ = (n, start, aux, target);
+        assert!(ap < bound_mm, "CA {angle}: {ap} mm > {bound_mm} mm");
+        assert!(ar < bound_rad, "CA {angle}: {ar} rad > {bound_rad} rad");
+        assert!(bound_mm < 5e-3, "µm-level: {bound_mm} mm");
     }
+}
+
+/// The program cut into streamed windows (every plain line a run) compensates alike.
+#[test]
+fn circles_with_ca_compensate_alike_streamed() {
+    let whole = compensated(PROGRAM.as_bytes(), None);
+    let streamed = compensated(
+        PROGRAM.as_bytes(),
+        Some(robopost::krl::StreamOptions {
+            min_run: 1,
+            window: 1,
+        }),
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&whole),
+        String::from_utf8_lossy(&streamed)
+    );
 }

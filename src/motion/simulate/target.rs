@@ -425,13 +425,12 @@ impl<'f> Simulator<'f> {
             };
             match ArcMode::of(angle) {
                 ArcMode::Through { whole } => {
-                    if !whole {
-                        self.warn(
-                            file,
-                            s.head,
-                            format!("CA {angle} is within {THROUGH_DEG}° of a whole turn: compensated through the circle's points (auxiliary point and target as a plain circle's), its end only as closely as that circle passes it"),
-                        );
-                    }
+                    let why = if whole {
+                        format!("a whole circle (CA {angle}) ends where it starts: its auxiliary point and target are compensated as a plain circle's, its end keeps the start's command (compensated for the motion into the start, not for the circle's own rotation directions)")
+                    } else {
+                        format!("CA {angle} is within {THROUGH_DEG}° of a whole turn: compensated through the circle's points (auxiliary point and target as a plain circle's), its end only as closely as that circle passes it")
+                    };
+                    self.warn(file, s.head, why);
                     through = Some(Stop {
                         role: Role::End,
                         ..end_stop
