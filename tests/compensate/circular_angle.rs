@@ -245,3 +245,54 @@ fn circles_with_ca_compensate_alike_streamed() {
         String::from_utf8_lossy(&streamed)
     );
 }
+
+/// A relative circle's auxiliary point and target are both relative to where the motion
+/// starts: written so, the controller reaches the compensated target (the model predicts the
+/// nominal one there), with or without `CA`.
+#[test]
+fn a_relative_circle_is_written_relative_to_its_start() {
+    let program = "DEF rel_circle( )
+$BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}
+$TOOL={X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}
+PTP {A1 20.0,A2 -80.0,A3 100.0,A4 0.0,A5 70.0,A6 0.0}
+LIN {X 1300.0,Y 450.0,Z 1200.0,A 30.0,B 20.0,C 160.0}
+CIRC_REL {X 40.0,Y 40.0,Z 0.0}, {X 80.0,Y 0.0,Z -10.0,A 5.0,B 3.0}
+END
+";
+    let robot = RobotDescription::kr30ha();
+    let (model, _) = cal("kr30ha-example.json");
+    let ws = load(program.as_bytes());
+    let written = compensated(program.as_bytes(), None);
+    let out = load(&written);
+    let (sim0, sim1) = (
+        motion::simulate(&ws, &robot, &[]),
+        motion::simulate(&out, &robot, &[]),
+    );
+    let dirs1 = directions(&out, &sim1);
+    let end = sim0.stops.len() - 1;
+    assert_eq!(sim1.stops.len(), sim0.stops.len());
+    let tool = sim1.frames[sim1.stops[end].tool as usize];
+    let e = solve::predicted_error(
+        &model,
+        &dirs1[end],
+        &sim1.stops[end].nominal_axes,
+        &tool,
+        &sim0.stops[end].goal,
+    );
+    let (p, r) = robopost::compensate::pose::norms(&e);
+    let dirs0 = directions(&ws, &sim0);
+    let before = solve::predicted_error(
+        &model,
+        &dirs0[end],
+        &sim0.stops[end].nominal_axes,
+        &tool,
+        &sim0.stops[end].goal,
+    );
+    assert!(robopost::compensate::pose::norms(&before).0 > 0.1);
+    eprintln!("CIRC_REL: after {:.3} µm {:.3} µrad", p * 1e3, r * 1e6);
+    // The start's and the offset's rounding, half a unit per coordinate each, and the
+    // solver's 0.1 µm; the start's and the offset's A, B, C half a unit each. (Written
+    // relative to the auxiliary point instead, the end was 56 mm off.)
+    assert!(p < 2.0 * 3f64.sqrt() * HALF_MM + 0.1e-3, "{} µm", p * 1e3);
+    assert!(r < 6.0 * HALF_DEG.to_radians() + 0.1e-6, "{} µrad", r * 1e6);
+}
