@@ -107,7 +107,7 @@ pub fn targets(ws: &Workspace, sim: &Simulation, range: std::ops::Range<usize>) 
                     Interp::CircAngleAux
                 }
                 (false, true, Role::Target | Role::End) => match sim.arc_ending_at(from + i) {
-                    Some(a) => Interp::CircAngle(ArcAngle::new(a.angle_deg, a.sense)),
+                    Some(a) => Interp::CircAngle(ArcAngle::new(a)),
                     None => Interp::CircEnd,
                 },
                 (false, true, Role::Aux) => Interp::CircAux,

@@ -154,8 +154,10 @@ fn written(sim: &Simulation, outcomes: &[Outcome], i: usize) -> bool {
 /// orientation. `CA` is the user's number and stays; S' is the previous target's command;
 /// the end must be E_c, the compensated end. So the written circle C' is the one through S'
 /// and E_c turning by exactly `CA` between them (radius |E_c − S'| / (2|sin(CA/2)|)), in the
-/// plane through S', the compensated auxiliary point A_c and E_c (the nominal circle's plane
-/// where those are on a line), turning the nominal way (`CircularAngle::sense`); A' and T'
+/// plane through S', the compensated auxiliary point A_c and E_c — or, where the nominal
+/// points define their plane poorly (A near the start or the end, see
+/// `interpolate::PLANE_MIN_SINE`), the nominal plane carried over, tilted as little as the
+/// chord S'E_c requires — turning the nominal way (`CircularAngle::sense`); A' and T'
 /// are its points at the angles A and T had on the nominal circle — any two points of C'
 /// beyond S' define it, these keep the written circle's points where the nominal ones were
 /// up to the correction (the nominal S, A, E give back the nominal circle exactly). T' takes
@@ -185,14 +187,19 @@ fn circular_angle(
         Some(_) => sim.stops[aux].goal,
     };
     let e_c = command(end);
-    let Some(circle) = crate::motion::interpolate::circle_by_angle(
-        &s_c,
-        &a_c.position,
-        &e_c,
-        arc.angle_deg,
-        arc.sense,
-        Some(&arc.normal),
-    ) else {
+    use crate::motion::interpolate::{circle_by_angle, ArcPlane};
+    let near = ArcPlane::Near(arc.normal);
+    let plane = if arc.from_points {
+        ArcPlane::Points {
+            aux: a_c.position,
+            sense: arc.sense,
+        }
+    } else {
+        near
+    };
+    let circle = circle_by_angle(&s_c, &e_c, arc.angle_deg, plane)
+        .or_else(|| circle_by_angle(&s_c, &e_c, arc.angle_deg, near));
+    let Some(circle) = circle else {
         return Some(None);
     };
     let at = |deg: f64| circle.pose(deg / arc.angle_deg).position;

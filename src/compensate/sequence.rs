@@ -107,8 +107,8 @@ pub enum Interp {
     CircEnd,
     /// The end of a circle with `CA` written by construction (`rewrite`): the controller
     /// follows the circle through the start, the auxiliary point and the written target,
-    /// turning by `CA` — by construction the arc of `CA` from the start to the end in the
-    /// plane of the three ([`interpolate::circle_by_angle`]).
+    /// turning by `CA` — by construction the arc of `CA` from the start to the end
+    /// ([`interpolate::circle_by_angle`] in the plane the rewrite chose).
     CircAngle(ArcAngle),
     /// The auxiliary point of such a circle: it only sets the plane of the written circle
     /// (its written position is on that circle, not its own command), so its directions are
@@ -116,19 +116,24 @@ pub enum Interp {
     CircAngleAux,
 }
 
-/// The `CA` of a circle written by construction, held as the bits of its degrees (so that
-/// [`Interp`] stays `Eq`), and its sense (`motion::CircularAngle::sense`).
+/// The `CA` of a circle written by construction and its plane (`motion::CircularAngle`):
+/// held as bits (the angle's f64, the nominal normal's f32, ample for directions) so that
+/// [`Interp`] stays `Eq` and small.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ArcAngle {
     bits: u64,
     negative: bool,
+    from_points: bool,
+    normal: [u32; 3],
 }
 
 impl ArcAngle {
-    pub fn new(angle_deg: f64, sense: f64) -> ArcAngle {
+    pub fn new(arc: &crate::motion::CircularAngle) -> ArcAngle {
         ArcAngle {
-            bits: angle_deg.to_bits(),
-            negative: sense < 0.0,
+            bits: arc.angle_deg.to_bits(),
+            negative: arc.sense < 0.0,
+            from_points: arc.from_points,
+            normal: std::array::from_fn(|i| (arc.normal[i] as f32).to_bits()),
         }
     }
 
@@ -136,11 +141,15 @@ impl ArcAngle {
         f64::from_bits(self.bits)
     }
 
-    pub fn sense(self) -> f64 {
-        if self.negative {
-            -1.0
+    /// The plane of the circle written with auxiliary point `aux` (as the rewrite chooses it).
+    pub fn plane(self, aux: Vector3<f64>) -> interpolate::ArcPlane {
+        if self.from_points {
+            interpolate::ArcPlane::Points {
+                aux,
+                sense: if self.negative { -1.0 } else { 1.0 },
+            }
         } else {
-            1.0
+            interpolate::ArcPlane::Near(self.normal.map(|b| f32::from_bits(b) as f64).into())
         }
     }
 }
@@ -839,8 +848,7 @@ impl Ctx<'_> {
             }
             Interp::CircAngle(a) if k >= 2 => {
                 let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
-                match interpolate::circle_by_angle(&start, &aux, &end, a.degrees(), a.sense(), None)
-                {
+                match interpolate::circle_by_angle(&start, &end, a.degrees(), a.plane(aux)) {
                     Some(c) => c.twist(1.0),
                     None => return Some(step),
                 }

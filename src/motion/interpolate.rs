@@ -354,18 +354,55 @@ pub fn plane_normal(
         .then(|| n.normalize() * sense.signum())
 }
 
+/// The plane a circle by its angle ([`circle_by_angle`]) lies in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ArcPlane {
+    /// Through the start, this auxiliary point and the end, `sense` signing the normal
+    /// ([`plane_normal`]).
+    Points { aux: Vector3<f64>, sense: f64 },
+    /// The plane through the chord nearest to the one with this normal: the normal less its
+    /// component along the chord (a plane carried over and tilted as little as the chord
+    /// requires).
+    Near(Vector3<f64>),
+}
+
+/// The least sine of the angle between the legs S → A and S → E for the plane through the
+/// three to be taken from their compensated positions. By the inscribed-angle theorem that
+/// angle is half the arc between A and E: below 0.1 (A within 11.5° of the end on the
+/// circle, or of the start), corrections δ would tilt the plane by up to δ / (0.1·|A − S|)
+/// — noise — and the nominal plane is carried over instead ([`ArcPlane::Near`]).
+pub const PLANE_MIN_SINE: f64 = 0.1;
+
+/// Whether the plane through `start`, `aux`, `end` is well defined by them
+/// ([`PLANE_MIN_SINE`]).
+pub fn plane_well_defined(start: &Vector3<f64>, aux: &Vector3<f64>, end: &Vector3<f64>) -> bool {
+    let (a, e) = (aux - start, end - start);
+    a.cross(&e).norm() >= PLANE_MIN_SINE * a.norm() * e.norm() && a.norm() * e.norm() > 0.0
+}
+
 /// The circle a controller follows for `CIRC aux, target, CA angle_deg` started at `start`
-/// when it must end at `end`: [`arc_about`] the normal of the plane through start, `aux` and
-/// end ([`plane_normal`] with `sense`), or `fallback` where those three are on a line.
+/// when it must end at `end`: [`arc_about`] the normal of `plane` (`None` where that plane is
+/// not defined or holds no such arc).
 pub fn circle_by_angle(
     start: &Frame,
-    aux: &Vector3<f64>,
     end: &Frame,
     angle_deg: f64,
-    sense: f64,
-    fallback: Option<&Vector3<f64>>,
+    plane: ArcPlane,
 ) -> Option<Cartesian> {
-    let normal = plane_normal(&start.position, aux, &end.position, sense).or(fallback.copied())?;
+    let normal = match plane {
+        ArcPlane::Points { aux, sense } => {
+            plane_normal(&start.position, &aux, &end.position, sense)?
+        }
+        ArcPlane::Near(n) => {
+            let c = end.position - start.position;
+            let c = c / c.norm();
+            let m = n - c * c.dot(&n);
+            if m.norm().is_nan() || m.norm() <= 1e-9 {
+                return None;
+            }
+            m.normalize()
+        }
+    };
     arc_about(start, end, angle_deg, &normal)
 }
 
@@ -643,9 +680,13 @@ mod tests {
             // Through a third point of the circle, the sense from it.
             let aux = on(angle * aux_at);
             let sense = plane_normal(&s.position, &aux, &e.position, 1.0).unwrap().dot(&normal).signum();
-            let again = circle_by_angle(&s, &aux, &e, angle, sense, None).unwrap();
+            let again = circle_by_angle(&s, &e, angle, ArcPlane::Points { aux, sense }).unwrap();
+            // … and a normal carried over tilted along the chord gives the plane through it.
+            let tilted = (normal + (e.position - s.position).normalize() * 0.3).normalize();
+            let near = circle_by_angle(&s, &e, angle, ArcPlane::Near(tilted)).unwrap();
             for u in [0.25, 0.5, 0.75] {
                 proptest::prop_assert!((again.pose(u).position - on(angle * u)).norm() < 1e-7);
+                proptest::prop_assert!((near.pose(u).position - on(angle * u)).norm() < 1e-7);
             }
         }
     }

@@ -14,7 +14,8 @@ use robopost::motion::{self, frame::Frame, Role, Simulation, Workspace};
 use super::pipeline::{cal, run};
 
 /// Tool 200 mm along the flange's Z, pointing down; circles of radius 50 mm and a tilted
-/// relative one, CA 90, −45, 120 (`CIRC_REL`) and a full circle (CA 360) with a retract.
+/// relative one, CA 90, −45, 120 (`CIRC_REL`), 90 again ending on the auxiliary point (its
+/// plane carried over) and a full circle (CA 360) with a retract.
 const PROGRAM: &str = "DEF ca_test( )
 $BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}
 $TOOL={X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}
@@ -24,6 +25,8 @@ CIRC {X 1314.645,Y 485.355,Z 1200.0}, {X 1400.0,Y 450.0,Z 1200.0,A 10.0,B 0.0,C 
 LIN {X 1350.0,Y 500.0,Z 1100.0,A 0.0,B 0.0,C 180.0}
 CIRC {X 1400.0,Y 550.0,Z 1100.0}, {X 1450.0,Y 500.0,Z 1100.0,A 0.0,B 5.0,C 180.0}, CA -45
 CIRC_REL {X 30.0,Y 30.0,Z 0.0}, {X 60.0,Y 0.0,Z 20.0}, CA 120
+LIN {X 1300.0,Y 450.0,Z 1150.0,A 0.0,B 0.0,C 180.0}
+CIRC {X 1350.0,Y 500.0,Z 1150.0}, {X 1400.0,Y 450.0,Z 1150.0,A 0.0,B 0.0,C 180.0}, CA 90
 LIN {X 1300.0,Y 400.0,Z 1000.0,A 0.0,B 0.0,C 180.0}
 CIRC {X 1340.0,Y 440.0,Z 1000.0}, {X 1380.0,Y 400.0,Z 1000.0,A 0.0,B 0.0,C 180.0}, CA 360
 LIN {Z 1100.0}
@@ -139,7 +142,7 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
             .collect()
     };
     assert_eq!(ca_of(&text), ca_of(PROGRAM));
-    assert_eq!(ca_of(&text), ["90", "-45", "120", "360"]);
+    assert_eq!(ca_of(&text), ["90", "-45", "120", "90", "360"]);
 
     let sim0 = motion::simulate(&ws, &robot, &[]);
     let out = load(&written);
@@ -147,7 +150,7 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     assert!(!sim1.rejected());
     let (dirs0, dirs1) = (directions(&ws, &sim0), directions(&out, &sim1));
     let (c0, c1) = (circles(&sim0), circles(&sim1));
-    assert_eq!((c0.len(), c1.len()), (4, 4));
+    assert_eq!((c0.len(), c1.len()), (5, 5));
     let norms = robopost::compensate::pose::norms;
     // The model's error at stop k1 of the written program against stop k0's nominal pose.
     let predicted = |k0: usize, k1: usize, sim: &Simulation, dirs: &[[Direction; 6]]| {
@@ -161,9 +164,9 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
         );
         norms(&e)
     };
-    let angles = [90.0, -45.0, 120.0, 360.0];
-    for (((_, e0), (a1, e1)), angle) in c0.iter().zip(&c1).zip(angles) {
-        let (e0, a1, e1) = (*e0, *a1, *e1);
+    let angles = [90.0, -45.0, 120.0, 90.0, 360.0];
+    for (((a0, e0), (a1, e1)), angle) in c0.iter().zip(&c1).zip(angles) {
+        let (a0, e0, a1, e1) = (*a0, *e0, *a1, *e1);
         // Uncompensated: the model's error at the end of the original program.
         let (bp, br) = predicted(e0, e0, &sim0, &dirs0);
         assert!(bp > 0.2, "CA {angle}: {bp} mm: a check that can fail");
@@ -188,6 +191,18 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
             (end - independent).norm() < 1e-6,
             "CA {angle}: walker {end:?} vs circumcircle {independent:?}"
         );
+        // The written circle's plane is the nominal one up to the correction's tilt.
+        if !whole {
+            let normal = |sim: &Simulation, a: usize, target: Vector3<f64>| {
+                let s = sim.stops[sim.stops[a].prev.unwrap() as usize].goal.position;
+                (sim.stops[a].goal.position - s)
+                    .cross(&(target - s))
+                    .normalize()
+            };
+            let target0 = Frame::from_kuka(&sim0.stops[e0].programmed).position;
+            let tilt = normal(&sim0, a0, target0).angle(&normal(&sim1, a1, target));
+            assert!(tilt < 0.01, "CA {angle}: the plane tilts by {tilt} rad");
+        }
         // Rounding the written numbers moves the end by at most `bound` (first order, the
         // start's, aux''s and target''s coordinates each by half a unit; a relative circle's
         // start shifts all three alike, at most half a unit per coordinate more); the model

@@ -88,6 +88,10 @@ pub struct CircularAngle {
     pub normal: nalgebra::Vector3<f64>,
     /// The sign making `sense · (A − S) × (E − S)` point along `normal` (E the end).
     pub sense: f64,
+    /// Whether S, A and E define their plane well (`interpolate::plane_well_defined`): the
+    /// written circle then lies in the plane of their compensated positions, else in the
+    /// nominal plane carried over.
+    pub from_points: bool,
 }
 
 /// One executed motion target.

@@ -469,6 +469,11 @@ impl<'f> Simulator<'f> {
                         target_deg: turn.to_degrees(),
                         normal,
                         sense,
+                        from_points: interpolate::plane_well_defined(
+                            &start,
+                            &aux_at,
+                            &end.position,
+                        ),
                     });
                     if rel.is_none() {
                         self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
