@@ -16,7 +16,7 @@ pub(super) use super::report::Tally;
 pub use super::report::{CalibrationRef, MaxMean, PointReport, PoseStats, Report, SplitReport};
 use super::rewrite;
 use super::segments::Segments;
-use super::sequence::{self, Interp, Keep, Quantum, Target};
+use super::sequence::{self, ArcAngle, Interp, Keep, Quantum, Target};
 use super::solve::Method;
 
 /// The first words of the header comment robopost writes; a file carrying it was compensated.
@@ -90,18 +90,27 @@ pub struct ProgramResult {
 /// The compensation targets of the stops `range` of a simulation.
 pub fn targets(ws: &Workspace, sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
     use rayon::prelude::*;
+    let from = range.start;
     sim.stops[range]
         .par_iter()
+        .enumerate()
         .with_min_len(1024)
-        .map(|s| Target {
+        .map(|(i, s)| Target {
             goal: s.goal,
             tool: s.tool,
             nominal_axes: s.nominal_axes,
             arrival: s.arrival,
             interp: match (s.kind.is_joint(), s.kind.is_circular(), s.role) {
                 (true, _, _) => Interp::Joint,
+                // A `CA` circle written by construction (see `rewrite::circular_angle`).
+                (false, true, Role::Aux) if sim.arc_ending_at(from + i + 1).is_some() => {
+                    Interp::CircAngleAux
+                }
+                (false, true, Role::Target | Role::End) => match sim.arc_ending_at(from + i) {
+                    Some(a) => Interp::CircAngle(ArcAngle::new(a)),
+                    None => Interp::CircEnd,
+                },
                 (false, true, Role::Aux) => Interp::CircAux,
-                (false, true, Role::Target) => Interp::CircEnd,
                 (false, false, _) => match s.spline {
                     Some(e) => Interp::Curve {
                         first: e.first,

@@ -264,6 +264,7 @@ fn point_report(
         role: match stop.role {
             Role::Target => "target",
             Role::Aux => "aux",
+            Role::End => "end",
         },
         correction_um,
         correction_mdeg,

@@ -81,7 +81,15 @@ fn new_values(
     original: &[Option<f64>; 6],
     robot: &crate::kinematics::RobotDescription,
 ) -> Option<[f64; 6]> {
-    let prev_cmd = stop.prev.map(|p| outcomes[p as usize].axes_deg);
+    // A relative circle's points are both relative to where the motion starts: the target's
+    // `prev` is its auxiliary point, whose own `prev` is the start.
+    let start_stop = match stop.prev {
+        Some(p) if stop.role != Role::Aux && sim.stops[p as usize].role == Role::Aux => {
+            sim.stops[p as usize].prev
+        }
+        p => p,
+    };
+    let prev_cmd = start_stop.map(|p| outcomes[p as usize].axes_deg);
     if stop.axis {
         return match stop.rel {
             Some(_) => {
@@ -123,6 +131,91 @@ fn new_values(
             Some(rel.to_kuka_near(&abc_near))
         }
     }
+}
+
+/// Whether stop `i`'s numbers are rewritten: a compensated target that changed, and the
+/// auxiliary point of a `CA` circle written by construction exactly when its end is (it is
+/// moved onto that circle).
+fn written(sim: &Simulation, outcomes: &[Outcome], i: usize) -> bool {
+    let done = |i: usize| {
+        let (stop, o) = (&sim.stops[i], &outcomes[i]);
+        stop.compensable && o.changed && o.error.is_none()
+    };
+    let stop = &sim.stops[i];
+    if stop.role == Role::Aux && i + 1 < outcomes.len() && sim.arc_ending_at(i + 1).is_some() {
+        return stop.compensable && done(i + 1);
+    }
+    done(i)
+}
+
+/// For the auxiliary point and end of a `CA` circle written by construction, the pose to
+/// write (`Some(None)`: no such circle; `None`: not such a stop).
+///
+/// The controller moves on the circle through the start S', the written auxiliary point A'
+/// and target T' (S' → A' → T'), and stops after turning by `CA` from S', with T''s
+/// orientation. `CA` is the user's number and stays; S' is the previous target's command;
+/// the end must be E_c, the compensated end. So the written circle C' is the one through S'
+/// and E_c turning by exactly `CA` between them (radius |E_c − S'| / (2|sin(CA/2)|)), in the
+/// plane through S', the compensated auxiliary point A_c and E_c — or, where the nominal
+/// points define their plane poorly (A near the start or the end, see
+/// `interpolate::PLANE_MIN_SINE`), the nominal plane carried over, tilted as little as the
+/// chord S'E_c requires — turning the nominal way (`CircularAngle::sense`); A' and T'
+/// are its points at the angles A and T had on the nominal circle — any two points of C'
+/// beyond S' define it, these keep the written circle's points where the nominal ones were
+/// up to the correction (the nominal S, A, E give back the nominal circle exactly). T' takes
+/// E_c's orientation (the controller ends with the target's); A''s orientation is not
+/// written.
+fn circular_angle(
+    sim: &Simulation,
+    outcomes: &[Outcome],
+    command: &dyn Fn(usize) -> Frame,
+    robot: &crate::kinematics::RobotDescription,
+    i: usize,
+) -> Option<Option<Frame>> {
+    let stop = &sim.stops[i];
+    let (end, aux) = match stop.role {
+        Role::Aux => (i + 1, i),
+        _ => (i, i.checked_sub(1)?),
+    };
+    let arc = sim.arc_ending_at(end).filter(|_| end < outcomes.len())?;
+    let tool = &sim.frames[sim.stops[end].tool as usize];
+    let Some(start) = sim.stops[aux].prev else {
+        return Some(None);
+    };
+    // Where the controller starts: the previous command's axes with this motion's tool.
+    let s_c = Nominal(robot).tcp(&outcomes[start as usize].axes_deg, tool);
+    let a_c = match outcomes[aux].error {
+        None => command(aux),
+        Some(_) => sim.stops[aux].goal,
+    };
+    let e_c = command(end);
+    use crate::motion::interpolate::{circle_by_angle, ArcPlane};
+    let near = ArcPlane::Near(arc.normal);
+    let plane = if arc.from_points {
+        ArcPlane::Points {
+            aux: a_c.position,
+            sense: arc.sense,
+        }
+    } else {
+        near
+    };
+    let circle = circle_by_angle(&s_c, &e_c, arc.angle_deg, plane)
+        .or_else(|| circle_by_angle(&s_c, &e_c, arc.angle_deg, near));
+    let Some(circle) = circle else {
+        return Some(None);
+    };
+    let at = |deg: f64| circle.pose(deg / arc.angle_deg).position;
+    Some(Some(if i == aux {
+        Frame {
+            rotation: a_c.rotation,
+            position: at(arc.aux_deg),
+        }
+    } else {
+        Frame {
+            rotation: e_c.rotation,
+            position: at(arc.target_deg),
+        }
+    }))
 }
 
 /// The literal a member's value is written with: (span to replace, literal text).
@@ -526,17 +619,26 @@ pub fn rewrite_placed(
     enum Skip {
         Relative(usize),
         NotLiteral(usize),
+        Circle(usize),
     }
     // One target's edits appended to a list: `None` for a target not to be written.
+    let command = |i: usize| match placed.tcp(i) {
+        Some(tcp) => *tcp,
+        None => Nominal(robot).tcp(
+            &outcomes[i].axes_deg,
+            &sim.frames[sim.stops[i].tool as usize],
+        ),
+    };
     let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
         let (stop, o) = (&sim.stops[i], &outcomes[i]);
         let origin = stop.origin?;
-        if !stop.compensable || !o.changed || o.error.is_some() {
+        if !written(sim, outcomes, i) {
             return None;
         }
-        let command_tcp = match placed.tcp(i) {
-            Some(tcp) => *tcp,
-            None => Nominal(robot).tcp(&o.axes_deg, &sim.frames[stop.tool as usize]),
+        let command_tcp = match circular_angle(sim, outcomes, &command, robot, i) {
+            Some(Some(pose)) => pose,
+            Some(None) => return Some(Err(Skip::Circle(i))),
+            None => command(i),
         };
         let file = &ws.get(origin.file).file;
         let present = components(file, origin.agg, stop.axis);
@@ -588,13 +690,8 @@ pub fn rewrite_placed(
         .into_par_iter()
         .with_min_len(1024)
         .filter_map(|i| {
-            let (stop, o) = (&sim.stops[i], &outcomes[i]);
-            let origin = stop.origin?;
-            (stop.compensable && o.changed && o.error.is_none()).then_some((
-                origin.file,
-                origin.agg.span.start,
-                i as u32,
-            ))
+            let origin = sim.stops[i].origin?;
+            written(sim, outcomes, i).then_some((origin.file, origin.agg.span.start, i as u32))
         })
         .collect();
     keys.par_sort_unstable();
@@ -614,6 +711,15 @@ pub fn rewrite_placed(
                 stop.file,
                 stop.stmt.head,
                 "a relative target after an unknown position cannot be rewritten: left unchanged",
+            ));
+        }
+        Skip::Circle(i) => {
+            let stop = &sim.stops[i];
+            out.diagnostics.push(ws.diagnostic(
+                Severity::Warning,
+                stop.file,
+                stop.stmt.head,
+                "no circle turns by this CA from the compensated start to the compensated end (its start unknown, or start and end together): left unchanged",
             ));
         }
         Skip::NotLiteral(i) => {

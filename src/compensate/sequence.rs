@@ -25,7 +25,7 @@ use super::solve::{self, weighted_norm, Method, Problem, SolveError};
 use crate::kinematics::{status_turn, ArmState};
 use crate::model::{Direction, Model};
 use crate::motion::frame::Frame;
-use crate::motion::interpolate::{Cartesian, Path};
+use crate::motion::interpolate::{self, Cartesian, Path};
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 
 pub use crate::motion::interpolate::REST_DEG;
@@ -105,6 +105,53 @@ pub enum Interp {
     CircAux,
     /// The end of a CIRC (its auxiliary point is the previous target).
     CircEnd,
+    /// The end of a circle with `CA` written by construction (`rewrite`): the controller
+    /// follows the circle through the start, the auxiliary point and the written target,
+    /// turning by `CA` — by construction the arc of `CA` from the start to the end
+    /// ([`interpolate::circle_by_angle`] in the plane the rewrite chose).
+    CircAngle(ArcAngle),
+    /// The auxiliary point of such a circle: it only sets the plane of the written circle
+    /// (its written position is on that circle, not its own command), so its directions are
+    /// the nominal ones, not re-checked.
+    CircAngleAux,
+}
+
+/// The `CA` of a circle written by construction and its plane (`motion::CircularAngle`):
+/// held as bits (the angle's f64, the nominal normal's f32, ample for directions) so that
+/// [`Interp`] stays `Eq` and small.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ArcAngle {
+    bits: u64,
+    negative: bool,
+    from_points: bool,
+    normal: [u32; 3],
+}
+
+impl ArcAngle {
+    pub fn new(arc: &crate::motion::CircularAngle) -> ArcAngle {
+        ArcAngle {
+            bits: arc.angle_deg.to_bits(),
+            negative: arc.sense < 0.0,
+            from_points: arc.from_points,
+            normal: std::array::from_fn(|i| (arc.normal[i] as f32).to_bits()),
+        }
+    }
+
+    pub fn degrees(self) -> f64 {
+        f64::from_bits(self.bits)
+    }
+
+    /// The plane of the circle written with auxiliary point `aux` (as the rewrite chooses it).
+    pub fn plane(self, aux: Vector3<f64>) -> interpolate::ArcPlane {
+        if self.from_points {
+            interpolate::ArcPlane::Points {
+                aux,
+                sense: if self.negative { -1.0 } else { 1.0 },
+            }
+        } else {
+            interpolate::ArcPlane::Near(self.normal.map(|b| f32::from_bits(b) as f64).into())
+        }
+    }
 }
 
 /// How a target's directions were settled.
@@ -799,6 +846,14 @@ impl Ctx<'_> {
                     Err(_) => return Some(step),
                 }
             }
+            Interp::CircAngle(a) if k >= 2 => {
+                let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
+                match interpolate::circle_by_angle(&start, &end, a.degrees(), a.plane(aux)) {
+                    Some(c) => c.twist(1.0),
+                    None => return Some(step),
+                }
+            }
+            Interp::CircAngleAux => return Some(nominal),
             Interp::CircAux if k + 1 < self.len() => {
                 let (start, aux, end) = (tcp(k - 1), tcp(k).position, tcp(k + 1));
                 match Cartesian::new(&start, &end, &Path::Circ { aux }) {

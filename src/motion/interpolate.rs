@@ -200,6 +200,15 @@ impl Cartesian {
         }
     }
 
+    /// The axis and turn (rad, positive about the axis) of an arc; `None` for a line or a
+    /// cubic.
+    pub fn arc_turn(&self) -> Option<(Vector3<f64>, f64)> {
+        match self.shape {
+            Shape::Arc { axis, angle, .. } => Some((axis, angle)),
+            _ => None,
+        }
+    }
+
     /// The path parameter at which an arc passes `point` (its angle from the start over the
     /// arc's angle); for a line, the projection onto it (for a cubic, onto its chord).
     pub fn fraction_at(&self, point: &Vector3<f64>) -> f64 {
@@ -288,6 +297,113 @@ fn arc(a: &Vector3<f64>, b: &Vector3<f64>, c: &Vector3<f64>) -> Result<Shape, Pa
         radius0: r0,
         angle,
     })
+}
+
+/// The circle a controller follows for `CIRC aux, target, CA angle` when its start and end
+/// are given: the arc from `start` that turns by `angle_deg` about the unit `normal` (right
+/// hand; a negative angle turns the other way) and ends exactly at `end`, orientation slerped
+/// from the start's to the end's. `None` when no such circle exists: the chord vanishes or
+/// the turn is a whole number of turns (a full circle fixes no radius).
+///
+/// With chord `c = E − S`, midpoint `M` and turn `θ`, the centre lies in the plane ⟂ `normal`
+/// on the chord's bisector: `O = M + (n × c)·cot(θ/2)/2`, radius `|c| / (2|sin(θ/2)|)` (the
+/// isosceles triangle S O E with apex angle θ; cot changes sign past θ = 180°, putting the
+/// centre beyond the chord for the major arc, and with θ for the other sense).
+pub fn arc_about(
+    start: &Frame,
+    end: &Frame,
+    angle_deg: f64,
+    normal: &Vector3<f64>,
+) -> Option<Cartesian> {
+    let theta = angle_deg.to_radians();
+    let half = 0.5 * theta;
+    let c = end.position - start.position;
+    // Within 1e-9 of a whole turn the centre is at infinity (or undefined): no circle.
+    if c.norm() < 1e-9 || half.sin().abs() < 1e-9 {
+        return None;
+    }
+    let n = normal.normalize();
+    // The chord must lie in the plane (it does when the normal was made from it).
+    let c = c - n * n.dot(&c);
+    let centre = start.position + 0.5 * c + n.cross(&c) * (0.5 * half.cos() / half.sin());
+    Some(Cartesian {
+        start: *start,
+        omega: frame::log_so3(&(end.rotation * start.rotation.transpose())),
+        shape: Shape::Arc {
+            centre,
+            axis: n,
+            radius0: start.position - centre,
+            angle: theta,
+        },
+    })
+}
+
+/// The normal of the plane through `start`, `aux` and `end` (positions), `sense` (±1) giving
+/// its sign: `sense · (A − S) × (E − S)` normalised; `None` when the three points are on a
+/// line (the plane is not defined by them).
+pub fn plane_normal(
+    start: &Vector3<f64>,
+    aux: &Vector3<f64>,
+    end: &Vector3<f64>,
+    sense: f64,
+) -> Option<Vector3<f64>> {
+    let (a, e) = (aux - start, end - start);
+    let n = a.cross(&e);
+    // Degenerate below 1e-6 rad between the two legs (µm over metres).
+    (n.norm() > 1e-6 * a.norm() * e.norm() && n.norm() > 0.0)
+        .then(|| n.normalize() * sense.signum())
+}
+
+/// The plane a circle by its angle ([`circle_by_angle`]) lies in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ArcPlane {
+    /// Through the start, this auxiliary point and the end, `sense` signing the normal
+    /// ([`plane_normal`]).
+    Points { aux: Vector3<f64>, sense: f64 },
+    /// The plane through the chord nearest to the one with this normal: the normal less its
+    /// component along the chord (a plane carried over and tilted as little as the chord
+    /// requires).
+    Near(Vector3<f64>),
+}
+
+/// The least sine of the angle between the legs S → A and S → E for the plane through the
+/// three to be taken from their compensated positions. By the inscribed-angle theorem that
+/// angle is half the arc between A and E: below 0.1 (A within 11.5° of the end on the
+/// circle, or of the start), corrections δ would tilt the plane by up to δ / (0.1·|A − S|)
+/// — noise — and the nominal plane is carried over instead ([`ArcPlane::Near`]).
+pub const PLANE_MIN_SINE: f64 = 0.1;
+
+/// Whether the plane through `start`, `aux`, `end` is well defined by them
+/// ([`PLANE_MIN_SINE`]).
+pub fn plane_well_defined(start: &Vector3<f64>, aux: &Vector3<f64>, end: &Vector3<f64>) -> bool {
+    let (a, e) = (aux - start, end - start);
+    a.cross(&e).norm() >= PLANE_MIN_SINE * a.norm() * e.norm() && a.norm() * e.norm() > 0.0
+}
+
+/// The circle a controller follows for `CIRC aux, target, CA angle_deg` started at `start`
+/// when it must end at `end`: [`arc_about`] the normal of `plane` (`None` where that plane is
+/// not defined or holds no such arc).
+pub fn circle_by_angle(
+    start: &Frame,
+    end: &Frame,
+    angle_deg: f64,
+    plane: ArcPlane,
+) -> Option<Cartesian> {
+    let normal = match plane {
+        ArcPlane::Points { aux, sense } => {
+            plane_normal(&start.position, &aux, &end.position, sense)?
+        }
+        ArcPlane::Near(n) => {
+            let c = end.position - start.position;
+            let c = c / c.norm();
+            let m = n - c * c.dot(&n);
+            if m.norm().is_nan() || m.norm() <= 1e-9 {
+                return None;
+            }
+            m.normalize()
+        }
+    };
+    arc_about(start, end, angle_deg, &normal)
 }
 
 /// How a segment arrives at its end.
@@ -529,6 +645,49 @@ mod tests {
                     .to_degrees()
                     <= PITCH_DEG;
             proptest::prop_assert_eq!(lin_needs_no_samples(&a, &b), exact);
+        }
+    }
+
+    proptest::proptest! {
+        /// The arc of a given turn between two points: it starts and ends there, turns by
+        /// the angle about the normal, and has the chord's radius |c| / (2|sin(θ/2)|); given
+        /// three points of a known circle (start, a point, the end at the turn) it is that
+        /// circle.
+        #[test]
+        fn an_arc_by_its_angle_joins_its_ends(
+            centre in proptest::array::uniform3(-500.0f64..500.0),
+            radius in 1.0f64..300.0,
+            tilt in proptest::array::uniform3(-3.0f64..3.0),
+            angle in proptest::prop_oneof![-354.0f64..-6.0, 6.0f64..354.0],
+            aux_at in 0.05f64..0.95,
+        ) {
+            let centre = Vector3::from(centre);
+            let r = exp_so3(&Vector3::from(tilt));
+            let normal = r * Vector3::z();
+            let on = |deg: f64| {
+                let a = deg.to_radians();
+                centre + r * Vector3::new(radius * a.cos(), radius * a.sin(), 0.0)
+            };
+            let frame = |p: Vector3<f64>| Frame { rotation: r, position: p };
+            let (s, e) = (frame(on(0.0)), frame(on(angle)));
+            let arc = arc_about(&s, &e, angle, &normal).unwrap();
+            proptest::prop_assert!((arc.pose(0.0).position - s.position).norm() < 1e-9);
+            proptest::prop_assert!((arc.pose(1.0).position - e.position).norm() < 1e-8);
+            proptest::prop_assert!((arc.pose(0.5).position - on(angle / 2.0)).norm() < 1e-8);
+            let chord = (e.position - s.position).norm();
+            let expected = chord / (2.0 * (angle.to_radians() / 2.0).sin().abs());
+            proptest::prop_assert!((arc.extent().0 / angle.to_radians().abs() - expected).abs() < 1e-8 * expected.max(1.0));
+            // Through a third point of the circle, the sense from it.
+            let aux = on(angle * aux_at);
+            let sense = plane_normal(&s.position, &aux, &e.position, 1.0).unwrap().dot(&normal).signum();
+            let again = circle_by_angle(&s, &e, angle, ArcPlane::Points { aux, sense }).unwrap();
+            // … and a normal carried over tilted along the chord gives the plane through it.
+            let tilted = (normal + (e.position - s.position).normalize() * 0.3).normalize();
+            let near = circle_by_angle(&s, &e, angle, ArcPlane::Near(tilted)).unwrap();
+            for u in [0.25, 0.5, 0.75] {
+                proptest::prop_assert!((again.pose(u).position - on(angle * u)).norm() < 1e-7);
+                proptest::prop_assert!((near.pose(u).position - on(angle * u)).norm() < 1e-7);
+            }
         }
     }
 

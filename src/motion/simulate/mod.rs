@@ -68,6 +68,30 @@ pub enum Role {
     Target,
     /// The auxiliary point of a circular motion.
     Aux,
+    /// Where a circular motion with `CA` ends when its numbers are compensated as a plain
+    /// circle's (a whole turn, see [`CircularAngle`]): not written, there for the directions
+    /// and the start of the next motion.
+    End,
+}
+
+/// A circular motion with `CA` whose end stop is compensated as a target of its own and
+/// written by constructing the circle (see `compensate::rewrite`): the nominal circle
+/// through start S, auxiliary point A and target T, right-hand `normal` (S → A → T turns
+/// positively), the angles of A and T from S on it and the written `CA`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CircularAngle {
+    /// Index of the end stop (its auxiliary point's is the one before).
+    pub end: u32,
+    pub angle_deg: f64,
+    pub aux_deg: f64,
+    pub target_deg: f64,
+    pub normal: nalgebra::Vector3<f64>,
+    /// The sign making `sense · (A − S) × (E − S)` point along `normal` (E the end).
+    pub sense: f64,
+    /// Whether S, A and E define their plane well (`interpolate::plane_well_defined`): the
+    /// written circle then lies in the plane of their compensated positions, else in the
+    /// nominal plane carried over.
+    pub from_points: bool,
 }
 
 /// One executed motion target.
@@ -127,6 +151,18 @@ pub struct Simulation<'f> {
     /// The streamed walk met what only the whole tree can follow (the main routine called
     /// again): walk the program parsed without streamed runs instead.
     pub needs_whole_tree: bool,
+    /// The circular motions with `CA` compensated by construction, by end stop.
+    pub arcs: Vec<CircularAngle>,
+}
+
+impl Simulation<'_> {
+    /// The `CA` circle ending at stop `end`, if it is one compensated by construction.
+    pub fn arc_ending_at(&self, end: usize) -> Option<&CircularAngle> {
+        self.arcs
+            .binary_search_by_key(&(end as u32), |a| a.end)
+            .ok()
+            .map(|i| &self.arcs[i])
+    }
 }
 
 impl Simulation<'_> {

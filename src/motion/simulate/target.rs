@@ -315,7 +315,7 @@ impl<'f> Simulator<'f> {
                 origin: aux.origin,
                 reference: aux_ref,
                 prev: cur.stop,
-                compensable: aux.origin.is_some() && m.angle().is_none(),
+                compensable: aux.origin.is_some(),
                 ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
             };
             aux_stop = Some(self.push_stop(stop));
@@ -369,12 +369,19 @@ impl<'f> Simulator<'f> {
         } else {
             goal
         };
-        // `CA`: the motion ends on the circle at that angle (orientation of the target), not at
-        // the target; the stops are kept for the directions but left unchanged.
-        if let (Some(ca), Some(cart), Some(cur)) = (m.angle(), &circle, current) {
+        // `CA`: the motion ends on the circle at that angle from the start (towards the
+        // auxiliary point when positive), with the target's orientation, not at the target.
+        // Two ways to compensate it (`ArcMode`): the end as a target of its own, the circle
+        // written through it (`compensate::rewrite`); or, where the end is (nearly) the start
+        // again, the auxiliary point and target as a plain circle's, the end recorded after
+        // them for the directions and the next motion's start.
+        let mut through = None;
+        if let (Some(ca), Some(cart), Some(cur), Some(aux_i)) =
+            (m.angle(), &circle, current, aux_stop)
+        {
             let angle = self.eval(file, &ca.value, scope).as_f64();
-            let ended = angle.and_then(|a| cart.with_arc_angle(a, &goal.rotation));
-            let Some(arc) = ended else {
+            let ended = angle.and_then(|a| Some((a, cart.with_arc_angle(a, &goal.rotation)?)));
+            let Some((angle, arc)) = ended else {
                 self.lost(
                     file,
                     s,
@@ -408,12 +415,7 @@ impl<'f> Simulator<'f> {
                     (q_end, Some(std::array::from_fn(|i| q_end[i] - cur.axes[i])))
                 }
             };
-            self.warn(
-                file,
-                s.head,
-                "a circular motion with CA ends elsewhere than its target: left unchanged",
-            );
-            let stop = Stop {
+            let end_stop = Stop {
                 goal: end,
                 nominal_axes: q_end,
                 arrival,
@@ -421,12 +423,68 @@ impl<'f> Simulator<'f> {
                 prev: aux_stop,
                 ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
             };
-            let idx = self.push_stop(stop);
-            self.state.current = Some(Current {
-                axes: q_end,
-                stop: Some(idx),
-            });
-            return;
+            match ArcMode::of(angle) {
+                ArcMode::Through { whole } => {
+                    let why = if whole {
+                        format!("a whole circle (CA {angle}) ends where it starts: its auxiliary point and target are compensated as a plain circle's, its end keeps the start's command (compensated for the motion into the start, not for the circle's own rotation directions)")
+                    } else {
+                        format!("CA {angle} is within {THROUGH_DEG}° of a whole turn: compensated through the circle's points (auxiliary point and target as a plain circle's), its end only as closely as that circle passes it")
+                    };
+                    self.warn(file, s.head, why);
+                    through = Some(Stop {
+                        role: Role::End,
+                        ..end_stop
+                    });
+                }
+                ArcMode::Construct => {
+                    let (normal, turn) = cart.arc_turn().expect("a circle");
+                    let aux_at = self.out.stops[aux_i as usize].goal.position;
+                    let start = start_tcp.expect("a circle has a start").position;
+                    let sense = interpolate::plane_normal(&start, &aux_at, &end.position, 1.0)
+                        .map_or(1.0, |n| n.dot(&normal).signum());
+                    let in_config = pos.origin.is_some_and(|o| {
+                        self.ws.get(o.file).role == crate::motion::workspace::Role::Config
+                    });
+                    self.warn_unwritable(file, s, pos.origin.is_none(), in_config);
+                    // The written circle needs its auxiliary point moved onto it.
+                    let aux_written = self.out.stops[aux_i as usize].compensable;
+                    if !aux_written {
+                        self.warn(
+                            file,
+                            s.head,
+                            "the auxiliary point of this circle (CA) cannot be rewritten, and the circle's end cannot move without it: left unchanged",
+                        );
+                    }
+                    let stop = Stop {
+                        origin: pos.origin,
+                        reference,
+                        compensable: pos.origin.is_some() && !in_config && aux_written,
+                        ..end_stop
+                    };
+                    let idx = self.push_stop(stop);
+                    self.out.arcs.push(crate::motion::CircularAngle {
+                        end: idx,
+                        angle_deg: angle,
+                        aux_deg: (cart.fraction_at(&aux_at) * turn).to_degrees(),
+                        target_deg: turn.to_degrees(),
+                        normal,
+                        sense,
+                        from_points: interpolate::plane_well_defined(
+                            &start,
+                            &aux_at,
+                            &end.position,
+                        ),
+                    });
+                    if rel.is_none() {
+                        self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
+                    }
+                    self.state.current = Some(Current {
+                        axes: q_end,
+                        stop: Some(idx),
+                    });
+                    return;
+                }
+            }
         }
         let path = if m.kind.is_joint() {
             Path::Ptp
@@ -474,22 +532,8 @@ impl<'f> Simulator<'f> {
             && pos.origin.and_then(|o| o.var).is_some_and(|v| !v.element);
         let compensable = pos.origin.is_some()
             && (!in_config || localizable)
-            && m.angle().is_none()
             && (!pos.axis || robot.within_limits(&q));
-        if pos.origin.is_none() {
-            self.warn(
-                file,
-                s.head,
-                "the target is computed in the program (not a literal position): left unchanged",
-            );
-        }
-        if in_config && !localizable {
-            self.warn(
-                file,
-                s.head,
-                "the target is declared in $config.dat, which robopost does not rewrite (every program shares it), and cannot be copied into this module (it needs a .dat and a point named here): left unchanged",
-            );
-        }
+        self.warn_unwritable(file, s, pos.origin.is_none(), in_config && !localizable);
         let stop = Stop {
             goal,
             nominal_axes: q,
@@ -513,6 +557,37 @@ impl<'f> Simulator<'f> {
             axes: q,
             stop: Some(idx),
         });
+        // A circle compensated through its points ends after its target.
+        if let Some(end) = through {
+            let axes = end.nominal_axes;
+            let idx = self.push_stop(Stop {
+                prev: Some(idx),
+                ..end
+            });
+            self.state.current = Some(Current {
+                axes,
+                stop: Some(idx),
+            });
+        }
+    }
+
+    /// Warns that a target is left as written because its numbers are not literal or are in
+    /// `$config.dat`.
+    fn warn_unwritable(&mut self, file: FileId, s: &Stmt, computed: bool, in_config: bool) {
+        if computed {
+            self.warn(
+                file,
+                s.head,
+                "the target is computed in the program (not a literal position): left unchanged",
+            );
+        }
+        if in_config {
+            self.warn(
+                file,
+                s.head,
+                "the target is declared in $config.dat, which robopost does not rewrite (every program shares it), and this program cannot hold a copy of it (that needs a .dat and the point named in the motion): left unchanged",
+            );
+        }
     }
 
     /// The absolute programmed values (in the base, or axes), the goal TCP in the robot base
@@ -585,6 +660,37 @@ impl<'f> Simulator<'f> {
                 };
                 Some((v, goal, st))
             }
+        }
+    }
+}
+
+/// Where `CA` is within this many degrees of a whole number of turns (0 included), the end is
+/// compensated through the circle's points ([`ArcMode::Through`]): constructing the circle
+/// through the compensated start and end would change its radius by the chord's change over
+/// `2|sin(CA/2)|` — more than 10 times it, there (sin 2.866° = 0.05) — and at a whole turn
+/// the chord vanishes and fixes nothing.
+pub const THROUGH_DEG: f64 = 5.73;
+
+/// How a circular motion with `CA` is compensated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ArcMode {
+    /// The end as a target, the circle written through it.
+    Construct,
+    /// The auxiliary point and target as a plain circle's; `whole`: `CA` is a whole number of
+    /// turns (the end is the start).
+    Through { whole: bool },
+}
+
+impl ArcMode {
+    fn of(angle_deg: f64) -> ArcMode {
+        let turns = (angle_deg / 360.0).round();
+        let off = (angle_deg - 360.0 * turns).abs();
+        if off <= THROUGH_DEG {
+            ArcMode::Through {
+                whole: off < 1e-9 && turns != 0.0,
+            }
+        } else {
+            ArcMode::Construct
         }
     }
 }
