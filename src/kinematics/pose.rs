@@ -7,6 +7,8 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::trig::sin_cos;
+
 /// Below this `cos B` the orientation is taken as B = ±90° exactly, where only A − C (B = +90°)
 /// or A + C (B = −90°) is defined; MODEL.md's convention then puts everything in A (C = 0).
 /// 1e-10 rad of B is far below any printed KRL digit and below 1e-6 mm over 10 m.
@@ -110,9 +112,9 @@ impl std::ops::Mul for Pose {
 
 /// Rz(A)·Ry(B)·Rx(C), angles in degrees, written out.
 pub fn abc_to_matrix(a: f64, b: f64, c: f64) -> Matrix3<f64> {
-    let (sa, ca) = a.to_radians().sin_cos();
-    let (sb, cb) = b.to_radians().sin_cos();
-    let (sc, cc) = c.to_radians().sin_cos();
+    let (sa, ca) = sin_cos(a.to_radians());
+    let (sb, cb) = sin_cos(b.to_radians());
+    let (sc, cc) = sin_cos(c.to_radians());
     Matrix3::new(
         ca * cb,
         ca * sb * sc - sa * cc,
