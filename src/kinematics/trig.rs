@@ -90,6 +90,24 @@ pub fn atan2(y: f64, x: f64) -> f64 {
     r.copysign(y)
 }
 
+/// `v.round()` (half away from zero), bit for bit, without the library call the build's
+/// baseline x86-64 makes of it (no `roundsd` before SSE4.1): the wrap of angles by whole turns
+/// rounds a dozen times per target.
+#[inline]
+pub fn round(v: f64) -> f64 {
+    // From 2⁵² on every f64 is an integer; NaN and infinities go to the library too.
+    if !(v.abs() < 4_503_599_627_370_496.0) {
+        return v.round();
+    }
+    // The truncation keeps v's sign (−0.3 → −0); v − t, the fraction, is exact.
+    let t = (v as i64 as f64).copysign(v);
+    if (v - t).abs() >= 0.5 {
+        t + 1f64.copysign(v)
+    } else {
+        t
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -176,7 +194,44 @@ mod tests {
         assert!(atan2(f64::NAN, 1.0).is_nan());
     }
 
+    /// The library's `round`, bit for bit: halves, their neighbours, signed zeros, the
+    /// largest fractions, integers beyond 2⁵², non-finite values.
+    #[test]
+    fn round_is_the_library_round() {
+        let same = |v: f64| assert_eq!(round(v).to_bits(), v.round().to_bits(), "{v}");
+        for k in -2000..=2000 {
+            let h = k as f64 * 0.5;
+            for v in [h, h.next_up(), h.next_down(), h / 360.0, k as f64 * 0.1] {
+                same(v);
+                same(-v);
+            }
+        }
+        let big = 4_503_599_627_370_496.0f64;
+        for v in [
+            0.0,
+            -0.0,
+            0.499_999_999_999_999_94,
+            big - 0.5,
+            big - 1.5,
+            big,
+            big * 3.0 + 2.0,
+            1e300,
+            f64::INFINITY,
+            f64::MIN_POSITIVE,
+        ] {
+            same(v);
+            same(-v);
+        }
+        assert!(round(f64::NAN).is_nan());
+    }
+
     proptest::proptest! {
+        /// `round` is the library's for any value.
+        #[test]
+        fn round_matches_anywhere(v in proptest::num::f64::ANY) {
+            proptest::prop_assert!(round(v).to_bits() == v.round().to_bits() || v.is_nan());
+        }
+
         /// sin² + cos² = 1 to rounding, anywhere.
         #[test]
         fn on_the_unit_circle(x in -20.0f64..20.0) {

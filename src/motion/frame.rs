@@ -6,6 +6,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
+use crate::kinematics::trig::round;
 use crate::kinematics::{abc_to_matrix, matrix_to_abc};
 
 /// A rigid frame: `x ↦ rotation · x + position`.
@@ -84,7 +85,7 @@ impl Frame {
 
 /// The nearest representation to `near` (see [`Frame::to_kuka_near`]).
 pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
-    let wrap = |x: f64, to: f64| x - 360.0 * ((x - to) / 360.0).round();
+    let wrap = |x: f64, to: f64| x - 360.0 * round((x - to) / 360.0);
     let cb = r[(0, 0)].hypot(r[(1, 0)]);
     if cb < 1e-9 {
         // Gimbal lock: keep C; R·Rx(C)ᵀ = Rz(A)·Ry(±90°) has r01 = −sin A, r11 = cos A.
