@@ -142,7 +142,7 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         // no square root, no library atan2, one division.
         let inv_c = 1.0 / c;
         let t2 = ss * inv_c * inv_c;
-        return v * (inv_c * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 / 7.0))));
+        return v * (inv_c * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0)))));
     }
     let s = ss.sqrt();
     if s < 1e-300 {
