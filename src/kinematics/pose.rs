@@ -130,7 +130,8 @@ pub fn abc_to_matrix(a: f64, b: f64, c: f64) -> Matrix3<f64> {
 
 /// The inverse of [`abc_to_matrix`] (degrees), with C = 0 at B = ±90°.
 pub fn matrix_to_abc(r: &Matrix3<f64>) -> [f64; 3] {
-    let cb = r[(0, 0)].hypot(r[(1, 0)]);
+    // Direction cosines: no overflow or underflow for `hypot`'s care to guard against.
+    let cb = (r[(0, 0)] * r[(0, 0)] + r[(1, 0)] * r[(1, 0)]).sqrt();
     let b = atan2(-r[(2, 0)], cb);
     if cb < GIMBAL_COS_B {
         // B = +90°: R = Rz(A − C)·Ry(90°), r01 = −sin(A − C), r11 = cos(A − C);

@@ -86,7 +86,7 @@ impl Frame {
 /// The nearest representation to `near` (see [`Frame::to_kuka_near`]).
 pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
     let wrap = |x: f64, to: f64| x - 360.0 * round((x - to) / 360.0);
-    let cb = r[(0, 0)].hypot(r[(1, 0)]);
+    let cb = (r[(0, 0)] * r[(0, 0)] + r[(1, 0)] * r[(1, 0)]).sqrt();
     if cb < 1e-9 {
         // Gimbal lock: keep C; R·Rx(C)ᵀ = Rz(A)·Ry(±90°) has r01 = −sin A, r11 = cos A.
         let b = if r[(2, 0)] < 0.0 { 90.0 } else { -90.0 };
