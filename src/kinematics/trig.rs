@@ -38,7 +38,8 @@ static TABLE: LazyLock<Box<[(f64, f64)]>> = LazyLock::new(|| {
 #[inline]
 pub fn sin_cos(x: f64) -> (f64, f64) {
     // Also false for NaN, which the library turns into NaN.
-    if !(x.abs() <= RANGE_RAD) {
+    let in_table = x.abs() <= RANGE_RAD;
+    if !in_table {
         return x.sin_cos();
     }
     // Nearest table point: adding 1.5·2⁵² rounds x·128 to an integer, held in the low bits
@@ -96,7 +97,8 @@ pub fn atan2(y: f64, x: f64) -> f64 {
 #[inline]
 pub fn round(v: f64) -> f64 {
     // From 2⁵² on every f64 is an integer; NaN and infinities go to the library too.
-    if !(v.abs() < 4_503_599_627_370_496.0) {
+    let fractional = v.abs() < 4_503_599_627_370_496.0;
+    if !fractional {
         return v.round();
     }
     // The truncation keeps v's sign (−0.3 → −0); v − t, the fraction, is exact.

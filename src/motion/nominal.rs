@@ -96,10 +96,12 @@ impl Curvature {
     /// of command n).
     pub fn set(&mut self, lines: &AxisLines, tcp: &Vector3<f64>, slopes: &[[f64; 6]; 6]) {
         self.axis = lines.joint_axis;
-        for k in 0..6 {
-            self.velocity[k] = lines.joint_axis[k].cross(&(tcp - lines.origin[k]));
-            for n in 0..6 {
-                self.turns[k][n] = f64::from(u8::from(k == n)) + slopes[k][n].to_degrees();
+        for (k, velocity) in self.velocity.iter_mut().enumerate() {
+            *velocity = lines.joint_axis[k].cross(&(tcp - lines.origin[k]));
+        }
+        for (k, (turns, slopes)) in self.turns.iter_mut().zip(slopes).enumerate() {
+            for (n, (t, s)) in turns.iter_mut().zip(slopes).enumerate() {
+                *t = f64::from(u8::from(k == n)) + s.to_degrees();
             }
         }
     }
