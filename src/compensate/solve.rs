@@ -27,7 +27,7 @@ use std::ops::AddAssign;
 use crate::model::chain::{axis_lines, ChainFrames, JointTrig};
 use crate::model::{AxisSlopes, AxisState, ChainErrors, Direction, Model, Slot};
 use crate::motion::frame::{self as pose, Frame};
-use crate::motion::nominal::{self, Arm, Curvature, Goal, Linearized, NotConverged, LEVER_MM};
+use crate::motion::nominal::{self, Arm, Goal, Linearized, NotConverged, LEVER_MM};
 
 /// Convergence: 0.1 µm and 0.1 µrad on the TCP pose (the requirement).
 pub const TOL_POSITION_MM: f64 = 1e-4;
@@ -83,15 +83,15 @@ impl<'a> Predicted<'a> {
         errors
     }
 
-    /// The errors at `axes` and how they change with the axes, into `errors` (set) and
-    /// `slopes` (zero on entry): written in place, not returned in a 700-byte pair.
-    fn errors_with_slopes(
+    /// The errors at `axes` and how they change with the axes, into `errors` (the fixed
+    /// errors on entry) and `slopes` (zero on entry): written in place, not returned in a
+    /// 700-byte pair.
+    fn add_errors_with_slopes(
         &self,
         axes: &[f64; 6],
         errors: &mut ChainErrors,
         slopes: &mut AxisSlopes,
     ) {
-        *errors = *self.fixed;
         let mut cells = self.cells.get();
         self.model.add_varying_errors_with_slopes_near(
             &self.state(axes),
@@ -156,15 +156,16 @@ impl Arm for Predicted<'_> {
     /// the axes (table slopes, crosstalk), so that one step lands on the fixed point up to
     /// the chain's curvature.
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>) {
-        let lin = self.linearize(axes, tool);
+        let mut lin = Linearized::default();
+        self.linearize(axes, tool, &mut lin);
         (lin.tcp, lin.jacobian)
     }
     /// The complete Jacobian and the chain's curvature, the joints turning by the command
     /// plus the angle errors' change (`I + slopes`).
-    fn linearize(&self, axes: &[f64; 6], tool: &Frame) -> Linearized {
-        let mut errors = ChainErrors::default();
+    fn linearize(&self, axes: &[f64; 6], tool: &Frame, out: &mut Linearized) {
+        let mut errors = *self.fixed;
         let mut slopes = AxisSlopes::default();
-        self.errors_with_slopes(axes, &mut errors, &mut slopes);
+        self.add_errors_with_slopes(axes, &mut errors, &mut slopes);
         let model_tool = self.tool(tool, &errors);
         // The lines in place, not moved out of a (TCP, lines) pair.
         let lines = axis_lines(
@@ -173,17 +174,19 @@ impl Arm for Predicted<'_> {
             &errors,
             &mut self.trig.borrow_mut(),
         );
-        let tcp = nominal::tcp_on(&lines, &model_tool);
-        let mut jacobian = nominal::jacobian_of(&lines, &tcp);
-        complete_jacobian(self, axes, &errors, &slopes, &tcp, tool, &mut jacobian);
-        let turns = std::array::from_fn(|k| {
-            std::array::from_fn(|n| f64::from(u8::from(k == n)) + slopes.angle[k][n].to_degrees())
-        });
-        Linearized {
-            tcp,
-            jacobian,
-            curvature: Some(Curvature::new(&lines, &tcp.position, turns)),
-        }
+        out.tcp = nominal::tcp_on(&lines, &model_tool);
+        out.jacobian = nominal::jacobian_of(&lines, &out.tcp);
+        complete_jacobian(
+            self,
+            axes,
+            &errors,
+            &slopes,
+            &out.tcp,
+            tool,
+            &mut out.jacobian,
+        );
+        out.curvature.set(&lines, &out.tcp.position, &slopes.angle);
+        out.curved = true;
     }
 }
 

@@ -14,6 +14,7 @@
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use super::robot::{Links, RobotDescription};
+use super::trig::sin_cos;
 
 /// What the closed forms need of a robot, in radians and mm.
 #[derive(Clone, Copy, Debug)]
@@ -82,20 +83,28 @@ impl Geometry {
 /// Planar arm coordinates of the wrist point in the A1 frame: (x', z'), and the angle θ2+θ3.
 #[inline]
 pub(crate) fn arm_plane(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64) {
-    let (s2, c2) = t2.sin_cos();
-    let (s23, c23) = (t2 + t3).sin_cos();
+    let (x, z, s23, c23, _) = arm_plane_sc(g, t2, t3);
+    (x, z, s23, c23)
+}
+
+/// [`arm_plane`] with `(sin θ2, cos θ2)` as well (the rate solver needs them too).
+#[inline]
+fn arm_plane_sc(g: &Geometry, t2: f64, t3: f64) -> (f64, f64, f64, f64, (f64, f64)) {
+    let (s2, c2) = sin_cos(t2);
+    let (s23, c23) = sin_cos(t2 + t3);
     let x = g.links.l1x + g.links.l2 * s2 + g.links.l4x * c23 + g.links.l3z * s23;
     let z = g.links.l1z + g.links.l2 * c2 - g.links.l4x * s23 + g.links.l3z * c23;
-    (x, z, s23, c23)
+    (x, z, s23, c23, (s2, c2))
 }
 
 /// The nominal arm's frames at one axis set, the steps of its forward kinematics that
 /// [`flange_frame`] and the rate solver (`rates::ArmState`) share.
 pub(crate) struct ArmFrames {
-    /// Model angles θ1..θ6 (rad).
-    pub t: [f64; 6],
     pub s1: f64,
     pub c1: f64,
+    /// sin/cos θ2 (the A3 axis's position).
+    pub s2: f64,
+    pub c2: f64,
     /// sin/cos θ4 (A5's axis turns with it).
     pub s4: f64,
     pub c4: f64,
@@ -109,8 +118,8 @@ pub(crate) struct ArmFrames {
 impl ArmFrames {
     pub fn new(g: &Geometry, axes_deg: &[f64; 6]) -> ArmFrames {
         let t: [f64; 6] = std::array::from_fn(|i| g.theta(i, axes_deg[i]));
-        let (s1, c1) = t[0].sin_cos();
-        let (x, z, s23, c23) = arm_plane(g, t[1], t[2]);
+        let (s1, c1) = sin_cos(t[0]);
+        let (x, z, s23, c23, (s2, c2)) = arm_plane_sc(g, t[1], t[2]);
         let wrist = Vector3::new(c1 * x, s1 * x, z);
         let r03 = Matrix3::new(
             c1 * c23,
@@ -124,9 +133,9 @@ impl ArmFrames {
             c23,
         );
         // Rx(α)·Ry(β)·Rx(γ), α = θ4, β = θ5, γ = θ6.
-        let (sa, ca) = t[3].sin_cos();
-        let (sb, cb) = t[4].sin_cos();
-        let (sg, cg) = t[5].sin_cos();
+        let (sa, ca) = sin_cos(t[3]);
+        let (sb, cb) = sin_cos(t[4]);
+        let (sg, cg) = sin_cos(t[5]);
         let wrist_rotation = Matrix3::new(
             cb,
             sb * sg,
@@ -139,9 +148,10 @@ impl ArmFrames {
             -sa * sg + ca * cb * cg,
         );
         ArmFrames {
-            t,
             s1,
             c1,
+            s2,
+            c2,
             s4: sa,
             c4: ca,
             wrist,
@@ -181,7 +191,7 @@ pub fn forward(robot: &RobotDescription, axes_deg: &[f64; 6]) -> Isometry3<f64> 
 /// The wrist point (intersection of A4, A5, A6) of `axes_deg`, base frame, mm.
 pub fn wrist_point(robot: &RobotDescription, axes_deg: &[f64; 6]) -> Vector3<f64> {
     let g = Geometry::new(robot);
-    let (s1, c1) = g.theta(0, axes_deg[0]).sin_cos();
+    let (s1, c1) = sin_cos(g.theta(0, axes_deg[0]));
     let (x, z, _, _) = arm_plane(&g, g.theta(1, axes_deg[1]), g.theta(2, axes_deg[2]));
     Vector3::new(c1 * x, s1 * x, z)
 }

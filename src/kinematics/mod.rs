@@ -10,6 +10,7 @@ pub mod ik;
 pub mod pose;
 mod rates;
 pub mod robot;
+pub mod trig;
 mod turns;
 
 pub use fk::{

@@ -7,6 +7,8 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::trig::{atan2, sin_cos};
+
 /// Below this `cos B` the orientation is taken as B = ±90° exactly, where only A − C (B = +90°)
 /// or A + C (B = −90°) is defined; MODEL.md's convention then puts everything in A (C = 0).
 /// 1e-10 rad of B is far below any printed KRL digit and below 1e-6 mm over 10 m.
@@ -110,9 +112,9 @@ impl std::ops::Mul for Pose {
 
 /// Rz(A)·Ry(B)·Rx(C), angles in degrees, written out.
 pub fn abc_to_matrix(a: f64, b: f64, c: f64) -> Matrix3<f64> {
-    let (sa, ca) = a.to_radians().sin_cos();
-    let (sb, cb) = b.to_radians().sin_cos();
-    let (sc, cc) = c.to_radians().sin_cos();
+    let (sa, ca) = sin_cos(a.to_radians());
+    let (sb, cb) = sin_cos(b.to_radians());
+    let (sc, cc) = sin_cos(c.to_radians());
     Matrix3::new(
         ca * cb,
         ca * sb * sc - sa * cc,
@@ -128,8 +130,9 @@ pub fn abc_to_matrix(a: f64, b: f64, c: f64) -> Matrix3<f64> {
 
 /// The inverse of [`abc_to_matrix`] (degrees), with C = 0 at B = ±90°.
 pub fn matrix_to_abc(r: &Matrix3<f64>) -> [f64; 3] {
-    let cb = r[(0, 0)].hypot(r[(1, 0)]);
-    let b = (-r[(2, 0)]).atan2(cb);
+    // Direction cosines: no overflow or underflow for `hypot`'s care to guard against.
+    let cb = (r[(0, 0)] * r[(0, 0)] + r[(1, 0)] * r[(1, 0)]).sqrt();
+    let b = atan2(-r[(2, 0)], cb);
     if cb < GIMBAL_COS_B {
         // B = +90°: R = Rz(A − C)·Ry(90°), r01 = −sin(A − C), r11 = cos(A − C);
         // B = −90°: R = Rz(A + C)·Ry(−90°), same entries. With C = 0 both give A.
@@ -137,8 +140,8 @@ pub fn matrix_to_abc(r: &Matrix3<f64>) -> [f64; 3] {
         let a = (-r[(0, 1)]).atan2(r[(1, 1)]).to_degrees();
         return [tidy(a), b, 0.0];
     }
-    let a = r[(1, 0)].atan2(r[(0, 0)]).to_degrees();
-    let c = r[(2, 1)].atan2(r[(2, 2)]).to_degrees();
+    let a = atan2(r[(1, 0)], r[(0, 0)]).to_degrees();
+    let c = atan2(r[(2, 1)], r[(2, 2)]).to_degrees();
     [tidy(a), tidy(b.to_degrees()), tidy(c)]
 }
 

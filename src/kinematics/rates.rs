@@ -34,7 +34,7 @@ impl ArmState {
         let f = ArmFrames::new(&g, axes_deg);
         let (flange_rotation, flange_position) = f.flange(&g);
         let (s1, c1) = (f.s1, f.c1);
-        let (s2, c2) = f.t[1].sin_cos();
+        let (s2, c2) = (f.s2, f.c2);
         // Model axes: A1 about ẑ, A2 and A3 about Rz(θ1)·ŷ, A4 about R03·x̂, A5 about
         // R03·Rx(θ4)·ŷ, A6 about R06·x̂; a KUKA degree turns θ_n by sense_n·π/180.
         let per_degree =

@@ -8,10 +8,10 @@
 //! `t` moves every later point by `t`, a rotation about axis `ω` through `o` moves `p` by
 //! `ω × (p − o)` and the orientation by the rotation vector `ω`.
 
-use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 use super::effect::{ChainErrors, Slot, JOINT_SLOTS, N_SLOTS};
-use crate::kinematics::RobotDescription;
+use crate::kinematics::{trig, RobotDescription};
 
 /// Model rotation axis of A1..A6 (0 = x, 1 = y, 2 = z): z, y, y, x, y, x (MODEL.md).
 pub const AXIS_COORD: [usize; 6] = [2, 1, 1, 0, 1, 0];
@@ -42,16 +42,18 @@ pub fn flange_to_a6(v_flange: &Vector3<f64>) -> Vector3<f64> {
 
 /// `sin_cos` with a Taylor series for the small angles of tilt slots: below 1e-3 rad the
 /// dropped terms (x⁷/5040, x⁸/40320) are under 1e-24, far below an f64 ulp of the result,
-/// and the polynomial costs a fraction of the library call.
+/// and the polynomial costs a fraction of the library call. The coefficients multiply:
+/// divisions by 6, 20, 12 and 30 (no exact reciprocals, so the compiler keeps them) were five
+/// divider passes per call, some twenty calls per solved target.
 fn sin_cos(x: f64) -> (f64, f64) {
     if x.abs() < 1e-3 {
         let x2 = x * x;
         (
-            x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0)),
-            1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0)),
+            x + x * x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0)),
+            1.0 - x2 * (0.5 - x2 * (1.0 / 24.0 - x2 * (1.0 / 720.0))),
         )
     } else {
-        x.sin_cos()
+        trig::sin_cos(x)
     }
 }
 
@@ -63,16 +65,27 @@ fn rotate(r: &mut Matrix3<f64>, coord: usize, angle: f64) {
 }
 
 /// `r ← r · Rot_coord(θ)` given `(sin θ, cos θ)`.
+#[inline(always)]
 fn rotate_sc(r: &mut Matrix3<f64>, coord: usize, s: f64, c: f64) {
-    // Columns (i, j) such that Rot_coord maps e_i → c·e_i + s·e_j.
-    let (i, j) = match coord {
-        0 => (1, 2),
-        1 => (2, 0),
-        _ => (0, 1),
-    };
-    let (ci, cj) = (r.column(i).into_owned(), r.column(j).into_owned());
-    r.set_column(i, &(ci * c + cj * s));
-    r.set_column(j, &(cj * c - ci * s));
+    // Columns (i, j) such that Rot_coord maps e_i → c·e_i + s·e_j; constant indices per
+    // branch, so that the elements stay in registers (column copies through the stack cost
+    // store-forwarding stalls).
+    match coord {
+        0 => rotate_columns::<1, 2>(r, s, c),
+        1 => rotate_columns::<2, 0>(r, s, c),
+        _ => rotate_columns::<0, 1>(r, s, c),
+    }
+}
+
+/// Columns `(I, J) ← (c·I + s·J, c·J − s·I)`, element by element (the operations of the
+/// column expressions, in their order).
+#[inline(always)]
+fn rotate_columns<const I: usize, const J: usize>(r: &mut Matrix3<f64>, s: f64, c: f64) {
+    for k in 0..3 {
+        let (a, b) = (r[(k, I)], r[(k, J)]);
+        r[(k, I)] = a * c + b * s;
+        r[(k, J)] = b * c - a * s;
+    }
 }
 
 /// The sines and cosines of the joint angles at a reference command, so that a solver
@@ -98,7 +111,7 @@ impl JointTrig {
                 return (s0 * cd + c0 * sd, c0 * cd - s0 * sd);
             }
         }
-        let (s, c) = theta.sin_cos();
+        let (s, c) = trig::sin_cos(theta);
         self.set[n] = true;
         self.theta[n] = theta;
         self.sin[n] = s;
@@ -210,6 +223,14 @@ pub fn axis_lines(
     }
 }
 
+/// The unit quaternion of a chain rotation (orthonormal to rounding), by the direct
+/// (Shepperd) conversion. nalgebra's `UnitQuaternion::from_matrix` iterates from the
+/// identity and stays there for a rotation by a half turn (a flange pointing down with
+/// A ≈ 180°: its torque vanishes), whichever last bits the matrix has.
+fn rotation_of(r: &Matrix3<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r))
+}
+
 /// The KUKA flange frame in the base frame, fast path.
 pub fn flange_pose(
     robot: &RobotDescription,
@@ -217,8 +238,7 @@ pub fn flange_pose(
     errors: &ChainErrors,
 ) -> Isometry3<f64> {
     let (r, p) = a6_frame(robot, axes_deg, errors);
-    let rotation = UnitQuaternion::from_matrix(&(r * a6_to_flange()));
-    Isometry3::from_parts(Translation3::from(p), rotation)
+    Isometry3::from_parts(Translation3::from(p), rotation_of(&(r * a6_to_flange())))
 }
 
 /// The target position (`target_a6` plus the target slots, carried by the A6 frame), fast path.
@@ -293,8 +313,7 @@ impl ChainFrames {
     /// The KUKA flange frame in the base frame.
     pub fn flange_pose(&self) -> Isometry3<f64> {
         let r = self.a6_rotation * a6_to_flange();
-        let rotation = UnitQuaternion::from_matrix(&r);
-        Isometry3::from_parts(Translation3::from(self.a6_origin), rotation)
+        Isometry3::from_parts(Translation3::from(self.a6_origin), rotation_of(&r))
     }
 
     /// The flange rotation as a matrix (cheaper than the quaternion of [`Self::flange_pose`]).
@@ -398,6 +417,31 @@ pub fn slot_of_index(index: usize) -> Slot {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The flange pose's quaternion is the chain's rotation, also a half turn from the
+    /// identity (flange down, the arm's A rotation near 180°), where nalgebra's iterative
+    /// `from_matrix` stayed at the identity.
+    #[test]
+    fn flange_pose_keeps_half_turn_rotations() {
+        let robot = RobotDescription::kr30ha();
+        let errors = ChainErrors(std::array::from_fn(|i| 1e-4 * ((i % 3) as f64 - 1.0)));
+        for axes in [
+            [20.0, -75.0, 95.0, 0.0, 70.0, 10.0],
+            [0.0, -90.0, 90.0, 0.0, 90.0, 0.0],
+            [-135.0, -40.0, 60.0, -170.0, -95.0, 250.0],
+        ] {
+            for e in [ChainErrors::default(), errors] {
+                let (r, p) = a6_frame(&robot, &axes, &e);
+                let pose = flange_pose(&robot, &axes, &e);
+                let want = r * a6_to_flange();
+                let got = pose.rotation.to_rotation_matrix().into_inner();
+                assert!((got - want).amax() < 1e-15, "{axes:?}: {got} vs {want}");
+                assert_eq!(pose.translation.vector, p);
+                let frames = ChainFrames::new(&robot, &axes, &e).flange_pose();
+                assert_eq!(frames.rotation, pose.rotation);
+            }
+        }
+    }
 
     /// Sines and cosines by the addition theorem from a reference give the chain the library
     /// calls give, to a few ulps, for commands near the reference and (re-anchored) far away.

@@ -6,6 +6,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
+use crate::kinematics::trig::round;
 use crate::kinematics::{abc_to_matrix, matrix_to_abc};
 
 /// A rigid frame: `x ↦ rotation · x + position`.
@@ -84,8 +85,8 @@ impl Frame {
 
 /// The nearest representation to `near` (see [`Frame::to_kuka_near`]).
 pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
-    let wrap = |x: f64, to: f64| x - 360.0 * ((x - to) / 360.0).round();
-    let cb = r[(0, 0)].hypot(r[(1, 0)]);
+    let wrap = |x: f64, to: f64| x - 360.0 * round((x - to) / 360.0);
+    let cb = (r[(0, 0)] * r[(0, 0)] + r[(1, 0)] * r[(1, 0)]).sqrt();
     if cb < 1e-9 {
         // Gimbal lock: keep C; R·Rx(C)ᵀ = Rz(A)·Ry(±90°) has r01 = −sin A, r11 = cos A.
         let b = if r[(2, 0)] < 0.0 { 90.0 } else { -90.0 };
@@ -141,7 +142,7 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         // no square root, no library atan2, one division.
         let inv_c = 1.0 / c;
         let t2 = ss * inv_c * inv_c;
-        return v * (inv_c * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 / 7.0))));
+        return v * (inv_c * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0)))));
     }
     let s = ss.sqrt();
     if s < 1e-300 {

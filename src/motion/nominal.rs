@@ -36,14 +36,11 @@ pub trait Arm {
     /// The TCP and d(TCP)/d(axes) per degree.
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>);
     /// The TCP, its Jacobian and, where the arm provides it, its [`Curvature`] (which lets
-    /// the first step land to third order). By default [`Self::tcp_jacobian`] alone.
-    fn linearize(&self, axes: &[f64; 6], tool: &Frame) -> Linearized {
-        let (tcp, jacobian) = self.tcp_jacobian(axes, tool);
-        Linearized {
-            tcp,
-            jacobian,
-            curvature: None,
-        }
+    /// the first step land to third order), into `out` (in place: returned, its kilobyte was
+    /// copied twice per target). By default [`Self::tcp_jacobian`] alone.
+    fn linearize(&self, axes: &[f64; 6], tool: &Frame, out: &mut Linearized) {
+        (out.tcp, out.jacobian) = self.tcp_jacobian(axes, tool);
+        out.curved = false;
     }
 }
 
@@ -53,7 +50,24 @@ pub struct Linearized {
     pub tcp: Frame,
     /// d(TCP)/d(axes) per degree.
     pub jacobian: Matrix6<f64>,
-    pub curvature: Option<Curvature>,
+    /// The chain's curvature, where `curved` (the arm provides it).
+    pub curvature: Curvature,
+    pub curved: bool,
+}
+
+impl Default for Linearized {
+    fn default() -> Self {
+        Linearized {
+            tcp: Frame::identity(),
+            jacobian: Matrix6::zeros(),
+            curvature: Curvature {
+                axis: [Vector3::zeros(); 6],
+                velocity: [Vector3::zeros(); 6],
+                turns: [[0.0; 6]; 6],
+            },
+            curved: false,
+        }
+    }
 }
 
 /// The second-order term of a serial chain's motion around a command. Joint k turns about
@@ -77,12 +91,18 @@ pub struct Curvature {
 }
 
 impl Curvature {
-    /// From the chain's axis lines at the linearisation point, the TCP there and `turns`.
-    pub fn new(lines: &AxisLines, tcp: &Vector3<f64>, turns: [[f64; 6]; 6]) -> Curvature {
-        Curvature {
-            axis: lines.joint_axis,
-            velocity: std::array::from_fn(|k| lines.joint_axis[k].cross(&(tcp - lines.origin[k]))),
-            turns,
+    /// From the chain's axis lines at the linearisation point and the TCP there, in place;
+    /// `T = I + slopes` given the slopes of the angle errors (`slopes[k][n]`, rad per degree
+    /// of command n).
+    pub fn set(&mut self, lines: &AxisLines, tcp: &Vector3<f64>, slopes: &[[f64; 6]; 6]) {
+        self.axis = lines.joint_axis;
+        for (k, velocity) in self.velocity.iter_mut().enumerate() {
+            *velocity = lines.joint_axis[k].cross(&(tcp - lines.origin[k]));
+        }
+        for (k, (turns, slopes)) in self.turns.iter_mut().zip(slopes).enumerate() {
+            for (n, (t, s)) in turns.iter_mut().zip(slopes).enumerate() {
+                *t = f64::from(u8::from(k == n)) + s.to_degrees();
+            }
         }
     }
 
@@ -267,7 +287,8 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
     let mut q = goal.start;
     // The Jacobian comes with the first evaluation: one chain evaluation for both.
     // Held in place (no copies of its kilobyte), replaced when the Jacobian is refreshed.
-    let mut lin = arm.linearize(&q, goal.tool);
+    let mut lin = Linearized::default();
+    arm.linearize(&q, goal.tool, &mut lin);
     let mut e = frame::error(&lin.tcp, &goal.pose);
     let initial = e;
     if within(&e, goal.tol_mm, goal.tol_rad) {
@@ -289,7 +310,12 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         initial,
     };
     let least_squares = goal.hold.iter().any(|&h| h);
-    let mut stepper = Stepper::new(&lin.jacobian, &goal.hold);
+    // Built in place (a `Stepper::new` returning it copied the factors).
+    let mut stepper = Stepper {
+        lu: Lu6::singular(),
+        damped: true,
+    };
+    stepper.refactor(&lin.jacobian, &goal.hold);
     let mut fresh = true;
     let mut it = 0;
     while it < MAX_ITERATIONS {
@@ -297,7 +323,7 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         let mut dq = stepper.step(&lin.jacobian, &e, &goal.hold);
         // Right after a linearisation, the curvature's share of the step.
         if std::mem::take(&mut fresh) {
-            let fix = lin.curvature.as_ref();
+            let fix = lin.curved.then_some(&lin.curvature);
             if let Some(fix) = fix.and_then(|c| stepper.curvature_fix(c, &dq)) {
                 dq.iter_mut().zip(fix).for_each(|(d, f)| *d += f);
             }
@@ -329,7 +355,7 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         }
         // Refresh the Jacobian when progress is slow (large steps, strong table slopes).
         if it % 3 == 0 {
-            lin = arm.linearize(&q, goal.tool);
+            arm.linearize(&q, goal.tool, &mut lin);
             fresh = true;
             stepper.refactor(&lin.jacobian, &goal.hold);
         }
@@ -374,15 +400,6 @@ struct Stepper {
 }
 
 impl Stepper {
-    fn new(j: &Matrix6<f64>, hold: &[bool; 6]) -> Stepper {
-        let mut stepper = Stepper {
-            lu: Lu6::singular(),
-            damped: true,
-        };
-        stepper.refactor(j, hold);
-        stepper
-    }
-
     fn refactor(&mut self, j: &Matrix6<f64>, hold: &[bool; 6]) {
         self.damped = hold.iter().any(|&h| h);
         if !self.damped {
