@@ -534,8 +534,10 @@ fn a_config_point_is_compensated_through_a_copy_in_the_programs_data_list() {
         );
         (outs, r)
     };
+    // (C 175: the orientation at HEAD's pose is a half turn from C 180, where the sense of
+    // the orientation interpolation is a tie.)
     let program = |point: &str| {
-        format!("{HEAD}LIN {{X 0, Y 400, Z 0, A 0, B 0, C 180}}\nLIN {point}\nLIN {{X 0, Y 400, Z 0}}\nEND\n")
+        format!("{HEAD}LIN {{X 0, Y 400, Z 0, A 0, B 0, C 175}}\nLIN {point}\nLIN {{X 0, Y 400, Z 0}}\nEND\n")
     };
     let ((src, dat), r) = compensate_with(
         "mod_auto",
