@@ -125,6 +125,17 @@ pub fn norms(e: &Vector6<f64>) -> (f64, f64) {
     )
 }
 
+/// Whether rotations `a` and `b` are a half turn apart (to 10⁻⁶ rad, 0.00006°): the
+/// interpolation between them may turn either way, and which way follows from the last bits
+/// of the numbers. The angle θ of `aᵀb` from its trace, `tr = Σ aᵢⱼ·bᵢⱼ = 1 + 2 cos θ`, and
+/// `1 + cos θ ≈ (π − θ)²/2`: nine products, no inverse trigonometry, on every straight
+/// segment of a program.
+pub fn half_turn_apart(a: &Matrix3<f64>, b: &Matrix3<f64>) -> bool {
+    const HALF_DELTA_SQUARED: f64 = 0.5 * 1e-6 * 1e-6;
+    let trace = a.component_mul(b).sum();
+    1.0 + 0.5 * (trace - 1.0) < HALF_DELTA_SQUARED
+}
+
 /// The rotation vector of `r`. Uses `atan2(|v|, (tr − 1)/2)` with `v` the axial vector of the
 /// skew part, exact for the micro-radian angles of compensation where `acos` of the trace
 /// loses half the digits.
@@ -177,6 +188,28 @@ pub fn exp_so3(w: &Vector3<f64>) -> Matrix3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Half turns recognised against angles built by hand: a rotation about any axis by π, by
+    /// π less 10⁻⁷ rad (within) and less 10⁻⁵ rad (not); the orientation change of HEAD's pose
+    /// in the compensate tests (`A 180, B 10, C 180` to `A 0, B 0, C 180`), whose angle
+    /// `log_so3` gives as π.
+    #[test]
+    fn half_turns_apart() {
+        let a = Frame::from_kuka(&[0.0, 0.0, 0.0, 30.0, -20.0, 75.0]).rotation;
+        let axis = nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8));
+        let turned =
+            |angle: f64| a * nalgebra::Rotation3::from_axis_angle(&axis, angle).into_inner();
+        let pi = std::f64::consts::PI;
+        assert!(half_turn_apart(&a, &turned(pi)));
+        assert!(half_turn_apart(&a, &turned(pi - 1e-7)));
+        assert!(!half_turn_apart(&a, &turned(pi - 1e-5)));
+        assert!(!half_turn_apart(&a, &turned(0.5)));
+        assert!(!half_turn_apart(&a, &a));
+        let start = Frame::from_kuka(&[0.0, 0.0, 0.0, 180.0, 10.0, 180.0]).rotation;
+        let goal = Frame::from_kuka(&[0.0, 0.0, 0.0, 0.0, 0.0, 180.0]).rotation;
+        assert!((log_so3(&(goal * start.transpose())).norm() - pi).abs() < 1e-7);
+        assert!(half_turn_apart(&start, &goal));
+    }
     use approx::assert_relative_eq;
 
     #[test]

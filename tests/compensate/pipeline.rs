@@ -569,6 +569,23 @@ fn a_config_point_is_compensated_through_a_copy_in_the_programs_data_list() {
     );
 }
 
+/// A straight motion whose orientation turns by exactly 180° (HEAD's pose `A 180, B 10,
+/// C 180` to `A 0, B 0, C 180`) may turn either way: warned with its line; 5° less is not.
+#[test]
+fn a_half_turn_of_the_orientation_is_warned() {
+    let half = |c: &str| {
+        let src = format!("{HEAD}LIN {{X 300, Y 200, Z 0, A 0, B 0, C {c}}}\nEND\n");
+        let (_, _, r) = compensate_text(&src, None);
+        r.report
+            .warnings
+            .iter()
+            .filter(|w| w.contains("turns by 180°") && w.contains("prog.src:5"))
+            .count()
+    };
+    assert_eq!(half("180"), 1);
+    assert_eq!(half("175"), 0);
+}
+
 /// A partial aggregate of a compensated target is completed: otherwise the missing
 /// components would come from the compensated previous position.
 #[test]

@@ -495,6 +495,15 @@ impl<'f> Simulator<'f> {
         } else {
             Path::Lin
         };
+        if let (Some(start), false) = (start_tcp, path == Path::Ptp) {
+            if crate::motion::frame::half_turn_apart(&start.rotation, &goal.rotation) {
+                self.warn(
+                    file,
+                    s.head,
+                    "the orientation turns by 180° here: which way it turns is a tie the controller decides, so the rotation directions assumed for this target may not be the robot's — give the target an orientation less than 180° from the previous one",
+                );
+            }
+        }
         let mut q = q;
         let mut deferred = false;
         let arrival = match (current, start_tcp) {
