@@ -84,6 +84,9 @@ pub enum Value<'f> {
     Enum(Vec<u8>),
     Pos(Pos<'f>),
     Fdat(Fdat),
+    /// `LDAT` (an inline form's motion data): its orientation type `ORI_TYP` (`#VAR`,
+    /// `#CONSTANT`, `#JOINT`: upper case, without `#`), when written as a constant.
+    Ldat(Option<Vec<u8>>),
     /// Not known before run time, and why.
     Unknown(String),
 }
@@ -187,6 +190,7 @@ pub fn aggregate<'f>(
     };
     let mut fdat = Fdat::default();
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
+    let mut ldat: Option<Option<Vec<u8>>> = None;
     // A plain number member is handed out by value (not borrowed from the file).
     let mut eval = |v: &Cow<'f, Expr>| match v {
         Cow::Borrowed(e) => eval(e),
@@ -269,12 +273,21 @@ pub fn aggregate<'f>(
                 is_fdat = true;
                 fdat.external_tcp = matches!(&*m.value, Expr::Enum(s) if file.text(*s).eq_ignore_ascii_case(b"#TCP"));
             }
+            _ if is("ORI_TYP") => {
+                ldat = Some(match &*m.value {
+                    Expr::Enum(s) => Some(file.text(*s)[1..].to_ascii_uppercase()),
+                    _ => None,
+                });
+            }
             // E1..E6 and other members are carried unchanged.
             _ => {}
         }
     }
     if is_fdat {
         return Value::Fdat(fdat);
+    }
+    if let Some(ori) = ldat {
+        return Value::Ldat(ori);
     }
     if axis && cartesian {
         return Value::Unknown("an aggregate mixing axis angles and Cartesian values".into());

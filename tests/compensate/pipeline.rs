@@ -586,6 +586,49 @@ fn a_half_turn_of_the_orientation_is_warned() {
     assert_eq!(half("175"), 0);
 }
 
+/// An orientation type the walker does not simulate (`#CONSTANT`, `#JOINT`) is warned at every
+/// Cartesian motion it applies to, however it is set: an assignment, a `WITH` clause, or an
+/// inline form's motion data applied by `BAS(#CP_PARAMS…)`; `#VAR` (the default) is not.
+#[test]
+fn an_orientation_type_not_simulated_is_warned() {
+    let warned = |src: &str, dat: Option<&str>| {
+        let (_, _, r) = compensate_text(src, dat);
+        let mut lines: Vec<String> = r
+            .report
+            .warnings
+            .iter()
+            .filter(|w| w.contains("$ORI_TYPE #"))
+            .map(|w| {
+                w.split(": ")
+                    .next()
+                    .unwrap()
+                    .rsplit(':')
+                    .nth(1)
+                    .unwrap()
+                    .to_string()
+            })
+            .collect();
+        lines.sort();
+        lines
+    };
+    let lin = "LIN {X 300, Y 200, Z 0, A 0, B 0, C 175}";
+    let src = format!(
+        "{HEAD}$ORI_TYPE = #CONSTANT\n{lin}\nPTP {{A1 0, A2 -80, A3 100, A4 0, A5 60, A6 0}}\n\
+         $ORI_TYPE = #VAR\n{lin}\n{lin} WITH $ORI_TYPE = #JOINT\n{lin}\nEND\n"
+    );
+    // Lines 6 (assigned) and 10 (WITH, for that motion only); not the PTP, not #VAR.
+    assert_eq!(warned(&src, None), ["10", "6"]);
+    let with_ldat = |ori: &str| {
+        let src = format!("{HEAD}LDAT_ACT = LCPDAT1\nBAS(#CP_PARAMS, 2)\n{lin}\nEND\n");
+        let dat = format!(
+            "DEFDAT prog\nDECL LDAT LCPDAT1={{VEL 2.0,ACC 100.0,APO_DIST 100.0,ORI_TYP {ori},CIRC_TYP #BASE}}\nENDDAT\n"
+        );
+        warned(&src, Some(&dat))
+    };
+    assert_eq!(with_ldat("#CONSTANT"), ["7"]);
+    assert!(with_ldat("#VAR").is_empty());
+}
+
 /// A partial aggregate of a compensated target is completed: otherwise the missing
 /// components would come from the compensated previous position.
 #[test]

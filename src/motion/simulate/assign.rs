@@ -46,6 +46,17 @@ impl<'f> Simulator<'f> {
                         self.is_tcp(file, rhs, scope).then_some((file, s.head));
                     return;
                 }
+                b"$ORI_TYPE" => {
+                    self.state.ori_type = self.ori_type_of(file, rhs, scope);
+                    return;
+                }
+                b"LDAT_ACT" => {
+                    self.state.ldat_ori = match self.eval(file, rhs, scope) {
+                        Value::Ldat(ori) => ori.filter(|o| o != b"VAR"),
+                        _ => None,
+                    };
+                    return;
+                }
                 b"FDAT_ACT" => {
                     self.state.fdat = match self.eval(file, rhs, scope) {
                         Value::Fdat(f) => Some(f),
@@ -182,6 +193,19 @@ impl<'f> Simulator<'f> {
         let (f, e) = cfg.element(name, &[n])?;
         let id = self.id_of(f);
         Some(self.eval(id, e, &Scope::default()))
+    }
+
+    /// An orientation type other than `#VAR` assigned to `$ORI_TYPE`.
+    pub(super) fn ori_type_of(
+        &self,
+        file: FileId,
+        rhs: &'f Expr,
+        scope: &Scope<'f>,
+    ) -> Option<Vec<u8>> {
+        match self.eval(file, rhs, scope) {
+            Value::Enum(e) if e != b"VAR" => Some(e),
+            _ => None,
+        }
     }
 
     /// Applies `FDAT_ACT` (what `BAS(#PTP_PARAMS…)`/`BAS(#CP_PARAMS…)` do in an inline form).

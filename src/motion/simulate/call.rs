@@ -43,6 +43,9 @@ impl<'f> Simulator<'f> {
                     }
                 }
                 b"PTP_PARAMS" | b"CP_PARAMS" | b"FRAMES" | b"PTP_DAT" | b"CP_DAT" => {
+                    if k == b"CP_PARAMS" || k == b"CP_DAT" {
+                        self.state.ori_type = self.state.ldat_ori.clone();
+                    }
                     self.apply_fdat(file, s)
                 }
                 _ => {}
@@ -131,6 +134,7 @@ impl<'f> Simulator<'f> {
                     self.state.external_tcp =
                         self.is_tcp(file, &w.value, scope).then_some((file, w.span))
                 }
+                b"$ORI_TYPE" => self.state.ori_type = self.ori_type_of(file, &w.value, scope),
                 _ => {}
             }
         }

@@ -85,6 +85,10 @@ impl<'f> Simulator<'f> {
                 Some(v) => frame(true, v.as_int()),
                 None => Value::Unknown("SBASE without argument".into()),
             },
+            b"SORI_TYP" => match arg(0) {
+                Some(Value::Ldat(Some(ori))) => Value::Enum(ori),
+                _ => Value::Unknown("SORI_TYP of an unknown motion data set".into()),
+            },
             b"SIPO_MODE" => match arg(0) {
                 Some(Value::Fdat(f)) => Value::Enum(if f.external_tcp {
                     b"TCP".to_vec()

@@ -195,6 +195,11 @@ struct State {
     tool: FrameState,
     external_tcp: Option<(FileId, Span)>,
     fdat: Option<Fdat>,
+    /// `$ORI_TYPE` when it is not the default `#VAR` (`CONSTANT`, `JOINT`), which the
+    /// walker does not simulate (a warning says so at each Cartesian motion).
+    ori_type: Option<Vec<u8>>,
+    /// The orientation type of `LDAT_ACT` (applied by `BAS(#CP_PARAMS…)`).
+    ldat_ori: Option<Vec<u8>>,
     current: Option<Current>,
     /// A, B, C of the last Cartesian target as written: the representation to stay near when
     /// completing a partial position.
@@ -367,6 +372,8 @@ impl<'f> Simulator<'f> {
                 tool: FrameState::Unset,
                 external_tcp: None,
                 fdat: None,
+                ori_type: None,
+                ldat_ori: None,
                 current: None,
                 last_abc: [0.0; 3],
             },

@@ -369,6 +369,14 @@ impl<'f> Simulator<'f> {
         } else {
             goal
         };
+        if let (Some(t), false) = (&self.state.ori_type, m.kind.is_joint()) {
+            let t = String::from_utf8_lossy(t).into_owned();
+            self.warn(
+                file,
+                s.head,
+                format!("$ORI_TYPE #{t} is not simulated: the orientation is taken as interpolated from the start to the target (#VAR), so the wrist axes' rotation directions and the orientation compensated for this target may not be the robot's"),
+            );
+        }
         // `CA`: the motion ends on the circle at that angle from the start (towards the
         // auxiliary point when positive), with the target's orientation, not at the target.
         // Two ways to compensate it (`ArcMode`): the end as a target of its own, the circle
