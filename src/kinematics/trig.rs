@@ -128,13 +128,10 @@ mod tests {
                 "{x}: ({s}, {c}) vs ({s1}, {c1})"
             );
         };
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x9e37_79b9_7f4a_7c15);
         for _ in 0..200_000 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let u = (state >> 11) as f64 / (1u64 << 53) as f64;
-            check((u * 2.0 - 1.0) * 12.0);
+            check(rng.gen_range(-12.0..12.0));
         }
         for k in -1300..=1300 {
             let x = k as f64 / PER_RAD;
@@ -166,13 +163,9 @@ mod tests {
                 "atan2({y}, {x}) = {ours} vs {lib}"
             );
         };
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x2545_f491_4f6c_dd1d);
+        let mut next = move || rng.gen_range(-1.0..1.0);
         for _ in 0..200_000 {
             let (y, x) = (next() * 1500.0, next() * 1500.0);
             check(y, x);

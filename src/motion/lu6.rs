@@ -121,13 +121,9 @@ mod tests {
     /// A deterministic spread of matrices: well conditioned, with ties and zeros in the pivot
     /// columns, rank-deficient.
     fn matrices() -> Vec<Matrix6<f64>> {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x2545_f491_4f6c_dd1d);
+        let mut next = move || rng.gen_range(-1.0..1.0);
         let mut out: Vec<Matrix6<f64>> =
             (0..200).map(|_| Matrix6::from_fn(|_, _| next())).collect();
         // Equal magnitudes in a column (pivot ties), an exact zero column, a repeated row.
