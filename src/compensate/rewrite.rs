@@ -312,19 +312,27 @@ struct Component {
     value: Option<f64>,
 }
 
+/// The members of `agg` that are position components of its kind (`X..C`, or `A1..A6` for
+/// `axis`), with the component's index.
+fn position_members<'a>(
+    file: &'a SourceFile,
+    agg: &'a Aggregate,
+    axis: bool,
+) -> impl Iterator<Item = (usize, RawMember<'a>)> + 'a {
+    let src = file.source();
+    file.raw_members(agg).filter_map(move |m| {
+        let (is_axis, k) = value::component(&src[m.name().range()])?;
+        (is_axis == axis).then_some((k, m))
+    })
+}
+
 /// The position components (`X..C`, or `A1..A6` for `axis`) of `agg`, in one pass over its
 /// members (each packed number is read from the source once); a component written twice is
 /// the later one.
 fn components(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<Component>; 6] {
     let src = file.source();
     let mut out = [None; 6];
-    for m in file.raw_members(agg) {
-        let Some((is_axis, k)) = value::component(&src[m.name().range()]) else {
-            continue;
-        };
-        if is_axis != axis {
-            continue;
-        }
+    for (k, m) in position_members(file, agg, axis) {
         out[k] = Some(match m {
             // A plain number is its own literal (what `literal_span` and `value::literal`
             // give for an `Expr::Number`), read here without building the expression.
@@ -559,15 +567,8 @@ fn literal_decimals(text: &[u8]) -> usize {
 /// than 3 in mm and 4 in degrees), or for a missing one the aggregate's most precise.
 pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
     // Only the literals' text is needed: a plain number's span is its literal, not read.
-    let src = file.source();
     let mut own = [None; 6];
-    for m in file.raw_members(agg) {
-        let Some((is_axis, k)) = value::component(&src[m.name().range()]) else {
-            continue;
-        };
-        if is_axis != axis {
-            continue;
-        }
+    for (k, m) in position_members(file, agg, axis) {
         let lit = match m {
             // `Nodes::pack` stores only numbers that read back whole.
             RawMember::Plain { number, .. } => Some(number),

@@ -8,7 +8,7 @@
 use nalgebra::{Rotation3, Unit, Vector3};
 use robopost::compensate::{files, nominal_directions, program, solve, Method};
 use robopost::kinematics::RobotDescription;
-use robopost::model::Direction;
+use robopost::model::{Direction, Model};
 use robopost::motion::{self, frame::Frame, Role, Simulation, Workspace};
 
 use super::pipeline::{cal, run};
@@ -54,6 +54,20 @@ fn circles(sim: &Simulation) -> Vec<(usize, usize)> {
 }
 
 /// Directions of every stop's arrival, as the compensation derives them.
+/// The model's error (position mm, rotation rad) at stop `k` of `sim` — its axes and tool,
+/// the directions `dirs` — against the pose `goal`.
+fn error_at(
+    model: &Model,
+    sim: &Simulation,
+    dirs: &[[Direction; 6]],
+    k: usize,
+    goal: &Frame,
+) -> (f64, f64) {
+    let tool = sim.frames[sim.stops[k].tool as usize];
+    let e = solve::predicted_error(model, &dirs[k], &sim.stops[k].nominal_axes, &tool, goal);
+    robopost::compensate::pose::norms(&e)
+}
+
 fn directions(ws: &Workspace, sim: &Simulation) -> Vec<[Direction; 6]> {
     let targets = program::targets(ws, sim, 0..sim.stops.len());
     nominal_directions(&targets, [Direction::Unknown; 6])
@@ -151,18 +165,9 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     let (dirs0, dirs1) = (directions(&ws, &sim0), directions(&out, &sim1));
     let (c0, c1) = (circles(&sim0), circles(&sim1));
     assert_eq!((c0.len(), c1.len()), (5, 5));
-    let norms = robopost::compensate::pose::norms;
-    // The model's error at stop k1 of the written program against stop k0's nominal pose.
+    // The model's error at stop k1 of a program against stop k0's nominal pose.
     let predicted = |k0: usize, k1: usize, sim: &Simulation, dirs: &[[Direction; 6]]| {
-        let tool = sim.frames[sim.stops[k1].tool as usize];
-        let e = solve::predicted_error(
-            &model,
-            &dirs[k1],
-            &sim.stops[k1].nominal_axes,
-            &tool,
-            &sim0.stops[k0].goal,
-        );
-        norms(&e)
+        error_at(&model, sim, dirs, k1, &sim0.stops[k0].goal)
     };
     let angles = [90.0, -45.0, 120.0, 90.0, 360.0];
     for (((a0, e0), (a1, e1)), angle) in c0.iter().zip(&c1).zip(angles) {
@@ -286,24 +291,10 @@ END
     let dirs1 = directions(&out, &sim1);
     let end = sim0.stops.len() - 1;
     assert_eq!(sim1.stops.len(), sim0.stops.len());
-    let tool = sim1.frames[sim1.stops[end].tool as usize];
-    let e = solve::predicted_error(
-        &model,
-        &dirs1[end],
-        &sim1.stops[end].nominal_axes,
-        &tool,
-        &sim0.stops[end].goal,
-    );
-    let (p, r) = robopost::compensate::pose::norms(&e);
+    let goal = &sim0.stops[end].goal;
+    let (p, r) = error_at(&model, &sim1, &dirs1, end, goal);
     let dirs0 = directions(&ws, &sim0);
-    let before = solve::predicted_error(
-        &model,
-        &dirs0[end],
-        &sim0.stops[end].nominal_axes,
-        &tool,
-        &sim0.stops[end].goal,
-    );
-    assert!(robopost::compensate::pose::norms(&before).0 > 0.1);
+    assert!(error_at(&model, &sim0, &dirs0, end, goal).0 > 0.1);
     eprintln!("CIRC_REL: after {:.3} µm {:.3} µrad", p * 1e3, r * 1e6);
     // The start's and the offset's rounding, half a unit per coordinate each, and the
     // solver's 0.1 µm; the start's and the offset's A, B, C half a unit each. (Written
