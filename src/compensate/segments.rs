@@ -4,11 +4,11 @@
 //! kept but its new bytes. The direction logic's look-back crosses the cuts through the
 //! carried last targets ([`sequence::compensate_after`]), so the result is the one of the
 //! whole sequence at once. A window is worked in two halves: what needs nothing of the
-//! windows before it ([`Prepared`]: targets, first-pass solves, singularity tests) runs while
-//! the window before is settled against the history, tallied and rewritten, so the
-//! sequential parts of the one overlap the parallel parts of the other. The skeleton is
-//! rewritten after the walk (a `.dat` point may be reached before and after a run: splitting
-//! it needs every use).
+//! windows before it but a few carried values ([`Prepared`]: targets, first-pass solves,
+//! singularity tests) is prepared on one thread while another settles the windows before it
+//! against the history, tallies and rewrites them, so the sequential parts of the one
+//! overlap the parallel parts of the other. The skeleton is rewritten after the walk (a
+//! `.dat` point may be reached before and after a run: splitting it needs every use).
 
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::kinematics::Singularity;
@@ -36,7 +36,8 @@ impl Segment {
 }
 
 /// The part of a segment's work that needs nothing of the segments before it (their nominal
-/// directions aside): it runs while the segment before is still being settled.
+/// directions and warm-start chain aside): it runs while the segment before is still being
+/// settled.
 pub(super) struct Prepared {
     /// Leading ghosts of the segment's stops (their outcomes are in the history).
     ghosts: usize,
@@ -60,6 +61,7 @@ impl Preparer<'_> {
         sim: &Simulation,
         from: usize,
         nominal_start: &mut [Direction; 6],
+        chains: &mut sequence::Chains,
     ) -> Prepared {
         use rayon::prelude::*;
         let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
@@ -70,6 +72,7 @@ impl Preparer<'_> {
             &sim.frames,
             &targets,
             *nominal_start,
+            chains,
             &self.options.sequence(),
         );
         if let Some(end) = passes.nominal_end() {
@@ -104,8 +107,8 @@ pub(super) struct Segments<'a> {
     options: &'a Options,
     /// The nominal directions after the last prepared segment.
     nominal_end: [Direction; 6],
-    /// The last window, prepared but not settled yet.
-    pending: Option<(Walked, Prepared)>,
+    /// Where the last prepared segment left the warm-start chains.
+    chains: sequence::Chains,
     history: Vec<Carried>,
     /// Outcomes of the skeleton's stops (ghosts included), in order, and their commands.
     pub skeleton: Vec<Outcome>,
@@ -130,7 +133,7 @@ impl<'a> Segments<'a> {
             model,
             options,
             nominal_end: [Direction::Unknown; 6],
-            pending: None,
+            chains: sequence::Chains::default(),
             history: Vec::new(),
             skeleton: Vec::new(),
             skeleton_commands: Vec::new(),
@@ -244,10 +247,9 @@ impl<'a> Segments<'a> {
     /// The skeleton's stops from `from` on (the rest after the walk).
     pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
         debug_assert_eq!(from, self.skeleton.len());
-        self.flush();
-        let prepared = self
-            .preparer()
-            .prepare(ws, sim, from, &mut self.nominal_end);
+        let prepared =
+            self.preparer()
+                .prepare(ws, sim, from, &mut self.nominal_end, &mut self.chains);
         let seg = self.settle(ws, sim, from, prepared);
         let points = self.options.points;
         self.tally.add(
@@ -305,14 +307,11 @@ impl<'a> Segments<'a> {
             }
         }
     }
-
-    /// Finishes the window still pending, if any.
-    pub fn flush(&mut self) {
-        if let Some((walked, prepared)) = self.pending.take() {
-            walked.with_dependent(|ws, sim| self.window_done(ws, sim, prepared));
-        }
-    }
 }
+
+/// Windows prepared ahead of the one being settled (each holds a window's tree, stops and
+/// first passes: a few hundred kilobytes).
+const PREPARED_AHEAD: usize = 2;
 
 impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
     fn skeleton(&mut self, sim: &Simulation<'f>, from: usize) {
@@ -320,30 +319,37 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
         self.1.skeleton_from(ws, sim, from);
     }
 
-    /// Prepares this window while the one before is settled and rewritten (which needs the
-    /// history up to it): the two overlap on rayon's pool, so the sequential parts of the one
-    /// fill the gaps of the other's parallel parts.
-    fn window(&mut self, walked: Walked) {
+    /// Two loops on two threads, joined by a short queue: this one prepares window after
+    /// window (each in parallel on rayon's pool), a second settles, tallies and rewrites
+    /// them in order (the history of the one before is needed), its parallel parts on the
+    /// same pool. Neither waits for the other but when the queue is full or empty, so the
+    /// sequential parts of the one run while the pool works for the other: with the walk's
+    /// own thread, the cores have work from three independent streams.
+    fn run(&mut self, windows: &mut dyn Iterator<Item = Walked>) {
         let seg = &mut *self.1;
         let preparer = seg.preparer();
-        let mut nominal = seg.nominal_end;
-        let pending = seg.pending.take();
-        let prepared = walked.with_dependent(|ws, sim| {
-            rayon::join(
-                || preparer.prepare(ws, sim, 0, &mut nominal),
-                || {
-                    if let Some((w, p)) = pending {
-                        w.with_dependent(|ws, sim| seg.window_done(ws, sim, p));
-                    }
-                },
-            )
-            .0
+        let (mut nominal, mut chains) = (seg.nominal_end, seg.chains);
+        std::thread::scope(|scope| {
+            let (tx, rx) = std::sync::mpsc::sync_channel::<(Walked, Prepared)>(PREPARED_AHEAD);
+            let settler = scope.spawn(move || {
+                for (walked, prepared) in rx {
+                    walked.with_dependent(|ws, sim| seg.window_done(ws, sim, prepared));
+                }
+            });
+            for walked in windows {
+                let prepared = walked.with_dependent(|ws, sim| {
+                    preparer.prepare(ws, sim, 0, &mut nominal, &mut chains)
+                });
+                if tx.send((walked, prepared)).is_err() {
+                    break;
+                }
+            }
+            drop(tx);
+            settler
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         });
-        seg.nominal_end = nominal;
-        seg.pending = Some((walked, prepared));
-    }
-
-    fn run_end(&mut self) {
-        self.1.flush();
+        self.1.nominal_end = nominal;
+        self.1.chains = chains;
     }
 }

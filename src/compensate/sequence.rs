@@ -382,7 +382,14 @@ pub fn compensate_after(
         Some(c) => c.outcome.nominal_directions,
         None => start,
     };
-    let first = first_passes(model, tools, targets, nominal_start, options);
+    let first = first_passes(
+        model,
+        tools,
+        targets,
+        nominal_start,
+        &mut Chains::default(),
+        options,
+    );
     settle(model, tools, history, targets, start, first, options)
 }
 
@@ -406,12 +413,28 @@ impl FirstPasses {
     }
 }
 
-/// Passes 1 and 2 of `targets`, the nominal directions before the first given.
+/// Targets in a chain of warm starts ([`solve::Chain`]); each chain's first is solved afresh.
+/// Chains are cut at every multiple of this in execution order: fixed places, so that a
+/// program compensated whole or window by window solves every target alike, and chains of
+/// a window are worked in parallel.
+const CHAIN: usize = 64;
+
+/// Where a segment's targets stand among the chains: how many targets came before them in
+/// execution order, and the chain the first of them continues.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Chains {
+    ordinal: u64,
+    open: solve::Chain,
+}
+
+/// Passes 1 and 2 of `targets`, the nominal directions before the first given, `chains`
+/// where the targets before them left the warm starts (moved on past them).
 pub fn first_passes(
     model: &Model,
     tools: &[Frame],
     targets: &[Target],
     nominal_start: [Direction; 6],
+    chains: &mut Chains,
     options: &Options,
 ) -> FirstPasses {
     // The nominal motions' signs in parallel (the re-check needs them again), their
@@ -426,16 +449,45 @@ pub fn first_passes(
         targets.iter().map(|t| signs(t.arrival)).collect()
     };
     let nominal = directions_after(&nominal_signs, nominal_start);
-    let first = |i: usize| first_pass(model, tools, &targets[i], &nominal[i], options.method);
-    let outcomes: Vec<Outcome> = if options.parallel {
-        (0..targets.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .map(first)
-            .collect()
-    } else {
-        (0..targets.len()).map(first).collect()
+    // The chains of these targets, each worked in order, the first continuing the open one.
+    let n = targets.len();
+    let head = (CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN;
+    let head = head.min(n);
+    let pieces = usize::from(head > 0) + (n - head).div_ceil(CHAIN);
+    let piece = |p: usize| -> (Vec<Outcome>, solve::Chain) {
+        let (range, mut chain) = match p.checked_sub(usize::from(head > 0)) {
+            None => (0..head, chains.open),
+            Some(k) => {
+                let a = head + k * CHAIN;
+                (a..(a + CHAIN).min(n), solve::Chain::default())
+            }
+        };
+        let outcomes = range
+            .map(|i| {
+                let t = &targets[i];
+                first_pass(
+                    model,
+                    tools,
+                    t,
+                    &nominal[i],
+                    options.method,
+                    Some(&mut chain),
+                )
+            })
+            .collect();
+        (outcomes, chain)
     };
+    let solved: Vec<(Vec<Outcome>, solve::Chain)> = if options.parallel {
+        (0..pieces).into_par_iter().map(piece).collect()
+    } else {
+        (0..pieces).map(piece).collect()
+    };
+    let mut outcomes = Vec::with_capacity(n);
+    for (part, chain) in solved {
+        outcomes.extend(part);
+        chains.open = chain;
+    }
+    chains.ordinal += n as u64;
     // The segment alone: target k of the segment is k here.
     let ctx = Ctx {
         model,
@@ -525,6 +577,8 @@ pub fn settle(
         &mut resolved,
     );
     // The commands' changes at the TCP, the command of a target the re-check re-solved anew.
+    // The nominal command's TCP is the goal: the walk solved the command for it (an axis
+    // target's goal is its nominal TCP).
     let arm = Nominal(&model.robot);
     let command = |(i, tcp): (usize, Frame)| {
         let (k, t) = (h + i, &targets[i]);
@@ -536,7 +590,7 @@ pub fn settle(
             tcp
         };
         let correction = if o.changed {
-            correction(&tcp, &arm.tcp(&t.nominal_axes, tool))
+            correction(&tcp, &t.goal)
         } else {
             (0.0, 0.0)
         };
@@ -587,6 +641,21 @@ fn solve_target(
     hold: [bool; 6],
     method: Method,
 ) -> Result<(solve::Solution, [bool; 6]), TargetError> {
+    solve_target_in(model, tool, target, directions, start, hold, method, None)
+}
+
+/// [`solve_target`], the first solve warm-started along `chain` where one is given.
+#[allow(clippy::too_many_arguments)]
+fn solve_target_in(
+    model: &Model,
+    tool: &Frame,
+    target: &Target,
+    directions: &[Direction; 6],
+    start: [f64; 6],
+    hold: [bool; 6],
+    method: Method,
+    chain: Option<&mut solve::Chain>,
+) -> Result<(solve::Solution, [bool; 6]), TargetError> {
     // Equation (3) is taken at the programmed (nominal) command, whatever the start.
     let start = if method == Method::OneStep && !hold.iter().any(|&h| h) {
         target.nominal_axes
@@ -610,7 +679,16 @@ fn solve_target(
         Err(e) if near_singular() => Ok(*e.best),
         Err(e) => Err(e),
     };
-    let mut sol = solve_or_best(&problem, method)?;
+    let mut sol = match chain {
+        Some(chain) if method == Method::Iterate && !hold.contains(&true) => {
+            match solve::solve_in_chain(model, &problem, chain) {
+                Ok(s) => s,
+                Err(e) if near_singular() => *e.best,
+                Err(e) => return Err(e.into()),
+            }
+        }
+        _ => solve_or_best(&problem, method)?,
+    };
     let mut turn_held = [false; 6];
     let ((s0, t0), (mut s1, mut t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
     if target.keep.t && t0 != t1 && s0 == s1 {
@@ -660,8 +738,12 @@ fn first_pass(
     target: &Target,
     directions: &[Direction; 6],
     method: Method,
+    mut chain: Option<&mut solve::Chain>,
 ) -> Outcome {
     let tool = &tools[target.tool as usize];
+    if let Some(c) = chain.as_deref_mut() {
+        c.follow_tool(target.tool);
+    }
     let mut out = Outcome {
         axes_deg: target.nominal_axes,
         directions: *directions,
@@ -675,11 +757,14 @@ fn first_pass(
         turn_held: [false; 6],
     };
     if !target.compensate {
+        if let Some(c) = chain {
+            c.forget();
+        }
         out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
         out.residual = out.before;
         return out;
     }
-    match solve_target(
+    let solved = solve_target_in(
         model,
         tool,
         target,
@@ -687,7 +772,19 @@ fn first_pass(
         target.nominal_axes,
         [false; 6],
         method,
-    ) {
+        chain.as_deref_mut(),
+    );
+    if let Some(c) = chain {
+        match &solved {
+            Ok((sol, held)) if !held.contains(&true) => c.record(
+                std::array::from_fn(|i| sol.axes_deg[i] - target.nominal_axes[i]),
+                sol.initial,
+                sol.residual,
+            ),
+            _ => c.forget(),
+        }
+    }
+    match solved {
         Ok((sol, turn_held)) => {
             out.changed = sol.axes_deg != target.nominal_axes;
             out.axes_deg = sol.axes_deg;
@@ -907,7 +1004,7 @@ fn recheck(
         // earlier flip this differs from the nominal directions the first pass assumed.
         let expected = arrive_signs(&state, nominal[k - from]);
         if expected != outcomes[k].directions && !fixed {
-            let mut o = first_pass(ctx.model, ctx.tools, target, &expected, ctx.method);
+            let mut o = first_pass(ctx.model, ctx.tools, target, &expected, ctx.method, None);
             o.nominal_directions = outcomes[k].nominal_directions;
             outcomes[k] = o;
             resolved[k] = true;

@@ -15,6 +15,11 @@
 //! nominal solution is on, and treats axis-space targets (`PTP {A1 …}`, E6AXIS) and Cartesian
 //! ones alike: both are a goal pose plus a starting command. The final Cartesian command is
 //! the nominal FK of the solved axes, which the controller's IK maps back to them.
+//! Along a path most targets skip the linearisation: the correction of the targets before
+//! them predicts theirs ([`Chain`]), and two evaluations of the prediction (at the nominal
+//! command, at the predicted one) usually settle it, within the tolerance rather than far
+//! below it (on the 1M-point program 73 % of the targets in one evaluation after the
+//! nominal one, 24 % in two; user time −5 %).
 //! `--one-step` is the paper's equation (3) literally: `p_c = p* − (p̂(p*) − p*)` (orientation
 //! likewise, as a world-frame rotation) followed by an exact (iterated) nominal IK.
 
@@ -27,6 +32,7 @@ use std::ops::AddAssign;
 use crate::model::chain::{axis_lines, ChainFrames, JointTrig};
 use crate::model::{AxisSlopes, AxisState, ChainErrors, Direction, Model, Slot};
 use crate::motion::frame::{self as pose, Frame};
+use crate::motion::lu6::Lu6;
 use crate::motion::nominal::{self, Arm, Goal, Linearized, NotConverged, LEVER_MM};
 
 /// Convergence: 0.1 µm and 0.1 µrad on the TCP pose (the requirement).
@@ -260,6 +266,126 @@ pub fn solve(model: &Model, problem: &Problem, method: Method) -> Result<Solutio
             tol_rad: TOL_ROTATION_RAD,
         },
     )
+}
+
+/// Evaluations a warm start may take before the target is solved afresh.
+const WARM_EVALUATIONS: u32 = 3;
+
+/// What the solves along a path carry from one target to the next, so that most targets are
+/// solved from a prediction instead of a linearisation: the Jacobian factored at the last
+/// target solved afresh, and the last two targets solved. Along a path the correction
+/// `Δq = q − q_nominal` changes smoothly: extrapolated from the two before, `2·Δq₁ − Δq₂`,
+/// and what the error at the nominal command does beyond its own extrapolation (a backlash
+/// branch switched, a table's grid point crossed) taken out with the stale Jacobian,
+/// `−J₀⁻¹·(e − 2·e₁ + e₂)`. On the 1M-point program (2 mm pitch) the prediction lands a
+/// median 0.05 µm from the goal, mostly the goals' own rounding to the written decimals, and
+/// a few tenths of a micrometre after a grid point. [`nominal::quasi_newton`] finishes from
+/// there; a target it does not settle within [`WARM_EVALUATIONS`] is solved afresh, so the
+/// result always meets the tolerance. A chain is worked in order, so its results are the
+/// same whoever works it.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Chain {
+    jacobian: Option<Lu6>,
+    /// The last two targets solved, newest first.
+    recent: [Option<Solved>; 2],
+    /// The tool of the targets (another tool moves the TCP elsewhere: the chain starts over).
+    tool: Option<u32>,
+}
+
+/// A target solved along a [`Chain`].
+#[derive(Clone, Copy, Debug)]
+struct Solved {
+    /// `q − q_nominal`.
+    correction: [f64; 6],
+    /// The error at the nominal command.
+    initial: Vector6<f64>,
+    /// The error left at the solution.
+    residual: Vector6<f64>,
+}
+
+impl Chain {
+    /// Starts the chain over where the targets change tools.
+    pub fn follow_tool(&mut self, tool: u32) {
+        if self.tool != Some(tool) {
+            *self = Chain {
+                tool: Some(tool),
+                ..Chain::default()
+            };
+        }
+    }
+
+    /// Records the target just solved, `correction` its `q − q_nominal`, `initial` its error
+    /// at the nominal command and `residual` at the solution.
+    pub fn record(&mut self, correction: [f64; 6], initial: Vector6<f64>, residual: Vector6<f64>) {
+        let solved = Solved {
+            correction,
+            initial,
+            residual,
+        };
+        self.recent = [Some(solved), self.recent[0]];
+    }
+
+    /// A target not solved plainly: the next prediction starts over (the Jacobian stays).
+    pub fn forget(&mut self) {
+        self.recent = [None; 2];
+    }
+
+    /// The predicted command of a target at `nominal` whose error there is `e0`. A recorded
+    /// correction is taken with its residual's share out (`Δq − J₀⁻¹·r`): a solution
+    /// anywhere within the tolerance would otherwise pass its 0.1 µm on, tripled by the
+    /// extrapolation. All of the Jacobian's shares are taken in one solve.
+    fn predict(&self, lu: &Lu6, nominal: &[f64; 6], e0: &Vector6<f64>) -> Option<[f64; 6]> {
+        let a = self.recent[0]?;
+        let (dq, de): ([f64; 6], Vector6<f64>) = match self.recent[1] {
+            Some(b) => (
+                std::array::from_fn(|i| 2.0 * a.correction[i] - b.correction[i]),
+                e0 - 2.0 * a.initial + b.initial + 2.0 * a.residual - b.residual,
+            ),
+            None => (a.correction, e0 - a.initial + a.residual),
+        };
+        let fix = lu.solve(&-de)?;
+        Some(std::array::from_fn(|i| nominal[i] + dq[i] + fix[i]))
+    }
+}
+
+/// [`solve`] of a target along a path, from the [`Chain`]'s prediction where it has one.
+pub fn solve_in_chain(
+    model: &Model,
+    problem: &Problem,
+    chain: &mut Chain,
+) -> Result<Solution, SolveError> {
+    let arm = Predicted::new(model, problem.directions);
+    let goal = Goal {
+        pose: problem.goal,
+        tool: problem.tool,
+        start: problem.start,
+        hold: problem.hold,
+        tol_mm: TOL_POSITION_MM,
+        tol_rad: TOL_ROTATION_RAD,
+    };
+    let warm = chain.recent[0].is_some() && !problem.hold.contains(&true);
+    if let Some(lu) = chain.jacobian.as_ref().filter(|_| warm) {
+        let e0 = pose::error(&arm.tcp(&problem.start, problem.tool), &problem.goal);
+        if converged(&e0) {
+            return Ok(Solution {
+                axes_deg: problem.start,
+                residual: e0,
+                iterations: 0,
+                initial: e0,
+            });
+        }
+        if let Some(q) = chain.predict(lu, &problem.start, &e0) {
+            if let Some(sol) = nominal::quasi_newton(&arm, &goal, q, lu, e0, WARM_EVALUATIONS) {
+                return Ok(sol);
+            }
+        }
+    }
+    let mut first = None;
+    let solved = nominal::newton_keeping(&arm, &goal, &mut first);
+    if first.is_some() {
+        chain.jacobian = first;
+    }
+    solved
 }
 
 fn one_step(arm: &Predicted, problem: &Problem) -> Result<Solution, SolveError> {

@@ -184,6 +184,40 @@ impl Stretch {
     }
 }
 
+/// [`looks_plain`] of every line of `src[range]` (lines cut as `split_line` cuts them, from
+/// `range.start`, a line start), by line: worked in parallel over pieces of about `piece`
+/// bytes cut at line starts, so that loading a CAM program does not scan its millions of
+/// lines on one core.
+pub(crate) fn plain_lines(src: &[u8], range: std::ops::Range<usize>, piece: usize) -> Vec<bool> {
+    use rayon::prelude::*;
+    let piece = piece.max(1);
+    // Piece starts: the line start at or after each piece's length.
+    let mut starts = vec![range.start];
+    let mut at = range.start + piece;
+    while at < range.end {
+        match src[at - 1..range.end].iter().position(|&b| b == b'\n') {
+            Some(n) if at + n < range.end => starts.push(at + n),
+            _ => break,
+        }
+        at = *starts.last().expect("pushed") + piece;
+    }
+    starts.push(range.end);
+    let pieces: Vec<Vec<bool>> = starts
+        .par_windows(2)
+        .map(|w| {
+            let (mut pos, end) = (w[0], w[1]);
+            let mut out = Vec::with_capacity((end - pos) / 32 + 1);
+            while pos < end {
+                let l = super::trivia::split_line(src, pos);
+                out.push(l.code_start < l.code_end && looks_plain(&src[l.code_start..l.code_end]));
+                pos = l.next.max(pos + 1);
+            }
+            out
+        })
+        .collect();
+    pieces.concat()
+}
+
 /// A fast look at a line of code: `true` only for the shapes CAM systems write by the million
 /// that surely parse as plain lines — `LIN {X 1.5,Y -2,…} C_DIS` (any of `PTP`/`LIN`/`CIRC`
 /// and their `_REL` forms, an optional type before `:`, numbers `[+-]d[.d]`, approximation
@@ -393,6 +427,37 @@ mod tests {
     use crate::krl::tree::FileKind;
     use proptest::prelude::*;
     use std::cell::RefCell;
+
+    /// The parallel look gives each line's `looks_plain`, cut in pieces of any size: CRLF
+    /// and LF lines, blank and comment lines, a `;` in a string, a last line without a
+    /// newline, a BOM.
+    #[test]
+    fn the_parallel_look_is_the_look_of_each_line() {
+        let text = "\u{feff}DEF p( )\r\nLIN {X 1,Y 2} C_DIS\r\n\r\n  ; note\r\nLIN {X 3, Y 4}\n\
+                    $VEL.CP = 0.1 ; fast\r\nMSG(\"a;b\")\r\nLIN {X 5}\r\n\n\nWAIT SEC 1\r\nEND";
+        let src = text.as_bytes();
+        let mut want = Vec::new();
+        let mut pos = 0;
+        while pos < src.len() {
+            let l = crate::krl::trivia::split_line(src, pos);
+            want.push(l.code_start < l.code_end && looks_plain(&src[l.code_start..l.code_end]));
+            pos = l.next.max(pos + 1);
+        }
+        assert_eq!(want.iter().filter(|&&p| p).count(), 5, "{want:?}");
+        for piece in [1, 2, 7, 16, 33, 64, 1 << 20] {
+            assert_eq!(
+                plain_lines(src, 0..src.len(), piece),
+                want,
+                "pieces of {piece}"
+            );
+        }
+        // From a line start inside the text, as a window's parse starts.
+        let from = text.find("LIN {X 3").unwrap();
+        let tail = &want[text[..from].matches('\n').count()..];
+        for piece in [1, 5, 1 << 20] {
+            assert_eq!(plain_lines(src, from..src.len(), piece), tail);
+        }
+    }
 
     /// What the parser says of a line: plain or not.
     fn parsed_plain(code: &[u8]) -> bool {

@@ -189,6 +189,42 @@ pub fn jacobian_of(lines: &AxisLines, tcp: &Frame) -> Matrix6<f64> {
     j
 }
 
+/// Quasi-Newton from a predicted command `q`: `q ← q − J₀⁻¹·(tcp(q) − goal)` with `lu`, a
+/// Jacobian factored at a command nearby, for at most `evaluations` evaluations of the TCP;
+/// `None` when that does not reach the goal's tolerance (the caller solves afresh). Each
+/// step shrinks the error by the factor `‖I − J₀⁻¹·J‖`, a few per cent for a Jacobian taken
+/// a hundred millimetres away; `initial` is the error at the nominal command, returned as
+/// the solution's.
+pub fn quasi_newton(
+    arm: &impl Arm,
+    goal: &Goal,
+    mut q: [f64; 6],
+    lu: &Lu6,
+    initial: Vector6<f64>,
+    evaluations: u32,
+) -> Option<Solution> {
+    for it in 1..=evaluations {
+        let e = frame::error(&arm.tcp(&q, goal.tool), &goal.pose);
+        if within(&e, goal.tol_mm, goal.tol_rad) {
+            return Some(Solution {
+                axes_deg: q,
+                residual: e,
+                iterations: it,
+                initial,
+            });
+        }
+        if it == evaluations {
+            break;
+        }
+        let dq = lu.solve(&-e)?;
+        if !dq.iter().all(|d| d.is_finite() && d.abs() <= MAX_STEP_DEG) {
+            return None;
+        }
+        q.iter_mut().zip(dq.iter()).for_each(|(a, d)| *a += d);
+    }
+    None
+}
+
 /// The KUKA status and turn ([`status_turn`]) of a nominal command and of a solved command
 /// near it, the second without trigonometry where it can. Of the bits only S bit 0 (wrist
 /// point behind the A1 axis: `x < 0` in the arm plane) needs sines; `x` moves by at most
@@ -284,6 +320,17 @@ fn within(e: &Vector6<f64>, tol_p: f64, tol_r: f64) -> bool {
 
 /// Newton iteration `q ← q − J⁻¹·(tcp(q) − goal)` from `goal.start`.
 pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
+    newton_keeping(arm, goal, &mut None)
+}
+
+/// [`newton`], keeping in `first` the factored Jacobian at the start (left as it is when the
+/// start is already on the goal, or the Jacobian is singular or held axes make it a least
+/// squares problem): what [`quasi_newton`] steps with at the targets after it.
+pub fn newton_keeping(
+    arm: &impl Arm,
+    goal: &Goal,
+    first: &mut Option<Lu6>,
+) -> Result<Solution, NotConverged> {
     let mut q = goal.start;
     // The Jacobian comes with the first evaluation: one chain evaluation for both.
     // Held in place (no copies of its kilobyte), replaced when the Jacobian is refreshed.
@@ -316,6 +363,9 @@ pub fn newton(arm: &impl Arm, goal: &Goal) -> Result<Solution, NotConverged> {
         damped: true,
     };
     stepper.refactor(&lin.jacobian, &goal.hold);
+    if !stepper.damped {
+        *first = Some(stepper.lu);
+    }
     let mut fresh = true;
     let mut it = 0;
     while it < MAX_ITERATIONS {

@@ -230,3 +230,66 @@ proptest::proptest! {
         }
     }
 }
+
+/// Along a path at a CAM program's 2 mm pitch, the chain's warm starts ([`solve::Chain`])
+/// reach the tolerance at every target (checked by evaluating the model again at the
+/// result), land within the tolerance's reach of the solve from scratch, and take one
+/// evaluation at most targets; where the backlash branch switches mid-path they still
+/// converge.
+#[test]
+fn warm_starts_along_a_path_meet_the_tolerance() {
+    use Direction::{Negative, Positive};
+    let tool = tool();
+    let model = handset();
+    let nominal = Nominal(&model.robot);
+    let start = POSES[0];
+    let origin = nominal.tcp(&start, &tool);
+    let mut chain = solve::Chain::default();
+    let mut axes = start;
+    let (mut single, n) = (0, 150);
+    for k in 0..n {
+        let goal = Frame {
+            rotation: origin.rotation,
+            position: origin.position + Vector3::new(2.0, 0.6, -0.9) * k as f64,
+        };
+        axes = nominal::local_ik(&model.robot, &goal, &tool, &axes)
+            .unwrap()
+            .axes_deg;
+        // A1 turns back two thirds of the way: its backlash branch switches.
+        let mut dirs = [Positive; 6];
+        if k >= 100 {
+            dirs[0] = Negative;
+        }
+        let problem = Problem {
+            goal,
+            tool: &tool,
+            start: axes,
+            directions: dirs,
+            hold: [false; 6],
+        };
+        let warm = solve::solve_in_chain(&model, &problem, &mut chain).unwrap();
+        let cold = solve::solve(&model, &problem, Method::Iterate).unwrap();
+        chain.record(
+            std::array::from_fn(|i| warm.axes_deg[i] - axes[i]),
+            warm.initial,
+            warm.residual,
+        );
+        let left = solve::predicted_error(&model, &dirs, &warm.axes_deg, &tool, &goal);
+        assert!(solve::converged(&left), "target {k}: {left:?}");
+        assert!(
+            (left - warm.residual).norm() < 1e-9,
+            "target {k}: the residual is the model's"
+        );
+        assert_eq!(warm.initial, cold.initial, "target {k}");
+        // Both within 0.1 µm of the goal: the commands differ by what that allows at the
+        // TCP (the wrist's lever turns 0.2 µm into some 10⁻⁵ degrees at most).
+        let apart = warm
+            .axes_deg
+            .iter()
+            .zip(cold.axes_deg)
+            .fold(0.0f64, |m, (w, c)| m.max((w - c).abs()));
+        assert!(apart < 1e-4, "target {k}: {apart}°");
+        single += usize::from(warm.iterations == 1);
+    }
+    assert!(single * 10 >= n * 7, "{single} of {n} in one evaluation");
+}
