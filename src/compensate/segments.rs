@@ -4,11 +4,11 @@
 //! kept but its new bytes. The direction logic's look-back crosses the cuts through the
 //! carried last targets ([`sequence::compensate_after`]), so the result is the one of the
 //! whole sequence at once. A window is worked in two halves: what needs nothing of the
-//! windows before it but a few carried values ([`Prepared`]: targets, first-pass solves,
-//! singularity tests) is prepared on one thread while another settles the windows before it
-//! against the history, tallies and rewrites them, so the sequential parts of the one
-//! overlap the parallel parts of the other. The skeleton is rewritten after the walk (a
-//! `.dat` point may be reached before and after a run: splitting it needs every use).
+//! windows before it ([`Prepared`]: targets, first-pass solves, singularity tests) runs while
+//! the window before is settled against the history, tallied and rewritten, so the
+//! sequential parts of the one overlap the parallel parts of the other. The skeleton is
+//! rewritten after the walk (a `.dat` point may be reached before and after a run: splitting
+//! it needs every use).
 
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::kinematics::Singularity;
@@ -109,6 +109,8 @@ pub(super) struct Segments<'a> {
     nominal_end: [Direction; 6],
     /// Where the last prepared segment left the warm-start chains.
     chains: sequence::Chains,
+    /// The last window, prepared but not settled yet.
+    pending: Option<(Walked, Prepared)>,
     history: Vec<Carried>,
     /// Outcomes of the skeleton's stops (ghosts included), in order, and their commands.
     pub skeleton: Vec<Outcome>,
@@ -134,6 +136,7 @@ impl<'a> Segments<'a> {
             options,
             nominal_end: [Direction::Unknown; 6],
             chains: sequence::Chains::default(),
+            pending: None,
             history: Vec::new(),
             skeleton: Vec::new(),
             skeleton_commands: Vec::new(),
@@ -247,6 +250,7 @@ impl<'a> Segments<'a> {
     /// The skeleton's stops from `from` on (the rest after the walk).
     pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
         debug_assert_eq!(from, self.skeleton.len());
+        self.flush();
         let prepared =
             self.preparer()
                 .prepare(ws, sim, from, &mut self.nominal_end, &mut self.chains);
@@ -307,11 +311,14 @@ impl<'a> Segments<'a> {
             }
         }
     }
-}
 
-/// Windows prepared ahead of the one being settled (each holds a window's tree, stops and
-/// first passes: a few hundred kilobytes).
-const PREPARED_AHEAD: usize = 2;
+    /// Finishes the window still pending, if any.
+    pub fn flush(&mut self) {
+        if let Some((walked, prepared)) = self.pending.take() {
+            walked.with_dependent(|ws, sim| self.window_done(ws, sim, prepared));
+        }
+    }
+}
 
 impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
     fn skeleton(&mut self, sim: &Simulation<'f>, from: usize) {
@@ -319,37 +326,32 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
         self.1.skeleton_from(ws, sim, from);
     }
 
-    /// Two loops on two threads, joined by a short queue: this one prepares window after
-    /// window (each in parallel on rayon's pool), a second settles, tallies and rewrites
-    /// them in order (the history of the one before is needed), its parallel parts on the
-    /// same pool. Neither waits for the other but when the queue is full or empty, so the
-    /// sequential parts of the one run while the pool works for the other: with the walk's
-    /// own thread, the cores have work from three independent streams.
-    fn run(&mut self, windows: &mut dyn Iterator<Item = Walked>) {
+    /// Prepares this window while the one before is settled and rewritten (which needs the
+    /// history up to it): the two overlap on rayon's pool, so the sequential parts of the one
+    /// fill the gaps of the other's parallel parts.
+    fn window(&mut self, walked: Walked) {
         let seg = &mut *self.1;
         let preparer = seg.preparer();
-        let (mut nominal, mut chains) = (seg.nominal_end, seg.chains);
-        std::thread::scope(|scope| {
-            let (tx, rx) = std::sync::mpsc::sync_channel::<(Walked, Prepared)>(PREPARED_AHEAD);
-            let settler = scope.spawn(move || {
-                for (walked, prepared) in rx {
-                    walked.with_dependent(|ws, sim| seg.window_done(ws, sim, prepared));
-                }
-            });
-            for walked in windows {
-                let prepared = walked.with_dependent(|ws, sim| {
-                    preparer.prepare(ws, sim, 0, &mut nominal, &mut chains)
-                });
-                if tx.send((walked, prepared)).is_err() {
-                    break;
-                }
-            }
-            drop(tx);
-            settler
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        let mut nominal = seg.nominal_end;
+        let mut chains = seg.chains;
+        let pending = seg.pending.take();
+        let prepared = walked.with_dependent(|ws, sim| {
+            rayon::join(
+                || preparer.prepare(ws, sim, 0, &mut nominal, &mut chains),
+                || {
+                    if let Some((w, p)) = pending {
+                        w.with_dependent(|ws, sim| seg.window_done(ws, sim, p));
+                    }
+                },
+            )
+            .0
         });
-        self.1.nominal_end = nominal;
-        self.1.chains = chains;
+        seg.nominal_end = nominal;
+        seg.chains = chains;
+        seg.pending = Some((walked, prepared));
+    }
+
+    fn run_end(&mut self) {
+        self.1.flush();
     }
 }

@@ -417,7 +417,7 @@ impl FirstPasses {
 /// Chains are cut at every multiple of this in execution order: fixed places, so that a
 /// program compensated whole or window by window solves every target alike, and chains of
 /// a window are worked in parallel.
-const CHAIN: usize = 64;
+const CHAIN: usize = 256;
 
 /// Where a segment's targets stand among the chains: how many targets came before them in
 /// execution order, and the chain the first of them continues.

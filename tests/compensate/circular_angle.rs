@@ -302,3 +302,45 @@ END
     assert!(p < 2.0 * 3f64.sqrt() * HALF_MM + 0.1e-3, "{} µm", p * 1e3);
     assert!(r < 6.0 * HALF_DEG.to_radians() + 0.1e-6, "{} µrad", r * 1e6);
 }
+
+/// Plain circles (no `CA`) whose orientation turns by up to 45° between start and end: an
+/// auxiliary point is written in position only and its compensation assumes the orientation
+/// the nominal circle passes it with. Simulating the written program again (the controller
+/// interpolates the orientation between the compensated start and end) and evaluating the
+/// model there shows what that leaves at the auxiliary points: no more than the written
+/// decimals allow (half a unit in X, Y and Z: 0.87 µm).
+#[test]
+fn plain_circles_reach_their_auxiliary_points() {
+    const CIRCLES: &str = "DEF aux_test( )
+$BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}
+$TOOL={X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}
+PTP {A1 20.0,A2 -80.0,A3 100.0,A4 0.0,A5 70.0,A6 0.0}
+LIN {X 1300.0,Y 450.0,Z 1200.0,A 0.0,B 0.0,C 180.0}
+CIRC {X 1335.355,Y 485.355,Z 1200.0}, {X 1385.355,Y 485.355,Z 1200.0,A 30.0,B 10.0,C 170.0}
+CIRC {X 1420.0,Y 450.0,Z 1150.0}, {X 1385.355,Y 400.0,Z 1100.0,A -20.0,B 0.0,C 180.0}
+LIN {X 1200.0,Y 300.0,Z 1000.0,A 0.0,B 0.0,C 180.0}
+CIRC {X 1150.0,Y 350.0,Z 1000.0}, {X 1200.0,Y 400.0,Z 1000.0,A 0.0,B 0.0,C 180.0}
+CIRC {X 1250.0,Y 350.0,Z 1000.0}, {X 1200.0,Y 300.0,Z 1000.0,A 45.0,B -5.0,C 175.0}
+END
+";
+    let robot = RobotDescription::kr30ha();
+    let (model, _) = cal("kr30ha-example.json");
+    let ws = load(CIRCLES.as_bytes());
+    let result = run(&ws, "kr30ha-example.json", Method::Iterate);
+    assert!(!result.rejected, "{:?}", result.report.errors);
+    let out = load(&result.files[0].bytes.to_vec());
+    let (sim0, sim1) = (
+        motion::simulate(&ws, &robot, &[]),
+        motion::simulate(&out, &robot, &[]),
+    );
+    let (dirs0, dirs1) = (directions(&ws, &sim0), directions(&out, &sim1));
+    let (c0, c1) = (circles(&sim0), circles(&sim1));
+    assert_eq!((c0.len(), c1.len()), (4, 4));
+    for ((a0, _), (a1, _)) in c0.into_iter().zip(c1) {
+        let goal = &sim0.stops[a0].goal;
+        let (before, _) = error_at(&model, &sim0, &dirs0, a0, goal);
+        let (after, _) = error_at(&model, &sim1, &dirs1, a1, goal);
+        assert!(before > 0.1, "aux {a0}: {before} mm uncompensated");
+        assert!(after < 0.87e-3, "aux {a0}: {:.2} µm left", after * 1e3);
+    }
+}

@@ -47,10 +47,12 @@ pub trait RunSink<'f> {
     /// The walk reached a run: `sim.stops[from..]` are the skeleton's stops since the last
     /// call (ghosts first when the previous segment was a run), their arrivals final.
     fn skeleton(&mut self, sim: &Simulation<'f>, from: usize);
-    /// The windows of a run, walked, in order, as the walk produces them: each workspace holds
-    /// its window as its only file (id 0), its simulation the window's stops, ghosts first.
-    /// The sink takes every one before it returns (the walk waits for room to go on).
-    fn run(&mut self, windows: &mut dyn Iterator<Item = Walked>);
+    /// One window of a run, walked: its workspace holds the window as its only file (id 0),
+    /// its simulation the window's stops, ghosts first. The sink may keep it until the next
+    /// window or [`RunSink::run_end`].
+    fn window(&mut self, walked: Walked);
+    /// The run's last window was handed over.
+    fn run_end(&mut self);
 }
 
 /// [`simulate`] of a workspace whose main file may have streamed runs; the skeleton's stops
@@ -213,8 +215,13 @@ impl<'f> Simulator<'f> {
                 }
                 true
             });
+            for walked in rx {
+                let t = std::time::Instant::now();
+                sink.window(walked);
+                SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
+            }
             let t = std::time::Instant::now();
-            sink.run(&mut rx.into_iter());
+            sink.run_end();
             SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
             walker
                 .join()
