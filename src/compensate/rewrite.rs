@@ -704,34 +704,27 @@ pub fn rewrite_placed(
             || ws.get(keys[k].0).role == crate::motion::workspace::Role::Config
     };
     let mut skips: Vec<Skip> = Vec::new();
-    let report = |skip: Skip, out: &mut Rewrite| match skip {
-        Skip::Relative(i) => {
-            let stop = &sim.stops[i];
-            out.diagnostics.push(ws.diagnostic(
-                Severity::Warning,
-                stop.file,
-                stop.stmt.head,
+    let report = |skip: Skip, out: &mut Rewrite| {
+        let at_stop = |i: usize| (sim.stops[i].file, sim.stops[i].stmt.head);
+        let ((file, span), why) = match skip {
+            Skip::Relative(i) => (
+                at_stop(i),
                 "a relative target after an unknown position cannot be rewritten: left unchanged",
-            ));
-        }
-        Skip::Circle(i) => {
-            let stop = &sim.stops[i];
-            out.diagnostics.push(ws.diagnostic(
-                Severity::Warning,
-                stop.file,
-                stop.stmt.head,
+            ),
+            Skip::Circle(i) => (
+                at_stop(i),
                 "no circle turns by this CA from the compensated start to the compensated end (its start unknown, or start and end together): left unchanged",
-            ));
-        }
-        Skip::NotLiteral(i) => {
-            let origin = sim.stops[i].origin.expect("skipped for its origin");
-            out.diagnostics.push(ws.diagnostic(
-                Severity::Warning,
-                origin.file,
-                origin.agg.span,
-                "this position's numbers are not plain literals: left unchanged",
-            ));
-        }
+            ),
+            Skip::NotLiteral(i) => {
+                let origin = sim.stops[i].origin.expect("skipped for its origin");
+                (
+                    (origin.file, origin.agg.span),
+                    "this position's numbers are not plain literals: left unchanged",
+                )
+            }
+        };
+        out.diagnostics
+            .push(ws.diagnostic(Severity::Warning, file, span, why));
     };
     // Fast path, in parallel: the edits straight into one list per file.
     // (Keys are sorted by file: a chunk's edits are runs of one file each.)

@@ -631,22 +631,9 @@ fn tcp_error(
 /// (typically A4 or A6 at exactly 0°) is held at 0° on its side — the rest of the pose
 /// solved in the least-squares sense — rather than rejecting the target. Returns the axes
 /// held so.
+/// The first solve is warm-started along `chain` where one is given (see [`solve::Chain`]).
 #[allow(clippy::too_many_arguments)]
 fn solve_target(
-    model: &Model,
-    tool: &Frame,
-    target: &Target,
-    directions: &[Direction; 6],
-    start: [f64; 6],
-    hold: [bool; 6],
-    method: Method,
-) -> Result<(solve::Solution, [bool; 6]), TargetError> {
-    solve_target_in(model, tool, target, directions, start, hold, method, None)
-}
-
-/// [`solve_target`], the first solve warm-started along `chain` where one is given.
-#[allow(clippy::too_many_arguments)]
-fn solve_target_in(
     model: &Model,
     tool: &Frame,
     target: &Target,
@@ -764,7 +751,7 @@ fn first_pass(
         out.residual = out.before;
         return out;
     }
-    let solved = solve_target_in(
+    let solved = solve_target(
         model,
         tool,
         target,
@@ -1097,6 +1084,7 @@ fn resettle(
         first.axes_deg,
         [false; 6],
         method,
+        None,
     ) {
         Ok((sol, turn_held)) => {
             let again = directions_at(&sol.axes_deg);
@@ -1140,7 +1128,9 @@ fn resettle(
                 dirs[i] = state[i];
             }
         }
-        if let Ok((sol, _)) = solve_target(model, tool, target, &dirs, start, oscillating, method) {
+        if let Ok((sol, _)) =
+            solve_target(model, tool, target, &dirs, start, oscillating, method, None)
+        {
             let really = directions_at(&sol.axes_deg);
             candidates.push(Candidate {
                 axes: sol.axes_deg,
@@ -1161,6 +1151,7 @@ fn resettle(
                     sol.axes_deg,
                     oscillating,
                     method,
+                    None,
                 ) {
                     let really_again = directions_at(&again.axes_deg);
                     candidates.push(Candidate {

@@ -211,6 +211,20 @@ pub struct Problem<'a> {
     pub hold: [bool; 6],
 }
 
+impl Problem<'_> {
+    /// The problem for [`nominal::newton`] at the tolerance.
+    fn newton_goal(&self) -> Goal<'_> {
+        Goal {
+            pose: self.goal,
+            tool: self.tool,
+            start: self.start,
+            hold: self.hold,
+            tol_mm: TOL_POSITION_MM,
+            tol_rad: TOL_ROTATION_RAD,
+        }
+    }
+}
+
 /// How the command is found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Method {
@@ -255,17 +269,7 @@ pub fn solve(model: &Model, problem: &Problem, method: Method) -> Result<Solutio
     if method == Method::OneStep && !problem.hold.iter().any(|&h| h) {
         return one_step(&arm, problem);
     }
-    nominal::newton(
-        &arm,
-        &Goal {
-            pose: problem.goal,
-            tool: problem.tool,
-            start: problem.start,
-            hold: problem.hold,
-            tol_mm: TOL_POSITION_MM,
-            tol_rad: TOL_ROTATION_RAD,
-        },
-    )
+    nominal::newton(&arm, &problem.newton_goal())
 }
 
 /// Evaluations a warm start may take before the target is solved afresh.
@@ -355,25 +359,13 @@ pub fn solve_in_chain(
     chain: &mut Chain,
 ) -> Result<Solution, SolveError> {
     let arm = Predicted::new(model, problem.directions);
-    let goal = Goal {
-        pose: problem.goal,
-        tool: problem.tool,
-        start: problem.start,
-        hold: problem.hold,
-        tol_mm: TOL_POSITION_MM,
-        tol_rad: TOL_ROTATION_RAD,
-    };
+    let goal = problem.newton_goal();
     let warm = chain.recent[0].is_some() && !problem.hold.contains(&true);
     if let Some(lu) = chain.jacobian.as_ref().filter(|_| warm) {
-        let e0 = pose::error(&arm.tcp(&problem.start, problem.tool), &problem.goal);
-        if converged(&e0) {
-            return Ok(Solution {
-                axes_deg: problem.start,
-                residual: e0,
-                iterations: 0,
-                initial: e0,
-            });
-        }
+        let e0 = match at_start(&arm, problem) {
+            Ok(there) => return Ok(there),
+            Err(e0) => e0,
+        };
         if let Some(q) = chain.predict(lu, &problem.start, &e0) {
             if let Some(sol) = nominal::quasi_newton(&arm, &goal, q, lu, e0, WARM_EVALUATIONS) {
                 return Ok(sol);
@@ -388,16 +380,26 @@ pub fn solve_in_chain(
     solved
 }
 
-fn one_step(arm: &Predicted, problem: &Problem) -> Result<Solution, SolveError> {
+/// The solution at the start when the start already meets the goal, else the error there.
+fn at_start(arm: &Predicted, problem: &Problem) -> Result<Solution, Vector6<f64>> {
     let e0 = pose::error(&arm.tcp(&problem.start, problem.tool), &problem.goal);
     if converged(&e0) {
-        return Ok(Solution {
+        Ok(Solution {
             axes_deg: problem.start,
             residual: e0,
             iterations: 0,
             initial: e0,
-        });
+        })
+    } else {
+        Err(e0)
     }
+}
+
+fn one_step(arm: &Predicted, problem: &Problem) -> Result<Solution, SolveError> {
+    let e0 = match at_start(arm, problem) {
+        Ok(there) => return Ok(there),
+        Err(e0) => e0,
+    };
     // Equation (3): p_c = p* − (p̂ − p*), applied to the whole pose.
     let command = problem.goal.moved_by(&-e0);
     let q = nominal::local_ik(&arm.model.robot, &command, problem.tool, &problem.start)?;
