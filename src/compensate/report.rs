@@ -39,6 +39,9 @@ pub struct PointReport {
     pub before_um: f64,
     pub residual_um: f64,
     pub residual_mdeg: f64,
+    /// Steps to the tolerance after the nominal command, each one evaluation of the model:
+    /// 0 when the nominal command already met it, usually 1 or 2, whether the target was
+    /// predicted from the ones before it along the path (`solve::Chain`) or linearised afresh.
     pub iterations: u32,
     /// `+`, `-` or `0` (unknown) per axis on arrival, compensated motion.
     pub directions: String,
