@@ -29,7 +29,7 @@ use nalgebra::{Matrix6, Vector6};
 
 use std::ops::AddAssign;
 
-use crate::model::chain::{axis_lines, ChainFrames, JointTrig};
+use crate::model::chain::{self, axis_lines, ChainFrames, JointTrig, LinkBlocks};
 use crate::model::{AxisSlopes, AxisState, ChainErrors, Direction, Model, Slot};
 use crate::motion::frame::{self as pose, Frame};
 use crate::motion::lu6::Lu6;
@@ -51,6 +51,8 @@ pub struct Predicted<'a> {
     trig: RefCell<JointTrig>,
     /// The merged tables' cells of the last lookup, likewise (see `Grid::locate_near`).
     cells: Cell<[usize; 6]>,
+    /// The chain's fixed part, when only the angle slots vary (see [`LinkBlocks`]).
+    blocks: Option<&'a LinkBlocks>,
 }
 
 impl<'a> Predicted<'a> {
@@ -61,6 +63,7 @@ impl<'a> Predicted<'a> {
             fixed: model.fixed_errors_at_time_zero(),
             trig: RefCell::default(),
             cells: Cell::new([0; 6]),
+            blocks: model.link_blocks(),
         }
     }
 
@@ -148,6 +151,16 @@ fn complete_jacobian(
 
 impl Arm for Predicted<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
+        if let Some(blocks) = self.blocks {
+            // Only the angle slots vary: six sums instead of the whole error vector.
+            let mut cells = self.cells.get();
+            let angles = self.model.angle_errors_near(&self.state(axes), &mut cells);
+            self.cells.set(cells);
+            let robot = &self.model.robot;
+            let mut trig = self.trig.borrow_mut();
+            let (r6, p6) = chain::a6_frame_blocks(robot, axes, blocks, &angles, &mut trig);
+            return nominal::tcp_at_a6(&r6, &p6, &self.tool(tool, self.fixed));
+        }
         let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);
         nominal::tcp_of(

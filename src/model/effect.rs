@@ -170,6 +170,23 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn varies_with_axes(&self) -> bool {
         true
     }
+    /// Whether the contribution, when it varies, goes to the axes' angle slots alone (maps,
+    /// backlash, crosstalk, compliance): a solver then keeps the rest of the chain fixed per
+    /// model ([`LinkBlocks`](super::chain::LinkBlocks)) and sums six angles per evaluation.
+    /// `false` unless an effect says so, which is always right, only slower.
+    fn adds_angles_only(&self) -> bool {
+        false
+    }
+    /// [`Self::add_to`] into the angle slots alone (`angles[n]`: axis n+1's, rad), for an
+    /// effect that [`adds_angles_only`](Self::adds_angles_only). The default goes through a
+    /// whole error vector.
+    fn add_angles(&self, state: &AxisState, ctx: &Context, angles: &mut [f64; 6]) {
+        let mut errors = ChainErrors::default();
+        self.add_to(state, ctx, &mut errors);
+        for (n, a) in angles.iter_mut().enumerate() {
+            *a += errors.get(Slot::Angle { axis: n as u8 + 1 });
+        }
+    }
     /// `Some((n, table, factor))` when the whole contribution is `factor · table(A_n)` degrees
     /// added to axis n's own angle slot (`map`, `backlash`): a model merges such tables of one
     /// axis that share a grid into one lookup ([`Merged`](super::merged::Merged)).

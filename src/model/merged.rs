@@ -8,6 +8,7 @@
 
 use std::f64::consts::PI;
 
+use super::chain::LinkBlocks;
 use super::effect::{AxisSlopes, ChainErrors, Slot};
 use super::effects::ModelEffect;
 use super::state::Direction;
@@ -46,6 +47,9 @@ pub struct Merged {
     pub rest: Vec<usize>,
     /// The sum of the effects that vary neither with the axes nor the directions, at time 0.
     pub fixed_at_time_zero: ChainErrors,
+    /// The fixed part of the chain at time 0 when every varying effect moves the angle slots
+    /// alone (see [`super::Effect::adds_angles_only`]); `None` otherwise.
+    pub link_blocks: Option<LinkBlocks>,
 }
 
 fn direction_index(d: Direction) -> usize {
@@ -122,11 +126,36 @@ impl Merged {
         errors: &mut ChainErrors,
         cells: &mut [usize; 6],
     ) {
+        self.each_near(axes_deg, directions, cells, |n, value| {
+            errors.0[Slot::Angle { axis: n as u8 + 1 }.index()] += value
+        });
+    }
+
+    /// [`Self::add_near`] into the angle slots alone (`angles[n]`: axis n+1's, rad).
+    pub fn add_angles_near(
+        &self,
+        axes_deg: &[f64; 6],
+        directions: &[Direction; 6],
+        angles: &mut [f64; 6],
+        cells: &mut [usize; 6],
+    ) {
+        self.each_near(axes_deg, directions, cells, |n, value| angles[n] += value);
+    }
+
+    /// Each merged axis's table value at `axes_deg`, as `(n, rad)` for axis n+1.
+    #[inline(always)]
+    fn each_near(
+        &self,
+        axes_deg: &[f64; 6],
+        directions: &[Direction; 6],
+        cells: &mut [usize; 6],
+        mut add: impl FnMut(usize, f64),
+    ) {
         for sum in &self.axes {
             let n = sum.axis as usize - 1;
             let table = &sum.tables[direction_index(directions[n])];
             let cell = table.grid.locate_near(axes_deg[n], &mut cells[n]);
-            errors.add(Slot::Angle { axis: sum.axis }, table.value_in(&cell));
+            add(n, table.value_in(&cell));
         }
     }
 

@@ -128,6 +128,9 @@ impl Model {
         self.merged.get_or_init(|| {
             let mut merged = Merged::new(&self.effects, &self.varying);
             merged.fixed_at_time_zero = self.sum_fixed_errors(&AxisState::default());
+            let angles_only = merged.rest.iter().all(|&i| self.effects[i].adds_angles_only());
+            merged.link_blocks = angles_only
+                .then(|| chain::LinkBlocks::new(&self.robot, &merged.fixed_at_time_zero));
             merged
         })
     }
@@ -153,6 +156,27 @@ impl Model {
         for &i in &merged.rest {
             self.effects[i].add_to(state, &ctx, errors);
         }
+    }
+
+    /// The fixed part of the chain when the varying effects move the angle slots alone (see
+    /// [`chain::LinkBlocks`]), with [`Self::angle_errors_near`] the rest.
+    pub fn link_blocks(&self) -> Option<&chain::LinkBlocks> {
+        self.merged().link_blocks.as_ref()
+    }
+
+    /// The angle slots of `chain_errors(state)` at time 0 (`angles[n]`: axis n+1's, rad), for
+    /// a model with [`Self::link_blocks`]: the fixed angles plus the varying effects', summed
+    /// in the order of [`Self::add_varying_errors_near`], so to the same bits.
+    pub fn angle_errors_near(&self, state: &AxisState, cells: &mut [usize; 6]) -> [f64; 6] {
+        let merged = self.merged();
+        let fixed = &merged.fixed_at_time_zero;
+        let mut angles = std::array::from_fn(|n| fixed.get(Slot::Angle { axis: n as u8 + 1 }));
+        merged.add_angles_near(&state.axes_deg, &state.directions, &mut angles, cells);
+        let ctx = self.context();
+        for &i in &merged.rest {
+            self.effects[i].add_angles(state, &ctx, &mut angles);
+        }
+        angles
     }
 
     /// [`Self::add_varying_errors`] with how those errors change with the axes (see

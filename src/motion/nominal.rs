@@ -12,7 +12,7 @@
 //! step after each linearisation. With held axes the solve is weighted least squares over the
 //! free axes: position in mm, orientation in rad × [`LEVER_MM`].
 
-use nalgebra::{Matrix6, Vector3, Vector6};
+use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
 
 use super::frame::{self, Frame};
 use super::lu6::Lu6;
@@ -138,6 +138,11 @@ pub fn tcp_of(
     trig: &mut JointTrig,
 ) -> Frame {
     let (r6, p6) = chain::a6_frame_near(robot, axes, errors, trig);
+    tcp_at_a6(&r6, &p6, tool)
+}
+
+/// The TCP carried by the A6 frame `(r6, p6)`.
+pub fn tcp_at_a6(r6: &Matrix3<f64>, p6: &Vector3<f64>, tool: &Frame) -> Frame {
     let rf = r6 * a6_to_flange();
     Frame {
         rotation: rf * tool.rotation,

@@ -293,3 +293,37 @@ fn warm_starts_along_a_path_meet_the_tolerance() {
     }
     assert!(single * 10 >= n * 7, "{single} of {n} in one evaluation");
 }
+
+/// The solver's fast path (only the angle slots vary: the chain's fixed part multiplied out
+/// once per model, six angles summed per evaluation) predicts the TCP the model's whole error
+/// vector gives (`Model::flange_pose`, every effect summed afresh), for the paper's model; a
+/// model with a tilt effect (which moves tilt slots with the axes) takes the general path.
+#[test]
+fn the_angle_only_fast_path_predicts_the_whole_model() {
+    let tool = tool();
+    let model = handset();
+    assert!(!model.tool_is_target(&tool.position));
+    assert!(model.link_blocks().is_some(), "maps, backlash and crosstalk move angles only");
+    for axes in POSES {
+        for dirs in directions() {
+            let state = AxisState {
+                axes_deg: axes,
+                directions: dirs,
+                time_s: 0.0,
+            };
+            let flange = model.flange_pose(&state);
+            let want = flange.rotation * tool.position + flange.translation.vector;
+            let goal = Frame {
+                rotation: flange.rotation.to_rotation_matrix().into_inner() * tool.rotation,
+                position: want,
+            };
+            let e = solve::predicted_error(&model, &dirs, &axes, &tool, &goal);
+            let (p, r) = frame::norms(&e);
+            assert!(p < 1e-9 && r < 1e-12, "{axes:?} {dirs:?}: {p} mm {r} rad");
+            // And the model's errors are real there: the nominal TCP is far off.
+            let nominal = Nominal(&model.robot).tcp(&axes, &tool);
+            assert!((nominal.position - want).norm() > 0.05);
+        }
+    }
+    assert!(smooth_model().link_blocks().is_none(), "a tilt effect moves tilt slots");
+}

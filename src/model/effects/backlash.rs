@@ -60,6 +60,9 @@ impl Effect for Backlash {
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
         self.0.jacobian(state, self.direction(state), out);
     }
+    fn adds_angles_only(&self) -> bool {
+        true
+    }
     fn own_axis_table(&self) -> Option<(u8, &Table1, AxisFactor)> {
         Some((self.0.axis, &self.0.table, AxisFactor::Direction))
     }

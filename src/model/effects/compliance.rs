@@ -121,6 +121,12 @@ impl Effect for Compliance {
             self.compliance[0] * self.gain(state, ctx),
         );
     }
+    fn adds_angles_only(&self) -> bool {
+        true
+    }
+    fn add_angles(&self, state: &AxisState, ctx: &Context, angles: &mut [f64; 6]) {
+        angles[self.axis as usize - 1] += self.compliance[0] * self.gain(state, ctx);
+    }
     fn jacobian(&self, state: &AxisState, ctx: &Context, out: &mut Vec<Partial>) {
         out.push(Partial {
             param: 0,

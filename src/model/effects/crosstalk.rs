@@ -114,8 +114,13 @@ impl Effect for Crosstalk {
         &mut self.table.values
     }
     fn add_to(&self, state: &AxisState, _ctx: &Context, errors: &mut ChainErrors) {
-        let (value, _, _) = self.lookup(state);
-        errors.add(Slot::Angle { axis: self.to }, value.to_radians());
+        errors.add(Slot::Angle { axis: self.to }, self.lookup(state).0.to_radians());
+    }
+    fn adds_angles_only(&self) -> bool {
+        true
+    }
+    fn add_angles(&self, state: &AxisState, _ctx: &Context, angles: &mut [f64; 6]) {
+        angles[self.to as usize - 1] += self.lookup(state).0.to_radians();
     }
     fn add_with_axis_slopes(
         &self,
