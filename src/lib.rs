@@ -7,6 +7,7 @@
 //! → compensate → krl edits → bytes`, and `csv → identify → model`, `model + csv → report`.
 //! `krl` knows nothing of kinematics; `kinematics` knows nothing of KRL.
 
+pub mod atomic_file;
 pub mod calibration;
 pub mod cli;
 pub mod compare;

@@ -129,29 +129,14 @@ impl Calibration {
             .map_err(|e| CalError::invalid(path, "", "serialisable data", e.to_string()))
     }
 
-    /// Writes the file atomically: a temporary file beside `path`, then a rename.
+    /// Writes the file atomically (see [`crate::atomic_file`]).
     pub fn save_atomic(&self, path: &Path) -> Result<(), CalError> {
         let json = self.to_json(path)?;
         let io = |source| CalError::Io {
             path: path.to_path_buf(),
             source,
         };
-        let dir = path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-        std::io::Write::write_all(&mut tmp, json.as_bytes()).map_err(io)?;
-        // A temporary file is private (0600); the calibration is an ordinary file.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            tmp.as_file()
-                .set_permissions(std::fs::Permissions::from_mode(0o644))
-                .map_err(io)?;
-        }
-        tmp.persist(path).map_err(|e| io(e.error))?;
-        Ok(())
+        crate::atomic_file::write(path, json.as_bytes()).map_err(io)
     }
 }
 

@@ -324,27 +324,12 @@ fn finish(result: std::io::Result<()>, out: &Path) -> Exit {
     }
 }
 
-/// Writes `bytes` to `path` atomically (a temporary file beside it, then a rename), or to
-/// stdout for `-`.
+/// Writes `bytes` to `path` atomically (see [`crate::atomic_file`]), or to stdout for `-`.
 pub(crate) fn write_output(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     if path.as_os_str() == "-" {
         let mut stdout = std::io::stdout().lock();
         stdout.write_all(bytes)?;
         return stdout.flush();
     }
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
-    tmp.write_all(bytes)?;
-    // A temporary file is private (0600); the output is an ordinary file.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
-    }
-    tmp.persist(path).map_err(|e| e.error)?;
-    Ok(())
+    crate::atomic_file::write(path, bytes)
 }

@@ -109,14 +109,7 @@ pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
 pub fn write_atomic_pieces(files: &[(PathBuf, Vec<&[u8]>)]) -> std::io::Result<()> {
     let mut staged = Vec::with_capacity(files.len());
     for (path, pieces) in files {
-        let dir = path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        std::fs::create_dir_all(dir)?;
-        let mut tmp = tempfile::Builder::new()
-            .prefix(".robopost-")
-            .tempfile_in(dir)?;
+        let mut tmp = crate::atomic_file::temp_beside(path)?;
         // No fsync: like `cp`, durability against power loss is the file system's business;
         // the rename still guarantees that a reader sees the old file or the whole new one.
         {
@@ -129,7 +122,7 @@ pub fn write_atomic_pieces(files: &[(PathBuf, Vec<&[u8]>)]) -> std::io::Result<(
         staged.push((tmp, path));
     }
     for (tmp, path) in staged {
-        tmp.persist(path).map_err(|e| e.error)?;
+        crate::atomic_file::persist(tmp, path)?;
     }
     Ok(())
 }

@@ -43,15 +43,6 @@ pub fn write(dir: &Path, input: &ReportInput) -> std::io::Result<PathBuf> {
     let text = html(input);
     std::fs::create_dir_all(dir)?;
     let path = dir.join("index.html");
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
-    // A temporary file is private (0600); a report is for reading, like any written file.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
-    }
-    std::io::Write::write_all(&mut tmp, text.as_bytes())?;
-    tmp.persist(&path).map_err(|e| e.error)?;
+    crate::atomic_file::write(&path, text.as_bytes())?;
     Ok(path)
 }
