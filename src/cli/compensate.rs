@@ -168,7 +168,7 @@ pub fn run(args: Args) -> Exit {
         }
         b
     } else {
-        match std::fs::read(&args.input) {
+        match files::read_program(&args.input) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("error: {}: {e}", args.input.display());
