@@ -186,13 +186,18 @@ impl Arm for Predicted<'_> {
         let mut slopes = AxisSlopes::default();
         self.add_errors_with_slopes(axes, &mut errors, &mut slopes);
         let model_tool = self.tool(tool, &errors);
-        // The lines in place, not moved out of a (TCP, lines) pair.
-        let lines = axis_lines(
-            &self.model.robot,
-            axes,
-            &errors,
-            &mut self.trig.borrow_mut(),
-        );
+        // The lines in place, not moved out of a (TCP, lines) pair; by the fast path's chain
+        // where there is one, so that a linearisation's TCP is the one `tcp` gives, bit for bit.
+        let robot = &self.model.robot;
+        let mut trig = self.trig.borrow_mut();
+        let lines = match self.blocks {
+            Some(blocks) => {
+                let angles = std::array::from_fn(|n| errors.get(Slot::Angle { axis: n as u8 + 1 }));
+                chain::axis_lines_blocks(robot, axes, blocks, &angles, &mut trig)
+            }
+            None => axis_lines(robot, axes, &errors, &mut trig),
+        };
+        drop(trig);
         out.tcp = nominal::tcp_on(&lines, &model_tool);
         out.jacobian = nominal::jacobian_of(&lines, &out.tcp);
         complete_jacobian(

@@ -235,6 +235,44 @@ pub fn a6_frame_blocks(
     angles: &[f64; 6],
     trig: &mut JointTrig,
 ) -> (Matrix3<f64>, Vector3<f64>) {
+    walk_blocks(robot, axes_deg, blocks, angles, trig, |_, _, _| {})
+}
+
+/// [`axis_lines`] of a chain given as [`LinkBlocks`] and angle slots (see
+/// [`a6_frame_blocks`], whose A6 frame it ends on, to the bit).
+pub fn axis_lines_blocks(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    blocks: &LinkBlocks,
+    angles: &[f64; 6],
+    trig: &mut JointTrig,
+) -> AxisLines {
+    let mut joint_axis = [Vector3::zeros(); 6];
+    let mut origin = [Vector3::zeros(); 6];
+    let (a6_rotation, a6_origin) =
+        walk_blocks(robot, axes_deg, blocks, angles, trig, |n, p, axis| {
+            origin[n] = *p;
+            joint_axis[n] = axis;
+        });
+    AxisLines {
+        a6_rotation,
+        a6_origin,
+        joint_axis,
+        origin,
+    }
+}
+
+/// Runs the chain of [`a6_frame_blocks`]; `visit(n, centre, axis)` sees each axis's centre
+/// and the world direction of its positive KUKA rotation (a no-op compiles away).
+#[inline(always)]
+fn walk_blocks(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    blocks: &LinkBlocks,
+    angles: &[f64; 6],
+    trig: &mut JointTrig,
+    mut visit: impl FnMut(usize, &Vector3<f64>, Vector3<f64>),
+) -> (Matrix3<f64>, Vector3<f64>) {
     let mut r = Matrix3::identity();
     let mut p = Vector3::zeros();
     for n in 0..6 {
@@ -242,11 +280,13 @@ pub fn a6_frame_blocks(
         if blocks.tilted[n] {
             r *= blocks.tilt[n];
         }
+        let axis = AXIS_COORD[n];
         let sense = robot.senses[n];
+        visit(n, &p, sense * r.column(axis));
         let theta =
             sense * (axes_deg[n].to_radians() + angles[n]) + robot.offsets_deg[n].to_radians();
         let (sin, cos) = trig.sin_cos(n, theta);
-        rotate_sc(&mut r, AXIS_COORD[n], sin, cos);
+        rotate_sc(&mut r, axis, sin, cos);
     }
     (r, p)
 }
@@ -522,8 +562,19 @@ mod tests {
             let (r0, p0) = a6_frame(&robot, &axes, &errors);
             let mut trig = JointTrig::default();
             let (r1, p1) = a6_frame_blocks(&robot, &axes, &blocks, &angles, &mut trig);
-            assert!((r1 - r0).amax() < 8.0 * f64::EPSILON, "{}", (r1 - r0).amax());
+            assert!(
+                (r1 - r0).amax() < 8.0 * f64::EPSILON,
+                "{}",
+                (r1 - r0).amax()
+            );
             assert!((p1 - p0).amax() < 4e-12, "{}", (p1 - p0).amax());
+            let lines = axis_lines_blocks(&robot, &axes, &blocks, &angles, &mut trig);
+            assert_eq!((lines.a6_rotation, lines.a6_origin), (r1, p1));
+            let whole = axis_lines(&robot, &axes, &errors, &mut JointTrig::default());
+            for n in 0..6 {
+                assert!((lines.origin[n] - whole.origin[n]).amax() < 4e-12);
+                assert!((lines.joint_axis[n] - whole.joint_axis[n]).amax() < 8.0 * f64::EPSILON);
+            }
             // The angle slots do matter: 1 mrad more on A2 moves the A6 origin.
             let mut more = angles;
             more[1] += 1e-3;

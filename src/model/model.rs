@@ -128,7 +128,10 @@ impl Model {
         self.merged.get_or_init(|| {
             let mut merged = Merged::new(&self.effects, &self.varying);
             merged.fixed_at_time_zero = self.sum_fixed_errors(&AxisState::default());
-            let angles_only = merged.rest.iter().all(|&i| self.effects[i].adds_angles_only());
+            let angles_only = merged
+                .rest
+                .iter()
+                .all(|&i| self.effects[i].adds_angles_only());
             merged.link_blocks = angles_only
                 .then(|| chain::LinkBlocks::new(&self.robot, &merged.fixed_at_time_zero));
             merged

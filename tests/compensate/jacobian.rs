@@ -303,7 +303,10 @@ fn the_angle_only_fast_path_predicts_the_whole_model() {
     let tool = tool();
     let model = handset();
     assert!(!model.tool_is_target(&tool.position));
-    assert!(model.link_blocks().is_some(), "maps, backlash and crosstalk move angles only");
+    assert!(
+        model.link_blocks().is_some(),
+        "maps, backlash and crosstalk move angles only"
+    );
     for axes in POSES {
         for dirs in directions() {
             let state = AxisState {
@@ -325,5 +328,8 @@ fn the_angle_only_fast_path_predicts_the_whole_model() {
             assert!((nominal.position - want).norm() > 0.05);
         }
     }
-    assert!(smooth_model().link_blocks().is_none(), "a tilt effect moves tilt slots");
+    assert!(
+        smooth_model().link_blocks().is_none(),
+        "a tilt effect moves tilt slots"
+    );
 }

@@ -114,7 +114,10 @@ impl Effect for Crosstalk {
         &mut self.table.values
     }
     fn add_to(&self, state: &AxisState, _ctx: &Context, errors: &mut ChainErrors) {
-        errors.add(Slot::Angle { axis: self.to }, self.lookup(state).0.to_radians());
+        errors.add(
+            Slot::Angle { axis: self.to },
+            self.lookup(state).0.to_radians(),
+        );
     }
     fn adds_angles_only(&self) -> bool {
         true
