@@ -6,7 +6,7 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
-use crate::kinematics::trig::round;
+use crate::kinematics::trig::{atan2, round};
 use crate::kinematics::{abc_to_matrix, matrix_to_abc};
 
 /// A rigid frame: `x ↦ rotation · x + position`.
@@ -168,7 +168,7 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         let axis = b.column(i) / b[(i, i)].max(1e-300).sqrt();
         return axis.normalize() * std::f64::consts::PI;
     }
-    v * (s.atan2(c) / s)
+    v * (atan2(s, c) / s)
 }
 
 /// Rodrigues' formula: the rotation by `w` (rad).
