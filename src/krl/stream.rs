@@ -14,6 +14,7 @@ use super::motion::MotionKind;
 use super::nodes::Nodes;
 use super::span::Span;
 use super::stmt::{Line, StmtKind};
+use super::trivia::{split_line, RawLine};
 
 /// How runs are found and cut.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -184,11 +185,52 @@ impl Stretch {
     }
 }
 
-/// [`looks_plain`] of every line of `src[range]` (lines cut as `split_line` cuts them, from
-/// `range.start`, a line start), by line: worked in parallel over pieces of about `piece`
-/// bytes cut at line starts, so that loading a CAM program does not scan its millions of
-/// lines on one core.
-pub(crate) fn plain_lines(src: &[u8], range: std::ops::Range<usize>, piece: usize) -> Vec<bool> {
+/// One line as `split_line` cuts it, in 32-bit offsets (a streamed file is under 4 GiB),
+/// with its [`looks_plain`] verdict: what [`plain_lines`] hands the sequential pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct LookedLine {
+    code_start: u32,
+    code_end: u32,
+    /// The comment's span; empty for none (a comment holds at least its `;`).
+    comment: (u32, u32),
+    newline: u32,
+    pub plain: bool,
+}
+
+impl LookedLine {
+    fn new(src: &[u8], l: &RawLine) -> LookedLine {
+        let (c0, c1) = l.comment.unwrap_or((0, 0));
+        LookedLine {
+            code_start: l.code_start as u32,
+            code_end: l.code_end as u32,
+            comment: (c0 as u32, c1 as u32),
+            newline: l.newline as u32,
+            plain: l.code_start < l.code_end && looks_plain(&src[l.code_start..l.code_end]),
+        }
+    }
+
+    /// The line as `split_line` cuts it from a file of `len` bytes.
+    pub fn raw(&self, len: usize) -> RawLine {
+        let (c0, c1) = self.comment;
+        RawLine {
+            code_start: self.code_start as usize,
+            code_end: self.code_end as usize,
+            comment: (c0 < c1).then_some((c0 as usize, c1 as usize)),
+            newline: self.newline as usize,
+            next: (self.newline as usize + 1).min(len),
+        }
+    }
+}
+
+/// Every line of `src[range]` cut (as `split_line` cuts them, from `range.start`, a line
+/// start) and looked at ([`looks_plain`]), in order, piece by piece: worked in parallel over
+/// pieces of about `piece` bytes cut at line starts, so that loading a CAM program does not
+/// cut and scan its millions of lines on one core. `src` is under 4 GiB.
+pub(crate) fn plain_lines(
+    src: &[u8],
+    range: std::ops::Range<usize>,
+    piece: usize,
+) -> Vec<Vec<LookedLine>> {
     use rayon::prelude::*;
     let piece = piece.max(1);
     // Piece starts: the line start at or after each piece's length.
@@ -202,20 +244,19 @@ pub(crate) fn plain_lines(src: &[u8], range: std::ops::Range<usize>, piece: usiz
         at = *starts.last().expect("pushed") + piece;
     }
     starts.push(range.end);
-    let pieces: Vec<Vec<bool>> = starts
+    starts
         .par_windows(2)
         .map(|w| {
             let (mut pos, end) = (w[0], w[1]);
             let mut out = Vec::with_capacity((end - pos) / 32 + 1);
             while pos < end {
-                let l = super::trivia::split_line(src, pos);
-                out.push(l.code_start < l.code_end && looks_plain(&src[l.code_start..l.code_end]));
+                let l = split_line(src, pos);
+                out.push(LookedLine::new(src, &l));
                 pos = l.next.max(pos + 1);
             }
             out
         })
-        .collect();
-    pieces.concat()
+        .collect()
 }
 
 /// A fast look at a line of code: `true` only for the shapes CAM systems write by the million
@@ -436,26 +477,31 @@ mod tests {
         let text = "\u{feff}DEF p( )\r\nLIN {X 1,Y 2} C_DIS\r\n\r\n  ; note\r\nLIN {X 3, Y 4}\n\
                     $VEL.CP = 0.1 ; fast\r\nMSG(\"a;b\")\r\nLIN {X 5}\r\n\n\nWAIT SEC 1\r\nEND";
         let src = text.as_bytes();
-        let mut want = Vec::new();
+        let (mut want, mut cuts) = (Vec::new(), Vec::new());
         let mut pos = 0;
         while pos < src.len() {
-            let l = crate::krl::trivia::split_line(src, pos);
+            let l = split_line(src, pos);
             want.push(l.code_start < l.code_end && looks_plain(&src[l.code_start..l.code_end]));
+            cuts.push(l);
             pos = l.next.max(pos + 1);
         }
         assert_eq!(want.iter().filter(|&&p| p).count(), 5, "{want:?}");
+        assert_eq!(cuts.iter().filter(|l| l.comment.is_some()).count(), 2);
+        let flat = |pieces: &[Vec<LookedLine>]| pieces.concat();
+        let verdicts = |lines: &[LookedLine]| lines.iter().map(|l| l.plain).collect::<Vec<_>>();
+        let cut = |lines: &[LookedLine]| lines.iter().map(|l| l.raw(src.len())).collect::<Vec<_>>();
         for piece in [1, 2, 7, 16, 33, 64, 1 << 20] {
-            assert_eq!(
-                plain_lines(src, 0..src.len(), piece),
-                want,
-                "pieces of {piece}"
-            );
+            let lines = flat(&plain_lines(src, 0..src.len(), piece));
+            assert_eq!(verdicts(&lines), want, "pieces of {piece}");
+            assert_eq!(cut(&lines), cuts, "pieces of {piece}");
         }
         // From a line start inside the text, as a window's parse starts.
         let from = text.find("LIN {X 3").unwrap();
-        let tail = &want[text[..from].matches('\n').count()..];
+        let skip = text[..from].matches('\n').count();
         for piece in [1, 5, 1 << 20] {
-            assert_eq!(plain_lines(src, from..src.len(), piece), tail);
+            let lines = flat(&plain_lines(src, from..src.len(), piece));
+            assert_eq!(verdicts(&lines), want[skip..]);
+            assert_eq!(cut(&lines), cuts[skip..]);
         }
     }
 

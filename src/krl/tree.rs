@@ -192,10 +192,8 @@ fn build_looking(
     let hints = stream
         .filter(|_| range.len() >= parallel_look)
         .map(|_| plain_lines(src, range.clone(), 1 << 20));
-    let looks = |line: u32, code: &[u8]| match &hints {
-        Some(h) => h[(line - first_line) as usize],
-        None => looks_plain(code),
-    };
+    // The parallel pass's lines, taken in step with the loop below.
+    let mut hinted = hints.iter().flatten().flatten();
     // A line of code into the tree (parsed; an unreadable line recorded as a problem).
     let feed = |b: &mut Builder, code: Span, leading: Span, line: u32, fold| {
         let parsed = match stmt::line(cx, kind, &src[code.range()]) {
@@ -245,7 +243,11 @@ fn build_looking(
         }
     };
     while pos < range.end {
-        let l = split_line(src, pos);
+        let hint = hinted.next();
+        let l = match hint {
+            Some(h) => h.raw(src.len()),
+            None => split_line(src, pos),
+        };
         if l.code_start == l.code_end {
             if let Some((c0, c1)) = l.comment {
                 if stretch.is_some() && fold_marker(&src[c0..c1]) {
@@ -258,7 +260,7 @@ fn build_looking(
             let mut plain = false;
             if let Some(opts) = &stream {
                 if b.in_main_body() && folds.current().is_none() {
-                    plain = looks(line, &src[code.range()]) || {
+                    plain = hint.map_or_else(|| looks_plain(&src[code.range()]), |h| h.plain) || {
                         let mark = nodes.borrow().mark();
                         let parsed = stmt::line(cx, kind, &src[code.range()]);
                         let plain =
