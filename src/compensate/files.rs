@@ -138,22 +138,76 @@ pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
 pub fn write_atomic_pieces(files: &[(PathBuf, Vec<&[u8]>)]) -> std::io::Result<()> {
     let mut staged = Vec::with_capacity(files.len());
     for (path, pieces) in files {
-        let mut tmp = crate::atomic_file::temp_beside(path)?;
+        let tmp = crate::atomic_file::temp_beside(path)?;
         // No fsync: like `cp`, durability against power loss is the file system's business;
         // the rename still guarantees that a reader sees the old file or the whole new one.
-        {
-            let mut w = std::io::BufWriter::with_capacity(1 << 20, tmp.as_file_mut());
-            for p in pieces {
-                w.write_all(p)?;
-            }
-            w.flush()?;
-        }
+        write_pieces(tmp.as_file(), pieces)?;
         staged.push((tmp, path));
     }
     for (tmp, path) in staged {
         crate::atomic_file::persist(tmp, path)?;
     }
     Ok(())
+}
+
+/// Files from this size on are written in two halves at once (see [`write_pieces`]).
+const WRITE_IN_HALVES: usize = 8 << 20;
+
+/// Writes `pieces` in order into the empty `file`. A long output is written as two halves at
+/// their offsets, one per thread: the kernel's copying into the page cache is most of the
+/// write (a 67 MB program: 25 ms on one thread).
+fn write_pieces(file: &std::fs::File, pieces: &[&[u8]]) -> std::io::Result<()> {
+    let total: usize = pieces.iter().map(|p| p.len()).sum();
+    let write_from = |mut at: u64, part: &[&[u8]]| -> std::io::Result<()> {
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, Positioned { file, at: &mut at });
+        for p in part {
+            w.write_all(p)?;
+        }
+        w.flush()
+    };
+    if total < WRITE_IN_HALVES || cfg!(not(unix)) {
+        return write_from(0, pieces);
+    }
+    // The first piece that ends past the middle starts the second half.
+    let mut before = 0;
+    let split = pieces
+        .iter()
+        .position(|p| {
+            before += p.len();
+            before > total / 2
+        })
+        .map_or(pieces.len(), |i| i + 1);
+    let offset: usize = pieces[..split].iter().map(|p| p.len()).sum();
+    let (a, b) = rayon::join(
+        || write_from(0, &pieces[..split]),
+        || write_from(offset as u64, &pieces[split..]),
+    );
+    a.and(b)
+}
+
+/// A file written from offset `at` on (positioned writes: two may fill one file at once).
+struct Positioned<'a> {
+    file: &'a std::fs::File,
+    at: &'a mut u64,
+}
+
+impl Write for Positioned<'_> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        #[cfg(unix)]
+        let n = std::os::unix::fs::FileExt::write_at(self.file, buf, *self.at)?;
+        #[cfg(not(unix))]
+        let n = {
+            use std::io::Seek;
+            let mut f = self.file;
+            f.seek(std::io::SeekFrom::Start(*self.at))?;
+            f.write(buf)?
+        };
+        *self.at += n as u64;
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
 }
 
 /// The files of a compensated program with their output paths.
@@ -190,5 +244,29 @@ mod tests {
             assert!(read_program(&path).unwrap() == bytes, "{len} bytes");
         }
         assert!(read_program(&dir.path().join("missing.src")).is_err());
+    }
+
+    /// A long output written in two halves at once and a short one written plainly hold the
+    /// pieces in order (pieces of uneven sizes, empty ones, one longer than half the total).
+    #[test]
+    fn write_pieces_puts_every_piece_in_place() {
+        let dir = tempfile::tempdir().unwrap();
+        let big: Vec<u8> = (0..WRITE_IN_HALVES + 999)
+            .map(|i| (i % 251) as u8)
+            .collect();
+        let small: Vec<Vec<u8>> = (0..3000)
+            .map(|i| vec![(i % 256) as u8; (i * 37) % 5000])
+            .collect();
+        let mut cases: Vec<Vec<&[u8]>> = vec![small.iter().map(|p| p.as_slice()).collect()];
+        cases.push(cases[0].iter().copied().chain([big.as_slice()]).collect());
+        cases.push([big.as_slice(), b"", b"tail"].to_vec());
+        cases.push(vec![b"only a little".as_slice()]);
+        for (k, pieces) in cases.iter().enumerate() {
+            let path = dir.path().join(format!("out{k}"));
+            let file = std::fs::File::create(&path).unwrap();
+            write_pieces(&file, pieces).unwrap();
+            drop(file);
+            assert!(std::fs::read(&path).unwrap() == pieces.concat(), "case {k}");
+        }
     }
 }
