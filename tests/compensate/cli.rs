@@ -276,3 +276,46 @@ fn a_compensated_program_is_refused_naming_the_header_line() {
     );
     assert!(!twice.exists(), "nothing written");
 }
+
+/// A long CAM program (streamed in windows) compensated with a pool of one thread gives the
+/// file of the default pool, and does not hang: the windows are taken on the pool's thread
+/// only when another is left for the walker's parsing.
+#[test]
+fn a_streamed_program_on_one_thread_gives_the_same_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = copy_fixture(dir.path(), "cam/pocket_milling.src");
+    let (one, many) = (dir.path().join("one.src"), dir.path().join("many.src"));
+    let mut child = robopost()
+        .env("RAYON_NUM_THREADS", "1")
+        .args([
+            input.to_str().unwrap(),
+            "-c",
+            CAL,
+            "-o",
+            one.to_str().unwrap(),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            panic!("one thread: no end after 60 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    assert_eq!(status.code(), Some(0));
+    let st = main_job(&input, CAL, &many);
+    assert_eq!(st.status.code(), Some(0));
+    let (a, b) = (std::fs::read(&one).unwrap(), std::fs::read(&many).unwrap());
+    assert!(
+        a == b,
+        "one thread and the default pool write different files"
+    );
+    assert!(a != std::fs::read(&input).unwrap(), "compensated");
+}

@@ -432,7 +432,7 @@ impl<'f> Simulator<'f> {
     }
 
     /// Walks the main routine; its streamed runs (if any) go to `sink`.
-    pub(super) fn run(&mut self, sink: Option<&mut dyn RunSink<'f>>) {
+    pub(super) fn run(&mut self, sink: Option<&mut (dyn RunSink<'f> + Send)>) {
         let main = self.ws.main;
         let Some((stmt, _)) = self.src(main).routines().next() else {
             self.out.diagnostics.push(Diagnostic::new(

@@ -61,7 +61,7 @@ pub fn simulate_streaming<'f>(
     ws: &'f Workspace,
     robot: &RobotDescription,
     given: &[GivenFrame],
-    sink: &mut dyn RunSink<'f>,
+    sink: &mut (dyn RunSink<'f> + Send),
 ) -> Simulation<'f> {
     let mut sim = Simulator::new(ws, robot, given);
     sim.run(Some(sink));
@@ -153,7 +153,7 @@ impl<'f> Simulator<'f> {
         file: FileId,
         body: &'f [Stmt],
         scope: &mut Scope<'f>,
-        sink: &mut dyn RunSink<'f>,
+        sink: &mut (dyn RunSink<'f> + Send),
     ) -> Flow {
         let runs = self.src(file).streamed_runs();
         let mut next = 0;
@@ -179,7 +179,7 @@ impl<'f> Simulator<'f> {
     /// self-referential value) to this thread, which hands it to the sink (compensating it on
     /// rayon's pool): the walk, sequential by nature, overlaps the compensation, and only the
     /// windows in flight are held.
-    fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut dyn RunSink<'f>) {
+    fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut (dyn RunSink<'f> + Send)) {
         use rayon::prelude::*;
         use std::sync::atomic::Ordering::Relaxed;
         self.finish_segment();
@@ -215,14 +215,25 @@ impl<'f> Simulator<'f> {
                 }
                 true
             });
-            for walked in rx {
+            let take_windows = move || {
+                for walked in rx {
+                    let t = std::time::Instant::now();
+                    sink.window(walked);
+                    SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
+                }
                 let t = std::time::Instant::now();
-                sink.window(walked);
+                sink.run_end();
                 SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
+            };
+            // Taken on a thread of the pool, each window's `rayon::join` starts where it is
+            // called instead of being handed over and waited for from outside: 1.62 → 1.55 s
+            // (median of 10) on the 1M program. Not with a pool of one thread: waiting for the
+            // walker there would leave no thread for the walker's parsing.
+            if rayon::current_num_threads() >= 2 {
+                rayon::scope(move |_| take_windows());
+            } else {
+                take_windows();
             }
-            let t = std::time::Instant::now();
-            sink.run_end();
-            SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
             walker
                 .join()
                 .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
