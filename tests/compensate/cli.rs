@@ -8,18 +8,22 @@ fn robopost() -> Command {
     Command::new(env!("CARGO_BIN_EXE_robopost"))
 }
 
-/// `robopost IN -c CAL -o OUT`, the main job.
+/// The command of the main job, `robopost IN -c CAL -o OUT`.
+fn main_job_command(input: &Path, cal: &str, out: &Path) -> Command {
+    let mut c = robopost();
+    c.args([
+        input.to_str().unwrap(),
+        "-c",
+        cal,
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    c
+}
+
+/// The main job, run.
 fn main_job(input: &Path, cal: &str, out: &Path) -> std::process::Output {
-    robopost()
-        .args([
-            input.to_str().unwrap(),
-            "-c",
-            cal,
-            "-o",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap()
+    main_job_command(input, cal, out).output().unwrap()
 }
 
 fn copy_fixture(dir: &Path, name: &str) -> PathBuf {
@@ -285,15 +289,8 @@ fn a_streamed_program_on_one_thread_gives_the_same_file() {
     let dir = tempfile::tempdir().unwrap();
     let input = copy_fixture(dir.path(), "cam/pocket_milling.src");
     let (one, many) = (dir.path().join("one.src"), dir.path().join("many.src"));
-    let mut child = robopost()
+    let mut child = main_job_command(&input, CAL, &one)
         .env("RAYON_NUM_THREADS", "1")
-        .args([
-            input.to_str().unwrap(),
-            "-c",
-            CAL,
-            "-o",
-            one.to_str().unwrap(),
-        ])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
