@@ -65,8 +65,9 @@ pub fn read_program(path: &Path) -> std::io::Result<Vec<u8>> {
         use std::io::{Read, Seek};
         use std::os::unix::fs::FileExt;
         let mut file = std::fs::File::open(path)?;
-        let len = file.metadata()?.len();
-        if len >= READ_IN_HALVES && file.metadata()?.is_file() {
+        let meta = file.metadata()?;
+        let len = meta.len();
+        if len >= READ_IN_HALVES && meta.is_file() {
             let mut buf = vec![0u8; len as usize];
             let (a, b) = buf.split_at_mut(len as usize / 2);
             let half = a.len() as u64;
