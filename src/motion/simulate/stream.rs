@@ -176,9 +176,9 @@ impl<'f> Simulator<'f> {
 
     /// Walks run `run` window by window: one thread parses the windows (a few at a time, in
     /// parallel) and walks them in order, handing each walked window (its files and stops, one
-    /// self-referential value) to this thread, which hands it to the sink (compensating it on
-    /// rayon's pool): the walk, sequential by nature, overlaps the compensation, and only the
-    /// windows in flight are held.
+    /// self-referential value) to a thread of rayon's pool (this thread when the pool has but
+    /// one), which hands it to the sink (compensating it on the pool): the walk, sequential by
+    /// nature, overlaps the compensation, and only the windows in flight are held.
     fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut (dyn RunSink<'f> + Send)) {
         use rayon::prelude::*;
         use std::sync::atomic::Ordering::Relaxed;
