@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, RawMember, SourceFile, Span};
 
-use crate::motion::frame::Frame;
+use crate::motion::frame::{kuka_near, Frame};
 use crate::motion::nominal::{Arm, Nominal};
 use crate::motion::value::{self, Declared, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
 use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
@@ -53,10 +53,17 @@ pub struct Placed<'a> {
 }
 
 impl Placed<'_> {
-    fn tcp(&self, i: usize) -> Option<&Frame> {
-        let c = self.commands.get(i.checked_sub(self.from)?)?;
-        Some(&c.tcp)
+    fn command(&self, i: usize) -> Option<&Command> {
+        self.commands.get(i.checked_sub(self.from)?)
     }
+}
+
+/// The TCP a target is commanded to and, where the compensation worked it out, its pose in
+/// the target's base frame before the choice of Euler triple ([`Command::unchosen`]).
+#[derive(Clone, Copy)]
+struct Commanded {
+    tcp: Frame,
+    unchosen: Option<[f64; 6]>,
 }
 
 /// The edits of one target's aggregate: replacements of member values and insertions of
@@ -77,7 +84,7 @@ fn new_values(
     outcomes: &[Outcome],
     stop: &Stop,
     axes: &[f64; 6],
-    command_tcp: &Frame,
+    command: &Commanded,
     original: &[Option<f64>; 6],
     robot: &crate::kinematics::RobotDescription,
 ) -> Option<[f64; 6]> {
@@ -102,28 +109,34 @@ fn new_values(
     let tool = &sim.frames[stop.tool as usize];
     let base = &sim.frames[stop.base as usize];
     let arm = Nominal(robot);
-    let p_c = base.inverse().compose(command_tcp);
+    let in_base = || base.inverse().compose(&command.tcp);
     let near = |k: usize| original[k].unwrap_or(0.0);
     let abc_near = [near(3), near(4), near(5)];
     match stop.rel {
         None => {
-            let p = match stop.origin.and_then(|o| o.prefix) {
-                Some(i) => sim.prefixes[i as usize].inverse().compose(&p_c),
-                None => p_c,
-            };
             let near_abc = [
                 original[3].unwrap_or(stop.programmed[3]),
                 original[4].unwrap_or(stop.programmed[4]),
                 original[5].unwrap_or(stop.programmed[5]),
             ];
-            Some(p.to_kuka_near(&near_abc))
+            Some(match stop.origin.and_then(|o| o.prefix) {
+                Some(i) => sim.prefixes[i as usize]
+                    .inverse()
+                    .compose(&in_base())
+                    .to_kuka_near(&near_abc),
+                None => match &command.unchosen {
+                    Some(u) => kuka_near(u, &near_abc),
+                    None => in_base().to_kuka_near(&near_abc),
+                },
+            })
         }
         Some(Rel::Tool) => {
             let start = base.inverse().compose(&arm.tcp(&prev_cmd?, tool));
-            Some(start.inverse().compose(&p_c).to_kuka_near(&abc_near))
+            Some(start.inverse().compose(&in_base()).to_kuka_near(&abc_near))
         }
         Some(_) => {
             let start = base.inverse().compose(&arm.tcp(&prev_cmd?, tool));
+            let p_c = in_base();
             let rel = Frame {
                 rotation: p_c.rotation * start.rotation.transpose(),
                 position: p_c.position - start.position,
@@ -476,9 +489,13 @@ fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
     if decimals > MAX_DECIMALS {
         return write_plain_long(units, decimals, out);
     }
-    // Sign, 20 integer digits, dot, fraction; the fraction's leading zeros are there already.
-    let mut buf = [b'0'; 40];
-    let mut at = buf.len();
+    // Sign, 20 integer digits, dot, fraction, ending at `END`; the fraction's leading zeros
+    // are there already. The bytes after `END` let a short number be appended as one fixed
+    // block (see `edits::append_range`).
+    const END: usize = 40;
+    const BLOCK: usize = 24;
+    let mut buf = [b'0'; END + BLOCK];
+    let mut at = END;
     let n = units.unsigned_abs();
     let unit = 10u64.pow(decimals as u32);
     let (mut int, mut frac) = (n / unit, n % unit);
@@ -504,7 +521,14 @@ fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
         at -= 1;
         buf[at] = b'-';
     }
-    out.extend_from_slice(&buf[at..]);
+    let (len, n) = (out.len(), END - at);
+    if n <= BLOCK {
+        let block: &[u8; BLOCK] = buf[at..at + BLOCK].try_into().expect("a block's bytes");
+        out.extend_from_slice(block);
+        out.truncate(len + n);
+    } else {
+        out.extend_from_slice(&buf[at..END]);
+    }
 }
 
 /// [`write_plain`] for any number of decimals.
@@ -623,21 +647,31 @@ pub fn rewrite_placed(
         Circle(usize),
     }
     // One target's edits appended to a list: `None` for a target not to be written.
-    let command = |i: usize| match placed.tcp(i) {
-        Some(tcp) => *tcp,
-        None => Nominal(robot).tcp(
-            &outcomes[i].axes_deg,
-            &sim.frames[sim.stops[i].tool as usize],
-        ),
+    let command = |i: usize| match placed.command(i) {
+        Some(c) => Commanded {
+            tcp: c.tcp,
+            unchosen: c.unchosen,
+        },
+        None => Commanded {
+            tcp: Nominal(robot).tcp(
+                &outcomes[i].axes_deg,
+                &sim.frames[sim.stops[i].tool as usize],
+            ),
+            unchosen: None,
+        },
     };
+    let command_tcp = |i: usize| command(i).tcp;
     let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
         let (stop, o) = (&sim.stops[i], &outcomes[i]);
         let origin = stop.origin?;
         if !written(sim, outcomes, i) {
             return None;
         }
-        let command_tcp = match circular_angle(sim, outcomes, &command, robot, i) {
-            Some(Some(pose)) => pose,
+        let commanded = match circular_angle(sim, outcomes, &command_tcp, robot, i) {
+            Some(Some(tcp)) => Commanded {
+                tcp,
+                unchosen: None,
+            },
             Some(None) => return Some(Err(Skip::Circle(i))),
             None => command(i),
         };
@@ -649,7 +683,7 @@ pub fn rewrite_placed(
             outcomes,
             stop,
             &o.axes_deg,
-            &command_tcp,
+            &commanded,
             &original,
             robot,
         ) else {

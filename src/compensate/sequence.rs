@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use super::solve::{self, weighted_norm, Method, Problem, SolveError};
 use crate::kinematics::{status_turn, ArmState};
 use crate::model::{Direction, Model};
-use crate::motion::frame::Frame;
+use crate::motion::frame::{kuka_near, Frame};
 use crate::motion::interpolate::{self, Cartesian, Path};
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 
@@ -317,6 +317,10 @@ pub struct Command {
     /// Its change against the TCP of the nominal command ([`correction`]); zero when the
     /// command is the nominal one.
     pub correction: (f64, f64),
+    /// `tcp` in the target's base frame as [`Frame::to_kuka_unchosen`] gives it, when the
+    /// re-check worked it out (a Cartesian target it did not re-solve): the rewrite chooses
+    /// its Euler triple from this instead of converting the matrix again.
+    pub unchosen: Option<[f64; 6]>,
 }
 
 /// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
@@ -402,9 +406,14 @@ pub struct FirstPasses {
     /// Signs of the first-pass arrival motions; those of the first [`LOOK_BACK`] targets
     /// depend on the history's commands and are left to [`settle`].
     rates: Vec<Signs>,
-    /// The unrounded TCP of every first-pass command.
-    tcps: Vec<Frame>,
+    /// The unrounded TCP of every first-pass command, and its pose in the base frame before
+    /// the choice of Euler triple (see [`Command::unchosen`]).
+    tcps: Vec<Placing>,
 }
+
+/// A command's unrounded TCP and, for a Cartesian target, its [`Frame::to_kuka_unchosen`]
+/// in the target's base frame.
+type Placing = (Frame, Option<[f64; 6]>);
 
 impl FirstPasses {
     /// The nominal directions after the segment (the next segment's `nominal_start`).
@@ -502,32 +511,39 @@ pub fn first_passes(
     // (kept for the rewrite) and, for a Cartesian arrival, its Jacobian.
     let cmd = |j: usize| outcomes[j].axes_deg;
     let n = targets.len();
-    let chunk = |c: usize| -> Vec<(Signs, Frame)> {
+    let chunk = |c: usize| -> Vec<(Signs, Placing)> {
         let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
         let from = a.saturating_sub(2);
-        let forward: Vec<(Frame, Option<ArmState>)> = (a..b)
-            .map(|k| ctx.forward(k, &outcomes[k].axes_deg))
+        let mut forward: Vec<(Placing, Option<ArmState>)> = (a..b)
+            .map(|k| {
+                let (tcp, arm) = ctx.forward(k, &outcomes[k].axes_deg);
+                ((tcp, None), arm)
+            })
             .collect();
         let tcps: Vec<Frame> = (from..(b + 1).min(n))
-            .map(|k| match k.checked_sub(a).and_then(|i| forward.get(i)) {
-                Some((raw, _)) => ctx.written(k, &outcomes[k].axes_deg, || *raw),
+            .map(|k| match k.checked_sub(a).and_then(|i| forward.get_mut(i)) {
+                Some(((raw, unchosen), _)) => {
+                    let (written, u) = ctx.written_keeping(k, &outcomes[k].axes_deg, || *raw);
+                    *unchosen = u;
+                    written
+                }
                 None => ctx.tcp(k, &outcomes[k].axes_deg),
             })
             .collect();
         (a..b)
             .zip(forward)
-            .map(|(k, (raw, jacobian))| {
+            .map(|(k, (placing, jacobian))| {
                 if k < LOOK_BACK {
-                    return (None, raw);
+                    return (None, placing);
                 }
                 let cache = Some((from, &tcps[..]));
                 let rate = ctx.rate(k, &outcomes[k].axes_deg, &cmd, cache, jacobian.as_ref());
-                (signs(rate), raw)
+                (signs(rate), placing)
             })
             .collect()
     };
     let chunks = n.div_ceil(RATE_CHUNK);
-    let (rates, tcps): (Vec<Signs>, Vec<Frame>) = if options.parallel {
+    let (rates, tcps): (Vec<Signs>, Vec<Placing>) = if options.parallel {
         (0..chunks).into_par_iter().flat_map_iter(chunk).unzip()
     } else {
         (0..chunks).flat_map(chunk).unzip()
@@ -580,21 +596,25 @@ pub fn settle(
     // The nominal command's TCP is the goal: the walk solved the command for it (an axis
     // target's goal is its nominal TCP).
     let arm = Nominal(&model.robot);
-    let command = |(i, tcp): (usize, Frame)| {
+    let command = |(i, (tcp, unchosen)): (usize, Placing)| {
         let (k, t) = (h + i, &targets[i]);
         let o = &outcomes[k];
         let tool = ctx.tool(k);
-        let tcp = if resolved[k] {
-            arm.tcp(&o.axes_deg, tool)
+        let (tcp, unchosen) = if resolved[k] {
+            (arm.tcp(&o.axes_deg, tool), None)
         } else {
-            tcp
+            (tcp, unchosen)
         };
         let correction = if o.changed {
             correction(&tcp, &t.goal)
         } else {
             (0.0, 0.0)
         };
-        Command { tcp, correction }
+        Command {
+            tcp,
+            correction,
+            unchosen,
+        }
     };
     let commands: Vec<Command> = if options.parallel {
         first
@@ -829,18 +849,35 @@ impl Ctx<'_> {
     /// [`Self::tcp`] given the unrounded TCP of `axes`, `raw` (not called for axis commands:
     /// they are written as rounded axes).
     fn written(&self, k: usize, axes: &[f64; 6], raw: impl FnOnce() -> Frame) -> Frame {
+        self.written_keeping(k, axes, raw).0
+    }
+
+    /// [`Self::written`] and, for a Cartesian target, the unrounded pose in its base frame
+    /// before the choice of Euler triple ([`Frame::to_kuka_unchosen`]), which the rewrite
+    /// writes near the original numbers.
+    fn written_keeping(
+        &self,
+        k: usize,
+        axes: &[f64; 6],
+        raw: impl FnOnce() -> Frame,
+    ) -> (Frame, Option<[f64; 6]>) {
         match self.target(k).quantum {
             Some(q) if q.axis => {
                 let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], q.decimals[i]));
-                Nominal(&self.model.robot).tcp(&r, self.tool(k))
+                (Nominal(&self.model.robot).tcp(&r, self.tool(k)), None)
             }
             Some(q) => {
                 let base = &self.tools[q.base as usize];
-                let p = base.inverse().compose(&raw()).to_kuka_near(&[0.0; 3]);
+                let in_base = base.inverse().compose(&raw());
+                let unchosen = in_base.to_kuka_unchosen();
+                let p = match &unchosen {
+                    Some(u) => kuka_near(u, &[0.0; 3]),
+                    None => in_base.to_kuka_near(&[0.0; 3]),
+                };
                 let r: [f64; 6] = std::array::from_fn(|i| round_to(p[i], q.decimals[i]));
-                base.compose(&Frame::from_kuka(&r))
+                (base.compose(&Frame::from_kuka(&r)), unchosen)
             }
-            None => raw(),
+            None => (raw(), None),
         }
     }
 
@@ -1189,5 +1226,15 @@ mod tests {
                 "10^{d}"
             );
         }
+    }
+}
+#[cfg(test)]
+mod size_probe {
+    #[test]
+    fn sizes() {
+        eprintln!("Outcome {} Target {} Command {} Carried {} Stop {} Frame {}",
+            std::mem::size_of::<super::Outcome>(), std::mem::size_of::<super::Target>(),
+            std::mem::size_of::<super::Command>(), std::mem::size_of::<super::Carried>(),
+            std::mem::size_of::<crate::motion::Stop>(), std::mem::size_of::<crate::motion::frame::Frame>());
     }
 }

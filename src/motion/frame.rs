@@ -57,6 +57,20 @@ impl Frame {
         [p.x, p.y, p.z, a, b, c]
     }
 
+    /// What [`Self::to_kuka_near`] chooses from, for any `near`: the position and the Euler
+    /// triple of [`matrix_to_abc`]; `None` at gimbal lock, where the choice needs the matrix.
+    /// Worked out once where a pose is written near two different references (the
+    /// compensation's re-check near zero, the rewrite near the original numbers).
+    pub fn to_kuka_unchosen(&self) -> Option<[f64; 6]> {
+        let r = &self.rotation;
+        if gimbal_locked(r) {
+            return None;
+        }
+        let p = self.position;
+        let [a, b, c] = matrix_to_abc(r);
+        Some([p.x, p.y, p.z, a, b, c])
+    }
+
     /// `self · other`.
     pub fn compose(&self, other: &Frame) -> Frame {
         Frame {
@@ -85,9 +99,7 @@ impl Frame {
 
 /// The nearest representation to `near` (see [`Frame::to_kuka_near`]).
 pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
-    let wrap = |x: f64, to: f64| x - 360.0 * round((x - to) / 360.0);
-    let cb = (r[(0, 0)] * r[(0, 0)] + r[(1, 0)] * r[(1, 0)]).sqrt();
-    if cb < 1e-9 {
+    if gimbal_locked(r) {
         // Gimbal lock: keep C; R·Rx(C)ᵀ = Rz(A)·Ry(±90°) has r01 = −sin A, r11 = cos A.
         let b = if r[(2, 0)] < 0.0 { 90.0 } else { -90.0 };
         let c = near[2];
@@ -95,7 +107,30 @@ pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
         let a = (-rc[(0, 1)]).atan2(rc[(1, 1)]).to_degrees();
         return [wrap(a, near[0]), b, c];
     }
-    let [a, b, c] = matrix_to_abc(r);
+    choose_abc(matrix_to_abc(r), near)
+}
+
+/// [`Frame::to_kuka_near`] of the frame whose [`Frame::to_kuka_unchosen`] is `unchosen`, to
+/// the bit.
+pub fn kuka_near(unchosen: &[f64; 6], near: &[f64; 3]) -> [f64; 6] {
+    let [x, y, z, a, b, c] = *unchosen;
+    let [a, b, c] = choose_abc([a, b, c], near);
+    [x, y, z, a, b, c]
+}
+
+/// Whether `abc_near` must keep C (B = ±90° to 10⁻⁹).
+fn gimbal_locked(r: &Matrix3<f64>) -> bool {
+    let cb = (r[(0, 0)] * r[(0, 0)] + r[(1, 0)] * r[(1, 0)]).sqrt();
+    cb < 1e-9
+}
+
+fn wrap(x: f64, to: f64) -> f64 {
+    x - 360.0 * round((x - to) / 360.0)
+}
+
+/// Of the two Euler triples of `[a, b, c]`'s rotation and their ±360° copies, the nearest to
+/// `near`.
+fn choose_abc([a, b, c]: [f64; 3], near: &[f64; 3]) -> [f64; 3] {
     let first = [wrap(a, near[0]), wrap(b, near[1]), wrap(c, near[2])];
     let second = [
         wrap(a + 180.0, near[0]),
@@ -245,6 +280,38 @@ mod tests {
             let back = Frame::from_kuka(&out);
             assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
         }
+    }
+
+    /// The rewrite writes the re-check's unchosen pose near the original numbers: that must
+    /// be the numbers `to_kuka_near` gives for the frame itself, to the bit, for any
+    /// reference, and the gimbal lock (where C is kept) must be left to `to_kuka_near`.
+    #[test]
+    fn unchosen_pose_is_chosen_like_the_frame() {
+        let nears = [
+            [0.0, 0.0, 0.0],
+            [179.0, -5.0, -179.0],
+            [-170.0, 100.0, 10.0],
+            [400.0, 0.0, -400.0],
+        ];
+        let mut checked = 0;
+        for a in (-180..=180).step_by(45) {
+            for b in [-90.0, -89.99, -60.0, 0.0, 45.5, 89.9999, 90.0] {
+                for c in (-180..=180).step_by(60) {
+                    let f = Frame::from_kuka(&[5.0, -6.0, 7.0, a as f64 + 0.3, b, c as f64]);
+                    match f.to_kuka_unchosen() {
+                        Some(u) => {
+                            for near in &nears {
+                                let (x, y) = (kuka_near(&u, near), f.to_kuka_near(near));
+                                assert_eq!(x.map(f64::to_bits), y.map(f64::to_bits));
+                                checked += 1;
+                            }
+                        }
+                        None => assert!(f64::abs(b) == 90.0, "locked at B = {b}"),
+                    }
+                }
+            }
+        }
+        assert!(checked > 800);
     }
 
     #[test]
