@@ -340,9 +340,14 @@ fn position_members<'a>(
 }
 
 /// The position components (`X..C`, or `A1..A6` for `axis`) of `agg`, in one pass over its
-/// members (each packed number is read from the source once); a component written twice is
-/// the later one.
-fn components(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<Component>; 6] {
+/// members; a component written twice is the later one. `read`: values the walk read from
+/// the aggregate's literals (the components of `Origin::literals`), not read again.
+fn components(
+    file: &SourceFile,
+    agg: &Aggregate,
+    axis: bool,
+    read: Option<(&[f64; 6], u8)>,
+) -> [Option<Component>; 6] {
     let src = file.source();
     let mut out = [None; 6];
     for (k, m) in position_members(file, agg, axis) {
@@ -350,7 +355,17 @@ fn components(file: &SourceFile, agg: &Aggregate, axis: bool) -> [Option<Compone
             // A plain number is its own literal (what `literal_span` and `value::literal`
             // give for an `Expr::Number`), read here without building the expression.
             RawMember::Plain { name, number } => {
-                let value = RawMember::plain_value(src, number);
+                let value = match read {
+                    Some((values, bits)) if bits & (1 << k) != 0 => {
+                        debug_assert_eq!(
+                            RawMember::plain_value(src, number).map(f64::to_bits),
+                            Some(values[k].to_bits()),
+                            "the walk's value of component {k}"
+                        );
+                        Some(values[k])
+                    }
+                    _ => RawMember::plain_value(src, number),
+                };
                 Component {
                     member: name.to(number),
                     literal: value.map(|_| (number, number)),
@@ -676,7 +691,12 @@ pub fn rewrite_placed(
             None => command(i),
         };
         let file = &ws.get(origin.file).file;
-        let present = components(file, origin.agg, stop.axis);
+        // An absolute target's programmed values are its position's (`motion::simulate`).
+        let read = stop
+            .rel
+            .is_none()
+            .then_some((&stop.programmed, origin.literals));
+        let present = components(file, origin.agg, stop.axis, read);
         let original = present.map(|c| c.and_then(|c| c.value));
         let Some(values) = new_values(
             sim,
@@ -1330,6 +1350,57 @@ fn rename_in_fold(
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    fn sources_under(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for e in std::fs::read_dir(dir).expect("the fixtures") {
+            let p = e.expect("an entry").path();
+            if p.is_dir() {
+                sources_under(&p, out);
+            } else if p.extension().is_some_and(|x| x.eq_ignore_ascii_case("src")) {
+                out.push(p);
+            }
+        }
+    }
+
+    /// The rewrite takes an absolute target's literal values from the walk
+    /// (`Origin::literals`) instead of reading the numbers again: on every fixture program,
+    /// every component so taken must be the number read from the file, to the bit.
+    #[test]
+    fn values_taken_from_the_walk_are_the_numbers_read() {
+        let mut programs = Vec::new();
+        sources_under(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/programs"),
+            &mut programs,
+        );
+        let robot = crate::kinematics::RobotDescription::kr30ha();
+        let (mut taken, mut files) = (0, 0);
+        for path in &programs {
+            let bytes = std::fs::read(path).expect("a fixture");
+            let Ok(ws) = super::super::files::load_program(Some(path), &bytes, None) else {
+                continue;
+            };
+            files += 1;
+            let sim = crate::motion::simulate(&ws, &robot, &[]);
+            for stop in &sim.stops {
+                let Some(origin) = stop.origin.filter(|_| stop.rel.is_none()) else {
+                    continue;
+                };
+                let file = &ws.get(origin.file).file;
+                let read = components(file, origin.agg, stop.axis, None);
+                let given = Some((&stop.programmed, origin.literals));
+                let taken_here = components(file, origin.agg, stop.axis, given);
+                for k in 0..6 {
+                    let bits = |c: &Option<Component>| c.and_then(|c| c.value).map(f64::to_bits);
+                    assert_eq!(bits(&read[k]), bits(&taken_here[k]), "{}", path.display());
+                    if origin.literals & (1 << k) != 0 {
+                        assert_eq!(read[k].and_then(|c| c.value), Some(stop.programmed[k]));
+                        taken += 1;
+                    }
+                }
+            }
+        }
+        assert!(files >= 20 && taken > 100_000, "{files} files, {taken} values");
+    }
 
     /// The literal text by `format!` (the formatter the digit writer replaced): the integer
     /// count of units as a decimal string, the dot put in by hand.

@@ -20,6 +20,9 @@ pub struct Origin<'f> {
     /// [`Simulation::prefixes`](super::Simulation::prefixes) (a frame here would make every
     /// stop of a million-target program 100 bytes larger).
     pub prefix: Option<u32>,
+    /// Bit `k` set: the position's component `k` is the value of the aggregate's own literal
+    /// (read once by the walk; the rewrite need not read the number again).
+    pub literals: u8,
 }
 
 /// A declared variable (name span in its file) or one initialised array element.
@@ -186,8 +189,10 @@ pub fn aggregate<'f>(
             agg,
             var: None,
             prefix: None,
+            literals: 0,
         }),
     };
+    let mut literals = 0u8;
     let mut fdat = Fdat::default();
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
     let mut ldat: Option<Option<Vec<u8>>> = None;
@@ -211,11 +216,17 @@ pub fn aggregate<'f>(
                 _ => None,
             };
             let v = match plain {
-                Some(v) => v,
+                Some(v) => {
+                    literals |= 1 << k;
+                    v
+                }
                 None => {
                     let m = file.member_of(raw);
                     match literal(&m.value) {
-                        Some(v) => v,
+                        Some(v) => {
+                            literals |= 1 << k;
+                            v
+                        }
                         None => match eval(&m.value).as_f64() {
                             Some(v) => {
                                 // Computed: the number cannot be written back in place.
@@ -293,6 +304,9 @@ pub fn aggregate<'f>(
         return Value::Unknown("an aggregate mixing axis angles and Cartesian values".into());
     }
     pos.axis = axis;
+    if let Some(o) = &mut pos.origin {
+        o.literals = literals;
+    }
     Value::Pos(pos)
 }
 
