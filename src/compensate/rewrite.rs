@@ -354,7 +354,7 @@ fn components(
         out[k] = Some(match m {
             // A plain number is its own literal (what `literal_span` and `value::literal`
             // give for an `Expr::Number`), read here without building the expression.
-            RawMember::Plain { name, number } => {
+            RawMember::Plain { name, number, kept } => {
                 let value = match read {
                     Some((values, bits)) if bits & (1 << k) != 0 => {
                         debug_assert_eq!(
@@ -364,7 +364,7 @@ fn components(
                         );
                         Some(values[k])
                     }
-                    _ => RawMember::plain_value(src, number),
+                    _ => RawMember::plain_value_kept(src, number, kept),
                 };
                 Component {
                     member: name.to(number),

@@ -732,8 +732,9 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
         // without the general machinery; the first other member leaves it.
         if !nested {
             let mut n = cx.nodes.borrow_mut();
-            while let Some((k, m)) = plain_member(cx, j) {
-                n.push_member(m);
+            let keep = n.keep_values;
+            while let Some((k, m, value)) = plain_member(cx, j, keep) {
+                n.push_member(m, value);
                 let k = &k[blanks(k)..];
                 if k[0] == b',' {
                     j = &k[1..];
@@ -752,11 +753,15 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
             expecting!("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
         {
             let mut n = cx.nodes.borrow_mut();
+            let number = match &value {
+                Expr::Number(x) => x.value,
+                _ => f64::NAN,
+            };
             let m = n.pack(cx.base(), name, value);
             if nested {
                 n.scratch.push(m);
             } else {
-                n.push_member(m);
+                n.push_member(m, number);
             }
         }
         let (k, _) = ws(k)?;
@@ -818,15 +823,21 @@ fn close_aggregate(
 
 /// `NAME number` followed by blanks and `,` or `}` (not consumed), the number plain enough
 /// for `number::read_plain` (`number::plain_len`); `None` sends the member to the general `member` parser, which
-/// reads these the same way.
+/// reads these the same way. With `keep`, the number's value (else 0): `read_plain` takes
+/// the numbers `plain_len` does.
 #[inline]
-fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Packed)> {
+fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8], keep: bool) -> Option<(&'a [u8], Packed, f64)> {
     if !is_ident_start(*i.first()?) {
         return None;
     }
     let name_end = 1 + i[1..].iter().take_while(|&&b| is_ident_char(b)).count();
     let at = name_end + blanks(&i[name_end..]);
-    let len = number::plain_len(&i[at..])?;
+    let (len, value) = if keep {
+        let (len, value, _) = number::read_plain(&i[at..])?;
+        (len, value)
+    } else {
+        (number::plain_len(&i[at..])?, 0.0)
+    };
     let rest = &i[at + len..];
     if !matches!(rest.get(blanks(rest)), Some(b',' | b'}')) {
         return None;
@@ -836,7 +847,7 @@ fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8]) -> Option<(&'a [u8], Packed)> {
         Span::new(start, start + name_end),
         Span::new(start + at, start + at + len),
     )?;
-    Some((rest, packed))
+    Some((rest, packed, value))
 }
 
 /// `NAME[[…]] value`: the name's span and the value.

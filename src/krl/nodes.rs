@@ -27,6 +27,11 @@ pub(crate) struct Nodes {
     pub aggregates: Vec<Aggregate>,
     /// Members of outermost aggregates, written in place as they are parsed.
     pub members: Vec<Packed>,
+    /// With `keep_values`, the value of each plain member of `members`, in step with it (NaN
+    /// for the others): a streamed window, walked as soon as it is parsed, then needs not
+    /// read its numbers again. Empty otherwise (a whole file's tree keeps spans only).
+    pub member_values: Vec<f64>,
+    pub keep_values: bool,
     /// Members of aggregates nested in another one (each run moved here from `scratch` when
     /// its aggregate closes, so runs stay contiguous while the parent's run grows).
     pub nested_members: Vec<Packed>,
@@ -80,6 +85,7 @@ impl Nodes {
         self.motions.truncate(m.motions);
         self.aggregates.truncate(m.aggregates);
         self.members.truncate(m.members);
+        self.member_values.truncate(m.members);
         self.nested_members.truncate(m.nested_members);
         self.outline.truncate(m.outline);
         self.scratch.clear();
@@ -122,7 +128,7 @@ impl Nodes {
     /// A member with its value (a plain number is read again from `src`, the bytes the
     /// file was parsed from, giving the value the parser read).
     pub fn member<'n>(&'n self, src: &[u8], p: Packed) -> Member<'n> {
-        self.member_of_raw(src, self.raw_member(p))
+        self.member_of_raw(src, self.raw_member(p, None))
     }
 
     /// A raw member with its value, a plain number read from `src` (see [`Nodes::member`]).
@@ -132,7 +138,9 @@ impl Nodes {
                 name,
                 value: Cow::Borrowed(value),
             },
-            RawMember::Plain { name, number: span } => {
+            RawMember::Plain {
+                name, number: span, ..
+            } => {
                 let value = match src.get(span.range()).and_then(number::read_plain) {
                     Some((len, value, integer)) if len == span.len() => {
                         Expr::Number(Number::new(value, span, integer))
@@ -148,9 +156,10 @@ impl Nodes {
         }
     }
 
-    /// A member as stored, its plain number not read ([`RawMember`]).
+    /// A member as stored, its plain number not read ([`RawMember`]); `kept`: its value
+    /// from `member_values`, if kept.
     #[inline]
-    pub fn raw_member(&self, p: Packed) -> RawMember<'_> {
+    pub fn raw_member(&self, p: Packed, kept: Option<f64>) -> RawMember<'_> {
         if p.name_len == 0 {
             let (name, value) = &self.outline[p.at as usize];
             return RawMember::Outline { name: *name, value };
@@ -160,7 +169,16 @@ impl Nodes {
         RawMember::Plain {
             name,
             number: Span::new(start, start + usize::from(p.value_len)),
+            kept,
         }
+    }
+
+    /// The kept values of the members of `a` (empty when none are kept).
+    pub fn kept_values_of(&self, a: &Aggregate) -> &[f64] {
+        if a.nested() || self.member_values.len() != self.members.len() {
+            return &[];
+        }
+        &self.member_values[a.range()]
     }
 
     /// The record of member `name` = `value` in `src`: packed when the value is a number
@@ -199,11 +217,15 @@ impl Nodes {
         n
     }
 
-    /// Adds a member of an outermost aggregate.
+    /// Adds a member of an outermost aggregate; `value`: a plain member's (see
+    /// `member_values`).
     #[inline]
-    pub fn push_member(&mut self, m: Packed) {
+    pub fn push_member(&mut self, m: Packed, value: f64) {
         self.ahead[0].before_push(&self.members);
         self.members.push(m);
+        if self.keep_values {
+            self.member_values.push(value);
+        }
     }
 
     #[inline]
@@ -225,6 +247,7 @@ impl Nodes {
         self.motions.shrink_to_fit();
         self.aggregates.shrink_to_fit();
         self.members.shrink_to_fit();
+        self.member_values.shrink_to_fit();
         self.nested_members.shrink_to_fit();
         self.outline.shrink_to_fit();
     }
@@ -260,7 +283,13 @@ impl Packed {
 /// member its name and value expression.
 #[derive(Clone, Copy, Debug)]
 pub enum RawMember<'a> {
-    Plain { name: Span, number: Span },
+    /// `kept`: the number's value, when the tree keeps its plain members' values
+    /// (`Nodes::member_values`).
+    Plain {
+        name: Span,
+        number: Span,
+        kept: Option<f64>,
+    },
     Outline { name: Span, value: &'a Expr },
 }
 
@@ -275,6 +304,16 @@ impl RawMember<'_> {
     /// parser read (`Nodes::pack` keeps only numbers `read_plain` gives back bit for bit).
     #[inline]
     pub fn plain_value(src: &[u8], number: Span) -> Option<f64> {
+        Self::plain_value_kept(src, number, None)
+    }
+
+    /// [`Self::plain_value`], or `kept` when the tree kept it (the same value: the parser
+    /// read it with the same function).
+    #[inline]
+    pub fn plain_value_kept(src: &[u8], number: Span, kept: Option<f64>) -> Option<f64> {
+        if kept.is_some() {
+            return kept;
+        }
         match src.get(number.range()).and_then(number::read_plain) {
             Some((len, value, _)) if len == number.len() => Some(value),
             _ => None,
@@ -287,6 +326,8 @@ impl RawMember<'_> {
 pub struct RawMembers<'a> {
     pub(crate) nodes: &'a Nodes,
     pub(crate) packed: std::slice::Iter<'a, Packed>,
+    /// In step with `packed`, or empty (`Nodes::kept_values_of`).
+    pub(crate) kept: std::slice::Iter<'a, f64>,
 }
 
 impl<'a> Iterator for RawMembers<'a> {
@@ -295,7 +336,8 @@ impl<'a> Iterator for RawMembers<'a> {
     #[inline]
     fn next(&mut self) -> Option<RawMember<'a>> {
         let p = *self.packed.next()?;
-        Some(self.nodes.raw_member(p))
+        let kept = self.kept.next().copied();
+        Some(self.nodes.raw_member(p, kept))
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {

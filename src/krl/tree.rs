@@ -165,7 +165,7 @@ fn build_in(
     first_line: u32,
     stream: Option<StreamOptions>,
 ) -> SourceFile {
-    build_looking(src, kind, range, first_line, stream, PARALLEL_LOOK)
+    build_looking(src, kind, range, first_line, stream, PARALLEL_LOOK, false)
 }
 
 /// [`build_in`], the lines looked at in parallel first from `parallel_look` bytes on.
@@ -176,8 +176,11 @@ fn build_looking(
     first_line: u32,
     stream: Option<StreamOptions>,
     parallel_look: usize,
+    keep_values: bool,
 ) -> SourceFile {
-    let nodes = RefCell::new(Nodes::for_input(range.len()));
+    let mut nodes = Nodes::for_input(range.len());
+    nodes.keep_values = keep_values;
+    let nodes = RefCell::new(nodes);
     let cx = Cx::new(src, &nodes);
     let mut b = Builder::default();
     let mut folds = FoldTracker::default();
@@ -618,7 +621,16 @@ impl SourceFile {
     /// one that is not, or a line that does not parse, is an error of the window (a bug of
     /// the quick look that chose the run's lines: the caller must not use the window).
     pub fn window(&self, (bytes, first_line): (Span, u32)) -> SourceFile {
-        let mut w = build_in(&self.src, self.kind, bytes.range(), first_line, None);
+        // Walked at once: the plain members' values are kept (`Nodes::member_values`).
+        let mut w = build_looking(
+            &self.src,
+            self.kind,
+            bytes.range(),
+            first_line,
+            None,
+            PARALLEL_LOOK,
+            true,
+        );
         w.src = Arc::clone(&self.src);
         let strange: Vec<Span> = w
             .body
@@ -702,6 +714,7 @@ impl SourceFile {
         super::nodes::RawMembers {
             nodes: &self.nodes,
             packed: self.nodes.members_of(a).iter(),
+            kept: self.nodes.kept_values_of(a).iter(),
         }
     }
 
@@ -969,7 +982,7 @@ mod tests {
             window: 7,
         };
         let parse = |look| {
-            let mut file = build_looking(src, FileKind::Src, 0..src.len(), 1, Some(opts), look);
+            let mut file = build_looking(src, FileKind::Src, 0..src.len(), 1, Some(opts), look, false);
             file.src = Arc::new(src.to_vec());
             file
         };
@@ -982,5 +995,52 @@ mod tests {
             format!("{:?}", plain.problems)
         );
         assert_eq!(format!("{:?}", looked.body), format!("{:?}", plain.body));
+    }
+
+    /// A streamed window keeps its plain members' values as the parser read them, so that
+    /// the walk does not read them again: each must be the number read back from the bytes,
+    /// to the bit; a whole-file tree keeps none.
+    #[test]
+    fn windows_keep_the_values_read() {
+        let mut text = String::from("DEF p( )\n");
+        let numbers = [
+            "0", "-0.000", "+12.5", "123456.789012", ".5", "1E3", "-7.", "99999999999999999999.5",
+            "0.1", "-1234.5678",
+        ];
+        for i in 0..60 {
+            let (a, b) = (numbers[i % numbers.len()], numbers[(i * 7 + 3) % numbers.len()]);
+            text.push_str(&format!("LIN {{X {a}, Y {b},Z {i}.25, A -{i}.5}} C_DIS\n"));
+        }
+        text.push_str("END\n");
+        let src = text.as_bytes();
+        let opts = StreamOptions {
+            min_run: 3,
+            window: 7,
+        };
+        let file = parse_streaming(src.to_vec(), FileKind::Src, opts).expect("parses");
+        assert!(!file.streamed_runs().is_empty());
+        let plain_members = |f: &SourceFile| {
+            let mut out = Vec::new();
+            for a in f.nodes.aggregates.iter().filter(|a| !a.nested()) {
+                for m in f.raw_members(a) {
+                    if let super::super::nodes::RawMember::Plain { number, kept, .. } = m {
+                        out.push((super::super::nodes::RawMember::plain_value(f.source(), number), kept));
+                    }
+                }
+            }
+            out
+        };
+        assert!(plain_members(&file).iter().all(|(_, kept)| kept.is_none()));
+        let (mut kept_count, mut windows) = (0, 0);
+        for run in file.streamed_runs() {
+            for w in run.windows() {
+                windows += 1;
+                for (read, kept) in plain_members(&file.window(w)) {
+                    assert_eq!(kept.map(f64::to_bits), read.map(f64::to_bits));
+                    kept_count += 1;
+                }
+            }
+        }
+        assert!(windows > 5 && kept_count > 150, "{windows} windows, {kept_count} kept");
     }
 }

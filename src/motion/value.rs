@@ -210,8 +210,8 @@ pub fn aggregate<'f>(
             // A plain `NAME number` (nearly every member of a CAM program) is read straight
             // from its bytes, no expression built.
             let plain = match raw {
-                crate::krl::RawMember::Plain { number, .. } => {
-                    crate::krl::RawMember::plain_value(src, number)
+                crate::krl::RawMember::Plain { number, kept, .. } => {
+                    crate::krl::RawMember::plain_value_kept(src, number, kept)
                 }
                 _ => None,
             };
