@@ -1399,7 +1399,10 @@ mod tests {
                 }
             }
         }
-        assert!(files >= 20 && taken > 100_000, "{files} files, {taken} values");
+        assert!(
+            files >= 20 && taken > 100_000,
+            "{files} files, {taken} values"
+        );
     }
 
     /// The literal text by `format!` (the formatter the digit writer replaced): the integer

@@ -521,14 +521,16 @@ pub fn first_passes(
             })
             .collect();
         let tcps: Vec<Frame> = (from..(b + 1).min(n))
-            .map(|k| match k.checked_sub(a).and_then(|i| forward.get_mut(i)) {
-                Some(((raw, unchosen), _)) => {
-                    let (written, u) = ctx.written_keeping(k, &outcomes[k].axes_deg, || *raw);
-                    *unchosen = u;
-                    written
-                }
-                None => ctx.tcp(k, &outcomes[k].axes_deg),
-            })
+            .map(
+                |k| match k.checked_sub(a).and_then(|i| forward.get_mut(i)) {
+                    Some(((raw, unchosen), _)) => {
+                        let (written, u) = ctx.written_keeping(k, &outcomes[k].axes_deg, || *raw);
+                        *unchosen = u;
+                        written
+                    }
+                    None => ctx.tcp(k, &outcomes[k].axes_deg),
+                },
+            )
             .collect();
         (a..b)
             .zip(forward)
@@ -1226,15 +1228,5 @@ mod tests {
                 "10^{d}"
             );
         }
-    }
-}
-#[cfg(test)]
-mod size_probe {
-    #[test]
-    fn sizes() {
-        eprintln!("Outcome {} Target {} Command {} Carried {} Stop {} Frame {}",
-            std::mem::size_of::<super::Outcome>(), std::mem::size_of::<super::Target>(),
-            std::mem::size_of::<super::Command>(), std::mem::size_of::<super::Carried>(),
-            std::mem::size_of::<crate::motion::Stop>(), std::mem::size_of::<crate::motion::frame::Frame>());
     }
 }

@@ -290,7 +290,10 @@ pub enum RawMember<'a> {
         number: Span,
         kept: Option<f64>,
     },
-    Outline { name: Span, value: &'a Expr },
+    Outline {
+        name: Span,
+        value: &'a Expr,
+    },
 }
 
 impl RawMember<'_> {

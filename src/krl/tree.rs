@@ -982,7 +982,8 @@ mod tests {
             window: 7,
         };
         let parse = |look| {
-            let mut file = build_looking(src, FileKind::Src, 0..src.len(), 1, Some(opts), look, false);
+            let mut file =
+                build_looking(src, FileKind::Src, 0..src.len(), 1, Some(opts), look, false);
             file.src = Arc::new(src.to_vec());
             file
         };
@@ -1004,11 +1005,22 @@ mod tests {
     fn windows_keep_the_values_read() {
         let mut text = String::from("DEF p( )\n");
         let numbers = [
-            "0", "-0.000", "+12.5", "123456.789012", ".5", "1E3", "-7.", "99999999999999999999.5",
-            "0.1", "-1234.5678",
+            "0",
+            "-0.000",
+            "+12.5",
+            "123456.789012",
+            ".5",
+            "1E3",
+            "-7.",
+            "99999999999999999999.5",
+            "0.1",
+            "-1234.5678",
         ];
         for i in 0..60 {
-            let (a, b) = (numbers[i % numbers.len()], numbers[(i * 7 + 3) % numbers.len()]);
+            let (a, b) = (
+                numbers[i % numbers.len()],
+                numbers[(i * 7 + 3) % numbers.len()],
+            );
             text.push_str(&format!("LIN {{X {a}, Y {b},Z {i}.25, A -{i}.5}} C_DIS\n"));
         }
         text.push_str("END\n");
@@ -1024,7 +1036,10 @@ mod tests {
             for a in f.nodes.aggregates.iter().filter(|a| !a.nested()) {
                 for m in f.raw_members(a) {
                     if let super::super::nodes::RawMember::Plain { number, kept, .. } = m {
-                        out.push((super::super::nodes::RawMember::plain_value(f.source(), number), kept));
+                        out.push((
+                            super::super::nodes::RawMember::plain_value(f.source(), number),
+                            kept,
+                        ));
                     }
                 }
             }
@@ -1041,6 +1056,9 @@ mod tests {
                 }
             }
         }
-        assert!(windows > 5 && kept_count > 150, "{windows} windows, {kept_count} kept");
+        assert!(
+            windows > 5 && kept_count > 150,
+            "{windows} windows, {kept_count} kept"
+        );
     }
 }
