@@ -124,8 +124,16 @@ fn gimbal_locked(r: &Matrix3<f64>) -> bool {
     cb < 1e-9
 }
 
+/// `x` moved by whole turns to within a half turn of `to`. Within a half turn already (nearly
+/// always) the quotient `d/360` rounds to zero with the sign of `d`, so `x − 360·round(d/360)`
+/// is `x − (±0)`, taken here without the division and the rounding, to the bit (a −0 `x`
+/// included).
 fn wrap(x: f64, to: f64) -> f64 {
-    x - 360.0 * round((x - to) / 360.0)
+    let d = x - to;
+    if d.abs() < 180.0 {
+        return x - 0.0f64.copysign(d);
+    }
+    x - 360.0 * round(d / 360.0)
 }
 
 /// Of the two Euler triples of `[a, b, c]`'s rotation and their ±360° copies, the nearest to
@@ -279,6 +287,22 @@ mod tests {
             }
             let back = Frame::from_kuka(&out);
             assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
+        }
+    }
+
+    /// The shortcut of `wrap` within a half turn gives the formula's bits, signed zeros
+    /// included.
+    #[test]
+    fn wrap_is_the_formula() {
+        let formula = |x: f64, to: f64| x - 360.0 * round((x - to) / 360.0);
+        let values = [
+            0.0, -0.0, 1e-300, -1e-300, 5.0, -179.999, 179.99999999999997, 180.0, -180.0, 359.5,
+            -540.25, 720.0, 1e-9,
+        ];
+        for &x in &values {
+            for &to in &values {
+                assert_eq!(wrap(x, to).to_bits(), formula(x, to).to_bits(), "{x} near {to}");
+            }
         }
     }
 
