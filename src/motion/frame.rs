@@ -198,6 +198,19 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         let t2 = ss * inv_c * inv_c;
         return v * (inv_c * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0)))));
     }
+    if ss < 1e-2 * c * c && c > 0.0 {
+        // Up to t = 0.1 (5.7°, the turn between two targets of a path): the series to t¹⁵
+        // leaves out less than t¹⁷/17 < 10⁻¹⁷·t, below the rounding.
+        let inv_c = 1.0 / c;
+        let t2 = ss * inv_c * inv_c;
+        let series = 1.0
+            - t2 * (1.0 / 3.0
+                - t2 * (1.0 / 5.0
+                    - t2 * (1.0 / 7.0
+                        - t2 * (1.0 / 9.0
+                            - t2 * (1.0 / 11.0 - t2 * (1.0 / 13.0 - t2 * (1.0 / 15.0)))))));
+        return v * (inv_c * series);
+    }
     let s = ss.sqrt();
     if s < 1e-300 {
         if c > 0.0 {
@@ -296,12 +309,27 @@ mod tests {
     fn wrap_is_the_formula() {
         let formula = |x: f64, to: f64| x - 360.0 * round((x - to) / 360.0);
         let values = [
-            0.0, -0.0, 1e-300, -1e-300, 5.0, -179.999, 179.99999999999997, 180.0, -180.0, 359.5,
-            -540.25, 720.0, 1e-9,
+            0.0,
+            -0.0,
+            1e-300,
+            -1e-300,
+            5.0,
+            -179.999,
+            179.99999999999997,
+            180.0,
+            -180.0,
+            359.5,
+            -540.25,
+            720.0,
+            1e-9,
         ];
         for &x in &values {
             for &to in &values {
-                assert_eq!(wrap(x, to).to_bits(), formula(x, to).to_bits(), "{x} near {to}");
+                assert_eq!(
+                    wrap(x, to).to_bits(),
+                    formula(x, to).to_bits(),
+                    "{x} near {to}"
+                );
             }
         }
     }
@@ -340,8 +368,13 @@ mod tests {
 
     #[test]
     fn small_rotation_vectors_match_the_atan2_formula() {
-        for k in 0..3000 {
-            let angle = 1.2e-3 * (k as f64 / 3000.0).powi(3);
+        // Both series: below 10⁻³ rad and up to 0.1 rad (and a little beyond, where the
+        // library's atan2 takes over).
+        for k in 0..6000 {
+            let angle = match k {
+                0..3000 => 1.2e-3 * (k as f64 / 3000.0).powi(3),
+                _ => 1e-3 + 0.11 * ((k - 3000) as f64 / 3000.0).powi(2),
+            };
             let axis = Vector3::new(0.3, -0.8, 0.5 + k as f64 * 1e-3).normalize();
             let r = exp_so3(&(axis * angle));
             let v = Vector3::new(
