@@ -88,7 +88,7 @@ pub struct ProgramResult {
 }
 
 /// The compensation targets of the stops `range` of a simulation.
-pub fn targets(ws: &Workspace, sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
+pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
     use rayon::prelude::*;
     let from = range.start;
     sim.stops[range]
@@ -123,7 +123,7 @@ pub fn targets(ws: &Workspace, sim: &Simulation, range: std::ops::Range<usize>) 
             quantum: s.origin.filter(|_| s.compensable).map(|o| Quantum {
                 base: s.base,
                 axis: s.axis,
-                decimals: rewrite::decimals(&ws.get(o.file).file, o.agg, s.axis),
+                decimals: rewrite::decimals(&o, s.axis),
             }),
             keep: Keep {
                 s: s.keep_s,

@@ -405,7 +405,7 @@ fn aggregate_edits(
             .iter()
             .flatten()
             .filter_map(|c| c.literal)
-            .map(|(_, lit)| literal_decimals(file.text(lit)))
+            .map(|(_, lit)| value::literal_decimals(file.text(lit)))
             .max()
             .unwrap_or(0);
         most.max(min_decimals(axis, k))
@@ -592,29 +592,14 @@ fn replacement(orig_text: &[u8], orig: f64, value: f64, min: usize, out: &mut Ve
     true
 }
 
-/// Decimals a literal is written with.
-fn literal_decimals(text: &[u8]) -> usize {
-    text.iter().position(|&b| b == b'.').map_or(0, |p| {
-        text[p + 1..]
-            .iter()
-            .take_while(|b| b.is_ascii_digit())
-            .count()
-    })
-}
-
-/// The decimals each component of `agg` will be written with: its own literal's (never fewer
-/// than 3 in mm and 4 in degrees), or for a missing one the aggregate's most precise.
-pub fn decimals(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
-    // Only the literals' text is needed: a plain number's span is its literal, not read.
-    let mut own = [None; 6];
-    for (k, m) in position_members(file, agg, axis) {
-        let lit = match m {
-            // `Nodes::pack` stores only numbers that read back whole.
-            RawMember::Plain { number, .. } => Some(number),
-            RawMember::Outline { value: e, .. } => literal_span(e).map(|(_, lit)| lit),
-        };
-        own[k] = lit.map(|lit| literal_decimals(file.text(lit)));
-    }
+/// The decimals each component of the aggregate at `origin` will be written with: its own
+/// literal's (never fewer than 3 in mm and 4 in degrees), or for a missing one the
+/// aggregate's most precise. From what the walk read (`Origin::decimals`): where the origin is
+/// known every component given is a literal.
+pub fn decimals(origin: &Origin, axis: bool) -> [u8; 6] {
+    let own: [Option<usize>; 6] = std::array::from_fn(|k| {
+        (origin.literals & (1 << k) != 0).then_some(usize::from(origin.decimals[k]))
+    });
     let most = own.iter().flatten().copied().max().unwrap_or(0);
     std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
 }
@@ -1362,11 +1347,27 @@ mod tests {
         }
     }
 
+    /// The decimals of `agg`'s components read from its text (what `decimals` took from the
+    /// file before the walk kept them).
+    fn decimals_from_text(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
+        let mut own = [None; 6];
+        for (k, m) in position_members(file, agg, axis) {
+            let lit = match m {
+                RawMember::Plain { number, .. } => Some(number),
+                RawMember::Outline { value: e, .. } => literal_span(e).map(|(_, lit)| lit),
+            };
+            own[k] = lit.map(|lit| value::literal_decimals(file.text(lit)));
+        }
+        let most = own.iter().flatten().copied().max().unwrap_or(0);
+        std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
+    }
+
     /// The rewrite takes an absolute target's literal values from the walk
-    /// (`Origin::literals`) instead of reading the numbers again: on every fixture program,
-    /// every component so taken must be the number read from the file, to the bit.
+    /// (`Origin::literals`) instead of reading the numbers again, and the compensation its
+    /// decimals (`Origin::decimals`): on every fixture program, every component so taken must
+    /// be the number read from the file, to the bit, and the decimals those of its text.
     #[test]
-    fn values_taken_from_the_walk_are_the_numbers_read() {
+    fn values_and_decimals_taken_from_the_walk_are_the_files() {
         let mut programs = Vec::new();
         sources_under(
             &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/programs"),
@@ -1386,6 +1387,12 @@ mod tests {
                     continue;
                 };
                 let file = &ws.get(origin.file).file;
+                assert_eq!(
+                    decimals(&origin, stop.axis),
+                    decimals_from_text(file, origin.agg, stop.axis),
+                    "{}",
+                    path.display()
+                );
                 let read = components(file, origin.agg, stop.axis, None);
                 let given = Some((&stop.programmed, origin.literals));
                 let taken_here = components(file, origin.agg, stop.axis, given);

@@ -57,7 +57,6 @@ struct Preparer<'a> {
 impl Preparer<'_> {
     fn prepare(
         self,
-        ws: &Workspace,
         sim: &Simulation,
         from: usize,
         nominal_start: &mut [Direction; 6],
@@ -66,7 +65,7 @@ impl Preparer<'_> {
         use rayon::prelude::*;
         let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
         let first = from + ghosts;
-        let targets = targets(ws, sim, first..sim.stops.len());
+        let targets = targets(sim, first..sim.stops.len());
         let passes = sequence::first_passes(
             self.model,
             &sim.frames,
@@ -253,7 +252,7 @@ impl<'a> Segments<'a> {
         self.flush();
         let prepared =
             self.preparer()
-                .prepare(ws, sim, from, &mut self.nominal_end, &mut self.chains);
+                .prepare(sim, from, &mut self.nominal_end, &mut self.chains);
         let seg = self.settle(ws, sim, from, prepared);
         let points = self.options.points;
         self.tally.add(
@@ -335,9 +334,9 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
         let mut nominal = seg.nominal_end;
         let mut chains = seg.chains;
         let pending = seg.pending.take();
-        let prepared = walked.with_dependent(|ws, sim| {
+        let prepared = walked.with_dependent(|_, sim| {
             rayon::join(
-                || preparer.prepare(ws, sim, 0, &mut nominal, &mut chains),
+                || preparer.prepare(sim, 0, &mut nominal, &mut chains),
                 || {
                     if let Some((w, p)) = pending {
                         w.with_dependent(|ws, sim| seg.window_done(ws, sim, p));

@@ -23,6 +23,19 @@ pub struct Origin<'f> {
     /// Bit `k` set: the position's component `k` is the value of the aggregate's own literal
     /// (read once by the walk; the rewrite need not read the number again).
     pub literals: u8,
+    /// The decimals each of those literals is written with ([`literal_decimals`], at most
+    /// 255), for the components of `literals`.
+    pub decimals: [u8; 6],
+}
+
+/// Decimals a literal is written with (the digits after its dot).
+pub fn literal_decimals(text: &[u8]) -> usize {
+    text.iter().position(|&b| b == b'.').map_or(0, |p| {
+        text[p + 1..]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count()
+    })
 }
 
 /// A declared variable (name span in its file) or one initialised array element.
@@ -150,14 +163,19 @@ pub const AXIS_NAMES: [&str; 6] = ["A1", "A2", "A3", "A4", "A5", "A6"];
 
 /// The number a member's value expression stands for when it is a literal (or a negated one).
 pub fn literal(e: &Expr) -> Option<f64> {
+    literal_number(e).map(|(negative, n)| if negative { -n.value } else { n.value })
+}
+
+/// The number a literal ([`literal`]) is written with, and whether it is negated.
+fn literal_number(e: &Expr) -> Option<(bool, &Number)> {
     match e {
-        Expr::Number(n) => Some(n.value),
+        Expr::Number(n) => Some((false, n)),
         Expr::Unary(u) => match (&u.op, &u.operand) {
-            (crate::krl::UnOp::Neg, Expr::Number(n)) => Some(-n.value),
-            (crate::krl::UnOp::Plus, Expr::Number(n)) => Some(n.value),
+            (crate::krl::UnOp::Neg, Expr::Number(n)) => Some((true, n)),
+            (crate::krl::UnOp::Plus, Expr::Number(n)) => Some((false, n)),
             _ => None,
         },
-        Expr::Paren(p) => literal(&p.inner),
+        Expr::Paren(p) => literal_number(&p.inner),
         _ => None,
     }
 }
@@ -190,9 +208,12 @@ pub fn aggregate<'f>(
             var: None,
             prefix: None,
             literals: 0,
+            decimals: [0; 6],
         }),
     };
     let mut literals = 0u8;
+    let mut decimals = [0u8; 6];
+    let places = |text: &[u8]| literal_decimals(text).min(255) as u8;
     let mut fdat = Fdat::default();
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
     let mut ldat: Option<Option<Vec<u8>>> = None;
@@ -218,14 +239,22 @@ pub fn aggregate<'f>(
             let v = match plain {
                 Some(v) => {
                     literals |= 1 << k;
+                    if let crate::krl::RawMember::Plain { number, .. } = raw {
+                        decimals[k] = places(&src[number.range()]);
+                    }
                     v
                 }
                 None => {
                     let m = file.member_of(raw);
-                    match literal(&m.value) {
-                        Some(v) => {
+                    match literal_number(&m.value) {
+                        Some((negative, n)) => {
                             literals |= 1 << k;
-                            v
+                            decimals[k] = places(file.text(n.span()));
+                            if negative {
+                                -n.value
+                            } else {
+                                n.value
+                            }
                         }
                         None => match eval(&m.value).as_f64() {
                             Some(v) => {
@@ -306,6 +335,7 @@ pub fn aggregate<'f>(
     pos.axis = axis;
     if let Some(o) = &mut pos.origin {
         o.literals = literals;
+        o.decimals = decimals;
     }
     Value::Pos(pos)
 }

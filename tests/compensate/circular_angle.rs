@@ -68,8 +68,8 @@ fn error_at(
     robopost::compensate::pose::norms(&e)
 }
 
-fn directions(ws: &Workspace, sim: &Simulation) -> Vec<[Direction; 6]> {
-    let targets = program::targets(ws, sim, 0..sim.stops.len());
+fn directions(sim: &Simulation) -> Vec<[Direction; 6]> {
+    let targets = program::targets(sim, 0..sim.stops.len());
     nominal_directions(&targets, [Direction::Unknown; 6])
 }
 
@@ -162,7 +162,7 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     let out = load(&written);
     let sim1 = motion::simulate(&out, &robot, &[]);
     assert!(!sim1.rejected());
-    let (dirs0, dirs1) = (directions(&ws, &sim0), directions(&out, &sim1));
+    let (dirs0, dirs1) = (directions(&sim0), directions(&sim1));
     let (c0, c1) = (circles(&sim0), circles(&sim1));
     assert_eq!((c0.len(), c1.len()), (5, 5));
     // The model's error at stop k1 of a program against stop k0's nominal pose.
@@ -288,12 +288,12 @@ END
         motion::simulate(&ws, &robot, &[]),
         motion::simulate(&out, &robot, &[]),
     );
-    let dirs1 = directions(&out, &sim1);
+    let dirs1 = directions(&sim1);
     let end = sim0.stops.len() - 1;
     assert_eq!(sim1.stops.len(), sim0.stops.len());
     let goal = &sim0.stops[end].goal;
     let (p, r) = error_at(&model, &sim1, &dirs1, end, goal);
-    let dirs0 = directions(&ws, &sim0);
+    let dirs0 = directions(&sim0);
     assert!(error_at(&model, &sim0, &dirs0, end, goal).0 > 0.1);
     eprintln!("CIRC_REL: after {:.3} µm {:.3} µrad", p * 1e3, r * 1e6);
     // The start's and the offset's rounding, half a unit per coordinate each, and the
@@ -333,7 +333,7 @@ END
         motion::simulate(&ws, &robot, &[]),
         motion::simulate(&out, &robot, &[]),
     );
-    let (dirs0, dirs1) = (directions(&ws, &sim0), directions(&out, &sim1));
+    let (dirs0, dirs1) = (directions(&sim0), directions(&sim1));
     let (c0, c1) = (circles(&sim0), circles(&sim1));
     assert_eq!((c0.len(), c1.len()), (4, 4));
     for ((a0, _), (a1, _)) in c0.into_iter().zip(c1) {
