@@ -545,11 +545,18 @@ pub fn first_passes(
             .collect()
     };
     let chunks = n.div_ceil(RATE_CHUNK);
-    let (rates, tcps): (Vec<Signs>, Vec<Placing>) = if options.parallel {
-        (0..chunks).into_par_iter().flat_map_iter(chunk).unzip()
+    // Chunk by chunk, then moved once into the two lists (a parallel `unzip` of the flattened
+    // chunks copied every 150-byte record through lists of pieces: 1.5 % of the 1M job).
+    let parts: Vec<Vec<(Signs, Placing)>> = if options.parallel {
+        (0..chunks).into_par_iter().map(chunk).collect()
     } else {
-        (0..chunks).flat_map(chunk).unzip()
+        (0..chunks).map(chunk).collect()
     };
+    let (mut rates, mut tcps) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for (sign, placing) in parts.into_iter().flatten() {
+        rates.push(sign);
+        tcps.push(placing);
+    }
     FirstPasses {
         outcomes,
         nominal_signs,
