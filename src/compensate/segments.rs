@@ -250,9 +250,9 @@ impl<'a> Segments<'a> {
     pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
         debug_assert_eq!(from, self.skeleton.len());
         self.flush();
-        let prepared =
-            self.preparer()
-                .prepare(sim, from, &mut self.nominal_end, &mut self.chains);
+        let prepared = self
+            .preparer()
+            .prepare(sim, from, &mut self.nominal_end, &mut self.chains);
         let seg = self.settle(ws, sim, from, prepared);
         let points = self.options.points;
         self.tally.add(
