@@ -98,6 +98,17 @@ impl EditList {
         EditList::default()
     }
 
+    /// A list with room for `pieces` edits of `text` bytes in all (a list grown edit by edit
+    /// copies itself a dozen times on its way to a window's few thousand).
+    pub fn with_capacity(pieces: usize, text: usize) -> EditList {
+        EditList {
+            segments: vec![Segment {
+                pieces: Vec::with_capacity(pieces),
+                text: Vec::with_capacity(text),
+            }],
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.segments.iter().map(|s| s.pieces.len()).sum()
     }

@@ -512,8 +512,15 @@ fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
     let mut buf = [b'0'; END + BLOCK];
     let mut at = END;
     let n = units.unsigned_abs();
-    let unit = 10u64.pow(decimals as u32);
-    let (mut int, mut frac) = (n / unit, n % unit);
+    // The usual decimals by constant divisors (a multiplication), the rest by a division.
+    let (mut int, mut frac) = match decimals {
+        3 => (n / 1_000, n % 1_000),
+        4 => (n / 10_000, n % 10_000),
+        _ => {
+            let unit = 10u64.pow(decimals as u32);
+            (n / unit, n % unit)
+        }
+    };
     if decimals > 0 {
         let dot = at - decimals - 1;
         while frac > 0 {
@@ -627,6 +634,9 @@ pub fn rewrite(
 ) -> Rewrite {
     rewrite_placed(ws, sim, outcomes, Placed::default(), robot, separator)
 }
+
+/// Targets whose edits a rewrite's list makes room for at once (a window's are fewer).
+const EDITS_RESERVED: usize = 2048;
 
 /// [`rewrite`] with the commands the compensation placed (their TCPs are not computed again).
 pub fn rewrite_placed(
@@ -777,7 +787,9 @@ pub fn rewrite_placed(
             |(mut edits, mut skips): Chunk, k| {
                 let file = keys[k].0;
                 if edits.last().map_or(true, |(f, _)| *f != file) {
-                    edits.push((file, EditList::new()));
+                    // Room for the six numbers of every target left (a window's at most).
+                    let left = (keys.len() - k).min(EDITS_RESERVED);
+                    edits.push((file, EditList::with_capacity(6 * left, 6 * 12 * left)));
                 }
                 let list = &mut edits.last_mut().expect("pushed").1;
                 if let Some(Err(s)) = edits_into(keys[k].2 as usize, list) {

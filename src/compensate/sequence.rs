@@ -223,6 +223,22 @@ pub struct Outcome {
 }
 
 impl Outcome {
+    /// A slot's value before its outcome is written.
+    fn placeholder() -> Outcome {
+        Outcome {
+            axes_deg: [0.0; 6],
+            directions: [Direction::Unknown; 6],
+            nominal_directions: [Direction::Unknown; 6],
+            before: Vector6::zeros(),
+            residual: Vector6::zeros(),
+            iterations: 0,
+            resolution: Resolution::Consistent,
+            error: None,
+            changed: false,
+            turn_held: [false; 6],
+        }
+    }
+
     /// Axes whose compensated motion arrives in the opposite direction to the nominal one
     /// (a direction becoming known where the nominal axis rests is not a flip).
     pub fn flipped(&self) -> [bool; 6] {
@@ -335,10 +351,10 @@ pub fn correction(command_tcp: &Frame, nominal_tcp: &Frame) -> (f64, f64) {
 /// the targets what the rewrite and the next segment need.
 #[derive(Debug, Default)]
 pub struct Compensated {
-    /// The history's outcomes (as carried) followed by those of the targets: callers take
-    /// the slice they need without copying the rest.
+    /// Unused slots, the history's outcomes (as carried), then those of the targets: callers
+    /// take the slice they need without copying the rest.
     pub outcomes: Vec<Outcome>,
-    /// How many outcomes are the history's.
+    /// Where the targets' outcomes begin (the history's are the ones just before).
     pub history: usize,
     /// Per target, whether the re-check re-solved it.
     pub resolved: Vec<bool>,
@@ -362,7 +378,9 @@ pub fn compensate(
     start: [Direction; 6],
     options: &Options,
 ) -> Vec<Outcome> {
-    compensate_after(model, tools, &[], targets, start, options).outcomes
+    let mut done = compensate_after(model, tools, &[], targets, start, options);
+    done.outcomes.drain(..done.history);
+    done.outcomes
 }
 
 /// How far back the re-check of a target looks: its arrival depends on the commands of the
@@ -401,24 +419,24 @@ pub fn compensate_after(
 /// directions they leave (`nominal_start`), so it may run while the segment before is still
 /// being settled ([`settle`]).
 pub struct FirstPasses {
+    /// `LOOK_BACK` slots for the history's outcomes (filled by [`settle`]), then the targets'.
     outcomes: Vec<Outcome>,
     nominal_signs: Vec<Signs>,
     /// Signs of the first-pass arrival motions; those of the first [`LOOK_BACK`] targets
     /// depend on the history's commands and are left to [`settle`].
     rates: Vec<Signs>,
     /// The unrounded TCP of every first-pass command, and its pose in the base frame before
-    /// the choice of Euler triple (see [`Command::unchosen`]).
-    tcps: Vec<Placing>,
+    /// the choice of Euler triple (see [`Command::unchosen`]); [`settle`] completes them in
+    /// place.
+    commands: Vec<Command>,
 }
-
-/// A command's unrounded TCP and, for a Cartesian target, its [`Frame::to_kuka_unchosen`]
-/// in the target's base frame.
-type Placing = (Frame, Option<[f64; 6]>);
 
 impl FirstPasses {
     /// The nominal directions after the segment (the next segment's `nominal_start`).
     pub fn nominal_end(&self) -> Option<[Direction; 6]> {
-        self.outcomes.last().map(|o| o.nominal_directions)
+        self.outcomes[LOOK_BACK..]
+            .last()
+            .map(|o| o.nominal_directions)
     }
 }
 
@@ -459,44 +477,41 @@ pub fn first_passes(
     };
     let nominal = directions_after(&nominal_signs, nominal_start);
     // The chains of these targets, each worked in order, the first continuing the open one.
+    // Each chain writes its outcomes in place, after `LOOK_BACK` slots left for the history
+    // (`settle`): collected per chain and joined, the 208-byte outcomes were copied twice.
     let n = targets.len();
     let head = (CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN;
     let head = head.min(n);
-    let pieces = usize::from(head > 0) + (n - head).div_ceil(CHAIN);
-    let piece = |p: usize| -> (Vec<Outcome>, solve::Chain) {
-        let (range, mut chain) = match p.checked_sub(usize::from(head > 0)) {
-            None => (0..head, chains.open),
-            Some(k) => {
-                let a = head + k * CHAIN;
-                (a..(a + CHAIN).min(n), solve::Chain::default())
-            }
-        };
-        let outcomes = range
-            .map(|i| {
-                let t = &targets[i];
-                first_pass(
-                    model,
-                    tools,
-                    t,
-                    &nominal[i],
-                    options.method,
-                    Some(&mut chain),
-                )
-            })
-            .collect();
-        (outcomes, chain)
+    let mut outcomes = vec![Outcome::placeholder(); LOOK_BACK + n];
+    let (head_slots, rest) = outcomes[LOOK_BACK..].split_at_mut(head);
+    let work = |from: usize, slots: &mut [Outcome], mut chain: solve::Chain| -> solve::Chain {
+        for (k, slot) in slots.iter_mut().enumerate() {
+            let i = from + k;
+            first_pass(
+                model,
+                tools,
+                &targets[i],
+                &nominal[i],
+                options.method,
+                Some(&mut chain),
+                slot,
+            );
+        }
+        chain
     };
-    let solved: Vec<(Vec<Outcome>, solve::Chain)> = if options.parallel {
-        (0..pieces).into_par_iter().map(piece).collect()
+    let open = work(0, head_slots, chains.open);
+    let fresh = |(p, slots): (usize, &mut [Outcome])| {
+        work(head + p * CHAIN, slots, solve::Chain::default())
+    };
+    let last: Option<solve::Chain> = if options.parallel {
+        let chains: Vec<solve::Chain> = rest.par_chunks_mut(CHAIN).enumerate().map(fresh).collect();
+        chains.last().copied()
     } else {
-        (0..pieces).map(piece).collect()
+        rest.chunks_mut(CHAIN).enumerate().map(fresh).last()
     };
-    let mut outcomes = Vec::with_capacity(n);
-    for (part, chain) in solved {
-        outcomes.extend(part);
-        chains.open = chain;
-    }
+    chains.open = last.unwrap_or(open);
     chains.ordinal += n as u64;
+    let solved = &outcomes[LOOK_BACK..];
     // The segment alone: target k of the segment is k here.
     let ctx = Ctx {
         model,
@@ -508,60 +523,64 @@ pub fn first_passes(
     // Arrival motions of the first-pass commands, chunk by chunk: each rate needs its
     // neighbours' written TCPs, computed once per chunk (plus the few around its ends), and
     // the re-check needs only the signs. The chain is evaluated once per target: its TCP
-    // (kept for the rewrite) and, for a Cartesian arrival, its Jacobian.
-    let cmd = |j: usize| outcomes[j].axes_deg;
-    let n = targets.len();
-    let chunk = |c: usize| -> Vec<(Signs, Placing)> {
+    // (kept for the rewrite) and, for a Cartesian arrival, its Jacobian. Each chunk writes
+    // its signs and TCPs in place.
+    let cmd = |j: usize| solved[j].axes_deg;
+    let chunk = |(c, (rates, placings)): (usize, (&mut [Signs], &mut [Command]))| {
         let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
         let from = a.saturating_sub(2);
-        let mut forward: Vec<(Placing, Option<ArmState>)> = (a..b)
-            .map(|k| {
-                let (tcp, arm) = ctx.forward(k, &outcomes[k].axes_deg);
-                ((tcp, None), arm)
-            })
-            .collect();
+        let mut arms: Vec<Option<ArmState>> = Vec::with_capacity(b - a);
+        for (k, placing) in (a..b).zip(placings.iter_mut()) {
+            let (tcp, arm) = ctx.forward(k, &solved[k].axes_deg);
+            placing.tcp = tcp;
+            arms.push(arm);
+        }
         let tcps: Vec<Frame> = (from..(b + 1).min(n))
             .map(
-                |k| match k.checked_sub(a).and_then(|i| forward.get_mut(i)) {
-                    Some(((raw, unchosen), _)) => {
-                        let (written, u) = ctx.written_keeping(k, &outcomes[k].axes_deg, || *raw);
-                        *unchosen = u;
+                |k| match k.checked_sub(a).and_then(|i| placings.get_mut(i)) {
+                    Some(placing) => {
+                        let raw = placing.tcp;
+                        let (written, u) = ctx.written_keeping(k, &solved[k].axes_deg, || raw);
+                        placing.unchosen = u;
                         written
                     }
-                    None => ctx.tcp(k, &outcomes[k].axes_deg),
+                    None => ctx.tcp(k, &solved[k].axes_deg),
                 },
             )
             .collect();
-        (a..b)
-            .zip(forward)
-            .map(|(k, (placing, jacobian))| {
-                if k < LOOK_BACK {
-                    return (None, placing);
-                }
+        for ((k, sign), jacobian) in (a..b).zip(rates.iter_mut()).zip(&arms) {
+            if k >= LOOK_BACK {
                 let cache = Some((from, &tcps[..]));
-                let rate = ctx.rate(k, &outcomes[k].axes_deg, &cmd, cache, jacobian.as_ref());
-                (signs(rate), placing)
-            })
-            .collect()
+                let rate = ctx.rate(k, &solved[k].axes_deg, &cmd, cache, jacobian.as_ref());
+                *sign = signs(rate);
+            }
+        }
     };
-    let chunks = n.div_ceil(RATE_CHUNK);
-    // Chunk by chunk, then moved once into the two lists (a parallel `unzip` of the flattened
-    // chunks copied every 150-byte record through lists of pieces: 1.5 % of the 1M job).
-    let parts: Vec<Vec<(Signs, Placing)>> = if options.parallel {
-        (0..chunks).into_par_iter().map(chunk).collect()
+    let mut rates: Vec<Signs> = vec![None; n];
+    let blank = Command {
+        tcp: Frame::identity(),
+        correction: (0.0, 0.0),
+        unchosen: None,
+    };
+    let mut tcps: Vec<Command> = vec![blank; n];
+    if options.parallel {
+        rates
+            .par_chunks_mut(RATE_CHUNK)
+            .zip(tcps.par_chunks_mut(RATE_CHUNK))
+            .enumerate()
+            .for_each(chunk);
     } else {
-        (0..chunks).map(chunk).collect()
-    };
-    let (mut rates, mut tcps) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for (sign, placing) in parts.into_iter().flatten() {
-        rates.push(sign);
-        tcps.push(placing);
+        rates
+            .chunks_mut(RATE_CHUNK)
+            .zip(tcps.chunks_mut(RATE_CHUNK))
+            .enumerate()
+            .for_each(chunk);
     }
     FirstPasses {
         outcomes,
         nominal_signs,
         rates,
-        tcps,
+        commands: tcps,
     }
 }
 
@@ -581,9 +600,20 @@ pub fn settle(
         Some(c) => c.outcome.directions,
         None => start,
     };
-    let mut outcomes: Vec<Outcome> = Vec::with_capacity(h + targets.len());
-    outcomes.extend(history.iter().map(|c| c.outcome));
-    outcomes.extend(first.outcomes);
+    // The history's outcomes go into the slots left before the targets' (no copy of these),
+    // the unused slots first: `all[pad..]` is the history followed by the targets.
+    let mut all = first.outcomes;
+    let pad = LOOK_BACK.checked_sub(h).unwrap_or_else(|| {
+        all.splice(
+            0..0,
+            std::iter::repeat(Outcome::placeholder()).take(h - LOOK_BACK),
+        );
+        0
+    });
+    for (slot, c) in all[pad..pad + h].iter_mut().zip(history) {
+        *slot = c.outcome;
+    }
+    let outcomes = &mut all[pad..];
     let ctx = Ctx {
         model,
         tools,
@@ -597,7 +627,7 @@ pub fn settle(
         &ctx,
         state_start,
         h,
-        &mut outcomes,
+        outcomes,
         (&first.nominal_signs, &first.rates),
         &mut resolved,
     );
@@ -605,41 +635,31 @@ pub fn settle(
     // The nominal command's TCP is the goal: the walk solved the command for it (an axis
     // target's goal is its nominal TCP).
     let arm = Nominal(&model.robot);
-    let command = |(i, (tcp, unchosen)): (usize, Placing)| {
+    let complete = |(i, c): (usize, &mut Command)| {
         let (k, t) = (h + i, &targets[i]);
         let o = &outcomes[k];
-        let tool = ctx.tool(k);
-        let (tcp, unchosen) = if resolved[k] {
-            (arm.tcp(&o.axes_deg, tool), None)
-        } else {
-            (tcp, unchosen)
-        };
-        let correction = if o.changed {
-            correction(&tcp, &t.goal)
-        } else {
-            (0.0, 0.0)
-        };
-        Command {
-            tcp,
-            correction,
-            unchosen,
+        if resolved[k] {
+            c.tcp = arm.tcp(&o.axes_deg, ctx.tool(k));
+            c.unchosen = None;
+        }
+        if o.changed {
+            c.correction = correction(&c.tcp, &t.goal);
         }
     };
-    let commands: Vec<Command> = if options.parallel {
-        first
-            .tcps
-            .into_par_iter()
+    let mut commands = first.commands;
+    if options.parallel {
+        commands
+            .par_iter_mut()
             .enumerate()
             .with_min_len(1024)
-            .map(command)
-            .collect()
+            .for_each(complete);
     } else {
-        first.tcps.into_iter().enumerate().map(command).collect()
-    };
+        commands.iter_mut().enumerate().for_each(complete);
+    }
     resolved.drain(..h);
     Compensated {
-        outcomes,
-        history: h,
+        outcomes: all,
+        history: pad + h,
         resolved,
         commands,
     }
@@ -755,12 +775,13 @@ fn first_pass(
     directions: &[Direction; 6],
     method: Method,
     mut chain: Option<&mut solve::Chain>,
-) -> Outcome {
+    out: &mut Outcome,
+) {
     let tool = &tools[target.tool as usize];
     if let Some(c) = chain.as_deref_mut() {
         c.follow_tool(target.tool);
     }
-    let mut out = Outcome {
+    *out = Outcome {
         axes_deg: target.nominal_axes,
         directions: *directions,
         nominal_directions: *directions,
@@ -778,7 +799,7 @@ fn first_pass(
         }
         out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
         out.residual = out.before;
-        return out;
+        return;
     }
     let solved = solve_target(
         model,
@@ -820,7 +841,6 @@ fn first_pass(
             out.residual = out.before;
         }
     }
-    out
 }
 
 /// What the re-check needs besides the outcomes: the targets are the history's followed by
@@ -1037,7 +1057,10 @@ fn recheck(
         // earlier flip this differs from the nominal directions the first pass assumed.
         let expected = arrive_signs(&state, nominal[k - from]);
         if expected != outcomes[k].directions && !fixed {
-            let mut o = first_pass(ctx.model, ctx.tools, target, &expected, ctx.method, None);
+            let mut o = Outcome::placeholder();
+            first_pass(
+                ctx.model, ctx.tools, target, &expected, ctx.method, None, &mut o,
+            );
             o.nominal_directions = outcomes[k].nominal_directions;
             outcomes[k] = o;
             resolved[k] = true;
