@@ -6,5 +6,21 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    keep_freed_memory();
     std::process::exit(robopost::cli::main());
+}
+
+/// glibc's allocator hands blocks over 128 KiB back to the kernel when they are freed (and
+/// trims the top of its heaps), moving that limit up as it sees such blocks freed. A batch
+/// allocates and frees a few such blocks per program a thousand times over; where the limit
+/// lags behind, every one comes back as fresh pages, faulted in one by one (330,000 faults
+/// for a batch of 1,000 programs, a quarter of its time). Fixed limits keep freed memory for
+/// reuse; blocks of 32 MiB and more (a long program's bytes) are still mapped on their own.
+fn keep_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `mallopt` only sets allocator parameters; called before any thread starts.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
+    }
 }
