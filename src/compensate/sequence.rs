@@ -225,10 +225,16 @@ pub struct Outcome {
 impl Outcome {
     /// A slot's value before its outcome is written.
     fn placeholder() -> Outcome {
+        Outcome::unsolved([0.0; 6], [Direction::Unknown; 6])
+    }
+
+    /// A target commanded at `axes`, arriving with `directions` (commanded and nominal),
+    /// before anything is solved or predicted.
+    fn unsolved(axes: [f64; 6], directions: [Direction; 6]) -> Outcome {
         Outcome {
-            axes_deg: [0.0; 6],
-            directions: [Direction::Unknown; 6],
-            nominal_directions: [Direction::Unknown; 6],
+            axes_deg: axes,
+            directions,
+            nominal_directions: directions,
             before: Vector6::zeros(),
             residual: Vector6::zeros(),
             iterations: 0,
@@ -781,18 +787,7 @@ fn first_pass(
     if let Some(c) = chain.as_deref_mut() {
         c.follow_tool(target.tool);
     }
-    *out = Outcome {
-        axes_deg: target.nominal_axes,
-        directions: *directions,
-        nominal_directions: *directions,
-        before: Vector6::zeros(),
-        residual: Vector6::zeros(),
-        iterations: 0,
-        resolution: Resolution::Consistent,
-        error: None,
-        changed: false,
-        turn_held: [false; 6],
-    };
+    *out = Outcome::unsolved(target.nominal_axes, *directions);
     if !target.compensate {
         if let Some(c) = chain {
             c.forget();
