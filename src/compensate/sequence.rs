@@ -505,15 +505,25 @@ pub fn first_passes(
         }
         chain
     };
-    let open = work(0, head_slots, chains.open);
     let fresh = |(p, slots): (usize, &mut [Outcome])| {
         work(head + p * CHAIN, slots, solve::Chain::default())
     };
-    let last: Option<solve::Chain> = if options.parallel {
-        let chains: Vec<solve::Chain> = rest.par_chunks_mut(CHAIN).enumerate().map(fresh).collect();
-        chains.last().copied()
+    let continued = chains.open;
+    // The chain continued from the segment before runs beside the fresh ones.
+    let (open, last): (solve::Chain, Option<solve::Chain>) = if options.parallel {
+        rayon::join(
+            || work(0, head_slots, continued),
+            || {
+                let ends: Vec<solve::Chain> =
+                    rest.par_chunks_mut(CHAIN).enumerate().map(fresh).collect();
+                ends.last().copied()
+            },
+        )
     } else {
-        rest.chunks_mut(CHAIN).enumerate().map(fresh).last()
+        (
+            work(0, head_slots, continued),
+            rest.chunks_mut(CHAIN).enumerate().map(fresh).last(),
+        )
     };
     chains.open = last.unwrap_or(open);
     chains.ordinal += n as u64;
