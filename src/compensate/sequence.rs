@@ -611,6 +611,8 @@ pub fn settle(
     first: FirstPasses,
     options: &Options,
 ) -> Compensated {
+    // The re-check looks back `LOOK_BACK` targets: older history is not needed.
+    let history = &history[history.len().saturating_sub(LOOK_BACK)..];
     let h = history.len();
     let state_start = match history.last() {
         Some(c) => c.outcome.directions,
@@ -619,13 +621,7 @@ pub fn settle(
     // The history's outcomes go into the slots left before the targets' (no copy of these),
     // the unused slots first: `all[pad..]` is the history followed by the targets.
     let mut all = first.outcomes;
-    let pad = LOOK_BACK.checked_sub(h).unwrap_or_else(|| {
-        all.splice(
-            0..0,
-            std::iter::repeat(Outcome::placeholder()).take(h - LOOK_BACK),
-        );
-        0
-    });
+    let pad = LOOK_BACK - h;
     for (slot, c) in all[pad..pad + h].iter_mut().zip(history) {
         *slot = c.outcome;
     }
