@@ -8,7 +8,7 @@ mod cpu_time;
 use cpu_time::ThreadCpuTime;
 use nalgebra::Vector3;
 use robopost::kinematics::{Payload, RobotDescription};
-use robopost::model::{expand_list, AxisState, Direction, GridOptions, Model};
+use robopost::model::{expand_list, AxisHistory, AxisState, Direction, GridOptions, Model};
 
 fn paper_model() -> Model {
     let mut model = Model::new(
@@ -41,11 +41,12 @@ fn states() -> Vec<AxisState> {
                 (t * 0.8) % 200.0 - 100.0,
                 (t * 2.7) % 600.0 - 300.0,
             ]);
-            s.directions = [if i % 2 == 0 {
+            let flank = if i % 2 == 0 {
                 Direction::Positive
             } else {
                 Direction::Negative
-            }; 6];
+            };
+            s.history = [AxisHistory::engaged(flank); 6];
             s
         })
         .collect()
@@ -84,7 +85,7 @@ fn solve_one_target(c: &mut Criterion<ThreadCpuTime>) {
             goal: nominal.tcp(&s.axes_deg, &tool),
             tool: &tool,
             start: s.axes_deg,
-            directions: s.directions,
+            histories: s.history,
             hold: [false; 6],
         })
         .collect();

@@ -34,14 +34,13 @@ for n in range(6):
     period = [60.0, 45.0, 50.0, 90.0, 40.0, 75.0][n]
     vals = [r(amp * math.sin(2 * math.pi * x / period + n) + 0.3 * amp * x / (hi - lo)) for x in g]
     effects.append({"name": f"map:A{n+1}", "table": {"grid_deg": g, "values_deg": vals}})
-# backlash:An — half the hysteresis between the two branches, degrees. Negative: with motor-side
-# encoders the gear output lags the motor, so after a positive move the axis stands short
-# (Δθ(+1) < Δθ(−1)).
+# backlash:An — the gear play's width, degrees: the output lags the command by half of it, so
+# after a positive move the axis stands short (Δθ(+1) < Δθ(−1)).
 for n in range(6):
     lo, hi = LIMITS[n]
     g = grid(lo, hi, 10.0)
     base = [0.004, 0.005, 0.004, 0.006, 0.005, 0.006][n]
-    vals = [r(-base * (1.0 + 0.2 * math.cos(math.radians(x) * 2 + n))) for x in g]
+    vals = [r(2.0 * base * (1.0 + 0.2 * math.cos(math.radians(x) * 2 + n))) for x in g]
     effects.append({"name": f"backlash:A{n+1}", "table": {"grid_deg": g, "values_deg": vals}})
 # crosstalk:A3->A2 — A2's deviation changes with A3 (paper: tested at A3 = 58, 105, 153 deg).
 g2 = grid(-135.0, 35.0, 5.0)
@@ -53,7 +52,7 @@ for a2 in g2:
 effects.append({"name": "crosstalk:A3->A2", "table": {"grid_deg": g2, "other_grid_deg": g3, "values_deg": vals}})
 
 cal = {
-    "format": "robopost-calibration/1",
+    "format": "robopost-calibration/2",
     "robot": {
         "name": "KR 30 HA",
         "description": {

@@ -95,8 +95,10 @@ fn save_then_load_gives_the_same_calibration() {
         back.model().parameter_names(),
         cal.model().parameter_names()
     );
-    let mut state = AxisState::new([10.0, -70.0, 100.0, 20.0, 30.0, -40.0]);
-    state.directions = [Direction::Positive; 6];
+    let mut state = AxisState::with_directions(
+        [10.0, -70.0, 100.0, 20.0, 30.0, -40.0],
+        [Direction::Positive; 6],
+    );
     state.time_s = 1800.0;
     assert_eq!(
         back.model().target_position(&state),

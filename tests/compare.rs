@@ -9,7 +9,7 @@ use nalgebra::{Rotation3, Vector3};
 use robopost::calibration::{Calibration, KukaFrame, MeasurementFrame, Provenance};
 use robopost::compare::{self, Summary};
 use robopost::kinematics::{Payload, RobotDescription};
-use robopost::measure::{self, infer_directions, Measurements, Stop};
+use robopost::measure::{self, infer_histories, Measurements, Stop};
 use robopost::model::{expand_list, AxisState, GridOptions, Model};
 use robopost::simulate::campaign::{Campaign, IndexingTest, Repeat};
 
@@ -73,7 +73,7 @@ fn measure_exactly(truth: &Model) -> Measurements {
             ..AxisState::new(p.axes_deg)
         })
         .collect();
-    infer_directions(&mut states, &[]);
+    infer_histories(&mut states, &[]);
     let stops = plan
         .iter()
         .zip(states)

@@ -70,7 +70,7 @@ fn truth_on_grids(list: &str, stops: &[Stop]) -> Model {
             }
         } else if let Some(n) = axis("backlash:A") {
             for (j, &g) in table.grid_deg.iter().enumerate() {
-                values[start + j] = paper::backlash_deg(n, g);
+                values[start + j] = paper::play_width_deg(n, g);
             }
         } else {
             let columns = table.other_grid_deg.unwrap();

@@ -1,19 +1,19 @@
-//! Tables, backlash branches, crosstalk, compliance torques, tilt, drift and effect names
+//! Tables, gear-play branches, crosstalk, compliance torques, tilt, drift and effect names
 //! against hand calculations.
 
 use std::f64::consts::PI;
 
 use robopost::kinematics::{Gravity, Payload, RobotDescription};
 use robopost::model::effects::axis_table::AxisTable;
-use robopost::model::effects::backlash::Backlash;
 use robopost::model::effects::compliance::{gravity_torques_knm, Compliance, STANDARD_GRAVITY};
 use robopost::model::effects::crosstalk::Crosstalk;
 use robopost::model::effects::drift::Drift;
 use robopost::model::effects::map::AngleMap;
+use robopost::model::effects::play::GearPlay;
 use robopost::model::effects::tilt::Tilt;
 use robopost::model::table::{Grid, Table1, Table2};
 use robopost::model::{
-    expand_list, AxisState, ChainErrors, Context, Direction, Effect, EffectName, Slot,
+    expand_list, AxisHistory, AxisState, ChainErrors, Context, Direction, Effect, EffectName, Slot,
 };
 
 const DEG: f64 = PI / 180.0;
@@ -117,7 +117,7 @@ fn angle_slot(effect: &dyn Effect, state: &AxisState, axis: u8) -> f64 {
 }
 
 #[test]
-fn backlash_branches_are_map_plus_minus_backlash_and_unknown_is_their_mean() {
+fn play_branches_lag_by_half_the_width_and_unknown_is_their_mean() {
     let grid = Grid::new(vec![0.0, 10.0]).unwrap();
     let map = AngleMap(AxisTable {
         axis: 3,
@@ -126,28 +126,32 @@ fn backlash_branches_are_map_plus_minus_backlash_and_unknown_is_their_mean() {
             values: vec![0.02, 0.04],
         },
     });
-    let backlash = Backlash(AxisTable {
+    let play = GearPlay(AxisTable {
         axis: 3,
         table: Table1 {
             grid,
             values: vec![0.01, 0.03],
         },
     });
-    let mut state = AxisState::new([0.0, 0.0, 5.0, 0.0, 0.0, 0.0]);
     let total =
-        |state: &AxisState| (angle_slot(&map, state, 3) + angle_slot(&backlash, state, 3)) / DEG;
-    state.directions[2] = Direction::Positive;
-    let plus = total(&state);
-    state.directions[2] = Direction::Negative;
-    let minus = total(&state);
-    state.directions[2] = Direction::Unknown;
-    let unknown = total(&state);
-    // At 5°: map 0.03, backlash 0.02.
+        |state: &AxisState| (angle_slot(&map, state, 3) + angle_slot(&play, state, 3)) / DEG;
+    let at = |d: Direction| AxisState::with_directions([0.0, 0.0, 5.0, 0.0, 0.0, 0.0], [d; 6]);
+    let plus = total(&at(Direction::Positive));
+    let minus = total(&at(Direction::Negative));
+    let unknown = total(&at(Direction::Unknown));
+    // At 5°: map 0.03, width 0.02: the output lags by 0.01 after a motion either way.
     assert!(
-        (plus - 0.05).abs() < 1e-15 && (minus - 0.01).abs() < 1e-15,
+        (plus - 0.02).abs() < 1e-15 && (minus - 0.04).abs() < 1e-15,
         "{plus} {minus}"
     );
     assert!((unknown - (plus + minus) / 2.0).abs() < 1e-15);
+    // Up from 0° to 6°, then back to 5.995°: inside the play (width 0.022 at 6°), the output
+    // stays where the upward motion left it, 6 − 0.011; the map is read at the command.
+    let mut state = AxisState::new([0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    state = state.then([0.0, 0.0, 6.0, 0.0, 0.0, 0.0]);
+    state = state.then([0.0, 0.0, 5.995, 0.0, 0.0, 0.0]);
+    let output = 5.995 + angle_slot(&play, &state, 3) / DEG;
+    assert!((output - (6.0 - 0.011)).abs() < 1e-13, "{output}");
 }
 
 #[test]
@@ -435,24 +439,40 @@ fn merged_map_and_backlash_on_different_grids() {
         axis: 2,
         table: map.clone(),
     })));
-    model.push(Box::new(Backlash(AxisTable {
+    model.push(Box::new(GearPlay(AxisTable {
         axis: 2,
         table: backlash.clone(),
     })));
     for k in 0..=400 {
         let a2 = -15.0 + k as f64 * 0.1;
         for dir in [Direction::Negative, Direction::Unknown, Direction::Positive] {
-            let mut state = AxisState::new([0.0, a2, 90.0, 0.0, 30.0, 0.0]);
-            state.directions = [dir; 6];
+            let state = AxisState::with_directions([0.0, a2, 90.0, 0.0, 30.0, 0.0], [dir; 6]);
             let mut errors = model.fixed_errors(&state);
             model.add_varying_errors(&state, &mut errors);
-            // By hand: map(A2) + dir·backlash(A2), degrees → radians.
-            let expected = (map.eval(a2).0 + dir.sign() * backlash.eval(a2).0) * DEG;
+            // By hand: map(A2) − dir·width(A2)/2, degrees → radians.
+            let expected = (map.eval(a2).0 - 0.5 * dir.sign() * backlash.eval(a2).0) * DEG;
             let got = errors.get(Slot::Angle { axis: 2 });
             assert!(
                 (got - expected).abs() < 1e-17,
                 "A2 {a2} {dir:?}: {got} vs {expected}"
             );
         }
+        // Arriving upward at A2 + 0.003, then back down to A2: the play's output stays where
+        // the upward motion left it (A2 + 0.003 − w(A2 + 0.003)/2) unless the band at A2
+        // drags it.
+        let mut h = AxisHistory::engaged(Direction::Positive);
+        h.push(a2 + 0.003);
+        let mut state = AxisState::new([0.0, a2, 90.0, 0.0, 30.0, 0.0]);
+        state.history[1] = h;
+        let mut errors = model.fixed_errors(&state);
+        model.add_varying_errors(&state, &mut errors);
+        let w = |x: f64| backlash.eval(x).0;
+        let lag = (0.003 - 0.5 * w(a2 + 0.003)).clamp(-0.5 * w(a2), 0.5 * w(a2));
+        let expected = (map.eval(a2).0 + lag) * DEG;
+        let got = errors.get(Slot::Angle { axis: 2 });
+        assert!(
+            (got - expected).abs() < 1e-15,
+            "A2 {a2} reversed: {got} vs {expected}"
+        );
     }
 }

@@ -6,7 +6,7 @@
 use nalgebra::Vector3;
 use robopost::kinematics::{Payload, RobotDescription};
 use robopost::model::{
-    expand_list, AxisState, ChainErrors, Direction, GridOptions, Model, N_SLOTS,
+    expand_list, AxisHistory, AxisState, ChainErrors, Direction, GridOptions, Model, N_SLOTS,
 };
 
 /// A small deterministic generator (the tests must not depend on a seed-less RNG).
@@ -29,9 +29,21 @@ fn random_state(rng: &mut Lcg, robot: &RobotDescription) -> AxisState {
         let [lo, hi] = robot.limits_deg[n];
         rng.range(lo, hi)
     }));
-    for d in state.directions.iter_mut() {
-        *d = [Direction::Negative, Direction::Unknown, Direction::Positive]
-            [(rng.unit() * 3.0) as usize % 3];
+    // Every kind of history: engaged on a flank, unmoved, or reversed lately by less than a
+    // play (its memory holds turning points a few hundredths of a degree away).
+    for n in 0..6 {
+        let c = state.axes_deg[n];
+        state.history[n] = match (rng.unit() * 4.0) as usize % 4 {
+            0 => AxisHistory::engaged(Direction::Negative),
+            1 => AxisHistory::unmoved(),
+            2 => AxisHistory::engaged(Direction::Positive),
+            _ => {
+                let mut h = AxisHistory::engaged(Direction::Positive);
+                h.push(c + rng.range(-0.03, 0.03));
+                h.push(c + rng.range(-0.03, 0.03));
+                h
+            }
+        };
     }
     state.time_s = rng.range(0.0, 7200.0);
     state
@@ -53,9 +65,18 @@ fn full_model(rng: &mut Lcg) -> Model {
     for name in expand_list(list).expect("valid list") {
         model.push_named(&name, &options).expect("constructible");
     }
-    let values: Vec<f64> = (0..model.n_parameters())
+    let mut values: Vec<f64> = (0..model.n_parameters())
         .map(|_| rng.range(-0.05, 0.05))
         .collect();
+    // Gear plays have widths, not signs.
+    for (e, effect) in model.effects().iter().enumerate() {
+        if effect.name().starts_with("backlash") {
+            let start = model.effect_start(e);
+            for v in &mut values[start..start + effect.values().len()] {
+                *v = v.abs() + 0.001;
+            }
+        }
+    }
     model.set_values(&values);
     model
 }
@@ -210,7 +231,7 @@ fn fixed_plus_varying_errors_are_the_chain_errors() {
             assert!((split.0[i] - whole.0[i]).abs() < 1e-15, "slot {i}");
         }
         let mut elsewhere = random_state(&mut rng, &model.robot);
-        elsewhere.directions = state.directions;
+        elsewhere.history = state.history;
         elsewhere.time_s = state.time_s;
         assert_eq!(model.fixed_errors(&state), model.fixed_errors(&elsewhere));
         // The fixed part is not empty here: the geometry.

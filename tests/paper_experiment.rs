@@ -255,7 +255,7 @@ fn simulate_program_on_the_command_line() {
     assert_eq!(file.stops.len(), expected.len());
     for (row, e) in file.stops.iter().zip(&expected) {
         assert_eq!(row.test, "paper_path2");
-        assert_eq!(row.state.directions, e.state.directions);
+        assert_eq!(row.state.directions(), e.state.directions());
         assert!((row.state.time_s - e.state.time_s).abs() < 0.051);
         // Written to 1e-6° and 1e-4 mm.
         for k in 0..6 {

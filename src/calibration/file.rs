@@ -9,14 +9,17 @@ use serde::{Deserialize, Serialize};
 use crate::kinematics::{Payload, Pose, RobotDescription};
 use crate::model::EffectRecord;
 
-/// The only format version this build reads and writes.
-pub const FORMAT: &str = "robopost-calibration/1";
+/// The format version this build writes.
+pub const FORMAT: &str = "robopost-calibration/2";
+/// The earlier version, still read: its `backlash:An` tables held the signed half difference
+/// of an instant switch, read now as gear-play widths (see `model::effects::play`).
+pub const FORMAT_V1: &str = "robopost-calibration/1";
 
 /// A calibration file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CalibrationFile {
-    /// Always `robopost-calibration/1`.
+    /// `robopost-calibration/2` (`/1` is still read).
     pub format: String,
     pub robot: RobotRecord,
     /// Payload at the flange during the measurements (compliance effect); none when absent.

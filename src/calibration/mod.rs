@@ -2,11 +2,11 @@
 //! it into a [`Model`]. This module owns the file layout; each effect's entry is encoded by
 //! the effect itself through the model's registry.
 //!
-//! # Format (`robopost-calibration/1`)
+//! # Format (`robopost-calibration/2`)
 //!
 //! ```json
 //! {
-//!   "format": "robopost-calibration/1",
+//!   "format": "robopost-calibration/2",
 //!   "robot": { "name": "KR 30 HA",
 //!              "description": { "links": { "l1x": 350, "l1z": 815, "l2": 850, "l3z": 145,
 //!                                          "l4x": 820, "l5x": 170 },
@@ -42,8 +42,10 @@
 //! the target correction `p6x p6y p6z` (mm, A6 frame: at HOME x, y, z of the base);
 //! `compliance:An` has `c`; `tilt:An` has `<axis>.<cos1|sin1|cos2|sin2>` for its two
 //! perpendicular model axes; `drift` has `l1z l1x l2 l3z l4x l5x`. Tables are over KUKA
-//! command angles with deviations in KUKA sign; grids strictly increasing; values held at the
-//! edges outside the grid. Unknown keys are errors. The JSON Schema generated from these
+//! command angles with deviations in KUKA sign (`backlash:An`: the gear play's width, ≥ 0);
+//! grids strictly increasing; values held at the edges outside the grid. Files of the earlier
+//! format `robopost-calibration/1` are read too (their backlash tables converted, see
+//! `model::effects::play`). Unknown keys are errors. The JSON Schema generated from these
 //! types ships as `calibrations/calibration.schema.json`.
 
 mod error;
@@ -54,7 +56,9 @@ use std::path::Path;
 use nalgebra::Vector3;
 
 pub use error::CalError;
-pub use file::{CalibrationFile, KukaFrame, MeasurementFrame, Provenance, RobotRecord, FORMAT};
+pub use file::{
+    CalibrationFile, KukaFrame, MeasurementFrame, Provenance, RobotRecord, FORMAT, FORMAT_V1,
+};
 
 use crate::kinematics::{Payload, RobotDescription};
 use crate::model::{EffectName, Model};
@@ -173,7 +177,7 @@ pub fn json_schema() -> String {
 
 fn check_format(found: Option<&serde_json::Value>, path: &Path) -> Result<(), CalError> {
     match found {
-        Some(serde_json::Value::String(s)) if s == FORMAT => Ok(()),
+        Some(serde_json::Value::String(s)) if s == FORMAT || s == FORMAT_V1 => Ok(()),
         Some(v) => Err(CalError::invalid(
             path,
             "format",
@@ -306,9 +310,17 @@ fn validate(file: &CalibrationFile, path: &Path) -> Result<Model, CalError> {
             ));
         }
         seen.push((canonical, i));
-        let effect = name
-            .decode(record, &robot)
-            .map_err(|e| CalError::invalid(path, at(&e.key), e.expected, e.found))?;
+        let invalid =
+            |e: crate::model::RecordError| CalError::invalid(path, at(&e.key), e.expected, e.found);
+        let effect = match (file.format == FORMAT_V1, name.kind.upgrade_v1) {
+            (true, Some(upgrade)) => {
+                let mut upgraded = record.clone();
+                upgrade(&mut upgraded).map_err(invalid)?;
+                name.decode(&upgraded, &robot)
+            }
+            _ => name.decode(record, &robot),
+        }
+        .map_err(invalid)?;
         model.push(effect);
     }
     Ok(model)

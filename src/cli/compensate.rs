@@ -286,7 +286,7 @@ fn exit_status(result: &compensate::ProgramResult) -> Exit {
 /// One line on standard error.
 pub fn summary(r: &compensate::Report) {
     eprintln!(
-        "{}: {} of {} targets compensated (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} rejected, {} direction flips, {} backlash oscillations resolved",
+        "{}: {} of {} targets compensated (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} rejected, {} direction flips, {} held axes kept, {} reversals inside the play",
         r.program,
         r.compensated,
         r.targets,
@@ -295,7 +295,8 @@ pub fn summary(r: &compensate::Report) {
         r.correction.position_um.mean,
         r.rejected,
         r.direction_flips,
-        r.oscillations_resolved
+        r.held_axes,
+        r.reversals_inside_play
     );
 }
 

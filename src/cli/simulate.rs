@@ -281,7 +281,7 @@ fn run_program(
     };
     let visits = program::program_visits(&sim, &test, dwell, speed);
     match robot.run_program(&visits) {
-        Ok(measured) => write_measured(&measured, out),
+        Ok(measured) => write_measured(&program::rows_with_turns(&visits, &measured), out),
         Err(e) => {
             let SimulateError::OutOfLimits { index, .. } = &e;
             let s = &sim.stops[*index];

@@ -16,7 +16,7 @@ pub(super) use super::report::Tally;
 pub use super::report::{CalibrationRef, MaxMean, PointReport, PoseStats, Report, SplitReport};
 use super::rewrite;
 use super::segments::Segments;
-use super::sequence::{self, ArcAngle, Interp, Keep, Quantum, Target};
+use super::sequence::{ArcAngle, Interp, Keep, Quantum, Target};
 use super::solve::Method;
 
 /// The first words of the header comment robopost writes; a file carrying it was compensated.
@@ -100,6 +100,7 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
             tool: s.tool,
             nominal_axes: s.nominal_axes,
             arrival: s.arrival,
+            turns: s.turns,
             interp: match (s.kind.is_joint(), s.kind.is_circular(), s.role) {
                 (true, _, _) => Interp::Joint,
                 // A `CA` circle written by construction (see `rewrite::circular_angle`).
@@ -313,7 +314,6 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     seg.skeleton_from(ws, &sim, seg.skeleton.len());
     lap("simulate and compensate");
     if std::env::var_os("ROBOPOST_TIMING").is_some() {
-        let (state, motion) = sequence::resolved_counts();
         let ms = |a: &std::sync::atomic::AtomicU64| {
             a.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6
         };
@@ -323,9 +323,6 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             ms(&st::PARSE_NS),
             ms(&st::WALK_NS),
             ms(&st::SINK_NS)
-        );
-        eprintln!(
-            "  re-solved: {state} for the compensated state, {motion} for the compensated motion"
         );
     }
     let target_errors = sim.unreachable + seg.target_errors.len();

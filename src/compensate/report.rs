@@ -70,8 +70,12 @@ pub struct Report {
     pub predicted_after: PoseStats,
     /// Targets where an axis's compensated direction differs from the nominal one.
     pub direction_flips: usize,
-    /// Targets resolved by holding an axis or choosing a branch (backlash oscillation).
-    pub oscillations_resolved: usize,
+    /// Targets where an axis the program holds was kept exactly still (its output need not
+    /// move; inside its gear play any command there gives the same output).
+    pub held_axes: usize,
+    /// Targets whose output moves back by less than an axis's gear play: the command travels
+    /// the play before the output follows.
+    pub reversals_inside_play: usize,
     pub split_points: Vec<SplitReport>,
     pub warnings: Vec<String>,
     pub errors: Vec<String>,
@@ -141,7 +145,8 @@ pub(super) struct Tally {
     /// Correction, predicted error before and after: position and orientation each.
     figures: [Running; 6],
     direction_flips: usize,
-    oscillations_resolved: usize,
+    held_axes: usize,
+    reversals_inside_play: usize,
     points: Vec<PointReport>,
 }
 
@@ -205,9 +210,13 @@ impl Tally {
             .iter()
             .filter(|o| o.flipped().iter().any(|&f| f))
             .count();
-        self.oscillations_resolved += outcomes
+        self.held_axes += outcomes
             .iter()
-            .filter(|o| matches!(o.resolution, Resolution::Held(_) | Resolution::Branch))
+            .filter(|o| matches!(o.resolution, Resolution::Held(_)))
+            .count();
+        self.reversals_inside_play += outcomes
+            .iter()
+            .filter(|o| o.travels_play.contains(&true))
             .count();
     }
 
@@ -230,7 +239,8 @@ impl Tally {
             orientation_mdeg: f[5].get(),
         };
         report.direction_flips = self.direction_flips;
-        report.oscillations_resolved = self.oscillations_resolved;
+        report.held_axes = self.held_axes;
+        report.reversals_inside_play = self.reversals_inside_play;
         report.points = std::mem::take(&mut self.points);
         report.split_points = rw
             .splits
@@ -279,9 +289,12 @@ fn point_report(
         flipped: axes_list(&flipped),
         resolution: match o.resolution {
             Resolution::Consistent => "consistent".into(),
-            Resolution::Rebranched => "rebranched".into(),
+            Resolution::Reflanked => "reflanked".into(),
             Resolution::Held(m) => format!("held:{}", axes_list(&m).join(",")),
-            Resolution::Branch => "branch".into(),
+        } + &if o.travels_play.contains(&true) {
+            format!(" travels-play:{}", axes_list(&o.travels_play).join(","))
+        } else {
+            String::new()
         } + &if o.turn_held.iter().any(|&h| h) {
             format!(" turn-kept:{}", axes_list(&o.turn_held).join(","))
         } else {

@@ -178,17 +178,18 @@ impl<'a> Segments<'a> {
             &sim.frames,
             &self.history,
             &targets,
-            [Direction::Unknown; 6],
             passes,
             &self.options.sequence(),
         );
         self.diagnose(ws, sim, first, done.targets(), singular);
         // The next history: the last (up to LOOK_BACK) targets of the carried and these.
+        let states_from = targets.len() - done.last_states.len();
         let carried = |k: usize| Carried {
             target: targets[k],
             outcome: done.targets()[k],
             resolved: done.resolved[k],
             command: done.commands[k],
+            state: done.last_states[k - states_from],
         };
         let keep = targets.len().min(LOOK_BACK);
         let extra = (self.history.len() + keep).saturating_sub(LOOK_BACK);

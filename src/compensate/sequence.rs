@@ -1,32 +1,28 @@
-//! Compensation of a sequence of targets with the rotation directions of the compensated
-//! motion.
+//! Compensation of a sequence of targets, with each axis's gear play where the compensated
+//! motion leaves it.
 //!
-//! Directions depend on the previous target, so the work runs in three passes: (1) the
-//! nominal directions from the simulated nominal motion (sequential, cheap); (2) every target
-//! solved with its nominal directions, in parallel (rayon); (3) a sequential re-check of the
-//! directions of the *compensated* motion. An axis whose compensated motion reverses the
-//! assumed direction is re-solved on the other backlash branch; when that flips it back again
-//! (the axis moves less than the correction difference, e.g. A1 on a vertical segment: the
-//! iteration would oscillate between branches with no consistent solution) the target is
-//! resolved deliberately by the candidate predicting the smaller error: hold the axis still
-//! (its direction then stays the previous one, consistent by construction; the other axes
-//! solve the pose in the least-squares sense) or accept one branch and evaluate it with the
-//! direction its motion really has.
-//!
-//! The compensated motion's direction of axis i on arrival at target k is the sign of
-//! `v = arrival_i + (c_k,i − c_k−1,i)`, `c = command − nominal`: exact for PTP (interpolated
-//! linearly in axis space, `arrival` is the nominal step) and to first order in the
-//! correction for LIN/CIRC (whose joint path moves by the interpolated correction).
+//! Where an axis's gear play stands depends on the commands before, so the work runs in
+//! three passes: (1) the nominal directions from the simulated nominal motion (sequential,
+//! cheap); (2) every target solved with the gear of every axis engaged on the flank of its
+//! nominal direction, in parallel (rayon) — after any motion longer than the play, that is
+//! where it is; (3) a sequential re-check that walks the *compensated* commands through each
+//! axis's [`AxisHistory`] (the command before, the turning points of the interpolated motion
+//! moved by the correction) and evaluates the play exactly. Where it disagrees with the flank
+//! assumed, the target is solved again from the *output* the pose needs: the output must
+//! move up (the command drives the lower flank, `c = o + b/2`), move down (`c = o − b/2`),
+//! or — for an axis the program holds, when the output need not move — stay put, and then the
+//! command is kept exactly where it was (inside the play, any command there gives the same
+//! output; a held command does not jitter). A lagging play always has such a solution and it
+//! is found in one step, so nothing oscillates. A target whose output must move back by less
+//! than the play makes the command travel the play; such targets are counted and reported.
 
-use nalgebra::{Vector3, Vector6};
-use rayon::prelude::*;
-
-use super::solve::{self, weighted_norm, Method, Problem, SolveError};
-use crate::kinematics::{status_turn, ArmState};
-use crate::model::{Direction, Model};
+use super::solve::{self, Method, Problem, SolveError};
+use crate::kinematics::status_turn;
+use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
-use crate::motion::interpolate::{self, Cartesian, Path};
+use crate::motion::interpolate;
 use crate::motion::nominal::{status_turns, Arm, Nominal};
+use nalgebra::{Vector3, Vector6};
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -52,6 +48,9 @@ pub struct Target {
     /// velocity `dq/du` at the end for LIN/CIRC; 0 when the axis rests); `None` when the
     /// motion comes from an unknown place (first motion, unresolved target before).
     pub arrival: Option<[f64; 6]>,
+    /// The nominal command of each axis's last turning point inside the motion reaching it
+    /// (NaN: it does not turn round; see `motion::interpolate::Arrival::turns`).
+    pub turns: [f64; 6],
     /// How the controller interpolates the motion reaching it.
     pub interp: Interp,
     /// How its command will be written (rounded), when it is written: the directions of the
@@ -154,18 +153,17 @@ impl ArcAngle {
     }
 }
 
-/// How a target's directions were settled.
+/// How a target's gear plays were settled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Resolution {
-    /// The nominal directions held for the compensated motion.
+    /// The flanks the nominal motion engages are those of the compensated motion.
     #[default]
     Consistent,
-    /// Some axis's direction came out reversed; re-solved on that branch, which is consistent.
-    Rebranched,
-    /// Oscillation between branches: these axes were held still.
+    /// Some axis's output moves otherwise than the nominal motion's: solved on the flank the
+    /// compensated motion engages.
+    Reflanked,
+    /// Axes the program holds and whose output need not move: their command kept exactly.
     Held([bool; 6]),
-    /// Oscillation between branches: one branch accepted (it predicted the smaller error).
-    Branch,
 }
 
 impl From<SolveError> for TargetError {
@@ -205,7 +203,9 @@ pub enum TargetError {
 pub struct Outcome {
     /// The command axes (compensated, or nominal when not compensated or rejected).
     pub axes_deg: [f64; 6],
-    /// Directions of the commanded motion on arrival.
+    /// The flank each axis's gear is engaged on at arrival with the command (the direction
+    /// of the commanded motion; `Unknown` before the axis first moves or, for an axis held
+    /// inside its play, the direction it last moved in).
     pub directions: [Direction; 6],
     /// Directions of the nominal motion on arrival.
     pub nominal_directions: [Direction; 6],
@@ -220,6 +220,9 @@ pub struct Outcome {
     pub changed: bool,
     /// Axes held at 0° to keep the program's turn T.
     pub turn_held: [bool; 6],
+    /// Axes whose output moves back by less than their play: the command travels the play
+    /// (lost motion) before the output follows.
+    pub travels_play: [bool; 6],
 }
 
 impl Outcome {
@@ -242,6 +245,7 @@ impl Outcome {
             error: None,
             changed: false,
             turn_held: [false; 6],
+            travels_play: [false; 6],
         }
     }
 
@@ -265,8 +269,8 @@ pub struct Options {
     pub parallel: bool,
 }
 
-/// Targets per chunk of the parallel arrival-rate pass.
-const RATE_CHUNK: usize = 1024;
+/// Targets per chunk of the parallel pass that places the first-pass commands.
+const PLACE_CHUNK: usize = 1024;
 
 /// The signs of an arrival motion ([`signs`]); `None` when it comes from an unknown place.
 type Signs = Option<[i8; 6]>;
@@ -286,12 +290,7 @@ fn signs(v: Option<[f64; 6]>) -> Signs {
     })
 }
 
-/// The direction state after arriving with motion `v` from state `before`.
-fn arrive(before: &[Direction; 6], v: Option<[f64; 6]>) -> [Direction; 6] {
-    arrive_signs(before, signs(v))
-}
-
-/// [`arrive`] from the motion's [`signs`].
+/// The direction state after arriving with motion of `v`'s signs from state `before`.
 fn arrive_signs(before: &[Direction; 6], v: Signs) -> [Direction; 6] {
     match v {
         None => [Direction::Unknown; 6],
@@ -328,6 +327,8 @@ pub struct Carried {
     /// Whether the re-check re-solved it.
     pub resolved: bool,
     pub command: Command,
+    /// The compensated command on arrival and each axis's history there.
+    pub state: AxisState,
 }
 
 /// A target's command as the nominal robot places it.
@@ -339,9 +340,9 @@ pub struct Command {
     /// Its change against the TCP of the nominal command ([`correction`]); zero when the
     /// command is the nominal one.
     pub correction: (f64, f64),
-    /// `tcp` in the target's base frame as [`Frame::to_kuka_unchosen`] gives it, when the
-    /// re-check worked it out (a Cartesian target it did not re-solve): the rewrite chooses
-    /// its Euler triple from this instead of converting the matrix again.
+    /// `tcp` in the target's base frame as [`Frame::to_kuka_unchosen`] gives it, for a
+    /// Cartesian target the re-check did not re-solve: the rewrite chooses its Euler triple
+    /// from this instead of converting the matrix again.
     pub unchosen: Option<[f64; 6]>,
 }
 
@@ -351,6 +352,25 @@ pub fn correction(command_tcp: &Frame, nominal_tcp: &Frame) -> (f64, f64) {
     let (cp, cr) =
         crate::motion::frame::norms(&crate::motion::frame::error(command_tcp, nominal_tcp));
     (cp * 1e3, cr.to_degrees() * 1e3)
+}
+
+/// What the re-check changed, counted over the targets of a segment.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Targets solved again because the compensated motion engages another flank.
+    pub reflanked: usize,
+    /// Targets with an axis held still (its command kept exactly).
+    pub held: usize,
+    /// Targets whose output moves back by less than the play on some axis.
+    pub travels_play: usize,
+}
+
+impl std::ops::AddAssign for Counts {
+    fn add_assign(&mut self, other: Counts) {
+        self.reflanked += other.reflanked;
+        self.held += other.held;
+        self.travels_play += other.travels_play;
+    }
 }
 
 /// What [`compensate_after`] gives: the outcomes of the history and of the targets, and for
@@ -364,8 +384,11 @@ pub struct Compensated {
     pub history: usize,
     /// Per target, whether the re-check re-solved it.
     pub resolved: Vec<bool>,
-    /// Per target, its command's TCP (computed once, by the arrival-rate pass) and change.
+    /// Per target, its command's TCP (computed once, by the first passes) and change.
     pub commands: Vec<Command>,
+    /// The compensated states of the last (up to [`LOOK_BACK`]) targets, oldest first.
+    pub last_states: Vec<AxisState>,
+    pub counts: Counts,
 }
 
 impl Compensated {
@@ -375,8 +398,8 @@ impl Compensated {
     }
 }
 
-/// Compensates `targets` (tools indexed by `Target::tool`), directions before the first
-/// target given by `start`.
+/// Compensates `targets` (tools indexed by `Target::tool`), the gear of every axis engaged on
+/// the flank of `start` before the first target.
 pub fn compensate(
     model: &Model,
     tools: &[Frame],
@@ -384,14 +407,26 @@ pub fn compensate(
     start: [Direction; 6],
     options: &Options,
 ) -> Vec<Outcome> {
-    let mut done = compensate_after(model, tools, &[], targets, start, options);
-    done.outcomes.drain(..done.history);
-    done.outcomes
+    compensate_counted(model, tools, targets, start, options).0
 }
 
-/// How far back the re-check of a target looks: its arrival depends on the commands of the
-/// two targets before it (the start and auxiliary point of a circle).
-pub const LOOK_BACK: usize = 2;
+/// [`compensate`] with what the re-check changed.
+pub fn compensate_counted(
+    model: &Model,
+    tools: &[Frame],
+    targets: &[Target],
+    start: [Direction; 6],
+    options: &Options,
+) -> (Vec<Outcome>, Counts) {
+    let mut done = compensate_after(model, tools, &[], targets, start, options);
+    done.outcomes.drain(..done.history);
+    (done.outcomes, done.counts)
+}
+
+/// How far back a segment's targets need the targets before them: the stops the walk carries
+/// across a cut (a circle's end looks back to its start), of which the re-check needs the
+/// last's state.
+pub const LOOK_BACK: usize = crate::motion::simulate::CARRIED_STOPS;
 
 /// [`compensate`] of a sequence cut in segments: `history` holds the last (up to
 /// [`LOOK_BACK`]) targets before `targets`, already compensated; `start` counts only when
@@ -418,7 +453,7 @@ pub fn compensate_after(
         &mut Chains::default(),
         options,
     );
-    settle(model, tools, history, targets, start, first, options)
+    settle(model, tools, history, targets, first, options)
 }
 
 /// Passes 1 and 2 of a segment: what needs nothing of the targets before it but the nominal
@@ -428,9 +463,6 @@ pub struct FirstPasses {
     /// `LOOK_BACK` slots for the history's outcomes (filled by [`settle`]), then the targets'.
     outcomes: Vec<Outcome>,
     nominal_signs: Vec<Signs>,
-    /// Signs of the first-pass arrival motions; those of the first [`LOOK_BACK`] targets
-    /// depend on the history's commands and are left to [`settle`].
-    rates: Vec<Signs>,
     /// The unrounded TCP of every first-pass command, and its pose in the base frame before
     /// the choice of Euler triple (see [`Command::unchosen`]); [`settle`] completes them in
     /// place.
@@ -460,6 +492,28 @@ pub struct Chains {
     open: solve::Chain,
 }
 
+/// Runs `work` over `items` in chunks (with each chunk's index), on rayon's pool when
+/// `parallel`, else in order on this thread.
+fn each_chunk<T: Send>(
+    parallel: bool,
+    items: &mut [T],
+    chunk: usize,
+    work: impl Fn(usize, &mut [T]) + Sync,
+) {
+    use rayon::prelude::*;
+    if parallel {
+        items
+            .par_chunks_mut(chunk)
+            .enumerate()
+            .for_each(|(c, a)| work(c, a));
+    } else {
+        items
+            .chunks_mut(chunk)
+            .enumerate()
+            .for_each(|(c, a)| work(c, a));
+    }
+}
+
 /// Passes 1 and 2 of `targets`, the nominal directions before the first given, `chains`
 /// where the targets before them left the warm starts (moved on past them).
 pub fn first_passes(
@@ -470,34 +524,25 @@ pub fn first_passes(
     chains: &mut Chains,
     options: &Options,
 ) -> FirstPasses {
-    // The nominal motions' signs in parallel (the re-check needs them again), their
-    // directions in order.
-    let nominal_signs: Vec<Signs> = if options.parallel {
-        targets
-            .par_iter()
-            .with_min_len(1024)
-            .map(|t| signs(t.arrival))
-            .collect()
-    } else {
-        targets.iter().map(|t| signs(t.arrival)).collect()
-    };
+    // Pass 1: the nominal motions' signs (the re-check needs them again), their directions.
+    let nominal_signs: Vec<Signs> = targets.iter().map(|t| signs(t.arrival)).collect();
     let nominal = directions_after(&nominal_signs, nominal_start);
-    // The chains of these targets, each worked in order, the first continuing the open one.
-    // Each chain writes its outcomes in place, after `LOOK_BACK` slots left for the history
-    // (`settle`): collected per chain and joined, the 208-byte outcomes were copied twice.
+    // Pass 2: the chains of these targets, each worked in order, the first continuing the
+    // open one; each writes its outcomes in place, after `LOOK_BACK` slots left for the
+    // history (`settle`).
     let n = targets.len();
-    let head = (CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN;
-    let head = head.min(n);
+    let head = ((CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN).min(n);
     let mut outcomes = vec![Outcome::placeholder(); LOOK_BACK + n];
     let (head_slots, rest) = outcomes[LOOK_BACK..].split_at_mut(head);
     let work = |from: usize, slots: &mut [Outcome], mut chain: solve::Chain| -> solve::Chain {
         for (k, slot) in slots.iter_mut().enumerate() {
             let i = from + k;
+            let engaged = nominal[i].map(AxisHistory::engaged);
             first_pass(
                 model,
                 tools,
                 &targets[i],
-                &nominal[i],
+                &engaged,
                 options.method,
                 Some(&mut chain),
                 slot,
@@ -511,6 +556,7 @@ pub fn first_passes(
     let continued = chains.open;
     // The chain continued from the segment before runs beside the fresh ones.
     let (open, last): (solve::Chain, Option<solve::Chain>) = if options.parallel {
+        use rayon::prelude::*;
         rayon::join(
             || work(0, head_slots, continued),
             || {
@@ -528,7 +574,7 @@ pub fn first_passes(
     chains.open = last.unwrap_or(open);
     chains.ordinal += n as u64;
     let solved = &outcomes[LOOK_BACK..];
-    // The segment alone: target k of the segment is k here.
+    // Where the nominal robot places every first-pass command (the rewrite's numbers).
     let ctx = Ctx {
         model,
         tools,
@@ -536,67 +582,30 @@ pub fn first_passes(
         targets,
         method: options.method,
     };
-    // Arrival motions of the first-pass commands, chunk by chunk: each rate needs its
-    // neighbours' written TCPs, computed once per chunk (plus the few around its ends), and
-    // the re-check needs only the signs. The chain is evaluated once per target: its TCP
-    // (kept for the rewrite) and, for a Cartesian arrival, its Jacobian. Each chunk writes
-    // its signs and TCPs in place.
-    let cmd = |j: usize| solved[j].axes_deg;
-    let chunk = |(c, (rates, placings)): (usize, (&mut [Signs], &mut [Command]))| {
-        let (a, b) = (c * RATE_CHUNK, ((c + 1) * RATE_CHUNK).min(n));
-        let from = a.saturating_sub(2);
-        let mut arms: Vec<Option<ArmState>> = Vec::with_capacity(b - a);
-        for (k, placing) in (a..b).zip(placings.iter_mut()) {
-            let (tcp, arm) = ctx.forward(k, &solved[k].axes_deg);
-            placing.tcp = tcp;
-            arms.push(arm);
-        }
-        let tcps: Vec<Frame> = (from..(b + 1).min(n))
-            .map(
-                |k| match k.checked_sub(a).and_then(|i| placings.get_mut(i)) {
-                    Some(placing) => {
-                        let raw = placing.tcp;
-                        let (written, u) = ctx.written_keeping(k, &solved[k].axes_deg, || raw);
-                        placing.unchosen = u;
-                        written
-                    }
-                    None => ctx.tcp(k, &solved[k].axes_deg),
-                },
-            )
-            .collect();
-        for ((k, sign), jacobian) in (a..b).zip(rates.iter_mut()).zip(&arms) {
-            if k >= LOOK_BACK {
-                let cache = Some((from, &tcps[..]));
-                let rate = ctx.rate(k, &solved[k].axes_deg, &cmd, cache, jacobian.as_ref());
-                *sign = signs(rate);
-            }
-        }
-    };
-    let mut rates: Vec<Signs> = vec![None; n];
     let blank = Command {
         tcp: Frame::identity(),
         correction: (0.0, 0.0),
         unchosen: None,
     };
-    let mut tcps: Vec<Command> = vec![blank; n];
-    if options.parallel {
-        rates
-            .par_chunks_mut(RATE_CHUNK)
-            .zip(tcps.par_chunks_mut(RATE_CHUNK))
-            .enumerate()
-            .for_each(chunk);
-    } else {
-        rates
-            .chunks_mut(RATE_CHUNK)
-            .zip(tcps.chunks_mut(RATE_CHUNK))
-            .enumerate()
-            .for_each(chunk);
-    }
+    let mut commands: Vec<Command> = vec![blank; n];
+    each_chunk(
+        options.parallel,
+        &mut commands,
+        PLACE_CHUNK,
+        |c, placings| {
+            for (j, placing) in placings.iter_mut().enumerate() {
+                let k = c * PLACE_CHUNK + j;
+                let axes = &solved[k].axes_deg;
+                let raw = Nominal(&model.robot).tcp(axes, ctx.tool(k));
+                placing.tcp = raw;
+                placing.unchosen = ctx.written_keeping(k, axes, || raw).1;
+            }
+        },
+    );
     FirstPasses {
         outcomes,
         nominal_signs,
-        rates,
-        commands: tcps,
+        commands,
     }
 }
 
@@ -607,17 +616,12 @@ pub fn settle(
     tools: &[Frame],
     history: &[Carried],
     targets: &[Target],
-    start: [Direction; 6],
     first: FirstPasses,
     options: &Options,
 ) -> Compensated {
     // The re-check looks back `LOOK_BACK` targets: older history is not needed.
     let history = &history[history.len().saturating_sub(LOOK_BACK)..];
     let h = history.len();
-    let state_start = match history.last() {
-        Some(c) => c.outcome.directions,
-        None => start,
-    };
     // The history's outcomes go into the slots left before the targets' (no copy of these),
     // the unused slots first: `all[pad..]` is the history followed by the targets.
     let mut all = first.outcomes;
@@ -635,19 +639,23 @@ pub fn settle(
     };
     let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
     resolved.resize(h + targets.len(), false);
-    recheck(
+    // Without a target before, the first arrives after long motions in its nominal
+    // directions (those `start` leads to), as the first pass assumed.
+    let previous = history.last().map(|c| c.state);
+    let (counts, states) = recheck(
         &ctx,
-        state_start,
+        previous,
         h,
         outcomes,
-        (&first.nominal_signs, &first.rates),
+        &first.nominal_signs,
         &mut resolved,
     );
     // The commands' changes at the TCP, the command of a target the re-check re-solved anew.
     // The nominal command's TCP is the goal: the walk solved the command for it (an axis
     // target's goal is its nominal TCP).
     let arm = Nominal(&model.robot);
-    let complete = |(i, c): (usize, &mut Command)| {
+    let mut commands = first.commands;
+    for (i, c) in commands.iter_mut().enumerate() {
         let (k, t) = (h + i, &targets[i]);
         let o = &outcomes[k];
         if resolved[k] {
@@ -657,16 +665,6 @@ pub fn settle(
         if o.changed {
             c.correction = correction(&c.tcp, &t.goal);
         }
-    };
-    let mut commands = first.commands;
-    if options.parallel {
-        commands
-            .par_iter_mut()
-            .enumerate()
-            .with_min_len(1024)
-            .for_each(complete);
-    } else {
-        commands.iter_mut().enumerate().for_each(complete);
     }
     resolved.drain(..h);
     Compensated {
@@ -674,6 +672,8 @@ pub fn settle(
         history: pad + h,
         resolved,
         commands,
+        last_states: states,
+        counts,
     }
 }
 
@@ -681,10 +681,10 @@ fn tcp_error(
     model: &Model,
     tool: &Frame,
     axes: &[f64; 6],
-    dirs: &[Direction; 6],
+    histories: &[AxisHistory; 6],
     goal: &Frame,
 ) -> Vector6<f64> {
-    solve::predicted_error(model, dirs, axes, tool, goal)
+    solve::predicted_error(model, histories, axes, tool, goal)
 }
 
 /// Solves one target with given directions and holds, checking limits and configuration.
@@ -698,7 +698,7 @@ fn solve_target(
     model: &Model,
     tool: &Frame,
     target: &Target,
-    directions: &[Direction; 6],
+    histories: &[AxisHistory; 6],
     start: [f64; 6],
     hold: [bool; 6],
     method: Method,
@@ -714,7 +714,7 @@ fn solve_target(
         goal: target.goal,
         tool,
         start,
-        directions: *directions,
+        histories: *histories,
         hold,
     };
     let robot = &model.robot;
@@ -784,7 +784,7 @@ fn first_pass(
     model: &Model,
     tools: &[Frame],
     target: &Target,
-    directions: &[Direction; 6],
+    histories: &[AxisHistory; 6],
     method: Method,
     mut chain: Option<&mut solve::Chain>,
     out: &mut Outcome,
@@ -793,12 +793,13 @@ fn first_pass(
     if let Some(c) = chain.as_deref_mut() {
         c.follow_tool(target.tool);
     }
-    *out = Outcome::unsolved(target.nominal_axes, *directions);
+    let directions = histories.map(|h| h.simple_direction());
+    *out = Outcome::unsolved(target.nominal_axes, directions);
     if !target.compensate {
         if let Some(c) = chain {
             c.forget();
         }
-        out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
+        out.before = tcp_error(model, tool, &target.nominal_axes, histories, &target.goal);
         out.residual = out.before;
         return;
     }
@@ -806,7 +807,7 @@ fn first_pass(
         model,
         tool,
         target,
-        directions,
+        histories,
         target.nominal_axes,
         [false; 6],
         method,
@@ -831,14 +832,14 @@ fn first_pass(
             out.turn_held = turn_held;
             // The error at the nominal command (the start, unless a turn was kept by holding).
             out.before = if turn_held.iter().any(|&h| h) {
-                tcp_error(model, tool, &target.nominal_axes, directions, &target.goal)
+                tcp_error(model, tool, &target.nominal_axes, histories, &target.goal)
             } else {
                 sol.initial
             };
         }
         Err(e) => {
             out.error = Some(e);
-            out.before = tcp_error(model, tool, &target.nominal_axes, directions, &target.goal);
+            out.before = tcp_error(model, tool, &target.nominal_axes, histories, &target.goal);
             out.residual = out.before;
         }
     }
@@ -871,20 +872,10 @@ impl Ctx<'_> {
         &self.tools[self.target(k).tool as usize]
     }
 
-    /// The TCP commanded at target `k` with `axes`, as written (rounded) when it is written.
-    fn tcp(&self, k: usize, axes: &[f64; 6]) -> Frame {
-        self.written(k, axes, || self.forward(k, axes).0)
-    }
-
-    /// [`Self::tcp`] given the unrounded TCP of `axes`, `raw` (not called for axis commands:
-    /// they are written as rounded axes).
-    fn written(&self, k: usize, axes: &[f64; 6], raw: impl FnOnce() -> Frame) -> Frame {
-        self.written_keeping(k, axes, raw).0
-    }
-
-    /// [`Self::written`] and, for a Cartesian target, the unrounded pose in its base frame
-    /// before the choice of Euler triple ([`Frame::to_kuka_unchosen`]), which the rewrite
-    /// writes near the original numbers.
+    /// The TCP commanded at target `k` with `axes` as written (rounded), given its unrounded
+    /// TCP `raw`, and for a Cartesian target the unrounded pose in its base frame before the
+    /// choice of Euler triple ([`Frame::to_kuka_unchosen`]), which the rewrite writes near the
+    /// original numbers.
     fn written_keeping(
         &self,
         k: usize,
@@ -910,342 +901,197 @@ impl Ctx<'_> {
             None => (raw(), None),
         }
     }
-
-    /// The nominal TCP of `axes` at target `k` and, when its arrival rate needs them (a
-    /// Cartesian interpolation), the arm's axis lines there — what `motion::interpolate`
-    /// solves the nominal arrival with, so both are computed alike.
-    fn forward(&self, k: usize, axes: &[f64; 6]) -> (Frame, Option<ArmState>) {
-        let t = self.target(k);
-        let tool = self.tool(k);
-        // Not on the target's place in the sequence: a target's TCP comes from the same
-        // evaluation whichever segment it falls in (windowed = whole, to the bit).
-        if t.arrival.is_some() && t.interp != Interp::Joint {
-            let arm = ArmState::new(&self.model.robot, axes);
-            (
-                crate::motion::interpolate::tcp_of_arm(&arm, tool),
-                Some(arm),
-            )
-        } else {
-            (Nominal(&self.model.robot).tcp(axes, tool), None)
-        }
-    }
-
-    /// How the commanded motion arrives at target `k` commanded at `axes`, the other targets
-    /// at `cmd(j)`: the controller's interpolation between the commands, exactly as
-    /// `motion::interpolate` computes the nominal arrival (`dq/du` at the end).
-    fn rate(
-        &self,
-        k: usize,
-        axes: &[f64; 6],
-        cmd: &dyn Fn(usize) -> [f64; 6],
-        cache: Option<(usize, &[Frame])>,
-        arm: Option<&ArmState>,
-    ) -> Option<[f64; 6]> {
-        let t = self.target(k);
-        let nominal = t.arrival?;
-        if k == 0 {
-            return Some(nominal);
-        }
-        // The written (rounded) TCP of target j: from the cache of first-pass commands, or
-        // computed (target k itself is evaluated at `axes`).
-        let tcp = |j: usize| match cache {
-            Some((from, c)) => c[j - from],
-            None if j == k => self.tcp(k, axes),
-            None => self.tcp(j, &cmd(j)),
-        };
-        let prev = cmd(k - 1);
-        let step: [f64; 6] = std::array::from_fn(|i| axes[i] - prev[i]);
-        let twist = match t.interp {
-            Interp::Joint => return Some(step),
-            Interp::Line => {
-                let (a, b) = (tcp(k - 1), tcp(k));
-                let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
-                let v = b.position - a.position;
-                nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
-            }
-            Interp::Curve { first, last } => {
-                // The spline through the written TCPs around it, as `motion::simulate` builds
-                // it from the programmed ones.
-                let (a, b) = (tcp(k - 1), tcp(k));
-                let mut p = [Vector3::zeros(); 4];
-                let mut n = 0;
-                if !first && k >= 2 {
-                    p[0] = tcp(k - 2).position;
-                    n = 1;
-                }
-                p[n] = a.position;
-                p[n + 1] = b.position;
-                let at = n + 1;
-                n += 2;
-                if !last && k + 1 < self.len() {
-                    // The next point moved by this one's correction: the re-check runs
-                    // forward, the next command is not settled yet (and the correction varies
-                    // slowly along a dense spline).
-                    let shift = b.position - t.goal.position;
-                    p[n] = self.target(k + 1).goal.position + shift;
-                    n += 1;
-                }
-                let v =
-                    crate::motion::spline::tangents(&p[..n])[at] * (b.position - a.position).norm();
-                let w = crate::motion::frame::log_so3(&(b.rotation * a.rotation.transpose()));
-                nalgebra::Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
-            }
-            Interp::CircEnd if k >= 2 => {
-                let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
-                match Cartesian::new(&start, &end, &Path::Circ { aux }) {
-                    Ok(c) => c.twist(1.0),
-                    Err(_) => return Some(step),
-                }
-            }
-            Interp::CircAngle(a) if k >= 2 => {
-                let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
-                match interpolate::circle_by_angle(&start, &end, a.degrees(), a.plane(aux)) {
-                    Some(c) => c.twist(1.0),
-                    None => return Some(step),
-                }
-            }
-            Interp::CircAngleAux => return Some(nominal),
-            Interp::CircAux if k + 1 < self.len() => {
-                let (start, aux, end) = (tcp(k - 1), tcp(k).position, tcp(k + 1));
-                match Cartesian::new(&start, &end, &Path::Circ { aux }) {
-                    Ok(c) => {
-                        let u = c.fraction_at(&aux);
-                        c.twist(u) * u
-                    }
-                    Err(_) => return Some(step),
-                }
-            }
-            _ => return Some(step),
-        };
-        let computed;
-        let arm = match arm {
-            Some(arm) => arm,
-            None => {
-                computed = ArmState::new(&self.model.robot, axes);
-                &computed
-            }
-        };
-        let p = crate::motion::interpolate::tcp_of_arm(arm, self.tool(k)).position;
-        let (v, w) = (twist.fixed_rows::<3>(0), twist.fixed_rows::<3>(3));
-        let rate = arm.rates(&p, &v.into_owned(), &w.into_owned());
-        Some(std::array::from_fn(|i| match rate {
-            Some(r) if r[i].is_finite() && r[i].abs() >= REST_DEG => r[i],
-            // A turning point right at the target: the sign of the whole step.
-            _ => step[i],
-        }))
-    }
 }
 
-/// Pass 3: walks the compensated motion, re-solving targets whose directions differ from those
-/// they were solved with. `rates[k]` is the arrival motion's signs at k with the first-pass
-/// commands; it is recomputed when a command it depends on changed since; `nominal[k]` the
-/// nominal motion's. Targets before `from` are settled (history); `rates[k - from]`.
+/// An axis whose output must move by no more than this (degrees) to meet the pose is held
+/// still when the program holds it: the solver's own tolerance (0.1 µm at the TCP) moves an
+/// axis by up to about this much, and inside the play a command anywhere gives the same
+/// output, so a held command that jittered by it would only be noise.
+pub const HOLD_DEG: f64 = 1e-5;
+
+/// Pass 3: walks the compensated commands through each axis's history, re-solving the targets
+/// whose gear plays stand otherwise than the flanks they were solved with (see the module
+/// documentation). Targets before `from` are settled (history). Returns the counts and the
+/// states of the last (up to [`LOOK_BACK`]) targets.
 fn recheck(
     ctx: &Ctx,
-    start: [Direction; 6],
+    mut previous: Option<AxisState>,
     from: usize,
     outcomes: &mut [Outcome],
-    (nominal, rates): (&[Signs], &[Signs]),
+    nominal: &[Signs],
     resolved: &mut [bool],
-) {
-    let mut state = start;
-    let (mut n_expected, mut n_actual) = (0usize, 0usize);
+) -> (Counts, Vec<AxisState>) {
+    let mut counts = Counts::default();
+    let mut states = Vec::with_capacity(LOOK_BACK);
     for k in from..ctx.len() {
         let target = ctx.target(k);
-        let tool = ctx.tool(k);
-        let fixed = !target.compensate || outcomes[k].error.is_some();
-        // The nominal motion's signs, but resting axes keep the *compensated* state: after an
-        // earlier flip this differs from the nominal directions the first pass assumed.
-        let expected = arrive_signs(&state, nominal[k - from]);
-        if expected != outcomes[k].directions && !fixed {
-            let mut o = Outcome::placeholder();
-            first_pass(
-                ctx.model, ctx.tools, target, &expected, ctx.method, None, &mut o,
-            );
-            o.nominal_directions = outcomes[k].nominal_directions;
-            outcomes[k] = o;
-            resolved[k] = true;
-            n_expected += 1;
-        }
-        // The first targets' arrivals depend on the history's commands (see `first_passes`).
-        let stale = k - from < LOOK_BACK
-            || resolved[k]
-            || (k >= 1 && resolved[k - 1])
-            || (k >= 2 && resolved[k - 2]);
-        let rate = if stale {
-            let snapshot = |j: usize| outcomes[j].axes_deg;
-            signs(ctx.rate(k, &outcomes[k].axes_deg, &snapshot, None, None))
-        } else {
-            rates[k - from]
+        let rest: [bool; 6] = match nominal[k - from] {
+            Some(v) => std::array::from_fn(|n| v[n] == 0 && !target.turns[n].is_finite()),
+            None => [false; 6],
         };
-        let actual = arrive_signs(&state, rate);
-        if actual != outcomes[k].directions {
-            n_actual += 1;
-            outcomes[k] = if fixed || outcomes[k].error.is_some() {
-                // The command is the nominal one: only the prediction changes.
-                let mut o = outcomes[k];
-                o.directions = actual;
-                o.before = tcp_error(ctx.model, tool, &target.nominal_axes, &actual, &target.goal);
-                o.residual = o.before;
-                o
-            } else {
-                resolved[k] = true;
-                resettle(ctx, k, outcomes, &state, actual)
-            };
+        let histories = arrival_histories(ctx, k, previous.as_ref(), outcomes);
+        let o = &mut outcomes[k];
+        if settle_target(ctx, k, &histories, &rest, previous.as_ref(), o) {
+            counts.reflanked += (o.resolution == Resolution::Reflanked) as usize;
+            counts.held += matches!(o.resolution, Resolution::Held(_)) as usize;
+            resolved[k] = true;
         }
-        state = outcomes[k].directions;
+        counts.travels_play += o.travels_play.contains(&true) as usize;
+        let state = AxisState {
+            axes_deg: outcomes[k].axes_deg,
+            history: histories,
+            time_s: 0.0,
+        };
+        if states.len() == LOOK_BACK {
+            states.remove(0);
+        }
+        states.push(state);
+        previous = Some(state);
     }
-    RESOLVED[0].fetch_add(n_expected, std::sync::atomic::Ordering::Relaxed);
-    RESOLVED[1].fetch_add(n_actual, std::sync::atomic::Ordering::Relaxed);
+    (counts, states)
 }
 
-/// Targets re-solved for the compensated state and for the compensated motion, since the
-/// process started (what `ROBOPOST_TIMING` prints).
-static RESOLVED: [std::sync::atomic::AtomicUsize; 2] = [
-    std::sync::atomic::AtomicUsize::new(0),
-    std::sync::atomic::AtomicUsize::new(0),
-];
-
-/// The two counts of `RESOLVED`.
-pub fn resolved_counts() -> (usize, usize) {
-    use std::sync::atomic::Ordering::Relaxed;
-    (RESOLVED[0].load(Relaxed), RESOLVED[1].load(Relaxed))
-}
-
-/// Candidate command of a target with its true directions and predicted error.
-struct Candidate {
-    axes: [f64; 6],
-    directions: [Direction; 6],
-    error: Vector6<f64>,
-    iterations: u32,
-    resolution: Resolution,
-}
-
-/// Re-solves target k whose compensated motion arrives with `actual` directions instead of the
-/// ones it was solved with.
-fn resettle(
+/// Each axis's history on arrival at target `k`: the compensated command before, then the
+/// turning points of the motion moved by the correction there (the compensated path is the
+/// nominal one moved by the interpolated corrections).
+fn arrival_histories(
     ctx: &Ctx,
     k: usize,
+    previous: Option<&AxisState>,
     outcomes: &[Outcome],
-    state: &[Direction; 6],
-    actual: [Direction; 6],
-) -> Outcome {
-    let (model, method) = (ctx.model, ctx.method);
+) -> [AxisHistory; 6] {
+    let target = ctx.target(k);
+    if target.arrival.is_none() {
+        return [AxisHistory::unmoved(); 6];
+    }
+    let Some(p) = previous else {
+        return outcomes[k].nominal_directions.map(AxisHistory::engaged);
+    };
+    let prev_nominal = if k > 0 {
+        ctx.target(k - 1).nominal_axes
+    } else {
+        p.axes_deg
+    };
+    let turns: [f64; 6] = std::array::from_fn(|n| {
+        let shift = p.axes_deg[n] - prev_nominal[n];
+        let (here, there) = (outcomes[k].axes_deg[n], target.nominal_axes[n]);
+        target.turns[n] + 0.5 * (shift + (here - there))
+    });
+    p.then_through(&turns, outcomes[k].axes_deg).history
+}
+
+/// Settles target `k` (its first-pass outcome in `out`) against where the compensated motion
+/// leaves each gear play: solves it again where a flank differs from the one assumed or an
+/// axis the program holds is to be kept still, and marks the axes whose output moves back by
+/// less than their play. Returns whether it was solved again. `rest[n]`: the nominal motion
+/// holds axis n still.
+fn settle_target(
+    ctx: &Ctx,
+    k: usize,
+    histories: &[AxisHistory; 6],
+    rest: &[bool; 6],
+    previous: Option<&AxisState>,
+    out: &mut Outcome,
+) -> bool {
+    let model = ctx.model;
+    let c = out.axes_deg;
+    let assumed = out.directions;
+    let mut flanks = assumed;
+    let mut hold = [false; 6];
+    let mut differs = false;
+    for n in 0..6 {
+        // An axis the program holds whose first-pass command moved by no more than the
+        // solver's own noise: kept exactly, whichever side of the play the noise fell on.
+        let holdable = rest[n] && previous.is_some();
+        let jitter = previous.is_some_and(|p| {
+            let moved = c[n] - p.axes_deg[n];
+            moved != 0.0 && moved.abs() <= HOLD_DEG
+        });
+        // The common case needs no width: a long motion the command continues.
+        let quick = histories[n].engaged_at(c[n]);
+        if quick.is_some() && quick == Some(assumed[n]) && !(holdable && jitter) {
+            continue;
+        }
+        let exact = AxisState {
+            axes_deg: c,
+            history: *histories,
+            time_s: 0.0,
+        };
+        let Some(play) = model.play(&exact, n) else {
+            continue;
+        };
+        let b = model.play_width_deg(n, c[n]);
+        let assumed_lag = -0.5 * assumed[n].sign() * b;
+        // The output the pose needs, against where the play left it.
+        let width = |a: f64| model.play_width_deg(n, a);
+        let Some(was) = histories[n].output_at_run_start(width) else {
+            continue;
+        };
+        let shift = c[n] + assumed_lag - was;
+        let driven = histories[n].previous_direction();
+        let flank = if holdable && shift.abs() <= HOLD_DEG {
+            hold[n] = true;
+            driven
+        } else {
+            match shift.partial_cmp(&0.0) {
+                Some(std::cmp::Ordering::Greater) => Direction::Positive,
+                Some(std::cmp::Ordering::Less) => Direction::Negative,
+                _ => assumed[n],
+            }
+        };
+        out.travels_play[n] =
+            !hold[n] && driven != Direction::Unknown && flank != driven && shift.abs() < b;
+        if hold[n] || (play.lag_deg - assumed_lag).abs() > 1e-12 {
+            differs = true;
+            flanks[n] = flank;
+        }
+    }
+    if !differs {
+        return false;
+    }
     let target = ctx.target(k);
     let tool = ctx.tool(k);
-    let first = &outcomes[k];
-    let cmd = |j: usize| outcomes[j].axes_deg;
-    let directions_at = |axes: &[f64; 6]| arrive(state, ctx.rate(k, axes, &cmd, None, None));
-    let mut out = *first;
-    // The first solution, evaluated with the direction its motion really has.
-    let mut candidates = vec![Candidate {
-        axes: first.axes_deg,
-        directions: actual,
-        error: tcp_error(model, tool, &first.axes_deg, &actual, &target.goal),
-        iterations: first.iterations,
-        resolution: Resolution::Branch,
-    }];
-    let mut oscillating = [false; 6];
-    match solve_target(
-        model,
-        tool,
-        target,
-        &actual,
-        first.axes_deg,
-        [false; 6],
-        method,
-        None,
-    ) {
+    let solving: [AxisHistory; 6] = std::array::from_fn(|n| {
+        if hold[n] {
+            histories[n]
+        } else {
+            AxisHistory::engaged(flanks[n])
+        }
+    });
+    out.directions = flanks;
+    if !target.compensate || out.error.is_some() {
+        // The command is the nominal one: only the prediction changes.
+        out.before = tcp_error(model, tool, &target.nominal_axes, histories, &target.goal);
+        out.residual = out.before;
+        return true;
+    }
+    let mut start = c;
+    if let Some(p) = previous {
+        for n in (0..6).filter(|&n| hold[n]) {
+            start[n] = p.axes_deg[n];
+        }
+    }
+    match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
-            let again = directions_at(&sol.axes_deg);
-            if again == actual {
-                out.axes_deg = sol.axes_deg;
-                out.directions = actual;
-                out.residual = sol.residual;
-                out.iterations += sol.iterations;
-                out.resolution = Resolution::Rebranched;
-                out.changed = sol.axes_deg != target.nominal_axes;
-                out.turn_held = turn_held;
-                return out;
-            }
-            for i in 0..6 {
-                oscillating[i] = again[i] != actual[i];
-            }
-            candidates.push(Candidate {
-                axes: sol.axes_deg,
-                directions: again,
-                error: tcp_error(model, tool, &sol.axes_deg, &again, &target.goal),
-                iterations: sol.iterations,
-                resolution: Resolution::Branch,
-            });
+            out.axes_deg = sol.axes_deg;
+            out.iterations += sol.iterations;
+            out.changed = sol.axes_deg != target.nominal_axes;
+            out.turn_held = turn_held;
+            out.resolution = if hold.contains(&true) {
+                Resolution::Held(hold)
+            } else {
+                Resolution::Reflanked
+            };
         }
-        Err(_) => {
-            for i in 0..6 {
-                oscillating[i] = actual[i] != first.directions[i];
-            }
+        Err(e) => {
+            out.error = Some(e);
+            out.axes_deg = target.nominal_axes;
+            out.changed = false;
         }
     }
-    // Hold the oscillating axes still — the same command as at the previous target — so that
-    // they rest and keep `state` (exactly for PTP; along a Cartesian path up to the path's
-    // own second-order motion, which the evaluation below takes into account).
-    if k > 0 && target.arrival.is_some() && oscillating.iter().any(|&o| o) {
-        let mut start = first.axes_deg;
-        let prev = cmd(k - 1);
-        let mut dirs = actual;
-        for i in 0..6 {
-            if oscillating[i] {
-                start[i] = prev[i];
-                dirs[i] = state[i];
-            }
-        }
-        if let Ok((sol, _)) =
-            solve_target(model, tool, target, &dirs, start, oscillating, method, None)
-        {
-            let really = directions_at(&sol.axes_deg);
-            candidates.push(Candidate {
-                axes: sol.axes_deg,
-                directions: really,
-                error: tcp_error(model, tool, &sol.axes_deg, &really, &target.goal),
-                iterations: sol.iterations,
-                resolution: Resolution::Held(oscillating),
-            });
-            // Along a Cartesian path a held axis still moves by the path's own second-order
-            // motion, which may flip its branch after all: then let the other axes make up
-            // for the branch it really arrives on (solved again with those directions).
-            if really != dirs {
-                if let Ok((again, _)) = solve_target(
-                    model,
-                    tool,
-                    target,
-                    &really,
-                    sol.axes_deg,
-                    oscillating,
-                    method,
-                    None,
-                ) {
-                    let really_again = directions_at(&again.axes_deg);
-                    candidates.push(Candidate {
-                        axes: again.axes_deg,
-                        directions: really_again,
-                        error: tcp_error(model, tool, &again.axes_deg, &really_again, &target.goal),
-                        iterations: sol.iterations + again.iterations,
-                        resolution: Resolution::Held(oscillating),
-                    });
-                }
-            }
-        }
-    }
-    let best = candidates
-        .into_iter()
-        .min_by(|a, b| weighted_norm(&a.error).total_cmp(&weighted_norm(&b.error)))
-        .expect("the first solution is always a candidate");
-    out.axes_deg = best.axes;
-    out.directions = best.directions;
-    out.residual = best.error;
-    out.iterations += best.iterations;
-    out.resolution = best.resolution;
-    out.changed = best.axes != target.nominal_axes;
-    out
+    // The prediction with the play evaluated exactly at the command written.
+    out.residual = tcp_error(model, tool, &out.axes_deg, histories, &target.goal);
+    true
 }
 
 #[cfg(test)]

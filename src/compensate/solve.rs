@@ -30,7 +30,7 @@ use nalgebra::{Matrix6, Vector6};
 use std::ops::AddAssign;
 
 use crate::model::chain::{self, axis_lines, ChainFrames, JointTrig, LinkBlocks};
-use crate::model::{AxisSlopes, AxisState, ChainErrors, Direction, Model, Slot};
+use crate::model::{AxisHistory, AxisSlopes, AxisState, ChainErrors, Model, Slot};
 use crate::motion::frame::{self as pose, Frame};
 use crate::motion::lu6::Lu6;
 use crate::motion::nominal::{self, Arm, Goal, Linearized, NotConverged, LEVER_MM};
@@ -39,10 +39,11 @@ use crate::motion::nominal::{self, Arm, Goal, Linearized, NotConverged, LEVER_MM
 pub const TOL_POSITION_MM: f64 = 1e-4;
 pub const TOL_ROTATION_RAD: f64 = 1e-7;
 
-/// The calibrated model with the rotation directions it is evaluated at.
+/// The calibrated model with the axis histories it is evaluated at (the flank each gear play
+/// is engaged on, or for an axis held still the history that says where its play stands).
 pub struct Predicted<'a> {
     pub model: &'a Model,
-    pub directions: [Direction; 6],
+    pub histories: [AxisHistory; 6],
     /// The errors that do not change with the command (time 0), summed once per model.
     fixed: &'a ChainErrors,
     /// The joint sines and cosines of the first evaluation: the solve's later commands are
@@ -56,10 +57,10 @@ pub struct Predicted<'a> {
 }
 
 impl<'a> Predicted<'a> {
-    pub fn new(model: &'a Model, directions: [Direction; 6]) -> Self {
+    pub fn new(model: &'a Model, histories: [AxisHistory; 6]) -> Self {
         Predicted {
             model,
-            directions,
+            histories,
             fixed: model.fixed_errors_at_time_zero(),
             trig: RefCell::default(),
             cells: Cell::new([0; 6]),
@@ -78,7 +79,7 @@ impl<'a> Predicted<'a> {
     fn state(&self, axes: &[f64; 6]) -> AxisState {
         AxisState {
             axes_deg: *axes,
-            directions: self.directions,
+            history: self.histories,
             time_s: 0.0,
         }
     }
@@ -223,8 +224,9 @@ pub struct Problem<'a> {
     pub tool: &'a Frame,
     /// Starting command (the nominal axes; held axes carry their held value).
     pub start: [f64; 6],
-    /// Rotation direction of each axis on arrival (the backlash branch).
-    pub directions: [Direction; 6],
+    /// Each axis's history on arrival: the flank its gear play is engaged on
+    /// ([`AxisHistory::engaged`]), or, for an axis held still, where its play stands.
+    pub histories: [AxisHistory; 6],
     /// Axes kept at their `start` value.
     pub hold: [bool; 6],
 }
@@ -272,18 +274,18 @@ pub fn weighted_norm(e: &Vector6<f64>) -> f64 {
 /// The predicted TCP error of `axes`.
 pub fn predicted_error(
     model: &Model,
-    directions: &[Direction; 6],
+    histories: &[AxisHistory; 6],
     axes: &[f64; 6],
     tool: &Frame,
     goal: &Frame,
 ) -> Vector6<f64> {
-    let arm = Predicted::new(model, *directions);
+    let arm = Predicted::new(model, *histories);
     pose::error(&arm.tcp(axes, tool), goal)
 }
 
 /// Solves `problem` with the calibrated model.
 pub fn solve(model: &Model, problem: &Problem, method: Method) -> Result<Solution, SolveError> {
-    let arm = Predicted::new(model, problem.directions);
+    let arm = Predicted::new(model, problem.histories);
     if method == Method::OneStep && !problem.hold.iter().any(|&h| h) {
         return one_step(&arm, problem);
     }
@@ -376,7 +378,7 @@ pub fn solve_in_chain(
     problem: &Problem,
     chain: &mut Chain,
 ) -> Result<Solution, SolveError> {
-    let arm = Predicted::new(model, problem.directions);
+    let arm = Predicted::new(model, problem.histories);
     let goal = problem.newton_goal();
     let warm = chain.recent[0].is_some() && !problem.hold.contains(&true);
     if let Some(lu) = chain.jacobian.as_ref().filter(|_| warm) {

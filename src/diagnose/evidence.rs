@@ -132,7 +132,7 @@ fn by_direction(
         let Some(u) = along(model, r, n) else {
             continue;
         };
-        match r.state.directions[n as usize - 1] {
+        match r.state.directions()[n as usize - 1] {
             Direction::Positive => out[0].push((x(r), u)),
             Direction::Negative => out[1].push((x(r), u)),
             Direction::Unknown => {}
@@ -300,8 +300,7 @@ mod tests {
                 (Direction::Negative, [-40.0, -60.0, -80.0, -100.0]),
             ] {
                 for a2 in sweep {
-                    let mut state = AxisState::new([0.0, a2, a3, 0.0, 45.0, 0.0]);
-                    state.directions = [dir; 6];
+                    let state = AxisState::with_directions([0.0, a2, a3, 0.0, 45.0, 0.0], [dir; 6]);
                     let p = model.target_position(&state);
                     let (frames, _) = model.frames(&state);
                     let u = frames

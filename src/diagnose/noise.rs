@@ -112,7 +112,7 @@ pub fn from_spec(rows: &[Row], station: &Vector3<f64>, station_assumed: bool) ->
 fn from_repeats(rows: &[Row]) -> Option<(f64, usize)> {
     let key = |r: &Row| {
         let angles = r.state.axes_deg.map(|a| (a * 1e6).round() as i64);
-        let dirs = r.state.directions.map(|d| d.sign() as i8);
+        let dirs = r.state.directions().map(|d| d.sign() as i8);
         (angles, dirs)
     };
     let mut groups: HashMap<_, Vec<&Row>> = HashMap::new();

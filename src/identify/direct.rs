@@ -10,7 +10,8 @@
 //! 3. the angular position of each measured point on its circle, against where the geometric
 //!    model puts the same command, is the angular positioning deviation of that axis at that
 //!    command angle and rotation direction; the mean of the two directions fills `map:An`,
-//!    half their difference `backlash:An`, and the spread between repeats of the test at
+//!    their difference (negative minus positive: the play's width) `backlash:An`, and the
+//!    spread between repeats of the test at
 //!    several angles of another axis fills `crosstalk:Am->An`.
 //!
 //! Data that holds no indexing test (arbitrary poses, paths) yields nothing here and the
@@ -264,7 +265,7 @@ fn deviation_samples(
                 axis: t.axis,
                 reference_deg: t.reference_deg,
                 command_deg: state.axes_deg[t.axis as usize - 1],
-                direction: state.directions[t.axis as usize - 1],
+                direction: engaged_direction(&state, t.axis),
                 deviation_deg: line.circle.angle_of(&m, &predicted).to_degrees(),
             });
         }
@@ -313,13 +314,31 @@ struct Curves {
 }
 
 impl Curves {
-    /// (mean of the branches, half their difference when both exist) at `x`.
+    /// (mean of the branches, and when both exist their bidirectional difference: the
+    /// negative branch minus the positive one, a gear play's width) at `x`.
     fn at(&self, x: f64) -> Option<(f64, Option<f64>)> {
         match (interpolate(&self.plus, x), interpolate(&self.minus, x)) {
-            (Some(p), Some(m)) => Some(((p + m) / 2.0, Some((p - m) / 2.0))),
+            (Some(p), Some(m)) => Some(((p + m) / 2.0, Some(m - p))),
             (Some(v), None) | (None, Some(v)) => Some((v, None)),
             (None, None) => None,
         }
+    }
+}
+
+/// A command travel after which a robot's gear play is engaged: plays are hundredths of a
+/// degree; the paper's indexing steps are 1°.
+const ENGAGED_TRAVEL_DEG: f64 = 0.5;
+
+/// The direction of axis `axis` at `state` when its gear is surely engaged on that flank (the
+/// two branches of the paper's model); `Unknown` inside a reversal shorter than any play
+/// could be (a reversal test's short moves), which the tables' starting values leave out.
+fn engaged_direction(state: &AxisState, axis: u8) -> Direction {
+    let n = axis as usize - 1;
+    let travel = state.history[n].travel_since_reversal(state.axes_deg[n]);
+    if travel >= ENGAGED_TRAVEL_DEG {
+        state.directions()[n]
+    } else {
+        Direction::Unknown
     }
 }
 
@@ -363,8 +382,8 @@ fn fill_tables(model: &mut Model, samples: &[DeviationSample]) {
                 .map(|(_, c)| c)
                 .collect()
         };
-        // The mean deviation (map) or half the difference between the directions
-        // (backlash) of every test of the axis, at each grid angle.
+        // The mean deviation (map) or the difference between the directions (the backlash's
+        // play width) of every test of the axis, at each grid angle.
         let one_d = [
             (
                 "map:A",

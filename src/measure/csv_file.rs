@@ -2,7 +2,7 @@
 //! columns found by name in any order, `x,y,z` empty on unmeasured rows, optional `t` and
 //! `dir1..dir6`, unknown columns ignored and named once.
 
-use super::{directions::infer_directions, Measurements, Stop};
+use super::{directions::infer_histories, Measurements, Stop};
 use crate::model::{AxisState, Direction};
 use nalgebra::Vector3;
 use std::io::Write;
@@ -247,16 +247,15 @@ pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError>
         stops.push(Stop {
             test: text(cols.test),
             state: AxisState {
-                axes_deg: axes,
-                directions: [Direction::Unknown; 6],
                 time_s,
+                ..AxisState::new(axes)
             },
             measured_mm,
             line,
         });
     }
     let mut states: Vec<AxisState> = stops.iter().map(|s| s.state).collect();
-    infer_directions(&mut states, &explicit);
+    infer_histories(&mut states, &explicit);
     for (stop, state) in stops.iter_mut().zip(states) {
         stop.state = state;
     }
@@ -284,14 +283,15 @@ fn column_of_field(raw: &str, index: usize) -> usize {
     raw.len() + 1
 }
 
-/// Writes stops as a measurement CSV (with `t` and explicit `dir1..dir6` columns).
+/// Writes stops as a measurement CSV (with the `t` column). The rows carry every stop the
+/// robot visited, in order, so the readers infer each axis's history from them; no `dirN`
+/// column is written (an explicit direction would override the gear play's memory).
 pub fn write_csv<W: Write>(out: W, stops: &[Stop]) -> std::io::Result<()> {
     let mut w = csv::Writer::from_writer(out);
-    let mut header = vec![
+    let header = [
         "test", "a1", "a2", "a3", "a4", "a5", "a6", "x", "y", "z", "t",
     ];
-    header.extend(DIRS);
-    w.write_record(&header)?;
+    w.write_record(header)?;
     for s in stops {
         let mut row: Vec<String> = vec![s.test.clone()];
         row.extend(s.state.axes_deg.iter().map(|a| format!("{a:.6}")));
@@ -300,11 +300,6 @@ pub fn write_csv<W: Write>(out: W, stops: &[Stop]) -> std::io::Result<()> {
             None => row.extend(["", "", ""].map(String::from)),
         }
         row.push(format!("{:.1}", s.state.time_s));
-        row.extend(s.state.directions.iter().map(|d| match d {
-            Direction::Positive => "1".to_string(),
-            Direction::Negative => "-1".to_string(),
-            Direction::Unknown => String::new(),
-        }));
         w.write_record(&row)?;
     }
     w.flush()
@@ -331,7 +326,7 @@ mod tests {
         );
         assert_eq!(m.stops[1].line, 3);
         assert_eq!(m.stops[2].state.time_s, 5.0);
-        let d1: Vec<_> = m.stops.iter().map(|s| s.state.directions[0]).collect();
+        let d1: Vec<_> = m.stops.iter().map(|s| s.state.directions()[0]).collect();
         assert_eq!(
             d1,
             vec![Direction::Unknown, Direction::Positive, Direction::Negative]
@@ -347,7 +342,7 @@ mod tests {
         let back = parse_csv(&buf, "back.csv").unwrap();
         for (a, b) in m.stops.iter().zip(&back.stops) {
             assert_eq!(a.state.axes_deg, b.state.axes_deg);
-            assert_eq!(a.state.directions, b.state.directions);
+            assert_eq!(a.state.history, b.state.history);
             assert_eq!(a.measured_mm, b.measured_mm);
         }
     }

@@ -1,13 +1,14 @@
 //! Laser-tracker measurements: the measurement CSV of `../shared/CONTRACTS.md` read into
-//! [`Stop`]s (command axis angles, inferred rotation directions, time, measured position) and
-//! written back. Rotation directions are inferred here once, so that identification, diagnosis
-//! and the virtual robot all agree on which backlash branch an axis sat on.
+//! [`Stop`]s (command axis angles, each axis's history — rotation direction and gear-play
+//! memory — inferred from the visiting order, time, measured position) and written back.
+//! Histories are inferred here once, so that identification, diagnosis and the virtual robot
+//! all agree on where each axis's gear play stood.
 
 mod csv_file;
 mod directions;
 
 pub use csv_file::{parse_csv, read_csv, write_csv, MeasureError};
-pub use directions::infer_directions;
+pub use directions::infer_histories;
 
 use crate::model::AxisState;
 use nalgebra::Vector3;

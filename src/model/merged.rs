@@ -1,7 +1,9 @@
 //! The solver's fast path through the angle tables: the effects that add `factor · table(A_n)`
-//! to axis n's own angle slot (`map:An`, and `backlash:An` whose factor is the rotation
-//! direction) are merged, per direction, into one table — one lookup per axis where there
-//! were two, and no dynamic dispatch. The merged table lives on the union of the grids: a sum
+//! to axis n's own angle slot (`map:An`, and the gear play `backlash:An`, which on an engaged
+//! flank adds ∓ half its width) are merged, per flank, into one table — one lookup per axis
+//! where there were two, and no dynamic dispatch. A history with a memory (the command
+//! reversed recently, so the play may be inside its band) takes the flank-free table plus the
+//! play evaluated from the history. The merged table lives on the union of the grids: a sum
 //! of piecewise-linear functions (each held constant beyond its grid) is piecewise linear with
 //! breakpoints among theirs, so interpolating the sum sampled there is the sum of the
 //! separate interpolations (to rounding).
@@ -11,32 +13,61 @@ use std::f64::consts::PI;
 use super::chain::LinkBlocks;
 use super::effect::{AxisSlopes, ChainErrors, Slot};
 use super::effects::ModelEffect;
+use super::history::AxisHistory;
 use super::state::Direction;
 use super::table::{Grid, Table1};
 
-/// How an own-axis table's contribution scales with the axis's rotation direction.
+/// How an own-axis table's contribution scales with the axis's state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AxisFactor {
     /// Added as it is (`map`).
     One,
-    /// Times +1 / −1 / 0 for a positive / negative / unknown direction (`backlash`).
-    Direction,
+    /// A gear play's width: −½ / +½ / 0 of it on the flank of a positive / negative / unknown
+    /// direction (`backlash`), and the play operator when the history has a memory.
+    Play,
 }
 
 impl AxisFactor {
     fn at(self, d: Direction) -> f64 {
         match self {
             AxisFactor::One => 1.0,
-            AxisFactor::Direction => d.sign(),
+            AxisFactor::Play => -0.5 * d.sign(),
         }
     }
 }
 
-/// One axis's merged tables: values in radians for a negative, unknown and positive direction.
+/// One axis's merged tables: values in radians on the negative, unknown and positive flank,
+/// and the play's width (degrees) for histories with a memory.
 #[derive(Clone, Debug)]
 struct AxisSum {
     axis: u8,
     tables: [Table1; 3],
+    play: Option<Table1>,
+}
+
+impl AxisSum {
+    /// The merged value (rad) at `x` for `history`, from the cell near `hint`.
+    #[inline(always)]
+    fn value_near(&self, x: f64, history: &AxisHistory, hint: &mut usize) -> f64 {
+        if history.is_simple() {
+            let table = &self.tables[direction_index(history.simple_direction())];
+            let cell = table.grid.locate_near(x, hint);
+            return table.value_in(&cell);
+        }
+        let table = &self.tables[1];
+        let cell = table.grid.locate_near(x, hint);
+        table.value_in(&cell) + self.lag_rad(x, history)
+    }
+
+    fn lag_rad(&self, x: f64, history: &AxisHistory) -> f64 {
+        match &self.play {
+            Some(width) => history
+                .play(x, |a| width.eval(a).0.max(0.0))
+                .lag_deg
+                .to_radians(),
+            None => 0.0,
+        }
+    }
 }
 
 /// The merged tables of a model and the varying effects left to evaluate one by one.
@@ -101,20 +132,37 @@ impl Merged {
             };
             let sums = [Direction::Negative, Direction::Unknown, Direction::Positive].map(table_at);
             tables.iter().for_each(|(i, _, _)| taken[*i] = true);
-            merged.axes.push(AxisSum { axis, tables: sums });
+            // One play per axis at most (the registry allows each effect once).
+            let play = tables
+                .iter()
+                .find(|(_, _, f)| *f == AxisFactor::Play)
+                .map(|(_, t, _)| (*t).clone());
+            merged.axes.push(AxisSum {
+                axis,
+                tables: sums,
+                play,
+            });
         }
         merged.rest = varying.iter().copied().filter(|&i| !taken[i]).collect();
         merged
     }
 
-    /// Adds the merged tables' values at `axes_deg` with `directions`.
+    /// The width table (degrees) of axis n+1's gear play, if the model has one.
+    pub fn play_width(&self, n: usize) -> Option<&Table1> {
+        self.axes
+            .iter()
+            .find(|s| s.axis as usize == n + 1)
+            .and_then(|s| s.play.as_ref())
+    }
+
+    /// Adds the merged tables' values at `axes_deg` with `histories`.
     pub fn add_to(
         &self,
         axes_deg: &[f64; 6],
-        directions: &[Direction; 6],
+        histories: &[AxisHistory; 6],
         errors: &mut ChainErrors,
     ) {
-        self.add_near(axes_deg, directions, errors, &mut [0; 6]);
+        self.add_near(axes_deg, histories, errors, &mut [0; 6]);
     }
 
     /// [`Self::add_to`] looking each axis's table up from the cell in `cells` (see
@@ -122,11 +170,11 @@ impl Merged {
     pub fn add_near(
         &self,
         axes_deg: &[f64; 6],
-        directions: &[Direction; 6],
+        histories: &[AxisHistory; 6],
         errors: &mut ChainErrors,
         cells: &mut [usize; 6],
     ) {
-        self.each_near(axes_deg, directions, cells, |n, value| {
+        self.each_near(axes_deg, histories, cells, |n, value| {
             errors.0[Slot::Angle { axis: n as u8 + 1 }.index()] += value
         });
     }
@@ -135,11 +183,11 @@ impl Merged {
     pub fn add_angles_near(
         &self,
         axes_deg: &[f64; 6],
-        directions: &[Direction; 6],
+        histories: &[AxisHistory; 6],
         angles: &mut [f64; 6],
         cells: &mut [usize; 6],
     ) {
-        self.each_near(axes_deg, directions, cells, |n, value| angles[n] += value);
+        self.each_near(axes_deg, histories, cells, |n, value| angles[n] += value);
     }
 
     /// Each merged axis's table value at `axes_deg`, as `(n, rad)` for axis n+1.
@@ -147,15 +195,13 @@ impl Merged {
     fn each_near(
         &self,
         axes_deg: &[f64; 6],
-        directions: &[Direction; 6],
+        histories: &[AxisHistory; 6],
         cells: &mut [usize; 6],
         mut add: impl FnMut(usize, f64),
     ) {
         for sum in &self.axes {
             let n = sum.axis as usize - 1;
-            let table = &sum.tables[direction_index(directions[n])];
-            let cell = table.grid.locate_near(axes_deg[n], &mut cells[n]);
-            add(n, table.value_in(&cell));
+            add(n, sum.value_near(axes_deg[n], &histories[n], &mut cells[n]));
         }
     }
 
@@ -164,17 +210,34 @@ impl Merged {
     pub fn add_with_slopes(
         &self,
         axes_deg: &[f64; 6],
-        directions: &[Direction; 6],
+        histories: &[AxisHistory; 6],
         errors: &mut ChainErrors,
         slopes: &mut AxisSlopes,
         cells: &mut [usize; 6],
     ) {
         for sum in &self.axes {
             let n = sum.axis as usize - 1;
-            let table = &sum.tables[direction_index(directions[n])];
+            let history = &histories[n];
+            let flank = if history.is_simple() {
+                history.simple_direction()
+            } else {
+                Direction::Unknown
+            };
+            let table = &sum.tables[direction_index(flank)];
             let cell = table.grid.locate(axes_deg[n]);
             cells[n] = cell.lo;
-            let (value, slope) = table.value_slope_in(&cell);
+            let (mut value, mut slope) = table.value_slope_in(&cell);
+            if let (false, Some(width)) = (history.is_simple(), &sum.play) {
+                let play = history.play(axes_deg[n], |a| width.eval(a).0.max(0.0));
+                value += play.lag_deg.to_radians();
+                // See `GearPlay::add_with_axis_slopes`.
+                slope += match play.edge {
+                    Some((_, side)) if play.engaged => {
+                        (0.5 * side * width.eval_slope(axes_deg[n]).1).to_radians()
+                    }
+                    _ => -(1.0f64.to_radians()),
+                };
+            }
             let slot = Slot::Angle { axis: sum.axis };
             errors.add(slot, value);
             slopes.add(slot, n, slope);

@@ -12,6 +12,7 @@
 pub mod chain;
 pub mod effect;
 pub mod effects;
+pub mod history;
 pub mod merged;
 #[allow(clippy::module_inception)]
 pub mod model;
@@ -24,6 +25,7 @@ pub use effect::{
     AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Slot, JOINT_SLOTS, N_SLOTS,
 };
 pub use effects::{GridOptions, ModelEffect};
+pub use history::{AxisHistory, PlayAt, ENGAGING_RUN_DEG, MAX_PLAY_DEG};
 pub use model::{JacobianScratch, Model};
 pub use record::{EffectRecord, RecordError, TableRecord};
 pub use registry::{expand_list, EffectName, NameError};

@@ -154,7 +154,7 @@ impl Model {
         cells: &mut [usize; 6],
     ) {
         let merged = self.merged();
-        merged.add_near(&state.axes_deg, &state.directions, errors, cells);
+        merged.add_near(&state.axes_deg, &state.history, errors, cells);
         let ctx = self.context();
         for &i in &merged.rest {
             self.effects[i].add_to(state, &ctx, errors);
@@ -174,7 +174,7 @@ impl Model {
         let merged = self.merged();
         let fixed = &merged.fixed_at_time_zero;
         let mut angles = std::array::from_fn(|n| fixed.get(Slot::Angle { axis: n as u8 + 1 }));
-        merged.add_angles_near(&state.axes_deg, &state.directions, &mut angles, cells);
+        merged.add_angles_near(&state.axes_deg, &state.history, &mut angles, cells);
         let ctx = self.context();
         for &i in &merged.rest {
             self.effects[i].add_angles(state, &ctx, &mut angles);
@@ -204,11 +204,25 @@ impl Model {
         cells: &mut [usize; 6],
     ) {
         let merged = self.merged();
-        merged.add_with_slopes(&state.axes_deg, &state.directions, errors, slopes, cells);
+        merged.add_with_slopes(&state.axes_deg, &state.history, errors, slopes, cells);
         let ctx = self.context();
         for &i in &merged.rest {
             self.effects[i].add_with_axis_slopes(state, &ctx, errors, slopes);
         }
+    }
+
+    /// The gear play of axis n+1 (index `n`) at `state`, when the model has one: where its
+    /// output stands against the command (see [`AxisHistory::play`](super::AxisHistory::play)).
+    pub fn play(&self, state: &AxisState, n: usize) -> Option<super::PlayAt> {
+        let width = self.merged().play_width(n)?;
+        Some(state.history[n].play(state.axes_deg[n], |a| width.eval(a).0.max(0.0)))
+    }
+
+    /// The width (degrees) of axis n+1's gear play at command `angle_deg` (0 without one).
+    pub fn play_width_deg(&self, n: usize, angle_deg: f64) -> f64 {
+        self.merged()
+            .play_width(n)
+            .map_or(0.0, |w| w.eval(angle_deg).0.max(0.0))
     }
 
     /// The evaluated chain, for callers that need several outputs of one state.

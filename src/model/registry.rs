@@ -6,8 +6,8 @@
 use std::fmt;
 
 use super::effects::{
-    backlash::Backlash, compliance::Compliance, crosstalk::Crosstalk, drift::Drift,
-    geometric::Geometric, map::AngleMap, tilt::Tilt, GridOptions, ModelEffect,
+    compliance::Compliance, crosstalk::Crosstalk, drift::Drift, geometric::Geometric,
+    map::AngleMap, play::GearPlay, tilt::Tilt, GridOptions, ModelEffect,
 };
 use super::record::{EffectRecord, RecordError};
 use crate::kinematics::RobotDescription;
@@ -41,12 +41,16 @@ pub struct Kind {
     pub create: CreateFn,
     /// The effect described by a calibration record.
     pub decode: DecodeFn,
+    /// Rewrites a record of format `robopost-calibration/1` into this format's meaning, for
+    /// the kinds whose meaning changed.
+    pub upgrade_v1: Option<UpgradeFn>,
 }
 
 pub type CreateFn =
     fn(Axes, &GridOptions, &RobotDescription) -> Result<Box<dyn ModelEffect>, String>;
 pub type DecodeFn =
     fn(Axes, &EffectRecord, &RobotDescription) -> Result<Box<dyn ModelEffect>, RecordError>;
+pub type UpgradeFn = fn(&mut EffectRecord) -> Result<(), RecordError>;
 
 fn one(axes: Axes) -> u8 {
     match axes {
@@ -72,6 +76,7 @@ pub static KINDS: &[Kind] = &[
         meaning: "position/orientation errors of the axis average lines and the target vector",
         create: |_, _, _| boxed(Ok::<_, String>(Geometric::default())),
         decode: |_, r, _| boxed(Geometric::from_record(r)),
+        upgrade_v1: None,
     },
     Kind {
         prefix: "map",
@@ -79,13 +84,15 @@ pub static KINDS: &[Kind] = &[
         meaning: "angular positioning deviation of an axis over its own angle",
         create: |a, o, r| boxed(AngleMap::zeros(one(a), o, r)),
         decode: |a, rec, _| boxed(AngleMap::from_record(one(a), rec)),
+        upgrade_v1: None,
     },
     Kind {
         prefix: "backlash",
         arity: Arity::Axis,
-        meaning: "dependence of that deviation on the rotation direction",
-        create: |a, o, r| boxed(Backlash::zeros(one(a), o, r)),
-        decode: |a, rec, _| boxed(Backlash::from_record(one(a), rec)),
+        meaning: "dependence of that deviation on the rotation direction, as a gear play",
+        create: |a, o, r| boxed(GearPlay::zeros(one(a), o, r)),
+        decode: |a, rec, _| boxed(GearPlay::from_record(one(a), rec)),
+        upgrade_v1: Some(GearPlay::upgrade_v1),
     },
     Kind {
         prefix: "crosstalk",
@@ -99,6 +106,7 @@ pub static KINDS: &[Kind] = &[
             let (m, n) = pair(a);
             boxed(Crosstalk::from_record(m, n, rec))
         },
+        upgrade_v1: None,
     },
     Kind {
         prefix: "compliance",
@@ -106,6 +114,7 @@ pub static KINDS: &[Kind] = &[
         meaning: "elastic deflection proportional to the gravity torque",
         create: |a, _, r| boxed(Compliance::zeros(one(a), r)),
         decode: |a, rec, r| boxed(Compliance::from_record(one(a), rec, r)),
+        upgrade_v1: None,
     },
     Kind {
         prefix: "tilt",
@@ -113,6 +122,7 @@ pub static KINDS: &[Kind] = &[
         meaning: "tilt error motion of an axis over its own angle",
         create: |a, _, _| boxed(Ok::<_, String>(Tilt::zeros(one(a)))),
         decode: |a, rec, _| boxed(Tilt::from_record(one(a), rec)),
+        upgrade_v1: None,
     },
     Kind {
         prefix: "drift",
@@ -120,6 +130,7 @@ pub static KINDS: &[Kind] = &[
         meaning: "geometry change linear in time",
         create: |_, _, _| boxed(Ok::<_, String>(Drift::default())),
         decode: |_, r, _| boxed(Drift::from_record(r)),
+        upgrade_v1: None,
     },
 ];
 

@@ -1,5 +1,8 @@
-//! What the error model is evaluated at: the command axis angles, each axis's rotation
-//! direction (which backlash branch it sits on) and the time since the start of the campaign.
+//! What the error model is evaluated at: the command axis angles, each axis's history (the
+//! rotation direction it arrives with and where its gear play stands, see [`AxisHistory`]) and
+//! the time since the start of the campaign.
+
+use super::history::AxisHistory;
 
 /// The rotation direction of one axis at a stop: the sign of its last motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -46,18 +49,53 @@ impl Direction {
 pub struct AxisState {
     /// Command angles A1..A6 in degrees (KUKA convention, as on the teach pendant).
     pub axes_deg: [f64; 6],
-    /// Rotation direction of each axis at this stop.
-    pub directions: [Direction; 6],
+    /// Each axis's past up to the start of the motion that arrives at `axes_deg`.
+    pub history: [AxisHistory; 6],
     /// Seconds since the start of the campaign (the `drift` effect's clock).
     pub time_s: f64,
 }
 
 impl AxisState {
+    /// A state whose axes have not moved yet (directions unknown).
     pub fn new(axes_deg: [f64; 6]) -> Self {
         AxisState {
             axes_deg,
-            directions: [Direction::Unknown; 6],
+            history: [AxisHistory::unmoved(); 6],
             time_s: 0.0,
         }
+    }
+
+    /// A state reached after long motions in `directions` (the paper's ±1 branches).
+    pub fn with_directions(axes_deg: [f64; 6], directions: [Direction; 6]) -> Self {
+        AxisState {
+            axes_deg,
+            history: directions.map(AxisHistory::engaged),
+            time_s: 0.0,
+        }
+    }
+
+    /// The rotation direction of each axis on arrival.
+    pub fn directions(&self) -> [Direction; 6] {
+        std::array::from_fn(|n| self.history[n].direction(self.axes_deg[n]))
+    }
+
+    /// The state of the next stop, at `axes_deg`, reached by a motion that is monotone in
+    /// every axis (PTP; Cartesian motions add their turning points with [`Self::then_through`]).
+    pub fn then(&self, axes_deg: [f64; 6]) -> AxisState {
+        self.then_through(&[f64::NAN; 6], axes_deg)
+    }
+
+    /// The state of the next stop, at `axes_deg`, reached by a motion whose axis n turns round
+    /// last at command `turns[n]` (NaN: it does not turn round).
+    pub fn then_through(&self, turns: &[f64; 6], axes_deg: [f64; 6]) -> AxisState {
+        let mut next = *self;
+        for n in 0..6 {
+            next.history[n].push(self.axes_deg[n]);
+            if turns[n].is_finite() {
+                next.history[n].push(turns[n]);
+            }
+        }
+        next.axes_deg = axes_deg;
+        next
     }
 }

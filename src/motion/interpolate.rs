@@ -10,7 +10,11 @@
 //! singularity), and the arrival rate `dq/du` at the end is exact: `J⁻¹·ẋ(1)` with `ẋ` the
 //! path's twist per unit of the segment parameter. An axis with no motion at the end (a
 //! turning point right at the target) takes the sign of its last sampled motion; one that
-//! does not move at all rests.
+//! does not move at all rests. An axis that turns round inside a segment has its last turning
+//! point located (the command angle there): from a sample whose motion opposes the arrival,
+//! refined by the parabola through the samples around it, or — between two samples or inside
+//! a segment too short for samples — by the cubic through the ends and their exact rates. A
+//! gear play's state on arrival depends on it (`model::history`).
 
 use nalgebra::{Vector3, Vector6};
 
@@ -415,7 +419,13 @@ pub struct Arrival {
     /// The end axes the controller reaches by following the path: the given ones, or their
     /// ±360° variant where the path turns an axis past the nearest one (continuity).
     pub end: [f64; 6],
+    /// The command angle at each axis's last turning point inside the segment (NaN where the
+    /// axis does not turn round): where the run that arrives began.
+    pub turns: [f64; 6],
 }
+
+/// No turning point inside a segment (see [`Arrival::turns`]).
+pub const NO_TURNS: [f64; 6] = [f64::NAN; 6];
 
 /// Whether a straight segment is short enough to need no samples inside it (the arrival rate
 /// at its end then depends on its two ends only, so it can be computed later, in parallel).
@@ -456,6 +466,7 @@ pub fn arrival(
         return Ok(Arrival {
             rate: std::array::from_fn(|i| rest(q1[i] - q0[i])),
             end: *q1,
+            turns: NO_TURNS,
         });
     }
     let cart = Cartesian::new(start.0, end.0, path)?;
@@ -536,20 +547,139 @@ pub fn arrival_and_end(
     }
     // The exact rate at the end, where the Jacobian is regular.
     let (end, rate) = end_rate(robot, tool, q1, &(cart.twist(u_end) * u_end));
+    let rate: [f64; 6] = std::array::from_fn(|i| {
+        let r = rate.map_or(0.0, |r| r[i]);
+        if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
+            return r;
+        }
+        match last_moving[i] {
+            Some((qs, u)) => rest((q1[i] - qs[i]) / (1.0 - u)),
+            None => 0.0,
+        }
+    });
+    // The rate at the start too: an axis leaving against its arrival turned round inside.
+    let (_, start_rate) = end_rate(robot, tool, q0, &(cart.twist(0.0) * u_end));
+    let n = samples.len() + 2;
+    let turns = std::array::from_fn(|i| {
+        let point = |j: usize| match j {
+            0 => (q0[i], 0.0),
+            j if j == n - 1 => (q1[i], 1.0),
+            j => (samples[j - 1].0[i], samples[j - 1].1),
+        };
+        let r0 = start_rate.map_or(f64::NAN, |r| r[i]);
+        last_turn(&point, n, r0, rate[i])
+    });
     let arrival = Arrival {
-        rate: std::array::from_fn(|i| {
-            let r = rate.map_or(0.0, |r| r[i]);
-            if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
-                return r;
-            }
-            match last_moving[i] {
-                Some((qs, u)) => rest((q1[i] - qs[i]) / (1.0 - u)),
-                None => 0.0,
-            }
-        }),
+        rate,
         end: *q1,
+        turns,
     };
     Ok((arrival, end))
+}
+
+/// The value at the last turning point of one axis along `points` (`(angle, u)` from the
+/// start at u = 0 to the end at u = 1) whose rates per unit of u are `rate0` at the start
+/// and `rate1` at the end; NaN when it does not turn round.
+fn last_turn(points: &dyn Fn(usize) -> (f64, f64), n: usize, rate0: f64, rate1: f64) -> f64 {
+    let diffs = |j: usize| points(j + 1).0 - points(j).0;
+    // The direction of the run that arrives.
+    let d = if rate1 != 0.0 {
+        rate1.signum()
+    } else {
+        match (0..n - 1).rev().map(diffs).find(|&x| x != 0.0) {
+            Some(x) => x.signum(),
+            None => return f64::NAN,
+        }
+    };
+    let extreme = |a: f64, b: f64| if d > 0.0 { a.min(b) } else { a.max(b) };
+    // The last interval that moves against the arrival: the turn follows it.
+    if let Some(j) = (0..n - 1).rev().find(|&j| diffs(j) * d < 0.0) {
+        let at = points(j + 1);
+        if j + 2 < n {
+            // The parabola through the three samples around the turn.
+            let (a, c) = (points(j), points(j + 2));
+            return extreme(at.0, parabola_extremum(a, at, c).unwrap_or(at.0));
+        }
+        // The last interval itself moves against the arrival: the turn is inside it.
+        let (p0, p1) = (points(j), at);
+        let du = p1.1 - p0.1;
+        let m0 = if j > 0 {
+            let before = points(j - 1);
+            (p0.0 - before.0) / (p0.1 - before.1) * du
+        } else {
+            rate0 * du
+        };
+        return hermite_extremum(p0.0, p1.0, m0, rate1 * du, d).unwrap_or(p1.0);
+    }
+    // Every interval moves with the arrival: a turn can only lie before the first sample.
+    if rate0.is_finite() && rate0 * d < 0.0 {
+        let (p0, p1) = (points(0), points(1));
+        let du = p1.1 - p0.1;
+        let m1 = if n > 2 {
+            let after = points(2);
+            (after.0 - p0.0) / (after.1 - p0.1) * du
+        } else {
+            rate1 * du
+        };
+        return hermite_extremum(p0.0, p1.0, rate0 * du, m1, d).unwrap_or(f64::NAN);
+    }
+    f64::NAN
+}
+
+/// The extremum of the parabola through three points `(value, u)`, when it lies between the
+/// outer two.
+fn parabola_extremum(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> Option<f64> {
+    let (y0, x0) = a;
+    let (y1, x1) = b;
+    let (y2, x2) = c;
+    let d01 = (y1 - y0) / (x1 - x0);
+    let d12 = (y2 - y1) / (x2 - x1);
+    let curvature = (d12 - d01) / (x2 - x0);
+    if !(curvature.is_finite()) || curvature == 0.0 {
+        return None;
+    }
+    // y = y1 + s·(x − x1) + curvature·(x − x1)² with s the slope at x1.
+    let s = d01 + curvature * (x1 - x0);
+    let x = x1 - s / (2.0 * curvature);
+    (x > x0 && x < x2).then(|| y1 + s * (x - x1) + curvature * (x - x1) * (x - x1))
+}
+
+/// The extremum, inside the interval, of the cubic Hermite from `p0` to `p1` with end
+/// derivatives `m0`, `m1` (per unit of the interval) that turns the run round into direction
+/// `d` (a minimum for d > 0, a maximum for d < 0).
+fn hermite_extremum(p0: f64, p1: f64, m0: f64, m1: f64, d: f64) -> Option<f64> {
+    // h'(t) = a·t² + b·t + c.
+    let a = 6.0 * p0 + 3.0 * m0 - 6.0 * p1 + 3.0 * m1;
+    let b = -6.0 * p0 - 4.0 * m0 + 6.0 * p1 - 2.0 * m1;
+    let c = m0;
+    let h = |t: f64| {
+        let (t2, t3) = (t * t, t * t * t);
+        p0 * (2.0 * t3 - 3.0 * t2 + 1.0)
+            + m0 * (t3 - 2.0 * t2 + t)
+            + p1 * (-2.0 * t3 + 3.0 * t2)
+            + m1 * (t3 - t2)
+    };
+    let roots: Vec<f64> = if a.abs() < 1e-300 {
+        if b == 0.0 {
+            vec![]
+        } else {
+            vec![-c / b]
+        }
+    } else {
+        let disc = b * b - 4.0 * a * c;
+        if disc < 0.0 {
+            vec![]
+        } else {
+            let s = disc.sqrt();
+            vec![(-b - s) / (2.0 * a), (-b + s) / (2.0 * a)]
+        }
+    };
+    roots
+        .into_iter()
+        .filter(|t| *t > 0.0 && *t < 1.0)
+        .map(h)
+        .reduce(|x, y| if d > 0.0 { x.min(y) } else { x.max(y) })
+        .filter(|v| if d > 0.0 { *v < p1 } else { *v > p1 })
 }
 
 /// The nominal TCP at axes `q` (the closed form of `kinematics`; agrees with

@@ -20,31 +20,20 @@ pub use simulate::{
 pub use workspace::{FileId, Workspace};
 
 /// The commanded axis states of a program run, in execution order: every target's nominal
-/// axes with the rotation directions the simulated motion arrives with (for a virtual robot
-/// that measures the stops of a program). Directions are unknown before an axis first moves
-/// and after a position the simulation could not follow.
+/// axes with each axis's history as the simulated motion leaves it (rotation direction on
+/// arrival, the turning points inside the interpolated motions; see `model::AxisHistory`).
+/// Histories start unmoved, and again after a position the simulation could not follow.
 pub fn program_states(sim: &Simulation) -> Vec<crate::model::AxisState> {
-    let mut state = [crate::model::Direction::Unknown; 6];
+    let mut previous: Option<crate::model::AxisState> = None;
     sim.stops
         .iter()
         .map(|s| {
-            state = match s.arrival {
-                None => [crate::model::Direction::Unknown; 6],
-                Some(v) => std::array::from_fn(|i| {
-                    if v[i].abs() < interpolate::REST_DEG {
-                        state[i]
-                    } else if v[i] > 0.0 {
-                        crate::model::Direction::Positive
-                    } else {
-                        crate::model::Direction::Negative
-                    }
-                }),
+            let state = match (s.arrival, &previous) {
+                (Some(_), Some(p)) => p.then_through(&s.turns, s.nominal_axes),
+                _ => crate::model::AxisState::new(s.nominal_axes),
             };
-            crate::model::AxisState {
-                axes_deg: s.nominal_axes,
-                directions: state,
-                time_s: 0.0,
-            }
+            previous = Some(state);
+            state
         })
         .collect()
 }

@@ -213,7 +213,7 @@ pub fn indexing(test: &str, models: &[ReportModel], idx: &[usize]) -> Vec<Figure
             let mut points: Vec<(f64, f64)> = idx
                 .iter()
                 .map(|&i| &m.rows[i])
-                .filter(|r| r.state.directions[n] == d)
+                .filter(|r| r.state.directions()[n] == d)
                 .filter_map(|r| value(r).map(|v| (r.state.axes_deg[n], v)))
                 .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));

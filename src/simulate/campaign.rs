@@ -254,7 +254,7 @@ pub const DEFAULT_AXIS_SPEED_DEG_S: f64 = 30.0;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::measure::infer_directions;
+    use crate::measure::infer_histories;
     use crate::model::{AxisState, Direction};
 
     #[test]
@@ -295,8 +295,8 @@ mod tests {
             vec![false, true, true, true, false, true, true, true]
         );
         let mut states: Vec<AxisState> = stops.iter().map(|s| AxisState::new(s.axes_deg)).collect();
-        infer_directions(&mut states, &[]);
-        let d: Vec<Direction> = states.iter().map(|s| s.directions[1]).collect();
+        infer_histories(&mut states, &[]);
+        let d: Vec<Direction> = states.iter().map(|s| s.directions()[1]).collect();
         use Direction::*;
         assert_eq!(d[1..4], [Positive, Positive, Positive]);
         assert_eq!(d[5..8], [Negative, Negative, Negative]);

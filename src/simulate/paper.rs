@@ -1,7 +1,7 @@
 //! The virtual KR 30 HA of the shipped fixtures: the paper's effects at the sizes the paper
 //! reports (section 3 and Figs. 4, 5, 7) — axis average lines off by tenths of a millimetre
 //! and hundredths of a degree, angular positioning deviations periodic with the gear pitch
-//! with amplitudes of a few thousandths of a degree, backlash of a few thousandths, and the
+//! with amplitudes of a few thousandths of a degree, gear plays of 0.005–0.01°, and the
 //! A3 → A2 crosstalk of Fig. 5 (A2's deviation shifting by about two hundredths of a degree
 //! between A3 = 58° and 153°). Written in closed form (no random numbers) so the truth is the
 //! same on every machine; `hidden` adds effects outside the paper's model (compliance of A2
@@ -47,7 +47,7 @@ const GEOMETRIC: [(&str, f64); 21] = [
 ];
 
 /// Gear pitch (degrees of axis rotation per period) and amplitudes (degrees) per axis:
-/// (pitch, periodic amplitude, slow cumulative amplitude, backlash half-width).
+/// (pitch, periodic amplitude, slow cumulative amplitude, half the gear play's width).
 const AXES: [(f64, f64, f64, f64); 6] = [
     (12.0, 0.0030, 0.0040, 0.0025),
     (9.0, 0.0035, 0.0050, 0.0030),
@@ -66,11 +66,12 @@ pub fn map_deg(n: usize, a: f64) -> f64 {
         + slow * (a.to_radians() * 0.8 + phase).sin()
 }
 
-/// The backlash half-width of axis n at command angle `a` (degrees): larger where the
-/// gravity load is small (the gears float), modelled as a mild angle dependence.
-pub fn backlash_deg(n: usize, a: f64) -> f64 {
+/// The gear play's width of axis n at command angle `a` (degrees): the output lags the
+/// command by half of it; larger where the gravity load is small (the gears float),
+/// modelled as a mild angle dependence.
+pub fn play_width_deg(n: usize, a: f64) -> f64 {
     let (_, _, _, half) = AXES[n - 1];
-    half * (1.0 + 0.25 * (a.to_radians() + 0.3 * n as f64).cos())
+    2.0 * half * (1.0 + 0.25 * (a.to_radians() + 0.3 * n as f64).cos())
 }
 
 /// The A3 → A2 crosstalk (degrees) at (A2, A3): the load on A2's gears changes with the
@@ -107,7 +108,7 @@ pub fn truth_model(hidden: bool) -> Model {
     };
     for (prefix, f) in [
         ("map", map_deg as fn(usize, f64) -> f64),
-        ("backlash", backlash_deg),
+        ("backlash", play_width_deg),
     ] {
         for n in 1..=6 {
             let name = EffectName::parse(&format!("{prefix}:A{n}")).expect("effect name");
@@ -160,7 +161,7 @@ pub fn truth_file(hidden: bool, seed: u64) -> TruthFile {
          the paper's model does not contain (for diagnosis)."
     } else {
         "Virtual KR 30 HA with the paper's effects at realistic sizes: 18 axis-line errors, \
-         gear-pitch periodic angular deviations, backlash, crosstalk A3->A2."
+         gear-pitch periodic angular deviations, gear plays (the output lags), crosstalk A3->A2."
     };
     let calibration = Calibration::from_model(
         "KR 30 HA (virtual)",

@@ -1,8 +1,8 @@
 //! A KRL program as the virtual robot runs it: the motion simulation of the main job
 //! (`motion::simulate`, the controller's nominal IK with S/T and continuity, LIN/CIRC
 //! interpolation) turned into the robot's visiting sequence — one stop per executed target,
-//! the command axes the controller computes for it, the rotation directions its simulated
-//! motion arrives with, a clock paced as the campaign's — together with where each target was
+//! the command axes the controller computes for it, the axis histories its simulated motion
+//! arrives with (directions and turning points inside the interpolated motions), a clock paced as the campaign's — together with where each target was
 //! programmed, so that "measured − programmed" is the positioning error. The auxiliary points
 //! of circular motions are passed through, not stopped at: they are visited (their motion
 //! sets the directions) but not measured.
@@ -16,7 +16,7 @@ use nalgebra::Vector3;
 
 use super::campaign::{paced, PlannedStop};
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::model::Direction;
+use crate::model::AxisState;
 use crate::motion::{program_states, Role, Simulation, Workspace};
 
 /// Tools within this distance of the measurement target (mm) are taken as the target: the
@@ -28,8 +28,12 @@ pub const TOOL_MATCH_MM: f64 = 0.001;
 pub struct ProgramVisit {
     /// Test label, command axes, measured (not on auxiliary points), time.
     pub stop: PlannedStop,
-    /// Rotation directions the simulated motion arrives with.
-    pub directions: [Direction; 6],
+    /// The command angle of each axis's last turning point inside the interpolated motion
+    /// that reaches this stop (NaN: none), so that the gear play sees the whole trajectory.
+    pub turns: [f64; 6],
+    /// The motion starts from a position the simulation could not follow: every axis's
+    /// history starts anew.
+    pub from_unknown: bool,
     /// The programmed TCP position in the robot base frame, mm.
     pub programmed_mm: Vector3<f64>,
     /// The tool of the motion: the TCP in the flange frame, mm.
@@ -59,14 +63,68 @@ pub fn program_visits(
         .into_iter()
         .zip(states)
         .zip(&sim.stops)
-        .map(|((stop, state), s)| ProgramVisit {
+        .map(|((stop, _), s)| ProgramVisit {
             stop,
-            directions: state.directions,
+            turns: s.turns,
+            from_unknown: s.arrival.is_none(),
             programmed_mm: s.goal.position,
             tool_mm: sim.frames[s.tool as usize].position,
             line: s.stmt.line,
         })
         .collect()
+}
+
+/// The axis states of `visits` in order: each reached from the one before through its
+/// motion's turning points (see [`AxisState::then_through`]).
+pub fn visit_states(visits: &[ProgramVisit]) -> Vec<AxisState> {
+    let mut previous: Option<AxisState> = None;
+    visits
+        .iter()
+        .map(|v| {
+            let mut state = match (&previous, v.from_unknown) {
+                (Some(p), false) => p.then_through(&v.turns, v.stop.axes_deg),
+                _ => AxisState::new(v.stop.axes_deg),
+            };
+            state.time_s = v.stop.time_s;
+            previous = Some(state);
+            state
+        })
+        .collect()
+}
+
+/// The rows of a measurement file for `visits` measured as `stops` (one per visit): before
+/// every visit whose motion turns an axis round, an unmeasured row with those axes at their
+/// turning points (the others where the motion started), so that the histories a reader
+/// infers from the rows are the ones the run had.
+pub fn rows_with_turns(
+    visits: &[ProgramVisit],
+    stops: &[crate::measure::Stop],
+) -> Vec<crate::measure::Stop> {
+    let mut rows = Vec::with_capacity(stops.len());
+    for (k, (v, s)) in visits.iter().zip(stops).enumerate() {
+        let turning = v.turns.iter().any(|t| t.is_finite());
+        if let (true, false, Some(prev)) = (turning, v.from_unknown, k.checked_sub(1)) {
+            let from = visits[prev].stop.axes_deg;
+            let axes = std::array::from_fn(|n| {
+                if v.turns[n].is_finite() {
+                    v.turns[n]
+                } else {
+                    from[n]
+                }
+            });
+            rows.push(crate::measure::Stop {
+                test: s.test.clone(),
+                state: AxisState {
+                    time_s: s.state.time_s,
+                    ..AxisState::new(axes)
+                },
+                measured_mm: None,
+                line: s.line,
+            });
+        }
+        rows.push(s.clone());
+    }
+    rows
 }
 
 /// A warning at the first measured motion of every tool that is not the measurement target

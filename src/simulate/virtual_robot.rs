@@ -1,8 +1,8 @@
 //! The virtual robot: a truth [`Model`] driven through a sequence of stops as a controller
 //! would visit them, measured by a simulated laser tracker. Rotation directions come from the
-//! real visiting sequence (approach moves included) through the same
-//! [`infer_directions`] that reads measurement files, so that the backlash branch an axis sits
-//! on is the one identification will infer from the CSV. Noise is drawn from a ChaCha8
+//! real visiting sequence (approach moves included) through the same [`infer_histories`] that
+//! reads measurement files, so that where an axis's gear play stands is what identification
+//! will infer from the CSV. Noise is drawn from a ChaCha8
 //! generator seeded by the truth file's seed: the same truth, stops and seed always give the
 //! same file.
 
@@ -15,7 +15,7 @@ use super::campaign::PlannedStop;
 use super::program::ProgramVisit;
 use super::truth::{TrackerNoise, TruthFile};
 use crate::calibration::{CalError, MeasurementFrame};
-use crate::measure::{infer_directions, Stop};
+use crate::measure::{infer_histories, Stop};
 use crate::model::{AxisState, Model};
 
 /// A stop the virtual robot refuses, as a controller would.
@@ -125,25 +125,18 @@ impl VirtualRobot {
                 ..AxisState::new(s.axes_deg)
             })
             .collect();
-        infer_directions(&mut states, &[]);
+        infer_histories(&mut states, &[]);
         Ok(self.measure_states(stops, states))
     }
 
     /// Runs the stops of a program ([`program_visits`](super::program::program_visits)) and
-    /// measures them as [`measure`](Self::measure) does, with the rotation directions the
+    /// measures them as [`measure`](Self::measure) does, with the axis histories the
     /// simulated motion arrives with instead of those inferred from the stops alone (a path
-    /// motion may reverse an axis between two targets).
+    /// motion may turn an axis round between two targets).
     pub fn run_program(&self, visits: &[ProgramVisit]) -> Result<Vec<Stop>, SimulateError> {
         let stops: Vec<PlannedStop> = visits.iter().map(|v| v.stop.clone()).collect();
         self.check_limits(&stops)?;
-        let states = visits
-            .iter()
-            .map(|v| AxisState {
-                axes_deg: v.stop.axes_deg,
-                directions: v.directions,
-                time_s: v.stop.time_s,
-            })
-            .collect();
+        let states = super::program::visit_states(visits);
         Ok(self.measure_states(&stops, states))
     }
 
@@ -231,7 +224,8 @@ mod tests {
         let name = EffectName::parse("backlash:A1").unwrap();
         truth.push_named(&name, &GridOptions::default()).unwrap();
         let n = truth.n_parameters();
-        truth.set_values(&vec![0.01; n]); // 0.01° on the + branch, −0.01° on the − branch
+        // A play of 0.01°: the output lags by 0.005° after a motion in either direction.
+        truth.set_values(&vec![0.01; n]);
         let robot = VirtualRobot::new(truth).with_noise(TrackerNoise::NONE);
         let out = robot
             .measure(&[
@@ -242,12 +236,13 @@ mod tests {
             ])
             .unwrap();
         assert!(out[0].measured_mm.is_none() && out[2].measured_mm.is_none());
-        assert_eq!(out[1].state.directions[0], Direction::Positive);
-        assert_eq!(out[3].state.directions[0], Direction::Negative);
-        // The same command angle, 0.02° apart: A1 turns the target at radius 1340 mm by
-        // 2·0.01° → chord 1340·0.02·π/180 mm, along Y.
+        assert_eq!(out[1].state.directions()[0], Direction::Positive);
+        assert_eq!(out[3].state.directions()[0], Direction::Negative);
+        // The same command angle, 0.01° apart (−0.005° arriving upward, +0.005° arriving
+        // downward): A1 turns the target at radius 1340 mm by 0.01° → chord 1340·0.01·π/180
+        // mm, along Y.
         let d = out[1].measured_mm.unwrap() - out[3].measured_mm.unwrap();
-        let expected = 1340.0 * 0.02f64.to_radians();
+        let expected = 1340.0 * 0.01f64.to_radians();
         assert!((d.norm() - expected).abs() < 1e-6, "{d}");
         assert!(d.x.abs() < 1e-6 && d.z.abs() < 1e-9);
     }

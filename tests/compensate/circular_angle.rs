@@ -64,7 +64,8 @@ fn error_at(
     goal: &Frame,
 ) -> (f64, f64) {
     let tool = sim.frames[sim.stops[k].tool as usize];
-    let e = solve::predicted_error(model, &dirs[k], &sim.stops[k].nominal_axes, &tool, goal);
+    let flanks = dirs[k].map(robopost::model::AxisHistory::engaged);
+    let e = solve::predicted_error(model, &flanks, &sim.stops[k].nominal_axes, &tool, goal);
     robopost::compensate::pose::norms(&e)
 }
 

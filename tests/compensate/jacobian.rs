@@ -9,7 +9,7 @@ use robopost::compensate::Method;
 use robopost::model::chain::JointTrig;
 use robopost::model::effects::compliance::Compliance;
 use robopost::model::effects::tilt::Tilt;
-use robopost::model::{AxisState, Direction, Model};
+use robopost::model::{AxisHistory, AxisState, Direction, Model};
 use robopost::motion::frame::{self, Frame};
 use robopost::motion::nominal::{self, Arm, Nominal};
 
@@ -30,12 +30,25 @@ const POSES: [[f64; 6]; 3] = [
     [3.1, -97.8, 121.4, 2.6, 58.3, 7.9],
 ];
 
-fn directions() -> [[Direction; 6]; 3] {
+/// Axis histories to evaluate at pose `axes`: gears engaged on either flank or unknown, and
+/// gears of A1, A3 and A6 inside their play (the command went back by less than the play
+/// lately), where the output stands still and the command's slope is the play's.
+fn histories(axes: &[f64; 6]) -> [[AxisHistory; 6]; 4] {
+    let mut inside = [AxisHistory::engaged(Direction::Positive); 6];
+    for n in [0, 2, 5] {
+        inside[n].push(axes[n] + 0.002);
+    }
+    let [a, b, c] = flanks();
+    [a, b, c, inside]
+}
+
+/// Gears engaged on either flank, or unknown: what a solve assumes for a moving axis.
+fn flanks() -> [[AxisHistory; 6]; 3] {
     use Direction::*;
     [
-        [Positive; 6],
-        [Negative; 6],
-        [Positive, Negative, Positive, Negative, Unknown, Positive],
+        [AxisHistory::engaged(Positive); 6],
+        [AxisHistory::engaged(Negative); 6],
+        [Positive, Negative, Positive, Negative, Unknown, Positive].map(AxisHistory::engaged),
     ]
 }
 
@@ -73,7 +86,7 @@ fn complete_jacobian_matches_finite_differences_of_the_prediction() {
     let tool = tool();
     for model in [handset(), full_model()] {
         for axes in POSES {
-            for dirs in directions() {
+            for dirs in histories(&axes) {
                 let arm = Predicted::new(&model, dirs);
                 let (tcp, j) = arm.tcp_jacobian(&axes, &tool);
                 let plain = arm.tcp(&axes, &tool);
@@ -105,13 +118,13 @@ fn complete_jacobian_matches_finite_differences_of_the_prediction() {
 /// linearisation the solver used before).
 fn frozen_jacobian(
     model: &Model,
-    dirs: [Direction; 6],
+    dirs: [AxisHistory; 6],
     axes: &[f64; 6],
     tool: &Frame,
 ) -> nalgebra::Matrix6<f64> {
     let state = AxisState {
         axes_deg: *axes,
-        directions: dirs,
+        history: dirs,
         time_s: 0.0,
     };
     let errors = model.chain_errors(&state);
@@ -137,7 +150,7 @@ fn curvature_is_the_chains_second_order_term() {
     let tool = tool();
     let model = full_model();
     for axes in POSES {
-        let arm = Predicted::new(&model, [Direction::Positive; 6]);
+        let arm = Predicted::new(&model, [AxisHistory::engaged(Direction::Positive); 6]);
         let mut lin = nominal::Linearized::default();
         arm.linearize(&axes, &tool, &mut lin);
         assert!(lin.curved, "the model arm gives its curvature");
@@ -168,12 +181,12 @@ fn one_step_reaches_the_tolerance() {
     let model = handset();
     let nominal = Nominal(&model.robot);
     for axes in POSES {
-        for dirs in directions() {
+        for dirs in flanks() {
             let problem = Problem {
                 goal: nominal.tcp(&axes, &tool),
                 tool: &tool,
                 start: axes,
-                directions: dirs,
+                histories: dirs,
                 hold: [false; 6],
             };
             let sol = solve::solve(&model, &problem, Method::Iterate).unwrap();
@@ -219,7 +232,7 @@ proptest::proptest! {
         let model = smooth_model();
         let tool = tool();
         let axes = [a1, a2, a3, a4, a5, a6];
-        let arm = Predicted::new(&model, [Direction::Positive; 6]);
+        let arm = Predicted::new(&model, [AxisHistory::engaged(Direction::Positive); 6]);
         let (_, j) = arm.tcp_jacobian(&axes, &tool);
         let fd = finite_differences(&arm, &axes, &tool, 1e-4);
         for n in 0..6 {
@@ -264,7 +277,7 @@ fn warm_starts_along_a_path_meet_the_tolerance() {
             goal,
             tool: &tool,
             start: axes,
-            directions: dirs,
+            histories: dirs.map(AxisHistory::engaged),
             hold: [false; 6],
         };
         let warm = solve::solve_in_chain(&model, &problem, &mut chain).unwrap();
@@ -274,7 +287,7 @@ fn warm_starts_along_a_path_meet_the_tolerance() {
             warm.initial,
             warm.residual,
         );
-        let left = solve::predicted_error(&model, &dirs, &warm.axes_deg, &tool, &goal);
+        let left = solve::predicted_error(&model, &problem.histories, &warm.axes_deg, &tool, &goal);
         assert!(solve::converged(&left), "target {k}: {left:?}");
         assert!(
             (left - warm.residual).norm() < 1e-9,
@@ -308,10 +321,10 @@ fn the_angle_only_fast_path_predicts_the_whole_model() {
         "maps, backlash and crosstalk move angles only"
     );
     for axes in POSES {
-        for dirs in directions() {
+        for dirs in flanks() {
             let state = AxisState {
                 axes_deg: axes,
-                directions: dirs,
+                history: dirs,
                 time_s: 0.0,
             };
             let flange = model.flange_pose(&state);

@@ -4,12 +4,12 @@
 //! slots documented in `effect.rs`; tables store degrees and slots take radians.
 
 pub mod axis_table;
-pub mod backlash;
 pub mod compliance;
 pub mod crosstalk;
 pub mod drift;
 pub mod geometric;
 pub mod map;
+pub mod play;
 pub mod tilt;
 
 use super::effect::Effect;

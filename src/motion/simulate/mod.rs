@@ -36,6 +36,9 @@ pub mod stream_timing {
     pub use super::stream::{PARSE_NS, SINK_NS, WALK_NS};
 }
 
+/// Stops executed before a cut that the segment after it needs: a circle's end looks back to
+/// its start through its auxiliary point (see `stream`); the compensation carries as many.
+pub const CARRIED_STOPS: usize = 2;
 /// Calls nested deeper than this are not followed (recursion).
 const MAX_CALL_DEPTH: usize = 64;
 /// Statements executed before the simulation gives up (an endless loop).
@@ -110,6 +113,9 @@ pub struct Stop<'f> {
     pub nominal_axes: [f64; 6],
     /// Arrival motion of each axis (see `interpolate`); `None` after an unknown position.
     pub arrival: Option<[f64; 6]>,
+    /// The command angle of each axis's last turning point inside the motion that reaches
+    /// this stop, NaN where it does not turn round (see `interpolate::Arrival::turns`).
+    pub turns: [f64; 6],
     /// An axis target (`A1..A6`).
     pub axis: bool,
     /// The programmed values as the controller completes them (absolute: missing components
@@ -241,7 +247,8 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
     use rayon::prelude::*;
     /// Stops per task: consecutive stops share a chain evaluation (below).
     const CHUNK: usize = 2048;
-    let mut rates: Vec<Option<[f64; 6]>> = vec![None; sim.stops.len()];
+    type Deferred = Option<([f64; 6], [f64; 6])>;
+    let mut rates: Vec<Deferred> = vec![None; sim.stops.len()];
     rates
         .par_chunks_mut(CHUNK)
         .enumerate()
@@ -280,15 +287,19 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                         if a.end == stop.nominal_axes {
                             carry = Some((k as u32, stop.tool, end));
                         }
-                        a.rate
+                        (a.rate, a.turns)
                     }
-                    Err(_) => std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
+                    Err(_) => (
+                        std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
+                        interpolate::NO_TURNS,
+                    ),
                 });
             }
         });
     for (stop, rate) in sim.stops.iter_mut().zip(rates) {
         if stop.deferred {
-            stop.arrival = rate;
+            stop.arrival = rate.map(|r| r.0);
+            stop.turns = rate.map_or(interpolate::NO_TURNS, |r| r.1);
             stop.deferred = false;
         }
     }

@@ -91,7 +91,7 @@ pub(super) fn finish_splines(
     splines: &[SplineSegment],
 ) {
     use rayon::prelude::*;
-    let rates: Vec<[f64; 6]> = splines
+    let arrivals: Vec<([f64; 6], [f64; 6])> = splines
         .par_iter()
         .with_min_len(256)
         .map(|seg| {
@@ -102,19 +102,25 @@ pub(super) fn finish_splines(
             let (q0, q1) = (&prev.nominal_axes, &stop.nominal_axes);
             let curve = Cartesian::cubic(&start, &stop.goal, &seg.t0, &seg.t1);
             let along = |cart: &Cartesian| {
-                interpolate::arrival_along(robot, tool, cart, 1.0, q0, q1).map(|a| a.rate)
+                interpolate::arrival_along(robot, tool, cart, 1.0, q0, q1)
+                    .map(|a| (a.rate, a.turns))
             };
             along(&curve)
                 .ok()
-                .or(stop.arrival)
+                .or(stop.arrival.map(|r| (r, stop.turns)))
                 .or_else(|| {
                     let line = Cartesian::new(&start, &stop.goal, &Path::Lin).ok()?;
                     along(&line).ok()
                 })
-                .unwrap_or_else(|| std::array::from_fn(|i| q1[i] - q0[i]))
+                .unwrap_or_else(|| {
+                    let steps = std::array::from_fn(|i| q1[i] - q0[i]);
+                    (steps, interpolate::NO_TURNS)
+                })
         })
         .collect();
-    for (seg, rate) in splines.iter().zip(rates) {
-        sim.stops[seg.stop as usize].arrival = Some(rate);
+    for (seg, (rate, turns)) in splines.iter().zip(arrivals) {
+        let stop = &mut sim.stops[seg.stop as usize];
+        stop.arrival = Some(rate);
+        stop.turns = turns;
     }
 }

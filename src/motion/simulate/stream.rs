@@ -16,9 +16,6 @@
 use super::*;
 use crate::krl::StreamedRun;
 
-/// Stops executed before a cut that the segment after it needs (see the module doc).
-const HISTORY: usize = 2;
-
 /// Time spent walking windows and handing them to the sink (what `ROBOPOST_TIMING` prints).
 pub static WALK_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 pub static PARSE_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
@@ -96,12 +93,12 @@ fn ghost(stop: &Stop) -> Stop<'static> {
     }
 }
 
-/// The last `HISTORY` stops of `stops` (ghosts stand for the stops they copy; a window's
+/// The last [`CARRIED_STOPS`] stops of `stops` (ghosts stand for the stops they copy; a window's
 /// stops begin with the history it was given, so this is the history after it).
 fn remember(history: &mut Vec<Stop<'static>>, stops: &[Stop]) {
     history.clear();
     history.extend(
-        stops[stops.len().saturating_sub(HISTORY)..]
+        stops[stops.len().saturating_sub(CARRIED_STOPS)..]
             .iter()
             .map(ghost),
     );

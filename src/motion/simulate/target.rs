@@ -44,6 +44,7 @@ impl<'f> Simulator<'f> {
             base: self.frames_index(base),
             nominal_axes: [0.0; 6],
             arrival: None,
+            turns: interpolate::NO_TURNS,
             axis: false,
             programmed: [0.0; 6],
             keep_s: true,
@@ -290,10 +291,12 @@ impl<'f> Simulator<'f> {
                 }
             };
             let mut q_aux = q_aux;
+            let mut turns = interpolate::NO_TURNS;
             let arrival =
                 match interpolate::arrival_along(&robot, &tool, &cart, u_aux, &cur.axes, &q_aux) {
                     Ok(a) => {
                         q_aux = a.end;
+                        turns = a.turns;
                         Some(a.rate)
                     }
                     Err(e) => {
@@ -311,6 +314,7 @@ impl<'f> Simulator<'f> {
                 goal: aux_pose,
                 nominal_axes: q_aux,
                 arrival,
+                turns,
                 programmed: aux_prog,
                 origin: aux.origin,
                 reference: aux_ref,
@@ -416,17 +420,19 @@ impl<'f> Simulator<'f> {
                 }
             };
             let walked = interpolate::arrival_along(&robot, &tool, &arc, 1.0, &cur.axes, &q_end);
-            let (q_end, arrival) = match walked {
-                Ok(a) => (a.end, Some(a.rate)),
+            let (q_end, arrival, turns) = match walked {
+                Ok(a) => (a.end, Some(a.rate), a.turns),
                 Err(e) => {
                     self.warn(file, s.head, format!("{e}; directions from the axis steps"));
-                    (q_end, Some(std::array::from_fn(|i| q_end[i] - cur.axes[i])))
+                    let steps = std::array::from_fn(|i| q_end[i] - cur.axes[i]);
+                    (q_end, Some(steps), interpolate::NO_TURNS)
                 }
             };
             let end_stop = Stop {
                 goal: end,
                 nominal_axes: q_end,
                 arrival,
+                turns,
                 programmed,
                 prev: aux_stop,
                 ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
@@ -514,6 +520,7 @@ impl<'f> Simulator<'f> {
         }
         let mut q = q;
         let mut deferred = false;
+        let mut turns = interpolate::NO_TURNS;
         let arrival = match (current, start_tcp) {
             // A short straight segment: its arrival rate is computed after the walk, in
             // parallel with all the others (`finish`).
@@ -527,6 +534,7 @@ impl<'f> Simulator<'f> {
                 match interpolate::arrival(&robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
                     Ok(a) => {
                         q = a.end;
+                        turns = a.turns;
                         Some(a.rate)
                     }
                     Err(e) => {
@@ -555,6 +563,7 @@ impl<'f> Simulator<'f> {
             goal,
             nominal_axes: q,
             arrival,
+            turns,
             axis: pos.axis,
             programmed,
             keep_s: !pos.axis,

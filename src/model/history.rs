@@ -1,0 +1,427 @@
+//! The history of one axis's command: everything about the past that the error model depends
+//! on — the direction of the last motion, the travel since the last reversal, and the memory
+//! a gear play needs to know where its output stands.
+//!
+//! A gear play of width b (lost motion, MODEL.md) is the play operator: the output `o` stays
+//! put while the command `c` moves inside `[o − b/2, o + b/2]` and is dragged along by the
+//! band's edge outside it. Over a piecewise monotone command through points `x₁, x₂, …, c` the
+//! output is the nested clamp `o = clamp(… clamp(clamp(o₀, x₁ ± b/2), x₂ ± b/2) …, c ± b/2)`
+//! (exact while the band edge `x ± b(x)/2` moves monotonically with `x`, i.e. `|b′| < 2`,
+//! which any physical width table meets). Points inside a monotone run can be dropped (the
+//! clamp at the run's end dominates), and so can a loop the command has closed: when a run
+//! passes the turning point before its start, that turning point and the run's start no
+//! longer matter (Madelung's wiping-out rule, an identity of the nested clamp). What remains
+//! is a short, width-independent memory of turning points, so one history serves every
+//! model: the measurement reader, the program walker, the compensation and the virtual robot
+//! all advance the same type with [`AxisHistory::push`], and a play of any width is
+//! evaluated from it by [`AxisHistory::play`].
+
+use super::state::Direction;
+
+/// A monotone run this long (degrees of command) engages any play the model accepts
+/// (calibration files keep play widths at or below [`MAX_PLAY_DEG`]): the past before it no
+/// longer matters.
+pub const ENGAGING_RUN_DEG: f64 = 2.0;
+/// The widest play a calibration may hold (degrees).
+pub const MAX_PLAY_DEG: f64 = 1.0;
+/// Points the memory holds: the start and up to three turning points. Deeper nesting (ever
+/// smaller back-and-forth moves) forgets the oldest inner loop, an error below that loop's
+/// size.
+const MEMORY: usize = 4;
+
+/// What is known of the play before the first point of the memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+enum Start {
+    /// The axis has not moved since the record began: nothing is known.
+    #[default]
+    Unmoved,
+    /// The output started at the first point's command (the middle of the play): the mean of
+    /// both flanks, as the paper's model takes an unknown direction.
+    Centred,
+    /// A long run in this direction ended at the first point: the gear was engaged there.
+    Engaged(Direction),
+}
+
+/// The past of one axis's command (see the module documentation). `Copy`, 40 bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct AxisHistory {
+    start: Start,
+    len: u8,
+    /// Command angles (degrees, KUKA): the memory's start, then the turning points; the last
+    /// is where the run that reaches the current command began.
+    points: [f64; MEMORY],
+}
+
+/// A gear play evaluated at a command.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlayAt {
+    /// Output minus command, degrees: in `[−b/2, +b/2]` at the current command.
+    pub lag_deg: f64,
+    /// The band edge that holds the output: `(angle, side)` when the output is `angle +
+    /// side·b(angle)/2` (side ±1); `None` when it is where an unknown start left it.
+    pub edge: Option<(f64, f64)>,
+    /// Whether that edge is the current command's (the gear is engaged: the output follows
+    /// the command) rather than an earlier point's (the command is inside the play).
+    pub engaged: bool,
+}
+
+impl AxisHistory {
+    /// An axis that has not moved: its direction and play state are unknown.
+    pub fn unmoved() -> AxisHistory {
+        AxisHistory::default()
+    }
+
+    /// An axis that arrives after a long motion in `direction` (`Unknown`: unmoved): the
+    /// paper's branch ±1, the gear engaged on that flank whatever the current command.
+    pub fn engaged(direction: Direction) -> AxisHistory {
+        match direction {
+            Direction::Unknown => AxisHistory::unmoved(),
+            d => AxisHistory {
+                start: Start::Engaged(d),
+                ..AxisHistory::default()
+            },
+        }
+    }
+
+    /// Whether this is [`Self::engaged`] (or [`Self::unmoved`]) with no memory: the play is on
+    /// the flank of [`Self::simple_direction`] at any command, so the model may look it up
+    /// merged with the axis's other tables.
+    pub fn is_simple(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The flank of a history with no memory ([`Self::is_simple`]).
+    pub fn simple_direction(&self) -> Direction {
+        match self.start {
+            Start::Engaged(d) => d,
+            _ => Direction::Unknown,
+        }
+    }
+
+    fn last(&self) -> Option<f64> {
+        self.len.checked_sub(1).map(|i| self.points[i as usize])
+    }
+
+    /// The direction of the run that ended at the last point of the memory.
+    fn run_into_last(&self) -> Direction {
+        match self.len {
+            0 | 1 => match self.start {
+                Start::Engaged(d) => d,
+                _ => Direction::Unknown,
+            },
+            n => {
+                let (a, b) = (self.points[n as usize - 2], self.points[n as usize - 1]);
+                Direction::Unknown.after_move(b - a)
+            }
+        }
+    }
+
+    /// The flank a gear play of any width is engaged on at command `at_deg`, when the history
+    /// alone says so: a long motion in one direction that the command continues (or has not
+    /// left). `None` when it depends on the width (a recent reversal) or is unknown.
+    pub fn engaged_at(&self, at_deg: f64) -> Option<Direction> {
+        match (self.start, self.len) {
+            (Start::Engaged(d), 0) => Some(d),
+            (Start::Engaged(d), 1) => (d.sign() * (at_deg - self.points[0]) >= 0.0).then_some(d),
+            _ => None,
+        }
+    }
+
+    /// Where the run that reaches the current command began (the memory's last point).
+    pub fn run_start(&self) -> Option<f64> {
+        self.last()
+    }
+
+    /// The direction the command moved in before the run that reaches the current command
+    /// (the flank the gear was last driven on); unknown when nothing is known.
+    pub fn previous_direction(&self) -> Direction {
+        self.run_into_last()
+    }
+
+    /// The output (degrees) of a play of width `width(angle)` where the run that reaches the
+    /// current command began; `None` before the axis first moved.
+    pub fn output_at_run_start(&self, width: impl Fn(f64) -> f64) -> Option<f64> {
+        let last = self.last()?;
+        Some(last + self.play(last, width).lag_deg)
+    }
+
+    /// The rotation direction on arrival at command `at_deg`: the sign of the last motion; an
+    /// axis that did not move keeps the direction it had; unknown before it first moves.
+    pub fn direction(&self, at_deg: f64) -> Direction {
+        match self.last() {
+            Some(last) => self.run_into_last().after_move(at_deg - last),
+            None => self.simple_direction(),
+        }
+    }
+
+    /// Command travel (degrees) since the last reversal, arriving at `at_deg`: infinite after
+    /// a run long enough to engage any play ([`ENGAGING_RUN_DEG`]) or when unknown.
+    pub fn travel_since_reversal(&self, at_deg: f64) -> f64 {
+        let Some(last) = self.last() else {
+            return f64::INFINITY;
+        };
+        let now = Direction::Unknown.after_move(at_deg - last);
+        let before = self.run_into_last();
+        let run_start = if now == Direction::Unknown || now == before {
+            match self.len {
+                0 | 1 => return f64::INFINITY,
+                n => self.points[n as usize - 2],
+            }
+        } else {
+            last
+        };
+        (at_deg - run_start).abs()
+    }
+
+    /// The history after the command moved monotonically from the memory's last point (if
+    /// any) to `to_deg`, where the next run begins.
+    pub fn push(&mut self, to_deg: f64) {
+        if !to_deg.is_finite() {
+            return;
+        }
+        let Some(last) = self.last() else {
+            if self.start == Start::Unmoved {
+                self.start = Start::Centred;
+            }
+            self.points[0] = to_deg;
+            self.len = 1;
+            return;
+        };
+        if to_deg == last {
+            return;
+        }
+        let run = Direction::Unknown.after_move(to_deg - last);
+        if run == self.run_into_last() && (self.len > 1 || self.start != Start::Centred) {
+            // The last point was inside a monotone run: the clamp at the run's end dominates.
+            // (A centred start is kept: it carries the unknown starting output.)
+            self.points[self.len as usize - 1] = to_deg;
+        } else {
+            self.append(to_deg);
+        }
+        self.compact(run);
+    }
+
+    /// The same history advanced through every point of `points` in turn.
+    pub fn pushed(mut self, points: impl IntoIterator<Item = f64>) -> AxisHistory {
+        for p in points {
+            self.push(p);
+        }
+        self
+    }
+
+    fn append(&mut self, x: f64) {
+        if self.len as usize == MEMORY {
+            // Forget the innermost loop: the last two turning points (the run into the new
+            // point then starts at the one before them, of the same kind as the last).
+            self.len -= 2;
+        }
+        self.points[self.len as usize] = x;
+        self.len += 1;
+    }
+
+    /// Drops what the run that just ended (in direction `run`) made irrelevant.
+    fn compact(&mut self, run: Direction) {
+        loop {
+            let n = self.len as usize;
+            if n < 2 {
+                return;
+            }
+            let (from, to) = (self.points[n - 2], self.points[n - 1]);
+            if (to - from).abs() >= ENGAGING_RUN_DEG {
+                // Engaged on this run's flank, whatever came before.
+                *self = AxisHistory {
+                    start: Start::Engaged(run),
+                    len: 1,
+                    points: [to; MEMORY],
+                };
+                return;
+            }
+            // Wiping out: the run passed the turning point before its start.
+            if n >= 3 {
+                let before = self.points[n - 3];
+                let is_centred_start = n == 3 && self.start == Start::Centred;
+                if !is_centred_start && run.sign() * (to - before) >= 0.0 {
+                    self.points[n - 3] = to;
+                    self.len -= 2;
+                    continue;
+                }
+            }
+            return;
+        }
+    }
+
+    /// The play of width `width(angle)` (degrees, ≥ 0) evaluated at command `at_deg`.
+    pub fn play(&self, at_deg: f64, width: impl Fn(f64) -> f64) -> PlayAt {
+        let half = |x: f64| 0.5 * width(x).max(0.0);
+        let n = self.len as usize;
+        let (mut o, mut edge) = match (self.start, n) {
+            (Start::Unmoved | Start::Centred, 0) => {
+                return PlayAt {
+                    lag_deg: 0.0,
+                    edge: None,
+                    engaged: false,
+                }
+            }
+            (Start::Engaged(d), 0) => {
+                return PlayAt {
+                    lag_deg: -d.sign() * half(at_deg),
+                    edge: Some((at_deg, -d.sign())),
+                    engaged: true,
+                };
+            }
+            (Start::Engaged(d), _) => {
+                let x = self.points[0];
+                (x - d.sign() * half(x), Some((x, -d.sign())))
+            }
+            (_, _) => (self.points[0], None),
+        };
+        // Each point's band, the current command's last: returns whether it moved the output.
+        let mut clamp = |x: f64, o: &mut f64| -> bool {
+            let h = half(x);
+            let side = if *o < x - h {
+                -1.0
+            } else if *o > x + h {
+                1.0
+            } else {
+                return false;
+            };
+            *o = x + side * h;
+            edge = Some((x, side));
+            true
+        };
+        for &x in &self.points[1..n] {
+            clamp(x, &mut o);
+        }
+        let engaged = clamp(at_deg, &mut o);
+        PlayAt {
+            lag_deg: o - at_deg,
+            edge,
+            engaged,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The play operator itself, stepped along a densely sampled command: the reference the
+    /// memory must reproduce.
+    fn brute_force(start: f64, path: &[f64], width: impl Fn(f64) -> f64) -> f64 {
+        let mut c = start;
+        let mut o = start; // a centred start
+        for &target in path {
+            let steps = (((target - c).abs() / 1e-4).ceil() as usize).max(1);
+            for k in 1..=steps {
+                let x = c + (target - c) * k as f64 / steps as f64;
+                let half = 0.5 * width(x);
+                o = o.clamp(x - half, x + half);
+            }
+            c = target;
+        }
+        o - c
+    }
+
+    fn history_of(start: f64, path: &[f64]) -> AxisHistory {
+        let mut h = AxisHistory::unmoved();
+        h.push(start);
+        for &p in &path[..path.len() - 1] {
+            h.push(p);
+        }
+        h
+    }
+
+    #[test]
+    fn a_long_run_engages_the_lagging_flank() {
+        let b = |_: f64| 0.02;
+        let h = history_of(0.0, &[5.0, 10.0]);
+        let p = h.play(10.0, b);
+        assert!((p.lag_deg + 0.01).abs() < 1e-12, "{p:?}");
+        assert!(p.engaged);
+        // And the other way round.
+        let h = history_of(10.0, &[5.0, 0.0]);
+        assert!((h.play(0.0, b).lag_deg - 0.01).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_reversal_inside_the_play_leaves_the_output_where_it_was() {
+        let b = |_: f64| 0.02;
+        // Up by 5°, then back by 0.005°: the output stays at 5 − 0.01.
+        let h = history_of(0.0, &[5.0, 4.995]);
+        let p = h.play(4.995, b);
+        assert!((4.995 + p.lag_deg - 4.99).abs() < 1e-12, "{p:?}");
+        assert!(!p.engaged);
+        assert_eq!(h.direction(4.995), Direction::Negative);
+        assert!((h.travel_since_reversal(4.995) - 0.005).abs() < 1e-12);
+        // Back by 0.03°: dragged along the upper edge.
+        let p = history_of(0.0, &[5.0, 4.97]).play(4.97, b);
+        assert!((p.lag_deg - 0.01).abs() < 1e-12 && p.engaged);
+    }
+
+    #[test]
+    fn an_unknown_start_is_the_middle_of_the_play() {
+        let b = |_: f64| 0.02;
+        let mut h = AxisHistory::unmoved();
+        assert_eq!(h.play(3.0, b).lag_deg, 0.0);
+        assert_eq!(h.direction(3.0), Direction::Unknown);
+        h.push(3.0);
+        assert_eq!(h.play(3.0, b).lag_deg, 0.0);
+        assert!((h.play(3.004, b).lag_deg + 0.004).abs() < 1e-12);
+        assert!((h.play(3.5, b).lag_deg + 0.01).abs() < 1e-12);
+    }
+
+    #[test]
+    fn an_engaged_history_is_the_papers_branch() {
+        let b = |a: f64| 0.01 + 0.001 * a;
+        for (d, sign) in [(Direction::Positive, -1.0), (Direction::Negative, 1.0)] {
+            let h = AxisHistory::engaged(d);
+            assert!(h.is_simple());
+            let p = h.play(4.0, b);
+            assert!((p.lag_deg - sign * 0.5 * b(4.0)).abs() < 1e-15);
+            assert_eq!(p.edge, Some((4.0, sign)));
+        }
+    }
+
+    #[test]
+    fn held_and_jittering_axes_stay_put() {
+        let b = |_: f64| 0.02;
+        // Engaged upward at 10, then jitter by ±1e-5 many times: the output barely moves.
+        let mut h = history_of(0.0, &[10.0, 10.0]);
+        let mut c = 10.0;
+        for k in 0..1000 {
+            h.push(c);
+            c = 10.0 + if k % 2 == 0 { -1e-5 } else { 1e-5 };
+            let o = c + h.play(c, b).lag_deg;
+            assert!((o - 9.99).abs() <= 1e-5 + 1e-12, "step {k}: output {o}");
+        }
+        assert!(h.len as usize <= MEMORY);
+    }
+
+    proptest! {
+        /// The memory reproduces the play operator stepped densely along the same command,
+        /// for nested and wiped loops alike, with a width that varies with the angle.
+        #[test]
+        fn the_memory_is_the_play_operator(
+            start in -10.0f64..10.0,
+            moves in prop::collection::vec(
+                prop_oneof![-3.0f64..3.0, -0.05f64..0.05, -0.005f64..0.005], 1..9),
+        ) {
+            let width = |a: f64| 0.02 + 0.002 * (a * 0.3).sin();
+            let mut path = Vec::new();
+            let mut c = start;
+            for m in moves {
+                c += m;
+                path.push(c);
+            }
+            let h = history_of(start, &path);
+            let expected = brute_force(start, &path, width);
+            let got = h.play(c, width).lag_deg;
+            // Only memory overflow (more than three nested loops) may differ, by less than the
+            // forgotten loop; the dense stepping itself is exact to the step.
+            let nested = h.len as usize == MEMORY;
+            prop_assert!((got - expected).abs() < 1e-9 || nested && (got - expected).abs() < 0.02,
+                "got {got}, expected {expected}, history {h:?}");
+        }
+    }
+}
