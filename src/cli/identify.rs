@@ -265,7 +265,8 @@ pub fn report(r: &Identified, requested: &str) -> String {
             "{smoothed} table cells without data were interpolated from their neighbours\n"
         );
     }
-    for w in &fit.warnings {
+    let warnings = (r.physical.iter().cloned()).chain(fit.warnings.iter().map(|w| w.to_string()));
+    for w in warnings {
         out += &format!("warning: {w}\n");
     }
     out

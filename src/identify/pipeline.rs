@@ -52,6 +52,9 @@ pub struct Identified {
     pub direct: Option<DirectResult>,
     /// The effects identified (canonical names).
     pub effects: Vec<String>,
+    /// Identified values brought into their physical range, and why (e.g. a gear play whose
+    /// bidirectional difference came out leading).
+    pub physical: Vec<String>,
 }
 
 /// Runs the identification (see the module documentation).
@@ -137,6 +140,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         ..RefineOptions::default()
     };
     let fit = refine(&mut model, stops, &options)?;
+    let physical = model.make_physical(&fit.standard_errors);
     let frame = match fit.tracker_frame {
         Some(f) => MeasurementFrame::Tracker(KukaFrame::from_isometry(&f)),
         None => MeasurementFrame::Base,
@@ -159,7 +163,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         .map(|(k, v)| (k.to_string(), v))
         .collect(),
         notes: Some(format!(
-            "identified by robopost {} ({}global Levenberg–Marquardt refinement) with effects {}{}",
+            "identified by robopost {} ({}global Levenberg–Marquardt refinement) with effects {}{}{}",
             env!("CARGO_PKG_VERSION"),
             if direct.is_some() {
                 "direct method, then "
@@ -167,6 +171,11 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
                 ""
             },
             effects.join(","),
+            if physical.is_empty() {
+                String::new()
+            } else {
+                format!("; {}", physical.join(" | "))
+            },
             if fit.warnings.is_empty() {
                 String::new()
             } else {
@@ -188,6 +197,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         fit,
         direct,
         effects,
+        physical,
     })
 }
 

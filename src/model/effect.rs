@@ -198,6 +198,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn clamped(&self, _state: &AxisState) -> bool {
         false
     }
+    /// Brings identified values into the effect's physical range, with one sentence per
+    /// problem worth telling (`standard_errors`: one per value, `None` where not identified).
+    /// A fit is unconstrained; most effects have no physical bound and keep every value.
+    fn make_physical(&mut self, _standard_errors: &[Option<f64>]) -> Vec<String> {
+        Vec::new()
+    }
     fn clone_box(&self) -> Box<dyn Effect>;
 }
 

@@ -321,6 +321,21 @@ impl Model {
         self.merged = OnceLock::new();
     }
 
+    /// Brings every effect's identified values into its physical range
+    /// ([`Effect::make_physical`](super::Effect::make_physical)), `standard_errors` in flat
+    /// order; the sentences of what was changed and why.
+    pub fn make_physical(&mut self, standard_errors: &[Option<f64>]) -> Vec<String> {
+        let mut said = Vec::new();
+        for (i, effect) in self.effects.iter_mut().enumerate() {
+            let se = standard_errors
+                .get(self.starts[i]..self.starts[i + 1])
+                .unwrap_or(&[]);
+            said.extend(effect.make_physical(se));
+        }
+        self.merged = OnceLock::new();
+        said
+    }
+
     /// Every effect's sparse Jacobian at `state`, with flat parameter indices.
     fn partials(&self, state: &AxisState, scratch: &mut Vec<Partial>, out: &mut Vec<Partial>) {
         let ctx = self.context();
