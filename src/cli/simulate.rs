@@ -53,6 +53,10 @@ pub enum What {
         /// Campaign description (JSON); the paper's campaign when absent.
         #[arg(long)]
         campaign: Option<PathBuf>,
+        /// Add reversal tests (short moves back and forth of every axis, shorter and longer
+        /// than a gear play) to the paper's campaign: the data that measure a play's dead band.
+        #[arg(long, conflicts_with = "campaign")]
+        reversal: bool,
         /// Seed of the tracker noise (overrides the truth file's).
         #[arg(long)]
         seed: Option<u64>,
@@ -116,10 +120,12 @@ pub fn run(args: Args) -> Exit {
         What::Campaign {
             truth,
             campaign,
+            reversal,
             seed,
             out,
         } => {
             let plan = match campaign {
+                None if reversal => Campaign::paper_with_reversals().plan(),
                 None => Campaign::paper().plan(),
                 Some(path) => match read_campaign(&path) {
                     Ok(c) => c.plan(),

@@ -1,7 +1,10 @@
 //! Measurement campaigns (the paper's section 2.3): each axis indexed over a grid of command
 //! angles in both directions while the others stay at reference angles, with unmeasured
 //! approach moves that put the axis on the wanted backlash branch before each sweep, and
-//! repeats of a test at several angles of another axis to expose crosstalk.
+//! repeats of a test at several angles of another axis to expose crosstalk. Optionally,
+//! reversal tests (as ISO 230-2 measures an axis's reversal value): at a few angles, short
+//! moves back and forth, shorter and longer than a gear play, each stop measured — the only
+//! data in which a play's dead band shows (the sweeps' 1° steps engage it every time).
 
 use serde::{Deserialize, Serialize};
 
@@ -40,11 +43,28 @@ fn default_approach() -> f64 {
     2.0
 }
 
+/// A reversal test of one axis: at each angle of `at_deg`, approached from below, the axis
+/// moves back by each step of `steps_deg` and forward again, every stop measured.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReversalTest {
+    /// The tested axis (1..=6).
+    pub axis: u8,
+    pub at_deg: Vec<f64>,
+    /// The back-and-forth moves, degrees (> 0).
+    pub steps_deg: Vec<f64>,
+    /// Angles of all six axes during the test (the tested one is overridden).
+    pub reference_deg: [f64; 6],
+}
+
 /// A whole campaign and the pace of the robot.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Campaign {
     pub tests: Vec<IndexingTest>,
+    /// Reversal tests (none in the paper's campaign).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub reversals: Vec<ReversalTest>,
     /// Dwell per stop (settling + tracker measurement), seconds: the paper measured 186 points
     /// in about 10 minutes, i.e. about 3.2 s per stop.
     #[serde(default = "default_dwell")]
@@ -126,9 +146,32 @@ impl Campaign {
                 test(5, -116.0, 116.0, None),
                 test(6, -180.0, 180.0, None),
             ],
+            reversals: Vec::new(),
             dwell_s: default_dwell(),
             axis_speed_deg_s: default_speed(),
         }
+    }
+
+    /// The paper's campaign followed by a reversal test of every axis at three angles of its
+    /// sweep, with moves of 0.002° to 0.05° (gear plays are hundredths of a degree): what a
+    /// real campaign needs to measure the plays' dead band, not only their two branches.
+    pub fn paper_with_reversals() -> Campaign {
+        let mut campaign = Campaign::paper();
+        let steps = vec![0.002, 0.005, 0.01, 0.02, 0.05];
+        campaign.reversals = campaign
+            .tests
+            .iter()
+            .map(|t| {
+                let span = t.to_deg - t.from_deg;
+                ReversalTest {
+                    axis: t.axis,
+                    at_deg: [0.2, 0.5, 0.8].map(|f| (t.from_deg + f * span).round()).to_vec(),
+                    steps_deg: steps.clone(),
+                    reference_deg: t.reference_deg,
+                }
+            })
+            .collect();
+        campaign
     }
 
     /// Checks axes, ranges and pitches.
@@ -172,6 +215,25 @@ impl Campaign {
                 }
             }
         }
+        for (i, r) in self.reversals.iter().enumerate() {
+            let bad = |key, expected, found: String| {
+                Err(CampaignError::Invalid {
+                    test: i,
+                    key,
+                    expected,
+                    found,
+                })
+            };
+            if !(1..=6).contains(&r.axis) {
+                return bad("reversals.axis", "an axis number 1..6", r.axis.to_string());
+            }
+            if let Some(s) = r.steps_deg.iter().find(|s| !(s.is_finite() && **s > 0.0 && **s <= 10.0)) {
+                return bad("reversals.steps_deg", "steps in (0, 10]°", s.to_string());
+            }
+            if let Some(a) = r.at_deg.iter().find(|a| !a.is_finite()) {
+                return bad("reversals.at_deg", "finite angles", a.to_string());
+            }
+        }
         Ok(())
     }
 
@@ -212,6 +274,24 @@ impl Campaign {
                 push(last + t.approach_deg, false);
                 for &a in grid.iter().rev() {
                     push(a, true);
+                }
+            }
+        }
+        for r in &self.reversals {
+            let n = r.axis as usize - 1;
+            let label = format!("A{} reversal", r.axis);
+            for &at in &r.at_deg {
+                let mut push = |angle: f64, measured: bool| {
+                    let mut axes = r.reference_deg;
+                    axes[n] = angle;
+                    visits.push((label.clone(), axes, measured));
+                };
+                // Approached from below over more than any play: engaged upward at `at`.
+                push(at - 1.0, false);
+                push(at, true);
+                for &s in &r.steps_deg {
+                    push(at - s, true);
+                    push(at, true);
                 }
             }
         }
@@ -283,6 +363,7 @@ mod tests {
                 repeat: None,
                 approach_deg: 2.0,
             }],
+            reversals: Vec::new(),
             dwell_s: 1.0,
             axis_speed_deg_s: 1.0,
         };

@@ -147,34 +147,33 @@ impl Effect for GearPlay {
         self.0.clamped(state)
     }
     /// A width below zero is a bidirectional difference of the leading sign (the positive
-    /// branch above the negative one): no gear play produces it. Set to zero; said when it is
-    /// beyond twice its standard error (beyond noise).
+    /// branch above the negative one), which no gear play produces. Cells below zero are set
+    /// to zero (single cells are noise: a 1° table of a wrist axis has hundreds, a few beyond
+    /// 3σ); a table whose weighted mean leads beyond twice its standard error is physically
+    /// suspect and said so.
     fn make_physical(&mut self, standard_errors: &[Option<f64>]) -> Vec<String> {
-        let points = self.0.table.grid.points().to_vec();
-        let mut worst: Option<(f64, f64, f64)> = None;
-        let mut significant = 0;
-        for (i, v) in self.0.table.values.iter_mut().enumerate() {
-            if *v >= 0.0 {
-                continue;
+        let name = self.name();
+        let values = &mut self.0.table.values;
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for (v, se) in values.iter().zip(standard_errors) {
+            if let Some(se) = se.filter(|s| *s > 0.0) {
+                sum += v / (se * se);
+                weight += 1.0 / (se * se);
             }
-            let se = standard_errors.get(i).copied().flatten().unwrap_or(0.0);
-            if -*v > 2.0 * se {
-                significant += 1;
-                if worst.is_none_or(|(w, _, _)| *v < w) {
-                    worst = Some((*v, points[i], se));
-                }
-            }
-            *v = 0.0;
         }
-        match worst {
-            Some((v, at, se)) => vec![format!(
-                "{}: the identified bidirectional difference has the leading sign at {significant} grid point(s), up to {:.4}° (± {:.4}°) at A{} = {at}°: the output would be ahead of the command after a motion, which no gear play does; set to zero there. A servo overshoot on stopping, a wrong axis sense in the robot description, a drift that follows the order of the campaign's sweeps, or the tracker's own lag produce a direction-dependent deviation of that sign",
-                self.name(),
-                -v,
-                se,
-                self.0.axis
-            )],
-            None => Vec::new(),
+        let negative = values.iter().filter(|v| **v < 0.0).count();
+        values.iter_mut().for_each(|v| *v = v.max(0.0));
+        if weight == 0.0 || negative == 0 {
+            return Vec::new();
+        }
+        let (mean, se) = (sum / weight, weight.sqrt().recip());
+        if mean < -2.0 * se {
+            vec![format!(
+                "{name}: the identified bidirectional difference has the leading sign, {:.4}° (± {se:.4}°) on average over the table: the output would be ahead of the command after a motion, which no gear play does; set to zero. A servo overshoot on stopping, a wrong axis sense in the robot description, a drift that follows the order of the campaign's sweeps, or the tracker's own lag produce a direction-dependent deviation of that sign",
+                -mean
+            )]
+        } else {
+            Vec::new()
         }
     }
     fn clone_box(&self) -> Box<dyn Effect> {
