@@ -45,6 +45,7 @@ fn small_campaign() -> Campaign {
         approach_deg: 2.0,
     };
     Campaign {
+        reversals: Vec::new(),
         tests: vec![
             test(1, -30.0, 30.0, None),
             test(

@@ -48,9 +48,9 @@ pub struct Target {
     /// velocity `dq/du` at the end for LIN/CIRC; 0 when the axis rests); `None` when the
     /// motion comes from an unknown place (first motion, unresolved target before).
     pub arrival: Option<[f64; 6]>,
-    /// The nominal command of each axis's last turning point inside the motion reaching it
-    /// (NaN: it does not turn round; see `motion::interpolate::Arrival::turns`).
-    pub turns: [f64; 6],
+    /// Each axis's last turning point inside the motion reaching it, nominal (see
+    /// `motion::interpolate::Arrival::turns`).
+    pub turns: interpolate::Turns,
     /// How the controller interpolates the motion reaching it.
     pub interp: Interp,
     /// How its command will be written (rounded), when it is written: the directions of the
@@ -903,6 +903,9 @@ impl Ctx<'_> {
     }
 }
 
+/// Rounds of [`settle_target`] per target before the best is kept.
+const SETTLE_ROUNDS: usize = 4;
+
 /// An axis whose output must move by no more than this (degrees) to meet the pose is held
 /// still when the program holds it: the solver's own tolerance (0.1 µm at the TCP) moves an
 /// axis by up to about this much, and inside the play a command anywhere gives the same
@@ -926,20 +929,37 @@ fn recheck(
     for k in from..ctx.len() {
         let target = ctx.target(k);
         let rest: [bool; 6] = match nominal[k - from] {
-            Some(v) => std::array::from_fn(|n| v[n] == 0 && !target.turns[n].is_finite()),
+            Some(v) => std::array::from_fn(|n| v[n] == 0 && !target.turns.angle_deg[n].is_finite()),
             None => [false; 6],
         };
-        let histories = arrival_histories(ctx, k, previous.as_ref(), outcomes);
         let o = &mut outcomes[k];
-        if settle_target(ctx, k, &histories, &rest, previous.as_ref(), o) {
+        // Solving again moves the compensated path, which may turn an axis round elsewhere:
+        // settle until the plays stand where the solve assumed (a few rounds at most), else
+        // keep the round that predicts the smallest error.
+        let mut best: Option<Outcome> = None;
+        let mut settled = false;
+        for _ in 0..SETTLE_ROUNDS {
+            if !settle_target(ctx, k, &rest, previous.as_ref(), o) {
+                settled = true;
+                break;
+            }
+            resolved[k] = true;
+            let error = |o: &Outcome| solve::weighted_norm(&o.residual);
+            if best.is_none_or(|b| error(o) < error(&b)) {
+                best = Some(*o);
+            }
+        }
+        if let (false, Some(b)) = (settled, best) {
+            *o = b;
+        }
+        if resolved[k] {
             counts.reflanked += (o.resolution == Resolution::Reflanked) as usize;
             counts.held += matches!(o.resolution, Resolution::Held(_)) as usize;
-            resolved[k] = true;
         }
         counts.travels_play += o.travels_play.contains(&true) as usize;
         let state = AxisState {
-            axes_deg: outcomes[k].axes_deg,
-            history: histories,
+            axes_deg: o.axes_deg,
+            history: arrival_histories(ctx, k, previous.as_ref(), o),
             time_s: 0.0,
         };
         if states.len() == LOOK_BACK {
@@ -951,125 +971,291 @@ fn recheck(
     (counts, states)
 }
 
-/// Each axis's history on arrival at target `k`: the compensated command before, then the
-/// turning points of the motion moved by the correction there (the compensated path is the
-/// nominal one moved by the interpolated corrections).
+/// Each axis's history on arrival at target `k` commanded as in `out`: the compensated
+/// command before, then the turning points of the motion, moved with the compensated path (the
+/// nominal one plus the corrections interpolated along it).
 fn arrival_histories(
     ctx: &Ctx,
     k: usize,
     previous: Option<&AxisState>,
-    outcomes: &[Outcome],
+    out: &Outcome,
 ) -> [AxisHistory; 6] {
     let target = ctx.target(k);
     if target.arrival.is_none() {
         return [AxisHistory::unmoved(); 6];
     }
     let Some(p) = previous else {
-        return outcomes[k].nominal_directions.map(AxisHistory::engaged);
+        return out.nominal_directions.map(AxisHistory::engaged);
     };
-    let prev_nominal = if k > 0 {
-        ctx.target(k - 1).nominal_axes
-    } else {
-        p.axes_deg
-    };
-    let turns: [f64; 6] = std::array::from_fn(|n| {
-        let shift = p.axes_deg[n] - prev_nominal[n];
-        let (here, there) = (outcomes[k].axes_deg[n], target.nominal_axes[n]);
-        target.turns[n] + 0.5 * (shift + (here - there))
+    let turns = compensated_turns(ctx, k, p, &out.axes_deg);
+    p.then_through(&turns.angle_deg, out.axes_deg).history
+}
+
+/// A motion that moves an axis by less than this many of its play's widths (degrees, plus
+/// 0.001°) may turn it round by an amount that matters to the play.
+const SENSITIVE_PLAYS: f64 = 4.0;
+
+/// The turning points of the compensated motion into target `k` (from `previous`, commanded
+/// at `c`). The compensated motion is the nominal one moved by the corrections; where an axis
+/// moves little, the way the correction bends along the motion decides whether and where it
+/// turns round, so a straight motion is walked as the controller interpolates it (samples of
+/// the compensated line, exact rates at its ends). Elsewhere the nominal turns, moved by the
+/// corrections interpolated to them.
+fn compensated_turns(
+    ctx: &Ctx,
+    k: usize,
+    previous: &AxisState,
+    c: &[f64; 6],
+) -> interpolate::Turns {
+    let target = ctx.target(k);
+    let prev = previous.axes_deg;
+    let model = ctx.model;
+    let sensitive = (0..6).any(|n| {
+        let b = model.play_width_deg(n, c[n]);
+        b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3
     });
-    p.then_through(&turns, outcomes[k].axes_deg).history
+    if target.interp == Interp::Line && sensitive && k > 0 {
+        let tool = ctx.tool(k);
+        let arm = Nominal(&model.robot);
+        let (start, end) = (arm.tcp(&prev, tool), arm.tcp(c, tool));
+        let walked = interpolate::Cartesian::new(&start, &end, &interpolate::Path::Lin)
+            .ok()
+            .and_then(|line| {
+                interpolate::arrival_and_end(&model.robot, tool, &line, 1.0, &prev, c).ok()
+            });
+        if let Some((arrival, _)) = walked {
+            return arrival.turns;
+        }
+    }
+    let mut turns = target.turns;
+    for n in 0..6 {
+        turns.angle_deg[n] = Segment::nominal_turn(ctx, k, previous, n).turn(c[n]);
+    }
+    turns
+}
+
+/// One axis's motion into target `k`, compensated: from the command before (where the play's
+/// output stood), through the motion's last turning point if it has one — the nominal turn
+/// moved by the corrections interpolated to it, so it moves with the command — to the
+/// command. The play's output on arrival is monotone in the command; [`Segment::command_for`]
+/// inverts it.
+struct Segment {
+    /// The play's output where the motion begins.
+    start_output: f64,
+    /// The turning point at command `c`: `turn + at·c` (NaN: none).
+    turn: f64,
+    at: f64,
+    /// Half the play's width.
+    half: f64,
+}
+
+impl Segment {
+    /// Axis n's motion into target `k` from `previous`, with `turns` those of the compensated
+    /// motion commanded at `c` ([`compensated_turns`]).
+    fn of(
+        ctx: &Ctx,
+        k: usize,
+        previous: &AxisState,
+        n: usize,
+        (turns, c): (&interpolate::Turns, &[f64; 6]),
+    ) -> Segment {
+        let mut segment = Segment::nominal_turn(ctx, k, previous, n);
+        let (t, u) = (turns.angle_deg[n], turns.at[n]);
+        // The turn moves with the command by the share of the correction interpolated to it.
+        (segment.turn, segment.at) = if t.is_finite() {
+            (t - u * c[n], u)
+        } else {
+            (f64::NAN, 0.0)
+        };
+        segment
+    }
+
+    /// [`Self::of`] with the nominal turn moved by the corrections interpolated to it.
+    fn nominal_turn(ctx: &Ctx, k: usize, previous: &AxisState, n: usize) -> Segment {
+        let target = ctx.target(k);
+        let model = ctx.model;
+        let c0 = previous.axes_deg[n];
+        let start_output = c0 + model.play(previous, n).map_or(0.0, |p| p.lag_deg);
+        let (t, u) = (target.turns.angle_deg[n], target.turns.at[n]);
+        let (turn, at) = if t.is_finite() && k > 0 {
+            let before = c0 - ctx.target(k - 1).nominal_axes[n];
+            (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
+        } else {
+            (f64::NAN, 0.0)
+        };
+        Segment {
+            start_output,
+            turn,
+            at,
+            half: 0.5 * model.play_width_deg(n, target.nominal_axes[n]),
+        }
+    }
+
+    /// The turning point when the command is `c` (NaN: none).
+    fn turn(&self, c: f64) -> f64 {
+        self.turn + self.at * c
+    }
+
+    /// The play's output on arrival at command `c`.
+    fn output(&self, c: f64) -> f64 {
+        let clamp = |o: f64, x: f64| o.clamp(x - self.half, x + self.half);
+        let t = self.turn(c);
+        let o = if t.is_finite() {
+            clamp(self.start_output, t)
+        } else {
+            self.start_output
+        };
+        clamp(o, c)
+    }
+
+    /// The command whose arrival puts the play's output at `wanted`, nearest `near` where a
+    /// range of commands does (inside the play), and how it does it.
+    fn command_for(&self, wanted: f64, near: f64) -> (f64, Reach) {
+        // The output is monotone in the command with slopes 0, `at` or 1: bracket, then bisect
+        // for the first and last command that reach it.
+        let tol = 1e-12;
+        let mut span = 4.0 * self.half + 1e-3;
+        let (mut lo, mut hi) = (near - span, near + span);
+        while self.output(lo) > wanted - tol || self.output(hi) < wanted + tol {
+            span *= 2.0;
+            (lo, hi) = (near - span, near + span);
+            if span > 360.0 {
+                return (near, Reach::Stuck);
+            }
+        }
+        let edge = |below: bool| {
+            let (mut a, mut b) = (lo, hi);
+            for _ in 0..100 {
+                let m = 0.5 * (a + b);
+                let o = self.output(m);
+                if (below && o < wanted - tol) || (!below && o <= wanted + tol) {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            if below {
+                b
+            } else {
+                a
+            }
+        };
+        let (first, last) = (edge(true), edge(false));
+        let c = near.clamp(first, last);
+        let o = self.output(c);
+        let reach = if (o - (c - self.half)).abs() <= 1e-9 && self.half > 0.0 {
+            Reach::Flank(Direction::Positive)
+        } else if (o - (c + self.half)).abs() <= 1e-9 && self.half > 0.0 {
+            Reach::Flank(Direction::Negative)
+        } else {
+            Reach::Stuck
+        };
+        (c, reach)
+    }
+}
+
+/// How a command puts the play's output where it must be.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Reach {
+    /// Driving the flank of a motion in this direction: the output follows the command.
+    Flank(Direction),
+    /// Inside the play: the output stays where the motion (or its turn) left it.
+    Stuck,
 }
 
 /// Settles target `k` (its first-pass outcome in `out`) against where the compensated motion
-/// leaves each gear play: solves it again where a flank differs from the one assumed or an
-/// axis the program holds is to be kept still, and marks the axes whose output moves back by
-/// less than their play. Returns whether it was solved again. `rest[n]`: the nominal motion
-/// holds axis n still.
+/// leaves each gear play: every axis's command is the one whose arrival puts the play's output
+/// where the pose needs it ([`Segment::command_for`]); the target is solved again where that
+/// is not the first pass's flank — on the flank it drives, or, where the output stays inside
+/// the play, with that axis held at its command (the program's held axes at their command
+/// before) — and the axes whose output moves back by less than their play are marked.
+/// Returns whether it was solved again. `rest[n]`: the nominal motion holds axis n still.
 fn settle_target(
     ctx: &Ctx,
     k: usize,
-    histories: &[AxisHistory; 6],
     rest: &[bool; 6],
     previous: Option<&AxisState>,
     out: &mut Outcome,
 ) -> bool {
     let model = ctx.model;
+    let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
+        return false;
+    };
     let c = out.axes_deg;
     let assumed = out.directions;
     let mut flanks = assumed;
     let mut hold = [false; 6];
+    let mut start = c;
     let mut differs = false;
+    let mut turns: Option<interpolate::Turns> = None;
     for n in 0..6 {
-        // An axis the program holds whose first-pass command moved by no more than the
-        // solver's own noise: kept exactly, whichever side of the play the noise fell on.
-        let holdable = rest[n] && previous.is_some();
-        let jitter = previous.is_some_and(|p| {
-            let moved = c[n] - p.axes_deg[n];
-            moved != 0.0 && moved.abs() <= HOLD_DEG
-        });
-        // The common case needs no width: a long motion the command continues.
-        let quick = histories[n].engaged_at(c[n]);
-        if quick.is_some() && quick == Some(assumed[n]) && !(holdable && jitter) {
+        if model.play_width_deg(n, c[n]) == 0.0 && !rest[n] {
             continue;
         }
-        let exact = AxisState {
-            axes_deg: c,
-            history: *histories,
-            time_s: 0.0,
-        };
-        let Some(play) = model.play(&exact, n) else {
+        let moved = c[n] - p.axes_deg[n];
+        let jitter = rest[n] && moved != 0.0 && moved.abs() <= HOLD_DEG;
+        // The common case needs nothing more: a long motion the command continues.
+        let engaged = p.history[n].engaged_at(p.axes_deg[n]) == Some(assumed[n])
+            && assumed[n].sign() * moved > 0.0
+            && !ctx.target(k).turns.angle_deg[n].is_finite();
+        if engaged && !jitter {
             continue;
-        };
-        let b = model.play_width_deg(n, c[n]);
-        let assumed_lag = -0.5 * assumed[n].sign() * b;
-        // The output the pose needs, against where the play left it.
-        let width = |a: f64| model.play_width_deg(n, a);
-        let Some(was) = histories[n].output_at_run_start(width) else {
+        }
+        let turns = turns.get_or_insert_with(|| compensated_turns(ctx, k, p, &c));
+        let segment = Segment::of(ctx, k, p, n, (turns, &c));
+        let wanted = c[n] - assumed[n].sign() * 0.5 * model.play_width_deg(n, c[n]);
+        // The output moves back by less than the play: the command travels it.
+        let driven = p.history[n].direction(p.axes_deg[n]);
+        let way = wanted - segment.start_output;
+        let turning = Direction::Unknown.after_move(way);
+        out.travels_play[n] = driven != Direction::Unknown
+            && turning != Direction::Unknown
+            && turning != driven
+            && way.abs() < 2.0 * segment.half;
+        if (segment.output(c[n]) - wanted).abs() <= 1e-12 && !jitter {
             continue;
-        };
-        let shift = c[n] + assumed_lag - was;
-        let driven = histories[n].previous_direction();
-        let flank = if holdable && shift.abs() <= HOLD_DEG {
-            hold[n] = true;
-            driven
-        } else {
-            match shift.partial_cmp(&0.0) {
-                Some(std::cmp::Ordering::Greater) => Direction::Positive,
-                Some(std::cmp::Ordering::Less) => Direction::Negative,
-                _ => assumed[n],
+        }
+        let (mut command, mut reach) = segment.command_for(wanted, c[n]);
+        // A held axis whose output need not move (beyond the solver's own noise) stays exactly
+        // where it was.
+        if rest[n] && (segment.output(p.axes_deg[n]) - wanted).abs() <= HOLD_DEG {
+            (command, reach) = (p.axes_deg[n], Reach::Stuck);
+            out.travels_play[n] = false;
+        }
+        match reach {
+            Reach::Flank(d) if d == assumed[n] => continue,
+            Reach::Flank(d) => flanks[n] = d,
+            Reach::Stuck => {
+                hold[n] = true;
+                start[n] = command;
+                flanks[n] = driven;
             }
-        };
-        out.travels_play[n] =
-            !hold[n] && driven != Direction::Unknown && flank != driven && shift.abs() < b;
-        if hold[n] || (play.lag_deg - assumed_lag).abs() > 1e-12 {
-            differs = true;
-            flanks[n] = flank;
         }
+        differs = true;
     }
     if !differs {
         return false;
     }
     let target = ctx.target(k);
     let tool = ctx.tool(k);
+    out.directions = flanks;
+    // The held axes' plays where their commands leave them; the others on their flanks.
+    let mut commanded = *out;
+    commanded.axes_deg = start;
+    let exact = arrival_histories(ctx, k, previous, &commanded);
     let solving: [AxisHistory; 6] = std::array::from_fn(|n| {
         if hold[n] {
-            histories[n]
+            exact[n]
         } else {
             AxisHistory::engaged(flanks[n])
         }
     });
-    out.directions = flanks;
     if !target.compensate || out.error.is_some() {
         // The command is the nominal one: only the prediction changes.
-        out.before = tcp_error(model, tool, &target.nominal_axes, histories, &target.goal);
+        let nominal = arrival_histories(ctx, k, previous, out);
+        out.before = tcp_error(model, tool, &target.nominal_axes, &nominal, &target.goal);
         out.residual = out.before;
         return true;
-    }
-    let mut start = c;
-    if let Some(p) = previous {
-        for n in (0..6).filter(|&n| hold[n]) {
-            start[n] = p.axes_deg[n];
-        }
     }
     match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
@@ -1089,8 +1275,9 @@ fn settle_target(
             out.changed = false;
         }
     }
-    // The prediction with the play evaluated exactly at the command written.
-    out.residual = tcp_error(model, tool, &out.axes_deg, histories, &target.goal);
+    // The prediction with every play evaluated exactly where the command leaves it.
+    let histories = arrival_histories(ctx, k, previous, out);
+    out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
     true
 }
 

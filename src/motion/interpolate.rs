@@ -27,6 +27,9 @@ use crate::kinematics::RobotDescription;
 /// 0.1 mdeg move an axis by about that much), far below any backlash: a motion the program
 /// cannot even express does not decide which branch a gear sits on.
 pub const REST_DEG: f64 = 1e-4;
+/// An axis that moves by less than this (degrees) between two samples stands still there: the
+/// rounding of axis angles computed through the kinematics.
+const STILL_DEG: f64 = 1e-9;
 /// Sample pitch of Cartesian paths: a sample every this many mm of TCP travel …
 const PITCH_MM: f64 = 20.0;
 /// … and every this many degrees of orientation change.
@@ -419,13 +422,23 @@ pub struct Arrival {
     /// The end axes the controller reaches by following the path: the given ones, or their
     /// ±360° variant where the path turns an axis past the nearest one (continuity).
     pub end: [f64; 6],
-    /// The command angle at each axis's last turning point inside the segment (NaN where the
-    /// axis does not turn round): where the run that arrives began.
-    pub turns: [f64; 6],
+    /// Each axis's last turning point inside the segment: where the run that arrives began.
+    pub turns: Turns,
+}
+
+/// The last turning point of each axis inside a motion: the command angle there and where
+/// along the motion (u ∈ (0, 1)); NaN where the axis does not turn round.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Turns {
+    pub angle_deg: [f64; 6],
+    pub at: [f64; 6],
 }
 
 /// No turning point inside a segment (see [`Arrival::turns`]).
-pub const NO_TURNS: [f64; 6] = [f64::NAN; 6];
+pub const NO_TURNS: Turns = Turns {
+    angle_deg: [f64::NAN; 6],
+    at: [f64::NAN; 6],
+};
 
 /// Whether a straight segment is short enough to need no samples inside it (the arrival rate
 /// at its end then depends on its two ends only, so it can be computed later, in parallel).
@@ -560,15 +573,19 @@ pub fn arrival_and_end(
     // The rate at the start too: an axis leaving against its arrival turned round inside.
     let (_, start_rate) = end_rate(robot, tool, q0, &(cart.twist(0.0) * u_end));
     let n = samples.len() + 2;
-    let turns = std::array::from_fn(|i| {
+    let mut turns = NO_TURNS;
+    for i in 0..6 {
         let point = |j: usize| match j {
             0 => (q0[i], 0.0),
             j if j == n - 1 => (q1[i], 1.0),
             j => (samples[j - 1].0[i], samples[j - 1].1),
         };
         let r0 = start_rate.map_or(f64::NAN, |r| r[i]);
-        last_turn(&point, n, r0, rate[i])
-    });
+        if let Some((angle, u)) = last_turn(&point, n, r0, rate[i]) {
+            turns.angle_deg[i] = angle;
+            turns.at[i] = u;
+        }
+    }
     let arrival = Arrival {
         rate,
         end: *q1,
@@ -577,39 +594,51 @@ pub fn arrival_and_end(
     Ok((arrival, end))
 }
 
-/// The value at the last turning point of one axis along `points` (`(angle, u)` from the
-/// start at u = 0 to the end at u = 1) whose rates per unit of u are `rate0` at the start
-/// and `rate1` at the end; NaN when it does not turn round.
-fn last_turn(points: &dyn Fn(usize) -> (f64, f64), n: usize, rate0: f64, rate1: f64) -> f64 {
-    let diffs = |j: usize| points(j + 1).0 - points(j).0;
+/// The last turning point of one axis along `points` (`(angle, u)` from the start at u = 0 to
+/// the end at u = 1) whose rates per unit of u are `rate0` at the start and `rate1` at the
+/// end: `(angle there, u there)`; `None` when it does not turn round.
+fn last_turn(
+    points: &dyn Fn(usize) -> (f64, f64),
+    n: usize,
+    rate0: f64,
+    rate1: f64,
+) -> Option<(f64, f64)> {
+    // Motion below the numbers' own rounding (an axis the path holds, computed to 1e-15) is
+    // no motion.
+    let diffs = |j: usize| {
+        let d = points(j + 1).0 - points(j).0;
+        if d.abs() < STILL_DEG {
+            0.0
+        } else {
+            d
+        }
+    };
     // The direction of the run that arrives.
     let d = if rate1 != 0.0 {
         rate1.signum()
     } else {
-        match (0..n - 1).rev().map(diffs).find(|&x| x != 0.0) {
-            Some(x) => x.signum(),
-            None => return f64::NAN,
-        }
+        (0..n - 1).rev().map(diffs).find(|&x| x != 0.0)?.signum()
     };
-    let extreme = |a: f64, b: f64| if d > 0.0 { a.min(b) } else { a.max(b) };
+    let deeper = |a: (f64, f64), b: (f64, f64)| if (a.0 - b.0) * d < 0.0 { a } else { b };
     // The last interval that moves against the arrival: the turn follows it.
     if let Some(j) = (0..n - 1).rev().find(|&j| diffs(j) * d < 0.0) {
         let at = points(j + 1);
         if j + 2 < n {
             // The parabola through the three samples around the turn.
-            let (a, c) = (points(j), points(j + 2));
-            return extreme(at.0, parabola_extremum(a, at, c).unwrap_or(at.0));
+            let vertex = parabola_extremum(points(j), at, points(j + 2));
+            return Some(vertex.map_or(at, |v| deeper(v, at)));
         }
         // The last interval itself moves against the arrival: the turn is inside it.
-        let (p0, p1) = (points(j), at);
-        let du = p1.1 - p0.1;
+        let p0 = points(j);
+        let du = at.1 - p0.1;
         let m0 = if j > 0 {
             let before = points(j - 1);
             (p0.0 - before.0) / (p0.1 - before.1) * du
         } else {
             rate0 * du
         };
-        return hermite_extremum(p0.0, p1.0, m0, rate1 * du, d).unwrap_or(p1.0);
+        let inside = hermite_extremum(p0.0, at.0, m0, rate1 * du, d);
+        return Some(inside.map_or(at, |(v, s)| (v, p0.1 + s * du)));
     }
     // Every interval moves with the arrival: a turn can only lie before the first sample.
     if rate0.is_finite() && rate0 * d < 0.0 {
@@ -621,14 +650,15 @@ fn last_turn(points: &dyn Fn(usize) -> (f64, f64), n: usize, rate0: f64, rate1: 
         } else {
             rate1 * du
         };
-        return hermite_extremum(p0.0, p1.0, rate0 * du, m1, d).unwrap_or(f64::NAN);
+        let (v, s) = hermite_extremum(p0.0, p1.0, rate0 * du, m1, d)?;
+        return Some((v, p0.1 + s * du));
     }
-    f64::NAN
+    None
 }
 
-/// The extremum of the parabola through three points `(value, u)`, when it lies between the
-/// outer two.
-fn parabola_extremum(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> Option<f64> {
+/// The extremum `(value, u)` of the parabola through three points `(value, u)`, when it lies
+/// between the outer two.
+fn parabola_extremum(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> Option<(f64, f64)> {
     let (y0, x0) = a;
     let (y1, x1) = b;
     let (y2, x2) = c;
@@ -641,13 +671,13 @@ fn parabola_extremum(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> Option<f64>
     // y = y1 + s·(x − x1) + curvature·(x − x1)² with s the slope at x1.
     let s = d01 + curvature * (x1 - x0);
     let x = x1 - s / (2.0 * curvature);
-    (x > x0 && x < x2).then(|| y1 + s * (x - x1) + curvature * (x - x1) * (x - x1))
+    (x > x0 && x < x2).then(|| (y1 + s * (x - x1) + curvature * (x - x1) * (x - x1), x))
 }
 
-/// The extremum, inside the interval, of the cubic Hermite from `p0` to `p1` with end
-/// derivatives `m0`, `m1` (per unit of the interval) that turns the run round into direction
-/// `d` (a minimum for d > 0, a maximum for d < 0).
-fn hermite_extremum(p0: f64, p1: f64, m0: f64, m1: f64, d: f64) -> Option<f64> {
+/// The extremum `(value, t)`, inside the interval (t ∈ (0, 1)), of the cubic Hermite from
+/// `p0` to `p1` with end derivatives `m0`, `m1` (per unit of the interval) that turns the run
+/// round into direction `d` (a minimum for d > 0, a maximum for d < 0).
+fn hermite_extremum(p0: f64, p1: f64, m0: f64, m1: f64, d: f64) -> Option<(f64, f64)> {
     // h'(t) = a·t² + b·t + c.
     let a = 6.0 * p0 + 3.0 * m0 - 6.0 * p1 + 3.0 * m1;
     let b = -6.0 * p0 - 4.0 * m0 + 6.0 * p1 - 2.0 * m1;
@@ -659,27 +689,24 @@ fn hermite_extremum(p0: f64, p1: f64, m0: f64, m1: f64, d: f64) -> Option<f64> {
             + p1 * (-2.0 * t3 + 3.0 * t2)
             + m1 * (t3 - t2)
     };
-    let roots: Vec<f64> = if a.abs() < 1e-300 {
-        if b == 0.0 {
-            vec![]
-        } else {
-            vec![-c / b]
-        }
+    let roots: [Option<f64>; 2] = if a.abs() < 1e-300 {
+        [(b != 0.0).then(|| -c / b), None]
     } else {
         let disc = b * b - 4.0 * a * c;
         if disc < 0.0 {
-            vec![]
+            [None, None]
         } else {
             let s = disc.sqrt();
-            vec![(-b - s) / (2.0 * a), (-b + s) / (2.0 * a)]
+            [Some((-b - s) / (2.0 * a)), Some((-b + s) / (2.0 * a))]
         }
     };
     roots
         .into_iter()
+        .flatten()
         .filter(|t| *t > 0.0 && *t < 1.0)
-        .map(h)
-        .reduce(|x, y| if d > 0.0 { x.min(y) } else { x.max(y) })
-        .filter(|v| if d > 0.0 { *v < p1 } else { *v > p1 })
+        .map(|t| (h(t), t))
+        .reduce(|x, y| if (x.0 - y.0) * d < 0.0 { x } else { y })
+        .filter(|(v, _)| (v - p1) * d < 0.0)
 }
 
 /// The nominal TCP at axes `q` (the closed form of `kinematics`; agrees with

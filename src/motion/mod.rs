@@ -29,7 +29,7 @@ pub fn program_states(sim: &Simulation) -> Vec<crate::model::AxisState> {
         .iter()
         .map(|s| {
             let state = match (s.arrival, &previous) {
-                (Some(_), Some(p)) => p.then_through(&s.turns, s.nominal_axes),
+                (Some(_), Some(p)) => p.then_through(&s.turns.angle_deg, s.nominal_axes),
                 _ => crate::model::AxisState::new(s.nominal_axes),
             };
             previous = Some(state);

@@ -165,7 +165,9 @@ impl Campaign {
                 let span = t.to_deg - t.from_deg;
                 ReversalTest {
                     axis: t.axis,
-                    at_deg: [0.2, 0.5, 0.8].map(|f| (t.from_deg + f * span).round()).to_vec(),
+                    at_deg: [0.2, 0.5, 0.8]
+                        .map(|f| (t.from_deg + f * span).round())
+                        .to_vec(),
                     steps_deg: steps.clone(),
                     reference_deg: t.reference_deg,
                 }
@@ -227,7 +229,11 @@ impl Campaign {
             if !(1..=6).contains(&r.axis) {
                 return bad("reversals.axis", "an axis number 1..6", r.axis.to_string());
             }
-            if let Some(s) = r.steps_deg.iter().find(|s| !(s.is_finite() && **s > 0.0 && **s <= 10.0)) {
+            if let Some(s) = r
+                .steps_deg
+                .iter()
+                .find(|s| !(s.is_finite() && **s > 0.0 && **s <= 10.0))
+            {
                 return bad("reversals.steps_deg", "steps in (0, 10]°", s.to_string());
             }
             if let Some(a) = r.at_deg.iter().find(|a| !a.is_finite()) {

@@ -65,7 +65,7 @@ pub fn program_visits(
         .zip(&sim.stops)
         .map(|((stop, _), s)| ProgramVisit {
             stop,
-            turns: s.turns,
+            turns: s.turns.angle_deg,
             from_unknown: s.arrival.is_none(),
             programmed_mm: s.goal.position,
             tool_mm: sim.frames[s.tool as usize].position,

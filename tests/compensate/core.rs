@@ -43,7 +43,7 @@ fn target(model: &Model, axes: [f64; 6], arrival: Option<[f64; 6]>) -> Target {
         tool: 0,
         nominal_axes: axes,
         arrival,
-        turns: [f64::NAN; 6],
+        turns: robopost::motion::interpolate::NO_TURNS,
         interp: Interp::Joint,
         quantum: None,
         compensate: true,

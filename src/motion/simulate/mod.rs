@@ -113,9 +113,9 @@ pub struct Stop<'f> {
     pub nominal_axes: [f64; 6],
     /// Arrival motion of each axis (see `interpolate`); `None` after an unknown position.
     pub arrival: Option<[f64; 6]>,
-    /// The command angle of each axis's last turning point inside the motion that reaches
-    /// this stop, NaN where it does not turn round (see `interpolate::Arrival::turns`).
-    pub turns: [f64; 6],
+    /// Each axis's last turning point inside the motion that reaches this stop (see
+    /// `interpolate::Arrival::turns`).
+    pub turns: interpolate::Turns,
     /// An axis target (`A1..A6`).
     pub axis: bool,
     /// The programmed values as the controller completes them (absolute: missing components
@@ -247,7 +247,7 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
     use rayon::prelude::*;
     /// Stops per task: consecutive stops share a chain evaluation (below).
     const CHUNK: usize = 2048;
-    type Deferred = Option<([f64; 6], [f64; 6])>;
+    type Deferred = Option<([f64; 6], interpolate::Turns)>;
     let mut rates: Vec<Deferred> = vec![None; sim.stops.len()];
     rates
         .par_chunks_mut(CHUNK)

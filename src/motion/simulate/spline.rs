@@ -91,7 +91,7 @@ pub(super) fn finish_splines(
     splines: &[SplineSegment],
 ) {
     use rayon::prelude::*;
-    let arrivals: Vec<([f64; 6], [f64; 6])> = splines
+    let arrivals: Vec<([f64; 6], interpolate::Turns)> = splines
         .par_iter()
         .with_min_len(256)
         .map(|seg| {
