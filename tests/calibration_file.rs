@@ -65,6 +65,8 @@ fn full_model() -> Model {
         .map(|i| ((i as f64) * 0.731).sin() * 0.0123)
         .collect();
     model.set_values(&values);
+    // Gear plays have widths ≥ 0 (the file refuses others).
+    model.make_physical(&[]);
     model
 }
 
@@ -134,11 +136,24 @@ fn bad_files_name_key_expected_and_found() {
     let cases = [
         (
             "syntax",
-            "{\n  \"format\": \"robopost-calibration/1\",\n  \"robot\": {,\n}".to_string(),
+            "{\n  \"format\": \"robopost-calibration/2\",\n  \"robot\": {,\n}".to_string(),
         ),
         (
             "format_version",
-            with_effects("[]").replace("robopost-calibration/1", "robopost-calibration/2"),
+            with_effects("[]").replace("robopost-calibration/2", "robopost-calibration/3"),
+        ),
+        (
+            "play_width_negative",
+            with_effects(
+                r#"[{"name": "backlash:A2", "table": {"grid_deg": [0, 10], "values_deg": [0.01, -0.002]}}]"#,
+            ),
+        ),
+        (
+            "format_1_leading_backlash",
+            with_effects(
+                r#"[{"name": "backlash:A2", "table": {"grid_deg": [0, 10], "values_deg": [-0.004, 0.003]}}]"#,
+            )
+            .replace("robopost-calibration/2", "robopost-calibration/1"),
         ),
         (
             "grid_not_increasing",
@@ -272,4 +287,31 @@ fn non_finite_values_are_refused_when_saving() {
         (key.as_str(), expected.as_str(), found.as_str()),
         ("effects[0].parameters.dz32", "a finite number", "NaN")
     );
+}
+
+/// A file of the earlier format stored the instant switch's signed half difference `v`
+/// (`dθ += dir·v`, lagging when v ≤ 0): it is read as the play's width `b = −2v`, so the
+/// two branches it predicts after a long motion are the ones the old file meant.
+#[test]
+fn format_1_backlash_is_read_as_a_play_width() {
+    use robopost::model::{AxisState, Direction};
+    let v1 = with_effects(
+        r#"[{"name": "backlash:A2", "table": {"grid_deg": [-135, 35], "values_deg": [-0.004, -0.002]}}]"#,
+    )
+    .replace("robopost-calibration/2", "robopost-calibration/1");
+    let model = calibration::parse(&v1, Path::new("old.json"))
+        .unwrap()
+        .model();
+    assert_eq!(model.effects()[0].values(), &[0.008, 0.004]);
+    // At A2 = −50 (half-way): v = −0.003, so the old model gave map ∓ 0.003 on the ± branch.
+    let axes = [0.0, -50.0, 90.0, 0.0, 30.0, 0.0];
+    let angle = |d: Direction| {
+        let state = AxisState::with_directions(axes, [d; 6]);
+        model
+            .chain_errors(&state)
+            .get(robopost::model::Slot::Angle { axis: 2 })
+            .to_degrees()
+    };
+    assert!((angle(Direction::Positive) - -0.003).abs() < 1e-15);
+    assert!((angle(Direction::Negative) - 0.003).abs() < 1e-15);
 }

@@ -654,6 +654,7 @@ mod cli {
             .map(|i| ((i as f64) * 0.37).sin() * 0.05)
             .collect();
         model.set_values(&values);
+        model.make_physical(&[]); // gear plays have widths ≥ 0
         let path = dir.join("cal.json");
         Calibration::from_model(
             "test",

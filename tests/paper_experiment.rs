@@ -20,7 +20,7 @@ use robopost::model::{expand_list, Model};
 use robopost::motion::{self, Workspace};
 use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::poses::read_poses;
-use robopost::simulate::program::{program_visits, tool_warnings};
+use robopost::simulate::program::{program_visits, rows_with_turns, tool_warnings};
 use robopost::simulate::{paper, TrackerNoise, VirtualRobot};
 use robopost::stats::{error_stats, ErrorStats};
 
@@ -251,17 +251,40 @@ fn simulate_program_on_the_command_line() {
         DEFAULT_DWELL_S,
         DEFAULT_AXIS_SPEED_DEG_S,
     );
-    let expected = truth.run_program(&visits).unwrap();
+    let run_stops = truth.run_program(&visits).unwrap();
+    // The file holds the visits and, before a motion that turns an axis round, an unmeasured
+    // row at its turning points.
+    let expected = rows_with_turns(&visits, &run_stops);
+    assert!(
+        expected.len() > run_stops.len(),
+        "the rectangle's LINs turn A2/A3 round"
+    );
     assert_eq!(file.stops.len(), expected.len());
     for (row, e) in file.stops.iter().zip(&expected) {
         assert_eq!(row.test, "paper_path2");
-        assert_eq!(row.state.directions(), e.state.directions());
         assert!((row.state.time_s - e.state.time_s).abs() < 0.051);
         // Written to 1e-6° and 1e-4 mm.
         for k in 0..6 {
             assert!((row.state.axes_deg[k] - e.state.axes_deg[k]).abs() < 1e-6);
         }
-        assert!((row.measured_mm.unwrap() - e.measured_mm.unwrap()).amax() < 1e-4);
+        match (row.measured_mm, e.measured_mm) {
+            (Some(r), Some(m)) => {
+                assert!((r - m).amax() < 1e-4);
+                // The gear plays read from the file's rows stand where the run left them (an
+                // axis the path holds may read as unmoved where the run saw 1e-15° of noise:
+                // the same output).
+                for n in 0..6 {
+                    let (a, b) = (
+                        truth.truth.play(&row.state, n),
+                        truth.truth.play(&e.state, n),
+                    );
+                    let (a, b) = (a.unwrap().lag_deg, b.unwrap().lag_deg);
+                    assert!((a - b).abs() < 2e-6, "A{}: {a} vs {b}", n + 1);
+                }
+            }
+            (None, None) => {}
+            other => panic!("measured and unmeasured rows differ: {other:?}"),
+        }
     }
 
     // A tool on the flange's axis, not the target: measured anyway, with a warning naming both.
@@ -286,7 +309,9 @@ fn simulate_program_on_the_command_line() {
             && stderr.contains("(-120.000, -80.000, 180.000)"),
         "{stderr}"
     );
-    assert_eq!(read_csv(&out).unwrap().stops.len(), 53);
+    // 53 measured stops, and unmeasured rows at turning points.
+    let rows = read_csv(&out).unwrap().stops;
+    assert_eq!(rows.iter().filter(|s| s.measured_mm.is_some()).count(), 53);
 
     // A target out of reach: rejected where it is written.
     let unreachable = dir.path().join("unreachable.src");

@@ -925,50 +925,92 @@ fn recheck(
     resolved: &mut [bool],
 ) -> (Counts, Vec<AxisState>) {
     let mut counts = Counts::default();
-    let mut states = Vec::with_capacity(LOOK_BACK);
+    // The states of the targets settled so far (the history's last), oldest first.
+    let mut states: Vec<AxisState> = previous.into_iter().collect();
     for k in from..ctx.len() {
-        let target = ctx.target(k);
-        let rest: [bool; 6] = match nominal[k - from] {
-            Some(v) => std::array::from_fn(|n| v[n] == 0 && !target.turns.angle_deg[n].is_finite()),
-            None => [false; 6],
+        let rest = |k: usize| -> [bool; 6] {
+            let turns = ctx.target(k).turns.angle_deg;
+            match nominal.get(k.wrapping_sub(from)).copied().flatten() {
+                Some(v) => std::array::from_fn(|n| v[n] == 0 && !turns[n].is_finite()),
+                None => [false; 6],
+            }
         };
-        let o = &mut outcomes[k];
-        // Solving again moves the compensated path, which may turn an axis round elsewhere:
-        // settle until the plays stand where the solve assumed (a few rounds at most), else
-        // keep the round that predicts the smallest error.
-        let mut best: Option<Outcome> = None;
-        let mut settled = false;
-        for _ in 0..SETTLE_ROUNDS {
-            if !settle_target(ctx, k, &rest, previous.as_ref(), o) {
-                settled = true;
-                break;
-            }
-            resolved[k] = true;
-            let error = |o: &Outcome| solve::weighted_norm(&o.residual);
-            if best.is_none_or(|b| error(o) < error(&b)) {
-                best = Some(*o);
+        let mut state = settle_one(ctx, k, &rest(k), previous, outcomes, &mut resolved[k]);
+        // A circle's auxiliary point and end shape one arc: the end settled, its auxiliary
+        // point (settled with the end's first-pass command) is settled again, then the end.
+        if ctx.target(k).interp == Interp::CircEnd && k > from && states.len() >= 2 {
+            let before_aux = Some(states[states.len() - 2]);
+            for _ in 0..2 {
+                let aux = settle_one(
+                    ctx,
+                    k - 1,
+                    &rest(k - 1),
+                    before_aux,
+                    outcomes,
+                    &mut resolved[k - 1],
+                );
+                *states.last_mut().expect("the auxiliary point's state") = aux;
+                state = settle_one(ctx, k, &rest(k), Some(aux), outcomes, &mut resolved[k]);
             }
         }
-        if let (false, Some(b)) = (settled, best) {
-            *o = b;
-        }
+        let o = &outcomes[k];
         if resolved[k] {
             counts.reflanked += (o.resolution == Resolution::Reflanked) as usize;
             counts.held += matches!(o.resolution, Resolution::Held(_)) as usize;
         }
         counts.travels_play += o.travels_play.contains(&true) as usize;
-        let state = AxisState {
-            axes_deg: o.axes_deg,
-            history: arrival_histories(ctx, k, previous.as_ref(), o),
-            time_s: 0.0,
-        };
-        if states.len() == LOOK_BACK {
-            states.remove(0);
+        // The auxiliary point of a circle written by construction is not visited: the circle
+        // starts from the stop before it.
+        if ctx.target(k).interp == Interp::CircAngleAux {
+            state = previous.unwrap_or(state);
         }
         states.push(state);
+        if states.len() > LOOK_BACK {
+            states.remove(0);
+        }
         previous = Some(state);
     }
-    (counts, states)
+    // The segment's own (the history's state may still be among them).
+    let keep = (ctx.len() - from).min(states.len());
+    (counts, states.split_off(states.len() - keep))
+}
+
+/// Settles target `k` in `outcomes`, arriving from `previous` (see [`settle_target`]): solving
+/// again moves the compensated path, which may turn an axis round elsewhere, so it is settled
+/// until the plays stand where the solve assumed (a few rounds at most), else the round that
+/// predicts the smallest error is kept. Returns the state it leaves; `resolved` is set when it
+/// was solved again.
+fn settle_one(
+    ctx: &Ctx,
+    k: usize,
+    rest: &[bool; 6],
+    previous: Option<AxisState>,
+    outcomes: &mut [Outcome],
+    resolved: &mut bool,
+) -> AxisState {
+    let mut o = outcomes[k];
+    let mut best: Option<Outcome> = None;
+    let mut settled = false;
+    for _ in 0..SETTLE_ROUNDS {
+        if !settle_target(ctx, k, rest, previous.as_ref(), (&mut o, outcomes)) {
+            settled = true;
+            break;
+        }
+        *resolved = true;
+        let error = |o: &Outcome| solve::weighted_norm(&o.residual);
+        if best.is_none_or(|b| error(&o) < error(&b)) {
+            best = Some(o);
+        }
+    }
+    if let (false, Some(b)) = (settled, best) {
+        o = b;
+    }
+    outcomes[k] = o;
+    AxisState {
+        axes_deg: o.axes_deg,
+        history: arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
+        time_s: 0.0,
+    }
 }
 
 /// Each axis's history on arrival at target `k` commanded as in `out`: the compensated
@@ -979,6 +1021,7 @@ fn arrival_histories(
     k: usize,
     previous: Option<&AxisState>,
     out: &Outcome,
+    outcomes: &[Outcome],
 ) -> [AxisHistory; 6] {
     let target = ctx.target(k);
     if target.arrival.is_none() {
@@ -987,7 +1030,7 @@ fn arrival_histories(
     let Some(p) = previous else {
         return out.nominal_directions.map(AxisHistory::engaged);
     };
-    let turns = compensated_turns(ctx, k, p, &out.axes_deg);
+    let turns = compensated_turns(ctx, k, p, &out.axes_deg, outcomes);
     p.then_through(&turns.angle_deg, out.axes_deg).history
 }
 
@@ -998,14 +1041,15 @@ const SENSITIVE_PLAYS: f64 = 4.0;
 /// The turning points of the compensated motion into target `k` (from `previous`, commanded
 /// at `c`). The compensated motion is the nominal one moved by the corrections; where an axis
 /// moves little, the way the correction bends along the motion decides whether and where it
-/// turns round, so a straight motion is walked as the controller interpolates it (samples of
-/// the compensated line, exact rates at its ends). Elsewhere the nominal turns, moved by the
-/// corrections interpolated to them.
+/// turns round, so the motion is walked as the controller interpolates it between the
+/// compensated commands (samples, exact rates at the ends). Elsewhere — and where the path
+/// cannot be built — the nominal turns, moved by the corrections interpolated to them.
 fn compensated_turns(
     ctx: &Ctx,
     k: usize,
     previous: &AxisState,
     c: &[f64; 6],
+    outcomes: &[Outcome],
 ) -> interpolate::Turns {
     let target = ctx.target(k);
     let prev = previous.axes_deg;
@@ -1014,17 +1058,9 @@ fn compensated_turns(
         let b = model.play_width_deg(n, c[n]);
         b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3
     });
-    if target.interp == Interp::Line && sensitive && k > 0 {
-        let tool = ctx.tool(k);
-        let arm = Nominal(&model.robot);
-        let (start, end) = (arm.tcp(&prev, tool), arm.tcp(c, tool));
-        let walked = interpolate::Cartesian::new(&start, &end, &interpolate::Path::Lin)
-            .ok()
-            .and_then(|line| {
-                interpolate::arrival_and_end(&model.robot, tool, &line, 1.0, &prev, c).ok()
-            });
-        if let Some((arrival, _)) = walked {
-            return arrival.turns;
+    if sensitive && k > 0 {
+        if let Some(turns) = walk_compensated(ctx, k, c, outcomes) {
+            return turns;
         }
     }
     let mut turns = target.turns;
@@ -1032,6 +1068,79 @@ fn compensated_turns(
         turns.angle_deg[n] = Segment::nominal_turn(ctx, k, previous, n).turn(c[n]);
     }
     turns
+}
+
+/// The compensated motion into target `k` walked as the controller interpolates it (the
+/// targets before at their commands in `outcomes`, target k at `c`, the one after — the end of
+/// a circle whose auxiliary point k is — at its first-pass command): its turning points after
+/// the stop before; `None` for a PTP motion (linear in the axes: none) or a path that cannot
+/// be followed.
+fn walk_compensated(
+    ctx: &Ctx,
+    k: usize,
+    c: &[f64; 6],
+    outcomes: &[Outcome],
+) -> Option<interpolate::Turns> {
+    use interpolate::{Cartesian, Path};
+    let target = ctx.target(k);
+    let robot = &ctx.model.robot;
+    let tool = ctx.tool(k);
+    let cmd = |j: usize| if j == k { *c } else { outcomes[j].axes_deg };
+    let tcp = |j: usize| Nominal(robot).tcp(&cmd(j), ctx.tool(j));
+    // The path, where it starts (its command) and the share of it before the stop before.
+    let (path, from, before): (Cartesian, usize, f64) = match target.interp {
+        Interp::Joint | Interp::CircAngleAux => return None,
+        Interp::Line => (
+            Cartesian::new(&tcp(k - 1), &tcp(k), &Path::Lin).ok()?,
+            k - 1,
+            0.0,
+        ),
+        Interp::Curve { first, last } => {
+            let mut p = Vec::with_capacity(4);
+            if !first && k >= 2 {
+                p.push(tcp(k - 2).position);
+            }
+            let (a, b) = (tcp(k - 1), tcp(k));
+            p.push(a.position);
+            p.push(b.position);
+            if !last && k + 1 < ctx.len() {
+                // The next point moved by this one's correction (it is not settled yet).
+                let shift = b.position - target.goal.position;
+                p.push(ctx.target(k + 1).goal.position + shift);
+            }
+            let at = p.iter().position(|q| *q == b.position)?;
+            let tangents = crate::motion::spline::tangents(&p);
+            (
+                Cartesian::cubic(&a, &b, &tangents[at - 1], &tangents[at]),
+                k - 1,
+                0.0,
+            )
+        }
+        Interp::CircEnd if k >= 2 => {
+            let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
+            let arc = Cartesian::new(&start, &end, &Path::Circ { aux }).ok()?;
+            let u_aux = arc.fraction_at(&aux);
+            (arc, k - 2, u_aux)
+        }
+        // The auxiliary point of a circle written by construction is not on the path.
+        Interp::CircAngle(a) if k >= 2 => {
+            let (start, aux, end) = (tcp(k - 2), tcp(k - 1).position, tcp(k));
+            let arc = interpolate::circle_by_angle(&start, &end, a.degrees(), a.plane(aux))?;
+            (arc, k - 2, 0.0)
+        }
+        Interp::CircAux if k + 1 < ctx.len() => {
+            let (start, aux, end) = (tcp(k - 1), tcp(k).position, tcp(k + 1));
+            let arc = Cartesian::new(&start, &end, &Path::Circ { aux }).ok()?;
+            let u_aux = arc.fraction_at(&aux);
+            let (arrival, _) =
+                interpolate::arrival_and_end(robot, tool, &arc, u_aux, &cmd(k - 1), c).ok()?;
+            return Some(arrival.turns);
+        }
+        _ => return None,
+    };
+    let (arrival, _) = interpolate::arrival_and_end(robot, tool, &path, 1.0, &cmd(from), c).ok()?;
+    // Only the turns after the stop before count (the ones before it are in its history).
+    Some(arrival.turns.after(before))
 }
 
 /// One axis's motion into target `k`, compensated: from the command before (where the play's
@@ -1175,7 +1284,7 @@ fn settle_target(
     k: usize,
     rest: &[bool; 6],
     previous: Option<&AxisState>,
-    out: &mut Outcome,
+    (out, outcomes): (&mut Outcome, &[Outcome]),
 ) -> bool {
     let model = ctx.model;
     let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
@@ -1189,19 +1298,22 @@ fn settle_target(
     let mut differs = false;
     let mut turns: Option<interpolate::Turns> = None;
     for n in 0..6 {
-        if model.play_width_deg(n, c[n]) == 0.0 && !rest[n] {
+        // Without a play every command's output is the command: nothing to settle.
+        if model.play_width_deg(n, c[n]) == 0.0 {
             continue;
         }
         let moved = c[n] - p.axes_deg[n];
         let jitter = rest[n] && moved != 0.0 && moved.abs() <= HOLD_DEG;
-        // The common case needs nothing more: a long motion the command continues.
+        // The common case needs nothing more: a long motion that the command continues by
+        // more than the compensated path could turn it round by.
+        let b = model.play_width_deg(n, c[n]);
         let engaged = p.history[n].engaged_at(p.axes_deg[n]) == Some(assumed[n])
-            && assumed[n].sign() * moved > 0.0
+            && assumed[n].sign() * moved >= SENSITIVE_PLAYS * b + 1e-3
             && !ctx.target(k).turns.angle_deg[n].is_finite();
         if engaged && !jitter {
             continue;
         }
-        let turns = turns.get_or_insert_with(|| compensated_turns(ctx, k, p, &c));
+        let turns = turns.get_or_insert_with(|| compensated_turns(ctx, k, p, &c, outcomes));
         let segment = Segment::of(ctx, k, p, n, (turns, &c));
         let wanted = c[n] - assumed[n].sign() * 0.5 * model.play_width_deg(n, c[n]);
         // The output moves back by less than the play: the command travels it.
@@ -1242,7 +1354,7 @@ fn settle_target(
     // The held axes' plays where their commands leave them; the others on their flanks.
     let mut commanded = *out;
     commanded.axes_deg = start;
-    let exact = arrival_histories(ctx, k, previous, &commanded);
+    let exact = arrival_histories(ctx, k, previous, &commanded, outcomes);
     let solving: [AxisHistory; 6] = std::array::from_fn(|n| {
         if hold[n] {
             exact[n]
@@ -1252,7 +1364,7 @@ fn settle_target(
     });
     if !target.compensate || out.error.is_some() {
         // The command is the nominal one: only the prediction changes.
-        let nominal = arrival_histories(ctx, k, previous, out);
+        let nominal = arrival_histories(ctx, k, previous, out, outcomes);
         out.before = tcp_error(model, tool, &target.nominal_axes, &nominal, &target.goal);
         out.residual = out.before;
         return true;
@@ -1276,7 +1388,7 @@ fn settle_target(
         }
     }
     // The prediction with every play evaluated exactly where the command leaves it.
-    let histories = arrival_histories(ctx, k, previous, out);
+    let histories = arrival_histories(ctx, k, previous, out, outcomes);
     out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
     true
 }

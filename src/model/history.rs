@@ -259,9 +259,12 @@ impl AxisHistory {
         }
     }
 
-    /// The play of width `width(angle)` (degrees, ≥ 0) evaluated at command `at_deg`.
+    /// The play of width `width(angle)` (degrees, ≥ 0 for a physical play) evaluated at
+    /// command `at_deg`.
     pub fn play(&self, at_deg: f64, width: impl Fn(f64) -> f64) -> PlayAt {
-        let half = |x: f64| 0.5 * width(x).max(0.0);
+        // Not clamped at zero: an identification passes through negative widths, where the
+        // engaged flanks continue linearly (a leading difference) and the fit stays smooth.
+        let half = |x: f64| 0.5 * width(x);
         let n = self.len as usize;
         let (mut o, mut edge) = match (self.start, n) {
             (Start::Unmoved | Start::Centred, 0) => {
@@ -285,11 +288,15 @@ impl AxisHistory {
             (_, _) => (self.points[0], None),
         };
         // Each point's band, the current command's last: returns whether it moved the output.
+        // A negative width (only met inside an identification) has no band: the output is
+        // dragged to the signed edge whenever it is off the command, so the flanks continue
+        // linearly through zero and a state inside the band stays as it is.
         let mut clamp = |x: f64, o: &mut f64| -> bool {
             let h = half(x);
-            let side = if *o < x - h {
+            let band = h.max(0.0);
+            let side = if *o < x - band {
                 -1.0
-            } else if *o > x + h {
+            } else if *o > x + band {
                 1.0
             } else {
                 return false;

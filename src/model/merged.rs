@@ -61,10 +61,7 @@ impl AxisSum {
 
     fn lag_rad(&self, x: f64, history: &AxisHistory) -> f64 {
         match &self.play {
-            Some(width) => history
-                .play(x, |a| width.eval(a).0.max(0.0))
-                .lag_deg
-                .to_radians(),
+            Some(width) => history.play(x, |a| width.eval(a).0).lag_deg.to_radians(),
             None => 0.0,
         }
     }
@@ -228,7 +225,7 @@ impl Merged {
             cells[n] = cell.lo;
             let (mut value, mut slope) = table.value_slope_in(&cell);
             if let (false, Some(width)) = (history.is_simple(), &sum.play) {
-                let play = history.play(axes_deg[n], |a| width.eval(a).0.max(0.0));
+                let play = history.play(axes_deg[n], |a| width.eval(a).0);
                 value += play.lag_deg.to_radians();
                 // See `GearPlay::add_with_axis_slopes`.
                 slope += match play.edge {

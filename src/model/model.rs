@@ -215,14 +215,14 @@ impl Model {
     /// output stands against the command (see [`AxisHistory::play`](super::AxisHistory::play)).
     pub fn play(&self, state: &AxisState, n: usize) -> Option<super::PlayAt> {
         let width = self.merged().play_width(n)?;
-        Some(state.history[n].play(state.axes_deg[n], |a| width.eval(a).0.max(0.0)))
+        Some(state.history[n].play(state.axes_deg[n], |a| width.eval(a).0))
     }
 
     /// The width (degrees) of axis n+1's gear play at command `angle_deg` (0 without one).
     pub fn play_width_deg(&self, n: usize, angle_deg: f64) -> f64 {
         self.merged()
             .play_width(n)
-            .map_or(0.0, |w| w.eval(angle_deg).0.max(0.0))
+            .map_or(0.0, |w| w.eval(angle_deg).0)
     }
 
     /// The evaluated chain, for callers that need several outputs of one state.

@@ -434,6 +434,22 @@ pub struct Turns {
     pub at: [f64; 6],
 }
 
+impl Turns {
+    /// The turns after `u` along the motion, with their places rescaled to the rest of it
+    /// (a circle's end: the turns before its auxiliary point belong to the auxiliary point).
+    pub fn after(mut self, u: f64) -> Turns {
+        for n in 0..6 {
+            if !(self.at[n] > u) {
+                self.angle_deg[n] = f64::NAN;
+                self.at[n] = f64::NAN;
+            } else if u > 0.0 {
+                self.at[n] = (self.at[n] - u) / (1.0 - u);
+            }
+        }
+        self
+    }
+}
+
 /// No turning point inside a segment (see [`Arrival::turns`]).
 pub const NO_TURNS: Turns = Turns {
     angle_deg: [f64::NAN; 6],

@@ -27,12 +27,15 @@ pub fn program_states(sim: &Simulation) -> Vec<crate::model::AxisState> {
     let mut previous: Option<crate::model::AxisState> = None;
     sim.stops
         .iter()
-        .map(|s| {
+        .enumerate()
+        .map(|(i, s)| {
             let state = match (s.arrival, &previous) {
                 (Some(_), Some(p)) => p.then_through(&s.turns.angle_deg, s.nominal_axes),
                 _ => crate::model::AxisState::new(s.nominal_axes),
             };
-            previous = Some(state);
+            if !sim.passes_by(i) {
+                previous = Some(state);
+            }
             state
         })
         .collect()

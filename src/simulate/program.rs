@@ -34,6 +34,9 @@ pub struct ProgramVisit {
     /// The motion starts from a position the simulation could not follow: every axis's
     /// history starts anew.
     pub from_unknown: bool,
+    /// The robot passes this stop by without visiting it (the auxiliary point of a circle
+    /// with `CA`): the motion after it continues the history from the stop before.
+    pub passed_by: bool,
     /// The programmed TCP position in the robot base frame, mm.
     pub programmed_mm: Vector3<f64>,
     /// The tool of the motion: the TCP in the flange frame, mm.
@@ -63,10 +66,12 @@ pub fn program_visits(
         .into_iter()
         .zip(states)
         .zip(&sim.stops)
-        .map(|((stop, _), s)| ProgramVisit {
+        .enumerate()
+        .map(|(i, ((stop, _), s))| ProgramVisit {
             stop,
             turns: s.turns.angle_deg,
             from_unknown: s.arrival.is_none(),
+            passed_by: sim.passes_by(i),
             programmed_mm: s.goal.position,
             tool_mm: sim.frames[s.tool as usize].position,
             line: s.stmt.line,
@@ -86,7 +91,9 @@ pub fn visit_states(visits: &[ProgramVisit]) -> Vec<AxisState> {
                 _ => AxisState::new(v.stop.axes_deg),
             };
             state.time_s = v.stop.time_s;
-            previous = Some(state);
+            if !v.passed_by {
+                previous = Some(state);
+            }
             state
         })
         .collect()
@@ -101,10 +108,14 @@ pub fn rows_with_turns(
     stops: &[crate::measure::Stop],
 ) -> Vec<crate::measure::Stop> {
     let mut rows = Vec::with_capacity(stops.len());
-    for (k, (v, s)) in visits.iter().zip(stops).enumerate() {
+    let mut from: Option<[f64; 6]> = None;
+    for (v, s) in visits.iter().zip(stops) {
+        if v.passed_by {
+            // Not visited: not a row (a reader would take it for a stop).
+            continue;
+        }
         let turning = v.turns.iter().any(|t| t.is_finite());
-        if let (true, false, Some(prev)) = (turning, v.from_unknown, k.checked_sub(1)) {
-            let from = visits[prev].stop.axes_deg;
+        if let (true, false, Some(from)) = (turning, v.from_unknown, from) {
             let axes = std::array::from_fn(|n| {
                 if v.turns[n].is_finite() {
                     v.turns[n]
@@ -123,6 +134,7 @@ pub fn rows_with_turns(
             });
         }
         rows.push(s.clone());
+        from = Some(v.stop.axes_deg);
     }
     rows
 }

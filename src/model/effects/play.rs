@@ -71,7 +71,7 @@ impl GearPlay {
     }
 
     fn width_deg(&self, angle: f64) -> f64 {
-        self.0.table.eval(angle).0.max(0.0)
+        self.0.table.eval(angle).0
     }
 
     /// The play at `state` (degrees).

@@ -172,6 +172,12 @@ impl Simulation<'_> {
 }
 
 impl Simulation<'_> {
+    /// Whether the robot passes stop `i` by without visiting it: the auxiliary point of a
+    /// circle with `CA` only sets the circle's plane (the circle starts from the stop before).
+    pub fn passes_by(&self, i: usize) -> bool {
+        self.stops[i].role == Role::Aux && self.arc_ending_at(i + 1).is_some()
+    }
+
     /// Whether an error rejects the program.
     pub fn rejected(&self) -> bool {
         self.fatal

@@ -534,7 +534,13 @@ impl<'f> Simulator<'f> {
                 match interpolate::arrival(&robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
                     Ok(a) => {
                         q = a.end;
-                        turns = a.turns;
+                        // A circle's end: the turns before its auxiliary point are that
+                        // point's (the robot passes it on the arc).
+                        turns = match path {
+                            Path::Circ { aux } => Cartesian::new(&start, &goal, &path)
+                                .map_or(a.turns, |arc| a.turns.after(arc.fraction_at(&aux))),
+                            _ => a.turns,
+                        };
                         Some(a.rate)
                     }
                     Err(e) => {
