@@ -76,7 +76,8 @@ impl Arm {
             Vector3::x(),
         ];
         let axes = std::array::from_fn(|i| Unit::new_normalize(family[i] * description.senses[i]));
-        let reference_deg = std::array::from_fn(|i| -description.offsets_deg[i] / description.senses[i]);
+        let reference_deg =
+            std::array::from_fn(|i| -description.offsets_deg[i] / description.senses[i]);
         let errors = std::array::from_fn(|i| {
             let e = &joints[i];
             let [rx, ry, rz] = e.rotation_deg.map(f64::to_radians);
@@ -245,7 +246,10 @@ mod tests {
         assert!((t[2] - 10.0 * G * 990.0 * 1e-6).abs() < 1e-12);
         assert!(t[0].abs() < 1e-12);
         let j = arm.inertia_kgm2(&bodies);
-        assert!((j[1] - 10.0 * (1.84f64.powi(2) + 0.145f64.powi(2))).abs() < 1e-9, "{j:?}");
+        assert!(
+            (j[1] - 10.0 * (1.84f64.powi(2) + 0.145f64.powi(2))).abs() < 1e-9,
+            "{j:?}"
+        );
     }
 
     #[test]

@@ -254,3 +254,103 @@ fn row_state(axes_deg: [f64; 6], directions: [Direction; 6], time_s: f64) -> Axi
         time_s,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibration::RobotRecord;
+    use crate::kinematics::Payload;
+
+    fn robot(gears: [Gear; 6]) -> PhysicalRobot {
+        let file = PhysicalTruthFile {
+            format: PHYSICAL_FORMAT.into(),
+            robot: RobotRecord {
+                name: "t".into(),
+                description: RobotDescription::kr30ha(),
+            },
+            payload: Payload::default(),
+            target_mm: [0.0; 3],
+            joints: Default::default(),
+            gears,
+            compliance_deg_per_knm: [0.0; 6],
+            inertia_deg_per_kgm2: [0.0; 6],
+            thermal: Vec::new(),
+            tracker: Tracker {
+                noise: Noise::NONE,
+                ..Tracker::default()
+            },
+            seed: 0,
+            notes: None,
+        };
+        PhysicalRobot::new(file, Path::new("t")).unwrap()
+    }
+
+    fn at(a1: f64, kind: SampleKind) -> CommandSample {
+        CommandSample {
+            axes_deg: [a1, -90.0, 90.0, 0.0, 0.0, 0.0],
+            time_s: 0.0,
+            kind,
+            test: "t".into(),
+            line: 0,
+        }
+    }
+
+    #[test]
+    fn play_holds_the_output_through_a_short_reversal() {
+        let mut gears: [Gear; 6] = Default::default();
+        gears[0].play_deg = 0.02;
+        let r = robot(gears);
+        use SampleKind::*;
+        let rows = r
+            .measure(&[
+                at(-1.0, Visit),
+                at(0.0, Measure),    // after +1°: lags by 0.01°
+                at(-0.015, Measure), // back 0.015° < 0.02°: the output has not moved
+                at(-1.0, Pass),
+                at(0.0, Measure), // reached from below again
+                at(1.0, Pass),
+                at(0.0, Measure), // reached from above: leads by 0.01°
+            ])
+            .unwrap();
+        let p: Vec<Vector3<f64>> = rows.iter().filter_map(|s| s.measured_mm).collect();
+        assert_eq!(rows.len(), 5, "Pass samples are not rows");
+        assert!((p[0] - p[1]).norm() < 1e-9, "{} {}", p[0], p[1]);
+        assert!((p[0] - p[2]).norm() < 1e-9);
+        // From above vs from below: 0.02° of A1 at the HOME radius 1340 mm.
+        let chord = 1340.0 * 0.02f64.to_radians();
+        assert!(((p[3] - p[2]).norm() - chord).abs() < 1e-6);
+        assert_eq!(rows[2].state.directions[0], Direction::Negative);
+        assert_eq!(rows[3].state.directions[0], Direction::Positive);
+        assert_eq!(rows[4].state.directions[0], Direction::Negative);
+        assert_eq!(rows[0].state.directions[1], Direction::Unknown);
+        // The nominal robot (no play): the HOME flange.
+        let nominal = robot(Default::default());
+        let p = nominal.measure(&[at(0.0, Measure)]).unwrap()[0]
+            .measured_mm
+            .unwrap();
+        assert!((p - Vector3::new(1340.0, 0.0, 1810.0)).norm() < 1e-9);
+    }
+
+    #[test]
+    fn out_of_limits_sample_names_its_line() {
+        let r = robot(Default::default());
+        let mut s = at(190.0, SampleKind::Pass);
+        s.line = 12;
+        let e = r.measure(&[at(0.0, SampleKind::Visit), s]).unwrap_err();
+        assert!(e.to_string().contains("line 12") && e.to_string().contains("A1 = 190°"));
+    }
+
+    #[test]
+    fn inertia_crosstalk_is_of_the_papers_size() {
+        // The fixture's A2 coefficient turns the moment of inertia's change between A3 = 58°
+        // and 153° (the paper's Fig. 5 tests) into about two hundredths of a degree.
+        let text = include_str!("../../../fixtures/measurements/kr30ha-physical.json");
+        let r = PhysicalRobot::new(parse(text, Path::new("f")).unwrap(), Path::new("f")).unwrap();
+        let a2 = |a3: f64| {
+            let out = r.output_deg(&[0.0, -60.0, a3, 0.0, 45.0, 0.0], &[0.0; 6], 0.0);
+            out[1] + 60.0 - r.file.gears[1].transmission_error_deg(-60.0)
+        };
+        let change = a2(153.0) - a2(58.0);
+        assert!((0.005..0.04).contains(&change.abs()), "{change}");
+    }
+}

@@ -46,10 +46,7 @@ pub fn from_stops(stops: &[PlannedStop], step_deg: f64) -> Vec<CommandSample> {
             SampleKind::Visit
         }
     });
-    linear(
-        stops.iter().zip(kinds).map(|(s, k)| (s, k, 0)),
-        step_deg,
-    )
+    linear(stops.iter().zip(kinds).map(|(s, k)| (s, k, 0)), step_deg)
 }
 
 /// Samples of a program run: its visits joined by motion linear in axis space (see the module

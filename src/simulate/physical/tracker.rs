@@ -52,7 +52,8 @@ impl Head {
     pub fn measure(&self, p: &Vector3<f64>, rng: &mut ChaCha8Rng) -> Vector3<f64> {
         let radial = p - self.station;
         let seen = self.station + radial * (1.0 + self.scale);
-        let sigma = (self.noise.sigma_um + self.noise.sigma_um_per_m * radial.norm() / 1000.0) / 1000.0;
+        let sigma =
+            (self.noise.sigma_um + self.noise.sigma_um_per_m * radial.norm() / 1000.0) / 1000.0;
         let mut unit = || -> f64 {
             match &self.student {
                 Some((t, scale)) => t.sample(rng) * scale,
