@@ -302,7 +302,10 @@ fn every_parameter_name_is_checked() {
         .iter()
         .map(|n| n.trim_start_matches("geometric.").to_string())
         .collect();
-    assert_eq!(names, NAMES, "the geometric parameters changed: extend this test");
+    assert_eq!(
+        names, NAMES,
+        "the geometric parameters changed: extend this test"
+    );
 }
 
 macro_rules! one_parameter {

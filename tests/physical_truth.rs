@@ -60,7 +60,11 @@ fn campaign(robot: &PhysicalRobot) -> Vec<Stop> {
 /// The measured positions of every stop of `ws` run on `robot`, starting at `t0_s`.
 fn run(ws: &Workspace, robot: &PhysicalRobot, t0_s: f64) -> Vec<Option<Vector3<f64>>> {
     let sim = motion::simulate(ws, robot.robot(), &[]);
-    assert!(!sim.rejected() && sim.unreachable == 0, "{:?}", sim.diagnostics);
+    assert!(
+        !sim.rejected() && sim.unreachable == 0,
+        "{:?}",
+        sim.diagnostics
+    );
     let mut visits = program_visits(&sim, "path", DEFAULT_DWELL_S, DEFAULT_AXIS_SPEED_DEG_S);
     for v in &mut visits {
         v.stop.time_s += t0_s;
@@ -264,13 +268,20 @@ fn simulate_campaign_accepts_a_physical_truth() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let file = read_csv(&out).unwrap();
     let campaign: robopost::simulate::Campaign =
         serde_json::from_str(&std::fs::read_to_string(&campaign_json).unwrap()).unwrap();
     let expected = truth()
         .with_seed(4)
-        .measure(&physical::from_stops(&campaign.plan().unwrap(), PTP_STEP_DEG))
+        .measure(&physical::from_stops(
+            &campaign.plan().unwrap(),
+            PTP_STEP_DEG,
+        ))
         .unwrap();
     assert_eq!(file.stops.len(), expected.len());
     for (row, e) in file.stops.iter().zip(&expected) {
@@ -284,7 +295,11 @@ fn simulate_campaign_accepts_a_physical_truth() {
     // A bad value is named by its JSON path, exit 2, nothing written.
     let text = std::fs::read_to_string(&truth_path).unwrap();
     let bad = dir.path().join("bad.json");
-    std::fs::write(&bad, text.replace("\"play_deg\": 0.012", "\"play_deg\": -0.012")).unwrap();
+    std::fs::write(
+        &bad,
+        text.replace("\"play_deg\": 0.012", "\"play_deg\": -0.012"),
+    )
+    .unwrap();
     let never = dir.path().join("never.csv");
     let run = std::process::Command::new(exe)
         .args(["simulate", "campaign", "--truth"])

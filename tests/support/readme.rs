@@ -64,7 +64,12 @@ pub fn blocks() -> Vec<Block> {
 /// The asserted block `name` (exactly one).
 pub fn block(name: &str) -> Block {
     let found: Vec<Block> = blocks().into_iter().filter(|b| b.name == name).collect();
-    assert_eq!(found.len(), 1, "README: asserted block `{name}` found {} times", found.len());
+    assert_eq!(
+        found.len(),
+        1,
+        "README: asserted block `{name}` found {} times",
+        found.len()
+    );
     found.into_iter().next().unwrap()
 }
 
@@ -110,7 +115,12 @@ pub fn numbers(text: &str) -> Vec<f64> {
                 j += 1;
             } else if d == ','
                 && j + 3 < chars.len() + 1
-                && chars[j + 1..].iter().take(3).filter(|x| x.is_ascii_digit()).count() == 3
+                && chars[j + 1..]
+                    .iter()
+                    .take(3)
+                    .filter(|x| x.is_ascii_digit())
+                    .count()
+                    == 3
                 && !chars.get(j + 4).is_some_and(|x| x.is_ascii_digit())
             {
                 j += 1;
