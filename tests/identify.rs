@@ -5,6 +5,9 @@
 //! the same pins — by refining it against its own noise-free measurements, which moves it only
 //! along those duplicate directions (its predictions stay the same, checked below).
 
+#[path = "support/readme.rs"]
+mod readme;
+
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3, Vector3};
@@ -473,6 +476,21 @@ fn identified_model_predicts_the_validation_paths_to_the_noise_floor() {
     println!("{}", table_row("identified without crosstalk", &without));
     println!("{}", table_row("identified, full model", &with));
     println!("{}", table_row("truth (tracker noise alone)", &noise));
+    // The README's table (block `validation-prediction`), within 1 µm: the same code and
+    // fixtures give the same figures; the tolerance covers floating-point differences between
+    // machines and the printed rounding.
+    let v = |s: &ErrorStats| vec![s.xy_mean_um, s.xy_2sigma_um, s.z_mean_um, s.z_2sigma_um];
+    readme::assert_rows(
+        "validation-prediction",
+        &[
+            ("nominal", v(&uncompensated)),
+            ("identified without crosstalk", v(&without)),
+            ("identified, full model", v(&with)),
+            ("the truth itself", v(&noise)),
+        ],
+        1.0,
+        0,
+    );
     assert!(uncompensated.xy_mean_um > 100.0, "{uncompensated:?}");
     assert!(with.xy_mean_um * 10.0 < uncompensated.xy_mean_um);
     assert!(

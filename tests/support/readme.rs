@@ -290,17 +290,20 @@ fn tokens_match(written: &str, actual: &str, tolerance: f64) -> bool {
 
 /// Compares the command output written in block `name` with `actual`: the written tokens, in
 /// segments separated by `...` or `(...)`, must appear in `actual` in order, each segment as
-/// a contiguous run of tokens; numbers within `tolerance`, words exactly.
+/// a contiguous run of tokens; numbers within `tolerance`, words exactly. A token
+/// containing `...` or `…` is an elision (the text before it still matches).
 pub fn assert_output(name: &str, actual: &str, tolerance: f64) {
     let b = block(name);
     let written = output_of(&b);
     let actual_tokens: Vec<&str> = actual.split_whitespace().collect();
     let mut segments: Vec<Vec<&str>> = vec![Vec::new()];
     for t in written.split_whitespace() {
-        if t == "..." || t == "(...)" || t == "…" {
-            segments.push(Vec::new());
-        } else if let Some(head) = t.strip_suffix("(...)") {
-            segments.last_mut().unwrap().push(head);
+        if let Some(at) = t.find("...").or_else(|| t.find('…')) {
+            // An elision, possibly glued to text: `word(...)`, `...).`
+            let head = t[..at].trim_end_matches('(');
+            if !head.is_empty() {
+                segments.last_mut().unwrap().push(head);
+            }
             segments.push(Vec::new());
         } else {
             segments.last_mut().unwrap().push(t);
