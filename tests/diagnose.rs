@@ -125,7 +125,9 @@ fn calibrate(truth: &Model, effects: &str, data: &[Stop]) -> Calibration {
 }
 
 fn validation_rms(cal: &Calibration, validation: &[Stop]) -> f64 {
-    Summary::residuals(&compare::compare(cal, &[as_file(validation)])).all.rms_um
+    Summary::residuals(&compare::compare(cal, &[as_file(validation)]))
+        .all
+        .rms_um
 }
 
 fn as_file(stops: &[Stop]) -> Measurements {
@@ -244,9 +246,7 @@ fn hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
     assert!(
         accepted,
         "hidden {hidden}, diagnose ranks first {} (indistinguishable from {:?}); {}",
-        top.effect,
-        top.indistinguishable_from,
-        d.verdict
+        top.effect, top.indistinguishable_from, d.verdict
     );
     let (_, t_from, t_to) = readme_t_bounds();
     assert!(
@@ -522,7 +522,11 @@ fn compliance_is_told_from_crosstalk_with_two_payloads() {
                 validation_rms(&at(&old), check),
                 validation_rms(&at(&new), check),
             );
-            assert!(after < before, "{hidden} at {:?}: {before} → {after}", truth.payload);
+            assert!(
+                after < before,
+                "{hidden} at {:?}: {before} → {after}",
+                truth.payload
+            );
         }
     }
 }

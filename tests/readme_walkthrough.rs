@@ -57,11 +57,24 @@ fn hidden_effect_walkthrough_prints_what_the_readme_says() {
     // 1. and 2.
     robopost(
         d,
-        &["identify", &campaign, "--target=-120,-80,180", "-o", "paper.json"],
+        &[
+            "identify",
+            &campaign,
+            "--target=-120,-80,180",
+            "-o",
+            "paper.json",
+        ],
     );
     let compare = robopost(
         d,
-        &["compare", "-c", "paper.json", &validation, "--report", "report"],
+        &[
+            "compare",
+            "-c",
+            "paper.json",
+            &validation,
+            "--report",
+            "report",
+        ],
     );
     readme::assert_output("walkthrough-compare", &compare, ONE_DECIMAL);
     assert!(d.join("report/index.html").exists());
@@ -77,7 +90,14 @@ fn hidden_effect_walkthrough_prints_what_the_readme_says() {
     readme::assert_output("walkthrough-diagnose", &diagnose, ONE_DECIMAL);
     let diagnosis: serde_json::Value = serde_json::from_str(&robopost(
         d,
-        &["diagnose", "--json", "-c", "paper.json", &campaign, &validation],
+        &[
+            "diagnose",
+            "--json",
+            "-c",
+            "paper.json",
+            &campaign,
+            &validation,
+        ],
     ))
     .unwrap();
     let considered = diagnosis["considered"].as_array().unwrap().len() as f64;
@@ -104,7 +124,14 @@ fn hidden_effect_walkthrough_prints_what_the_readme_says() {
     );
     let compare_tilt = robopost(
         d,
-        &["compare", "-c", "tilt.json", "--against", "paper.json", &validation],
+        &[
+            "compare",
+            "-c",
+            "tilt.json",
+            "--against",
+            "paper.json",
+            &validation,
+        ],
     );
     readme::assert_output("walkthrough-compare-tilt", &compare_tilt, ONE_DECIMAL);
     let tilt: serde_json::Value = serde_json::from_str(&robopost(
