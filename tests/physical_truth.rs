@@ -117,7 +117,7 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> (Workspace, usize) {
         .diagnostics
         .iter()
         .filter(|d| d.message.contains("no solution with S"))
-        .map(|d| (d.file.clone(), d.line as usize, d.message.clone()))
+        .map(|d| (d.file.clone(), d.line, d.message.clone()))
         .collect();
     for (file, line, message) in &refused {
         let text = std::fs::read_to_string(file).unwrap();

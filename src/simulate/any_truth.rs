@@ -17,8 +17,8 @@ use crate::measure::Stop;
 /// A truth read from a file.
 #[derive(Clone, Debug)]
 pub enum Truth {
-    Model(VirtualRobot),
-    Physical(PhysicalRobot),
+    Model(Box<VirtualRobot>),
+    Physical(Box<PhysicalRobot>),
 }
 
 impl Truth {
@@ -33,16 +33,18 @@ impl Truth {
             .and_then(|v| v.get("format").and_then(|f| f.as_str().map(String::from)));
         if format.as_deref() == Some(PHYSICAL_FORMAT) {
             let file = physical::parse(&text, path)?;
-            return Ok(Truth::Physical(PhysicalRobot::new(file, path)?));
+            return Ok(Truth::Physical(Box::new(PhysicalRobot::new(file, path)?)));
         }
         let file = super::truth::parse(&text, path)?;
-        Ok(Truth::Model(VirtualRobot::from_truth(&file, path)?))
+        Ok(Truth::Model(Box::new(VirtualRobot::from_truth(
+            &file, path,
+        )?)))
     }
 
     pub fn with_seed(self, seed: u64) -> Truth {
         match self {
-            Truth::Model(r) => Truth::Model(r.with_seed(seed)),
-            Truth::Physical(r) => Truth::Physical(r.with_seed(seed)),
+            Truth::Model(r) => Truth::Model(Box::new((*r).with_seed(seed))),
+            Truth::Physical(r) => Truth::Physical(Box::new((*r).with_seed(seed))),
         }
     }
 
