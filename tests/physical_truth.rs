@@ -465,3 +465,159 @@ fn the_floor_taken_apart() {
     }
     readme::assert_rows("physical-floor", &rows, 2.0, 0);
 }
+
+/// Diagnosis on the physical truth (its gross tracker errors left out: they are a handful of
+/// points that dominate any RMS, see Table 1): the paper's model identified from the campaign
+/// and 200 poses with every axis moving; `diagnose` must name as missing an effect the truth
+/// really has and the paper's model lacks — the truth deflects A3 under gravity (which at one
+/// payload is the twin of a crosstalk A2 → A3), A2, A4, A5 too, and grows as it warms up.
+/// What adding the finding does on 200 other poses that no fit saw is measured and stated.
+#[test]
+fn diagnose_names_what_the_physical_truth_has() {
+    use rand::{Rng, SeedableRng};
+    use robopost::compare::{self, Summary};
+    use robopost::diagnose::{diagnose, DiagnoseOptions};
+    use robopost::measure::Measurements;
+    use robopost::simulate::paced;
+
+    let mut file = truth().file().clone();
+    file.tracker.noise.gross_probability = 0.0;
+    let robot = PhysicalRobot::new(file, Path::new("no gross errors")).unwrap();
+    let poses = |seed: u64, t0: f64, label: &str| {
+        let ranges = [
+            [-60.0, 60.0],
+            [-112.0, -19.0],
+            [20.0, 150.0],
+            [-90.0, 90.0],
+            [-90.0, 90.0],
+            [-180.0, 180.0],
+        ];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let visits: Vec<_> = (0..200)
+            .map(|_| {
+                let axes = std::array::from_fn(|k| rng.gen_range(ranges[k][0]..ranges[k][1]));
+                (label.to_string(), axes, true)
+            })
+            .collect();
+        let mut stops = paced(visits, 3.2, 30.0);
+        for s in &mut stops {
+            s.time_s += t0;
+        }
+        stops
+    };
+    let mut plan = Campaign::paper().plan().unwrap();
+    let end = plan.last().unwrap().time_s;
+    plan.extend(poses(7, end + 60.0, "poses"));
+    let data = robot
+        .measure(&physical::from_stops(&plan, PTP_STEP_DEG))
+        .unwrap();
+    let held_out = robot
+        .clone()
+        .with_seed(99)
+        .measure(&physical::from_stops(
+            &poses(8, end + 1500.0, "held-out"),
+            PTP_STEP_DEG,
+        ))
+        .unwrap();
+    let request = |base: Option<robopost::calibration::Calibration>, effects: Effects| Request {
+        effects: Some(effects),
+        base,
+        target_mm: Some(paper::TARGET_MM),
+        ..Request::default()
+    };
+    let old = identify(
+        &data,
+        &request(None, Effects::Exactly(expand_list(PAPER_EFFECTS).unwrap())),
+    )
+    .unwrap()
+    .calibration;
+    let file_of = |stops: &[Stop], name: &str| Measurements {
+        source: name.into(),
+        stops: stops.to_vec(),
+        ignored_columns: vec![],
+    };
+    let d = diagnose(&old, &[file_of(&data, "data")], &DiagnoseOptions::default()).unwrap();
+    let top = d
+        .candidates
+        .first()
+        .unwrap_or_else(|| panic!("{}", d.verdict));
+    println!("{}", d.verdict);
+    for c in &d.candidates {
+        println!(
+            "  {} {:.0}% → {:.1} µm",
+            c.effect,
+            100.0 * c.explained,
+            c.rms_after_um
+        );
+    }
+    let present = [
+        "compliance:A2",
+        "compliance:A3",
+        "compliance:A4",
+        "compliance:A5",
+        "drift",
+    ];
+    let physical_cause = present.contains(&top.effect.as_str())
+        || (top.effect == "crosstalk:A2->A3"
+            && top
+                .indistinguishable_from
+                .iter()
+                .any(|e| e == "compliance:A3"));
+    assert!(
+        physical_cause,
+        "diagnose names {} (twins {:?}), which the truth does not have",
+        top.effect, top.indistinguishable_from
+    );
+    let new = identify(
+        &data,
+        &request(
+            Some(old.clone()),
+            Effects::Add(expand_list(&top.effect).unwrap()),
+        ),
+    )
+    .unwrap()
+    .calibration;
+    let squares = |cal: &robopost::calibration::Calibration| -> Vec<f64> {
+        compare::compare(cal, &[file_of(&held_out, "held-out")])
+            .iter()
+            .map(|r| (r.residual() * 1e3).norm_squared())
+            .collect()
+    };
+    let (before, after) = (squares(&old), squares(&new));
+    let n = before.len() as f64;
+    let gain: Vec<f64> = before.iter().zip(&after).map(|(b, a)| b - a).collect();
+    let mean = gain.iter().sum::<f64>() / n;
+    let se = (gain.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+    let rms = |v: &[f64]| (v.iter().sum::<f64>() / n).sqrt();
+    let stats = |cal| {
+        Summary::residuals(&compare::compare(cal, &[file_of(&held_out, "held-out")]))
+            .all
+            .rms_um
+    };
+    println!(
+        "held-out RMS {:.1} → {:.1} µm (gain {mean:.0} ± {se:.0} µm²)",
+        rms(&before),
+        rms(&after)
+    );
+    assert!((stats(&old) - rms(&before)).abs() < 1e-6);
+    // What it does on poses no fit saw is reported, not required: on this truth the finding
+    // that cross-validation over the campaign's own points credits does not lower the error at
+    // arbitrary poses (README). It must not make it significantly worse.
+    assert!(
+        mean > -3.0 * se,
+        "adding {} makes the held-out error worse: {mean} ± {se} µm²",
+        top.effect
+    );
+    readme::assert_prose(
+        "physical-diagnose",
+        &[
+            100.0 * top.explained,
+            d.rms_um,
+            top.rms_after_um,
+            n,
+            rms(&before),
+            rms(&after),
+        ],
+        0.15,
+    );
+}

@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 26] = [
+const CLAIMS: [(&str, &str); 27] = [
     ("quick-start", "tests/readme.rs"),
     ("tracker-default", "tests/readme.rs"),
     ("validation-prediction", "tests/identify.rs"),
@@ -20,6 +20,7 @@ const CLAIMS: [(&str, &str); 26] = [
     ("physical-arm-only", "tests/physical_truth.rs"),
     ("physical-table-1", "tests/physical_truth.rs"),
     ("physical-floor", "tests/physical_truth.rs"),
+    ("physical-diagnose", "tests/physical_truth.rs"),
     ("solver-tolerance", "tests/readme.rs"),
     ("chain-tolerance", "tests/readme.rs"),
     ("bench", "tests/readme.rs"),
