@@ -18,3 +18,10 @@ pub use any_truth::Truth;
 pub use campaign::{paced, Campaign, PlannedStop};
 pub use truth::{TrackerNoise, TruthFile};
 pub use virtual_robot::{SimulateError, VirtualRobot};
+
+// shim: the coming `AxisState::directions()` (issue 22); drop at merge.
+impl crate::model::AxisState {
+    pub fn directions(&self) -> [crate::model::Direction; 6] {
+        self.directions
+    }
+}
