@@ -285,7 +285,7 @@ fn simulate_campaign_accepts_a_physical_truth() {
         .unwrap();
     assert_eq!(file.stops.len(), expected.len());
     for (row, e) in file.stops.iter().zip(&expected) {
-        assert_eq!(row.state.directions, e.state.directions);
+        assert_eq!(row.state.directions(), e.state.directions());
         match (row.measured_mm, e.measured_mm) {
             (Some(a), Some(b)) => assert!((a - b).amax() < 1e-4),
             (None, None) => {}

@@ -319,10 +319,10 @@ mod tests {
         // From above vs from below: 0.02° of A1 at the HOME radius 1340 mm.
         let chord = 1340.0 * 0.02f64.to_radians();
         assert!(((p[3] - p[2]).norm() - chord).abs() < 1e-6);
-        assert_eq!(rows[2].state.directions[0], Direction::Negative);
-        assert_eq!(rows[3].state.directions[0], Direction::Positive);
-        assert_eq!(rows[4].state.directions[0], Direction::Negative);
-        assert_eq!(rows[0].state.directions[1], Direction::Unknown);
+        assert_eq!(rows[2].state.directions()[0], Direction::Negative);
+        assert_eq!(rows[3].state.directions()[0], Direction::Positive);
+        assert_eq!(rows[4].state.directions()[0], Direction::Negative);
+        assert_eq!(rows[0].state.directions()[1], Direction::Unknown);
         // The nominal robot (no play): the HOME flange.
         let nominal = robot(Default::default());
         let p = nominal.measure(&[at(0.0, Measure)]).unwrap()[0]
