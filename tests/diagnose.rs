@@ -10,6 +10,9 @@
 //! show), KR 30 HA with a 30 kg payload, tracker noise of the virtual robot; validation: 200
 //! other random poses measured afterwards. Tables at 2° pitch, the campaign's.
 
+#[path = "support/readme.rs"]
+mod readme;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -122,12 +125,42 @@ fn calibrate(truth: &Model, effects: &str, data: &[Stop]) -> Calibration {
 }
 
 fn validation_rms(cal: &Calibration, validation: &[Stop]) -> f64 {
-    let m = Measurements {
+    Summary::residuals(&compare::compare(cal, &[as_file(validation)]))
+        .all
+        .rms_um
+}
+
+fn as_file(stops: &[Stop]) -> Measurements {
+    Measurements {
         source: "validation".into(),
-        stops: validation.to_vec(),
+        stops: stops.to_vec(),
         ignored_columns: vec![],
-    };
-    Summary::residuals(&compare::compare(cal, &[m])).all.rms_um
+    }
+}
+
+/// Squared 3-D residual (µm²) of every validation point under `cal`.
+fn squared_residuals(cal: &Calibration, validation: &[Stop]) -> Vec<f64> {
+    compare::compare(cal, &[as_file(validation)])
+        .iter()
+        .map(|r| (r.residual() * 1e3).norm_squared())
+        .collect()
+}
+
+/// Mean and standard error of the per-point difference `a − b`.
+fn paired(a: &[f64], b: &[f64]) -> (f64, f64) {
+    let d: Vec<f64> = a.iter().zip(b).map(|(x, y)| x - y).collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
+/// The README's bounds on diagnose's t statistic: (clean data at most, a missing effect from,
+/// to).
+fn readme_t_bounds() -> (f64, f64, f64) {
+    let n = readme::numbers(&readme::block("diagnose-t").text);
+    assert_eq!(n.len(), 3, "diagnose-t: {n:?}");
+    (n[0], n[1], n[2])
 }
 
 fn run_diagnose(cal: &Calibration, data: &[Stop]) -> Diagnosis {
@@ -171,13 +204,30 @@ fn add_with_cli(old: &Calibration, data: &[Stop], name: &str) -> Calibration {
     calibration::load(Path::new(&new_path)).unwrap()
 }
 
-/// The whole loop for one hidden effect; `accepted` are the effects diagnose may rank first
-/// (the hidden one, or one the output says it cannot tell apart from it).
+/// How a finding must relate to the hidden effect.
+#[derive(Clone, Copy, PartialEq)]
+enum Expect {
+    /// Diagnose ranks the hidden effect itself first.
+    Itself,
+    /// At one payload the hidden effect has a twin that explains the same residual: diagnose
+    /// may rank the twin first if it names the hidden effect as indistinguishable from it.
+    ItselfOrTwin,
+}
+
+/// The whole loop for one hidden effect, the README's row `label` of `diagnose-table`.
+///
+/// The thresholds are physical, not fitted to observed falls: the calibration identified with
+/// the hidden effect from the start is the floor (`best`); the hidden effect adds u² =
+/// before² − best² to the validation mean square. The fall must be significant on the
+/// independent validation points (paired mean of the per-point squared residuals more than 3
+/// standard errors), and adding the finding must remove at least 90 % of
+/// u² (a twin, which cannot follow the hidden effect's shape exactly: 75 %).
 fn hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
     truth: Model,
     base_effects: &str,
     hidden: &str,
-    min_fall: f64,
+    label: &str,
+    expect: Expect,
 ) -> (Calibration, Vec<Stop>, Diagnosis) {
     let (data, validation) = measure(&truth);
     let old = calibrate(&truth, base_effects, &data);
@@ -190,12 +240,19 @@ fn hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
             &d.considered[..5]
         )
     });
+    let accepted = top.effect == hidden
+        || (expect == Expect::ItselfOrTwin
+            && top.indistinguishable_from.iter().any(|e| e == hidden));
     assert!(
-        top.effect == hidden || top.indistinguishable_from.iter().any(|e| e == hidden),
+        accepted,
         "hidden {hidden}, diagnose ranks first {} (indistinguishable from {:?}); {}",
-        top.effect,
-        top.indistinguishable_from,
-        d.verdict
+        top.effect, top.indistinguishable_from, d.verdict
+    );
+    let (_, t_from, t_to) = readme_t_bounds();
+    assert!(
+        (t_from..=t_to).contains(&top.t_statistic),
+        "{hidden}: t = {:.1}, the README says a missing effect scores {t_from}–{t_to}",
+        top.t_statistic
     );
     if top.effect != hidden {
         // The output says so, in the evidence and in the verdict.
@@ -219,18 +276,45 @@ fn hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
         top.effect,
         100.0 * top.explained
     );
-    assert!(
-        after <= (1.0 - min_fall) * before,
-        "{hidden}: validation RMS {before:.1} → {after:.1} µm, expected a fall of at least {:.0}%",
-        100.0 * min_fall
+    let (gain, se) = paired(
+        &squared_residuals(&old, &validation),
+        &squared_residuals(&new, &validation),
     );
-    // A twin explains the same residual, but need not fit the truth's shape exactly.
+    // One pre-stated hypothesis on independent points: three standard errors (diagnose needs
+    // five because it tries 42 candidates on the same data).
     assert!(
-        after <= best + 0.3 * (before - best),
-        "{hidden}: adding {} leaves {after:.1} µm; with {hidden} from the start {best:.1} µm \
-         (from {before:.1}): it should close at least 70% of that gap",
-        top.effect
+        gain > 3.0 * se,
+        "{hidden}: the fall {before:.1} → {after:.1} µm is not significant on the validation \
+         points (paired gain {gain:.1} ± {se:.1} µm²)"
     );
+    let u2 = before * before - best * best;
+    let left = (after * after - best * best).max(0.0);
+    let share = if top.effect == hidden { 0.1 } else { 0.25 };
+    assert!(
+        left <= share * u2,
+        "{hidden}: adding {} leaves {:.0}% of the {:.1} µm the hidden effect adds ({before:.1} → \
+         {after:.1} µm; with {hidden} from the start {best:.1} µm)",
+        top.effect,
+        100.0 * left / u2,
+        u2.sqrt()
+    );
+    // The README's row: what diagnose ranks first, and the three RMS figures (printed to
+    // 0.1 µm; within 0.15).
+    let first = if top.indistinguishable_from.is_empty() {
+        top.effect.clone()
+    } else {
+        format!(
+            "{}, indistinguishable from {}",
+            top.effect,
+            top.indistinguishable_from.join(", ")
+        )
+    };
+    assert_eq!(
+        readme::row("diagnose-table", label)[0],
+        first,
+        "README diagnose-table row `{label}`"
+    );
+    readme::assert_row("diagnose-table", label, &[before, after, best], 0.15);
     (old, data, d)
 }
 
@@ -253,6 +337,20 @@ fn clean_data_gives_no_finding() {
     // Every missing effect of the table was tried: 56 − 14 in the paper's model.
     assert_eq!(d.considered.len(), 42);
     assert!(d.considered.iter().all(|f| !f.significant));
+    let (clean_at_most, _, _) = readme_t_bounds();
+    let worst = d
+        .considered
+        .iter()
+        .map(|f| f.t_statistic)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        worst <= clean_at_most,
+        "on clean data a candidate scores t = {worst:.2}; the README says {clean_at_most} at most"
+    );
+    assert_eq!(
+        readme::row("diagnose-table", "none")[0],
+        "no finding, \"Nothing significant is missing\""
+    );
 }
 
 #[test]
@@ -262,7 +360,8 @@ fn crosstalk_a3_to_a2_as_in_the_paper() {
         paper_truth(),
         "geometric,map:A1..A6,backlash:A1..A6",
         "crosstalk:A3->A2",
-        0.25,
+        "crosstalk A3→A2",
+        Expect::Itself,
     );
 }
 
@@ -291,12 +390,17 @@ fn crosstalk_a2_to_a3_as_in_fig_7() {
         truth,
         PAPER,
         "crosstalk:A2->A3",
-        0.2,
+        "crosstalk A2→A3",
+        Expect::Itself,
     );
 }
 
+/// At one payload compliance has a twin: the gravity torque on A2 is a function of A2 and A3,
+/// which a crosstalk table also is. Diagnose may rank the twin first if it shows, by
+/// re-identifying around each, that the two explain the same residual and names compliance as
+/// indistinguishable; the two-payload test below requires compliance itself.
 #[test]
-fn compliance_of_a2_under_30_kg() {
+fn compliance_of_a2_under_30_kg_at_one_payload() {
     // 0.004°/kN·m. With the paper's crosstalk A3->A2 in both truth and model, that table takes
     // up A2's gravity deflection almost entirely (the torque on A2 is a function of A2 and A3
     // at one payload), so this case hides it from a model without that crosstalk.
@@ -309,19 +413,122 @@ fn compliance_of_a2_under_30_kg() {
         truth,
         "geometric,map:A1..A6,backlash:A1..A6",
         "compliance:A2",
-        0.08,
+        "compliance A2",
+        Expect::ItselfOrTwin,
     );
 }
 
+/// As for A2: at one payload crosstalk A2→A3 is compliance A3's twin.
 #[test]
-fn compliance_of_a3_under_30_kg() {
+fn compliance_of_a3_under_30_kg_at_one_payload() {
     // 0.006°/kN·m on top of the paper's effects.
     hidden_effect_is_found_and_adding_it_lowers_the_validation_error(
         with_effect(paper_truth(), "compliance:A3", &[0.006]),
         PAPER,
         "compliance:A3",
-        0.04,
+        "compliance A3",
+        Expect::ItselfOrTwin,
     );
+}
+
+/// Compliance told apart from crosstalk the physical way: the same campaign and poses measured
+/// with two payloads (0 and 30 kg). A crosstalk table is a function of the angles alone and
+/// cannot follow a deflection that changes with the payload at the same angles; compliance is a
+/// function of the gravity torque and can. Diagnose must rank compliance first (no twin), and
+/// adding it must bring the validation error down to the complete calibration's.
+///
+/// Needs a payload per measurement file, which neither `identify` nor `diagnose` accepts today
+/// (a calibration has one payload and every row is taken at it); the test writes the interface
+/// it needs (`--payload MASS,X,Y,Z` before the files it applies to).
+#[test]
+#[ignore = "needs issue 23: a payload per measurement file in identify and diagnose"]
+fn compliance_is_told_from_crosstalk_with_two_payloads() {
+    for (hidden, value) in [("compliance:A2", 0.004), ("compliance:A3", 0.006)] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut files = Vec::new();
+        let mut validation = Vec::new();
+        for (k, mass) in [0.0, 30.0].into_iter().enumerate() {
+            let mut truth = with_effect(paper_truth(), hidden, &[value]);
+            truth.payload = Payload {
+                mass_kg: mass,
+                cog_mm: [0.0, 0.0, 100.0],
+            };
+            let (data, check) = measure(&truth);
+            let csv = dir.path().join(format!("payload{k}.csv"));
+            measure::write_csv(std::fs::File::create(&csv).unwrap(), &data).unwrap();
+            files.push((format!("{mass},0,0,100"), csv));
+            validation.push((truth, check));
+        }
+        let robopost = |args: &[String]| {
+            let out = Command::new(env!("CARGO_BIN_EXE_robopost"))
+                .args(args)
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "robopost {args:?}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            String::from_utf8_lossy(&out.stdout).into_owned()
+        };
+        let with_payloads = |mut args: Vec<String>| {
+            for (payload, csv) in &files {
+                args.push("--payload".into());
+                args.push(payload.clone());
+                args.push(csv.display().to_string());
+            }
+            args
+        };
+        let old = dir.path().join("old.json");
+        robopost(&with_payloads(vec![
+            "identify".into(),
+            "--target=-120,-80,180".into(),
+            "--map-pitch".into(),
+            PITCH.to_string(),
+            "--effects".into(),
+            PAPER.into(),
+            "-o".into(),
+            old.display().to_string(),
+        ]));
+        let d: serde_json::Value = serde_json::from_str(&robopost(&with_payloads(vec![
+            "diagnose".into(),
+            "--json".into(),
+            "-c".into(),
+            old.display().to_string(),
+        ])))
+        .unwrap();
+        assert_eq!(d["candidates"][0]["effect"], hidden, "{d:#}");
+        let new = dir.path().join("new.json");
+        robopost(&with_payloads(vec![
+            "identify".into(),
+            "-c".into(),
+            old.display().to_string(),
+            "--effects".into(),
+            format!("+{hidden}"),
+            "--map-pitch".into(),
+            PITCH.to_string(),
+            "-o".into(),
+            new.display().to_string(),
+        ]));
+        let old = calibration::load(&old).unwrap();
+        let new = calibration::load(&new).unwrap();
+        for (truth, check) in &validation {
+            let at = |cal: &Calibration| {
+                let mut model = cal.model();
+                model.payload = truth.payload;
+                Calibration::from_model("v", model, MeasurementFrame::Base, Provenance::default())
+            };
+            let (before, after) = (
+                validation_rms(&at(&old), check),
+                validation_rms(&at(&new), check),
+            );
+            assert!(
+                after < before,
+                "{hidden} at {:?}: {before} → {after}",
+                truth.payload
+            );
+        }
+    }
 }
 
 #[test]
@@ -335,7 +542,8 @@ fn tilt_of_a1_of_four_thousandths_of_a_degree() {
         ),
         PAPER,
         "tilt:A1",
-        0.6,
+        "tilt A1",
+        Expect::Itself,
     );
     // The command line prints the same diagnosis with the keys of CONTRACTS.md.
     let dir = tempfile::tempdir().unwrap();
@@ -388,7 +596,8 @@ fn drift_of_a_tenth_of_a_millimetre_per_hour() {
         with_effect(paper_truth(), "drift", &[0.1]),
         PAPER,
         "drift",
-        0.6,
+        "drift",
+        Expect::Itself,
     );
 }
 
@@ -398,6 +607,7 @@ fn backlash_of_a1_when_the_model_has_only_its_map() {
         paper_truth(),
         "geometric,map:A1..A6,backlash:A2..A6,crosstalk:A3->A2",
         "backlash:A1",
-        0.5,
+        "backlash A1",
+        Expect::Itself,
     );
 }

@@ -9,6 +9,9 @@
 //! Run with `cargo test --release --test paper_experiment -- --nocapture` to see the table.
 //! The same run on the command line is `robopost simulate program`, tested here too.
 
+#[path = "support/readme.rs"]
+mod readme;
+
 use std::path::Path;
 
 use nalgebra::Vector3;
@@ -200,6 +203,20 @@ fn paper_table_one_in_simulation() {
     for (label, s) in conditions.iter().zip(&stats) {
         println!("{}", row(label, s));
     }
+
+    // The README's Table 1 (block `paper-table-1`), within 1 µm.
+    let v = |s: &ErrorStats| vec![s.xy_mean_um, s.xy_2sigma_um, s.z_mean_um, s.z_2sigma_um];
+    readme::assert_rows(
+        "paper-table-1",
+        &[
+            ("uncompensated", v(&uncompensated)),
+            ("compensated without crosstalk", v(&without_ct)),
+            ("compensated, full model", v(&with_ct)),
+            ("noise only", v(&noise)),
+        ],
+        1.0,
+        0,
+    );
 
     // The thresholds: compensation brings the error down to the measurement floor.
     assert!(

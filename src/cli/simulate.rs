@@ -13,7 +13,7 @@ use crate::diagnostic::Severity;
 use crate::measure::{write_csv, Stop};
 use crate::motion::workspace::LoadError;
 use crate::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
-use crate::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, VirtualRobot};
+use crate::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, Truth};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -47,7 +47,7 @@ impl Pace {
 pub enum What {
     /// Run an indexing campaign (the paper's by default) on the virtual robot.
     Campaign {
-        /// Truth file (robopost-truth/1).
+        /// Truth file (robopost-truth/1 or robopost-physical-truth/1).
         #[arg(long)]
         truth: PathBuf,
         /// Campaign description (JSON); the paper's campaign when absent.
@@ -66,7 +66,7 @@ pub enum What {
     },
     /// Visit a list of axis sets (CSV: test, a1..a6[, measured]) and measure them.
     Poses {
-        /// Truth file (robopost-truth/1).
+        /// Truth file (robopost-truth/1 or robopost-physical-truth/1).
         #[arg(long)]
         truth: PathBuf,
         /// The poses, in visiting order.
@@ -83,7 +83,7 @@ pub enum What {
     /// Run a KRL program on the virtual robot: every executed target a measured stop, with the
     /// controller's axes and the directions of the simulated motion.
     Program {
-        /// Truth file (robopost-truth/1).
+        /// Truth file (robopost-truth/1 or robopost-physical-truth/1).
         #[arg(long)]
         truth: PathBuf,
         /// The program (.src; its .dat beside it is used too), or `-` for stdin.
@@ -211,8 +211,8 @@ fn read_campaign(path: &Path) -> Result<Campaign, String> {
     Ok(campaign)
 }
 
-fn load_robot(truth: &Path, seed: Option<u64>) -> Result<VirtualRobot, Exit> {
-    let robot = VirtualRobot::load(truth).map_err(|e| usage(&e.to_string()))?;
+fn load_robot(truth: &Path, seed: Option<u64>) -> Result<Truth, Exit> {
+    let robot = Truth::load(truth).map_err(|e| usage(&e.to_string()))?;
     Ok(match seed {
         Some(s) => robot.with_seed(s),
         None => robot,
@@ -259,7 +259,7 @@ fn run_program(
             return Exit::Rejected;
         }
     };
-    let sim = crate::motion::simulate(&ws, &robot.truth.robot, &frames.given());
+    let sim = crate::motion::simulate(&ws, robot.robot(), &frames.given());
     for d in &sim.diagnostics {
         eprintln!("{}", d.render());
     }
@@ -274,7 +274,7 @@ fn run_program(
         );
         return Exit::Rejected;
     }
-    for d in program::tool_warnings(&ws, &sim, &robot.truth.target_mm) {
+    for d in program::tool_warnings(&ws, &sim, &robot.target_mm()) {
         eprintln!("{}", d.render());
     }
     let test = if stdin {

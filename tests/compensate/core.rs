@@ -163,28 +163,39 @@ fn nominal_calibration_changes_nothing() {
 
 #[test]
 fn leaving_the_limits_is_an_error_for_that_target() {
-    let model = handset();
-    let tools = [Frame::identity()];
-    // A2 at its lower limit: any negative correction of A2 leaves the limits.
+    // A2 at its lower limit on a robot whose A2 turns 0.01° further than commanded, everywhere
+    // (a direction-independent map): reaching the nominal pose needs A2 = −135.01°, beyond the
+    // limit, and nothing else can make up for it (six axes, six degrees of freedom, far from
+    // any singularity). The target must be rejected naming A2 and keep its command.
+    let base = handset();
+    let mut model = Model::new(base.robot, Payload::default(), Vector3::zeros());
+    let name = robopost::model::EffectName::parse("map:A2").unwrap();
+    let mut map = name
+        .create(&robopost::model::GridOptions::default(), &model.robot)
+        .unwrap();
+    map.values_mut().iter_mut().for_each(|v| *v = 0.01);
+    model.push(map);
+    let tools = [Frame::from_isometry(&tool())];
     let at_limit = [0.0, -135.0, 100.0, 0.0, 40.0, 0.0];
-    let mut t = target(&model, at_limit, Some([0.0, -1.0, 0.0, 0.0, 0.0, 0.0]));
-    t.goal = Frame::from_isometry(
-        &(Model::new(model.robot, Payload::default(), Vector3::zeros())
-            .flange_pose(&AxisState::new(at_limit))),
-    );
+    let t = target(&model, at_limit, Some([0.0, -1.0, 0.0, 0.0, 0.0, 0.0]));
     let o = compensate(&model, &tools, &[t], [Direction::Unknown; 6], &ITERATE)[0];
-    let moved = predicted_tcp(&model, at_limit, o.directions);
-    let _ = moved;
     match o.error {
-        Some(robopost::compensate::TargetError::OutOfLimits { axis: 2, .. }) => {
-            assert_eq!(o.axes_deg, at_limit, "a rejected target keeps its command")
+        Some(robopost::compensate::TargetError::OutOfLimits {
+            axis, value, lo, ..
+        }) => {
+            assert_eq!(axis, 2);
+            assert_eq!(lo, -135.0);
+            assert!((value - -135.01).abs() < 1e-4, "{value}");
         }
-        other => {
-            // The correction of A2 may be positive at this pose; then the target is fine.
-            assert!(other.is_none());
-            assert!(o.axes_deg[1] >= -135.0);
-        }
+        other => panic!("expected A2 out of its limits, got {other:?}"),
     }
+    assert_eq!(o.axes_deg, at_limit, "a rejected target keeps its command");
+    // The same target 1° inside the limit is compensated by exactly −0.01° of A2.
+    let inside = [0.0, -134.0, 100.0, 0.0, 40.0, 0.0];
+    let t = target(&model, inside, Some([0.0, -1.0, 0.0, 0.0, 0.0, 0.0]));
+    let o = compensate(&model, &tools, &[t], [Direction::Unknown; 6], &ITERATE)[0];
+    assert!(o.error.is_none(), "{:?}", o.error);
+    assert!((o.axes_deg[1] - -134.01).abs() < 1e-6, "{:?}", o.axes_deg);
 }
 
 /// Targets on a vertical LIN line below (or above) `top`, flange pointing down, with the LIN
