@@ -48,6 +48,7 @@
 
 mod error;
 mod file;
+pub mod ranges;
 
 use std::path::Path;
 
@@ -276,6 +277,7 @@ fn validate(file: &CalibrationFile, path: &Path) -> Result<Model, CalError> {
     for (c, v) in target.iter().enumerate() {
         finite(*v, || format!("target_mm[{c}]"), path)?;
     }
+    ranges::check(file, path)?;
     if let Some(MeasurementFrame::Tracker(f)) = &file.frame {
         for (name, v) in [
             ("x", f.x),

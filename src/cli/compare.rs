@@ -90,6 +90,15 @@ fn summary_json(s: &Summary, path: &Path) -> Value {
 pub fn run(args: Args) -> Exit {
     let mut cal_paths = vec![args.cal.as_path()];
     cal_paths.extend(args.against.as_deref());
+    if let Some(dir) = &args.report {
+        let mut guard = crate::paths::Guard::new();
+        guard
+            .read_all(cal_paths.iter().copied())
+            .read_all(args.measurements.iter().map(PathBuf::as_path));
+        if let Err(clash) = guard.write(&dir.join(report::INDEX)) {
+            return super::refuse(&clash);
+        }
+    }
     let Some((cals, data)) = load_inputs(&cal_paths, &args.measurements) else {
         return Exit::Usage;
     };

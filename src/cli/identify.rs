@@ -55,13 +55,23 @@ pub struct Args {
 }
 
 fn usage(message: &str) -> Exit {
-    eprintln!("robopost identify: {message}");
-    Exit::Usage
+    super::usage(message)
 }
 
 pub fn run(args: Args) -> Exit {
-    if !(args.map_pitch.is_finite() && args.map_pitch > 0.0) {
-        return usage("--map-pitch must be a positive number of degrees");
+    let finest = crate::model::table::MIN_PITCH_DEG;
+    if !(args.map_pitch.is_finite() && args.map_pitch >= finest) {
+        return usage(&format!(
+            "--map-pitch {}: the table pitch must be at least {finest} degrees",
+            args.map_pitch
+        ));
+    }
+    let mut guard = crate::paths::Guard::new();
+    guard
+        .read_all(args.files.iter().map(PathBuf::as_path))
+        .read_all(args.cal.as_deref());
+    if let Err(clash) = guard.write(&args.out) {
+        return super::refuse(&clash);
     }
     let mut stops = Vec::new();
     for file in &args.files {

@@ -26,6 +26,17 @@ pub enum Exit {
     Usage = 2,
 }
 
+/// A usage error: `error: message` on standard error, exit 2 (nothing written).
+pub fn usage(message: impl std::fmt::Display) -> Exit {
+    eprintln!("error: {message}");
+    Exit::Usage
+}
+
+/// An output refused by the guard of [`crate::paths`]: exit 2, nothing written.
+pub fn refuse(clash: &crate::paths::Clash) -> Exit {
+    usage(clash)
+}
+
 #[derive(Parser, Debug)]
 #[command(
     name = "robopost",

@@ -119,6 +119,10 @@ pub fn run(args: Args) -> Exit {
             seed,
             out,
         } => {
+            let inputs = [Some(truth.as_path()), campaign.as_deref()];
+            if let Err(exit) = guard_output(inputs.into_iter().flatten(), &out) {
+                return exit;
+            }
             let plan = match campaign {
                 None => Campaign::paper().plan(),
                 Some(path) => match read_campaign(&path) {
@@ -138,6 +142,9 @@ pub fn run(args: Args) -> Exit {
             pace,
             out,
         } => {
+            if let Err(exit) = guard_output([truth.as_path(), file.as_path()], &out) {
+                return exit;
+            }
             let (dwell, speed) = match pace.checked() {
                 Ok(p) => p,
                 Err(exit) => return exit,
@@ -182,8 +189,14 @@ pub fn run(args: Args) -> Exit {
 }
 
 fn usage(message: &str) -> Exit {
-    eprintln!("robopost simulate: {message}");
-    Exit::Usage
+    super::usage(message)
+}
+
+/// The guard of a run that reads `inputs` and writes `out` (see [`crate::paths`]).
+fn guard_output<'a>(inputs: impl IntoIterator<Item = &'a Path>, out: &Path) -> Result<(), Exit> {
+    let mut guard = crate::paths::Guard::new();
+    guard.read_all(inputs);
+    guard.write(out).map_err(|clash| super::refuse(&clash))
 }
 
 fn read_campaign(path: &Path) -> Result<Campaign, String> {
@@ -253,6 +266,10 @@ fn run_program(
             return Exit::Rejected;
         }
     };
+    let read = ws.files.iter().filter_map(|f| f.path.as_deref());
+    if let Err(exit) = guard_output(read.chain([truth]), out) {
+        return exit;
+    }
     let sim = crate::motion::simulate(&ws, &robot.truth.robot, &frames.given());
     for d in &sim.diagnostics {
         eprintln!("{}", d.render());

@@ -110,6 +110,33 @@ pub fn output_paths(ws: &Workspace, out: &Path) -> Vec<(FileId, PathBuf)> {
     v
 }
 
+/// The rule that keeps a `.src` and its `.dat` one unit on output: both are written (an
+/// unchanged `.dat` too) or neither. A program without a `.dat` may therefore not be written
+/// beside a `.dat` of its output name (left by an earlier run, or someone else's): the
+/// controller would load that data list with the new program. That is refused, not removed.
+pub fn no_stale_dat(ws: &Workspace, out: &Path) -> Result<(), String> {
+    for (id, path) in output_paths(ws, out) {
+        let f = ws.get(id);
+        let is_src = f.file.kind() == krl::FileKind::Src;
+        if !is_src || f.partner.is_some() {
+            continue;
+        }
+        let stale = ["dat", "DAT", "Dat"]
+            .iter()
+            .map(|e| path.with_extension(e))
+            .find(|d| std::fs::symlink_metadata(d).is_ok());
+        if let Some(dat) = stale {
+            return Err(format!(
+                "{} exists beside the output {}, but {} has no .dat: the controller would load that data list with the new program; remove it or choose another output",
+                dat.display(),
+                path.display(),
+                f.name
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Whether two paths name the same file (the second may not exist yet).
 pub fn same_file(a: &Path, b: &Path) -> bool {
     let canon = |p: &Path| -> Option<PathBuf> {

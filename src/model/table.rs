@@ -41,7 +41,20 @@ pub enum GridError {
         previous: f64,
         found: f64,
     },
+    #[error("a grid from {lo}° to {hi}° every {pitch}° would have {points} points; at most {MAX_POINTS} are allowed and the pitch must be at least {MIN_PITCH_DEG}°")]
+    TooFine {
+        lo: f64,
+        hi: f64,
+        pitch: f64,
+        points: f64,
+    },
 }
+
+/// The finest pitch [`Grid::from_range`] lays out, degrees (a gear error does not vary over a
+/// thousandth of a degree, and a finer grid would only be memory).
+pub const MIN_PITCH_DEG: f64 = 1e-3;
+/// The most points [`Grid::from_range`] lays out (a whole turn at 0.004°).
+pub const MAX_POINTS: usize = 100_000;
 
 impl Grid {
     /// Checks the points (finite, strictly increasing) and detects equal spacing.
@@ -80,7 +93,16 @@ impl Grid {
             });
         }
         // The small tolerance keeps a pitch that divides the range from adding a spare point.
-        let cells = ((hi - lo) / pitch - 1e-9).ceil().max(0.0) as usize;
+        let cells = ((hi - lo) / pitch - 1e-9).ceil().max(0.0);
+        if pitch < MIN_PITCH_DEG || !(cells < MAX_POINTS as f64) {
+            return Err(GridError::TooFine {
+                lo,
+                hi,
+                pitch,
+                points: cells + 1.0,
+            });
+        }
+        let cells = cells as usize;
         Grid::new((0..=cells).map(|i| lo + i as f64 * pitch).collect())
     }
 
