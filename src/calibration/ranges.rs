@@ -54,6 +54,13 @@ fn within(
 ) -> Result<(), CalError> {
     if (lo..=hi).contains(&value) {
         Ok(())
+    } else if !value.is_finite() {
+        Err(CalError::invalid(
+            path,
+            key(),
+            "a finite number",
+            value.to_string(),
+        ))
     } else {
         Err(CalError::invalid(
             path,
