@@ -47,8 +47,10 @@ pub(crate) fn load_inputs(
         }
     }
     let mut data = Vec::new();
+    // Every row within the joint limits of the robot the measurements are compared with.
+    let limits = loaded.first().map(|c| c.model_ref().robot.limits_deg);
     for path in files {
-        match measure::read_csv(path) {
+        match measure::read_csv_within(path, limits.as_ref()) {
             Ok(m) => {
                 if !m.ignored_columns.is_empty() {
                     eprintln!(

@@ -12,7 +12,8 @@ use super::Exit;
 use crate::identify::pipeline::{identify, Effects, Identified, Request, PAPER_EFFECTS};
 use crate::identify::setup::GridChoice;
 use crate::identify::{Progress, Status};
-use crate::measure::read_csv;
+use crate::kinematics::RobotDescription;
+use crate::measure::read_csv_within;
 use crate::model::expand_list;
 use crate::stats::ErrorStats;
 
@@ -73,9 +74,23 @@ pub fn run(args: Args) -> Exit {
     if let Err(clash) = guard.write(&args.out) {
         return super::refuse(&clash);
     }
+    let base = match &args.cal {
+        Some(path) => match crate::calibration::load(path) {
+            Ok(c) => Some(c),
+            Err(e) => return usage(&e.to_string()),
+        },
+        None => None,
+    };
+    // Every row within the joint limits of the robot identified (the nominal KR 30 HA's
+    // without -c, as the identification assumes).
+    let limits = base
+        .as_ref()
+        .map_or(RobotDescription::kr30ha().limits_deg, |c| {
+            c.model_ref().robot.limits_deg
+        });
     let mut stops = Vec::new();
     for file in &args.files {
-        match read_csv(file) {
+        match read_csv_within(file, Some(&limits)) {
             Ok(m) => {
                 if !m.ignored_columns.is_empty() {
                     eprintln!(
@@ -92,13 +107,6 @@ pub fn run(args: Args) -> Exit {
             }
         }
     }
-    let base = match &args.cal {
-        Some(path) => match crate::calibration::load(path) {
-            Ok(c) => Some(c),
-            Err(e) => return usage(&e.to_string()),
-        },
-        None => None,
-    };
     let effects = match args.effects.as_deref() {
         None => None,
         Some(list) => {

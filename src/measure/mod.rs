@@ -6,7 +6,10 @@
 mod csv_file;
 mod directions;
 
-pub use csv_file::{parse_csv, read_csv, write_csv, MeasureError};
+pub use csv_file::{
+    parse_csv, parse_csv_within, read_csv, read_csv_within, write_csv, MeasureError,
+    ANGLE_RANGE_DEG, POSITION_RANGE_MM, TIME_RANGE_S,
+};
 pub use directions::infer_directions;
 
 use crate::model::AxisState;
