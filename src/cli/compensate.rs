@@ -186,6 +186,10 @@ pub fn run(args: Args) -> Exit {
                 eprintln!("error: {e}");
                 return Exit::Usage;
             }
+            Err(e @ crate::motion::workspace::LoadError::NotKrl { .. }) => {
+                eprint!("{e}");
+                return Exit::Usage;
+            }
             Err(e) => {
                 eprintln!("{e}");
                 return Exit::Rejected;

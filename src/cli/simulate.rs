@@ -261,6 +261,10 @@ fn run_program(
     let ws = match files::load_program((!stdin).then_some(path), &bytes, frames.config.as_deref()) {
         Ok(ws) => ws,
         Err(e @ LoadError::Io { .. }) => return usage(&e.to_string()),
+        Err(e @ LoadError::NotKrl { .. }) => {
+            eprint!("{e}");
+            return Exit::Usage;
+        }
         Err(e) => {
             eprintln!("{e}");
             return Exit::Rejected;
