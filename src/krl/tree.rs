@@ -837,18 +837,30 @@ impl SourceFile {
 
     /// A problem as a located diagnostic of file `name`.
     pub fn diagnostic(&self, p: &Problem, name: &str) -> Diagnostic {
-        let (line, col) = self.lines.line_col(p.span.start as usize);
-        let line_start = (p.span.start as usize).saturating_sub(col - 1);
+        self.diagnostic_at(p.severity, name, p.span, p.message.clone())
+            .with_label(p.label)
+            .with_help(p.help)
+    }
+
+    /// A message about `span` of this file, located through the line index (in time
+    /// independent of the file's length).
+    pub fn diagnostic_at(
+        &self,
+        severity: crate::diagnostic::Severity,
+        name: &str,
+        span: Span,
+        message: impl Into<String>,
+    ) -> Diagnostic {
+        let (line, col) = self.lines.line_col(span.start as usize);
+        let line_start = (span.start as usize).saturating_sub(col - 1);
         Diagnostic::at_line(
-            p.severity,
+            severity,
             name,
             &self.src,
             (line, line_start),
-            p.span.range(),
-            p.message.clone(),
+            span.range(),
+            message,
         )
-        .with_label(p.label)
-        .with_help(p.help)
     }
 
     /// The file again, byte for byte, from the tree's tiles.

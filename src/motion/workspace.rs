@@ -308,6 +308,6 @@ impl Workspace {
         message: impl Into<String>,
     ) -> Diagnostic {
         let f = self.get(id);
-        Diagnostic::at_bytes(severity, &f.name, f.file.source(), span.range(), message)
+        f.file.diagnostic_at(severity, &f.name, span, message)
     }
 }
