@@ -137,24 +137,6 @@ pub fn no_stale_dat(ws: &Workspace, out: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// Whether two paths name the same file (the second may not exist yet).
-pub fn same_file(a: &Path, b: &Path) -> bool {
-    let canon = |p: &Path| -> Option<PathBuf> {
-        if let Ok(c) = p.canonicalize() {
-            return Some(c);
-        }
-        let parent = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        Some(parent.canonicalize().ok()?.join(p.file_name()?))
-    };
-    match (canon(a), canon(b)) {
-        (Some(x), Some(y)) => x == y,
-        _ => false,
-    }
-}
-
 /// Writes every `(path, bytes)` atomically: all temporary files first, then the renames.
 pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
     let pieces: Vec<(PathBuf, Vec<&[u8]>)> =
