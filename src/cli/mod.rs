@@ -15,7 +15,7 @@ pub mod identify;
 pub mod kin;
 pub mod simulate;
 
-/// Exit status per `../shared/CONTRACTS.md`.
+/// Exit status per `docs/cli.md`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Exit {
     /// The job ran and every input was accepted.

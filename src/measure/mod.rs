@@ -1,4 +1,4 @@
-//! Laser-tracker measurements: the measurement CSV of `../shared/CONTRACTS.md` read into
+//! Laser-tracker measurements: the measurement CSV of `docs/measurements.md` read into
 //! [`Stop`]s (command axis angles, inferred rotation directions, time, measured position) and
 //! written back. Rotation directions are inferred here once, so that identification, diagnosis
 //! and the virtual robot all agree on which backlash branch an axis sat on.
