@@ -249,7 +249,7 @@ mod tests {
     #[test]
     fn a_long_line_is_clipped_around_the_caret() {
         let mut src = b"DEF a()\nPTP {A1 0".to_vec();
-        src.extend(std::iter::repeat_n(b' ', 10_000_000));
+        src.extend(vec![b' '; 10_000_000]);
         src.extend(
             b"}\nLIN {X 1, Y 2, Q 7"
                 .iter()

@@ -573,7 +573,12 @@ fn a_locked_output_directory_is_refused() {
         ],
     );
     let held = std::fs::File::open(dir.path().join("out")).unwrap();
-    held.try_lock().unwrap();
+    let flock = |op| {
+        use std::os::unix::io::AsRawFd;
+        // SAFETY: `flock` on a descriptor the test owns.
+        assert_eq!(unsafe { libc::flock(held.as_raw_fd(), op) }, 0);
+    };
+    flock(libc::LOCK_EX | libc::LOCK_NB);
     let before = tree(dir.path());
     let (exit, stderr) = run(dir.path(), &["batch", "lib", "-c", "cal.json", "-o", "out"]);
     assert_eq!(exit, 2, "{stderr}");
@@ -582,7 +587,7 @@ fn a_locked_output_directory_is_refused() {
         "{stderr}"
     );
     assert_eq!(tree(dir.path()), before);
-    held.unlock().unwrap();
+    flock(libc::LOCK_UN);
     let (exit, stderr) = run(dir.path(), &["batch", "lib", "-c", "cal.json", "-o", "out"]);
     assert_eq!(exit, 0, "{stderr}");
     assert!(dir.path().join("out/p.src").is_file());

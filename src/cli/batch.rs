@@ -117,20 +117,28 @@ pub fn run(args: Args) -> Exit {
 }
 
 /// The output directory (created) locked against a second batch writing into it at the same
-/// time: an advisory lock on the directory itself, released when the value is dropped (or
+/// time: an advisory `flock` on the directory itself, released when the value is dropped (or
 /// the process ends), so nothing is left behind.
 fn lock(out: &Path) -> Result<std::fs::File, Exit> {
     let fail = |e: std::io::Error| super::usage(format!("{}: {e}", out.display()));
     std::fs::create_dir_all(out).map_err(fail)?;
     let dir = std::fs::File::open(out).map_err(fail)?;
-    match dir.try_lock() {
-        Ok(()) => Ok(dir),
-        Err(std::fs::TryLockError::WouldBlock) => Err(super::usage(format!(
-            "{}: another robopost batch is writing into this directory; wait for it or choose another output",
-            out.display()
-        ))),
-        Err(std::fs::TryLockError::Error(e)) => Err(fail(e)),
+    #[cfg(unix)]
+    {
+        use std::os::unix::io::AsRawFd;
+        // SAFETY: `flock` on a descriptor this function owns; it reads nothing else.
+        if unsafe { libc::flock(dir.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == std::io::ErrorKind::WouldBlock {
+                return Err(super::usage(format!(
+                    "{}: another robopost batch is writing into this directory; wait for it or choose another output",
+                    out.display()
+                )));
+            }
+            return Err(fail(e));
+        }
     }
+    Ok(dir)
 }
 
 fn run_in_pool(

@@ -94,7 +94,7 @@ impl Grid {
         }
         // The small tolerance keeps a pitch that divides the range from adding a spare point.
         let cells = ((hi - lo) / pitch - 1e-9).ceil().max(0.0);
-        if pitch < MIN_PITCH_DEG || !(cells < MAX_POINTS as f64) {
+        if pitch < MIN_PITCH_DEG || cells >= MAX_POINTS as f64 {
             return Err(GridError::TooFine {
                 lo,
                 hi,
@@ -321,5 +321,28 @@ impl Table2 {
             .columns
             .slope(&cc, lerp(ll, hl, cr.w), lerp(lh, hh, cr.w));
         (value, d_row, d_column)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A range of 1e20° or a pitch of 1e-9° is an error, not an allocation of terabytes.
+    #[test]
+    fn absurd_ranges_and_pitches_are_errors() {
+        assert!(matches!(
+            Grid::from_range(-135.0, 1e20, 1.0),
+            Err(GridError::TooFine { .. })
+        ));
+        assert!(matches!(
+            Grid::from_range(-135.0, 35.0, 1e-9),
+            Err(GridError::TooFine { .. })
+        ));
+        let finest = Grid::from_range(0.0, 1.0, MIN_PITCH_DEG).unwrap();
+        assert_eq!(finest.len(), 1001);
+        let most = Grid::from_range(0.0, (MAX_POINTS - 1) as f64 * 0.01, 0.01).unwrap();
+        assert_eq!(most.len(), MAX_POINTS);
+        assert!(Grid::from_range(0.0, MAX_POINTS as f64 * 0.01, 0.01).is_err());
     }
 }
