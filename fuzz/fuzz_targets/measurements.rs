@@ -30,7 +30,10 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(m) = measure::parse_csv_within(data, "fuzz.csv", Some(&limits)) {
         for s in &m.stops {
             for (a, [lo, hi]) in s.state.axes_deg.iter().zip(limits) {
-                assert!(*a >= lo - 1e-6 && *a <= hi + 1e-6, "{a} outside [{lo}, {hi}]");
+                assert!(
+                    *a >= lo - 1e-6 && *a <= hi + 1e-6,
+                    "{a} outside [{lo}, {hi}]"
+                );
             }
         }
     }
