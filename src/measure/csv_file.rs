@@ -107,10 +107,15 @@ pub fn parse_csv_within(
     file: &str,
     limits_deg: Option<&[[f64; 2]; 6]>,
 ) -> Result<Measurements, MeasureError> {
-    // Split once: looking a line up per row must not rescan the file (quadratic time).
-    let raw_lines: Vec<&[u8]> = bytes.split(|&b| b == b'\n').collect();
+    // Lines end with `\n`, `\r\n` or a lone `\r`, as the csv reader reads them. Their starts
+    // are found once: looking a line up per row must not rescan the file (quadratic time).
+    let ends_line = |i: usize| match bytes[i] {
+        b'\n' => true,
+        b'\r' => bytes.get(i + 1) != Some(&b'\n'),
+        _ => false,
+    };
     let line_starts: Vec<usize> = std::iter::once(0)
-        .chain(memchr::memchr_iter(b'\n', bytes).map(|i| i + 1))
+        .chain((0..bytes.len()).filter(|&i| ends_line(i)).map(|i| i + 1))
         .collect();
     // The csv reader's line count lags behind on CRLF files, and a record's position is
     // taken before the line ends, blank lines and comment lines in front of it are skipped:
@@ -121,8 +126,10 @@ pub fn parse_csv_within(
         loop {
             match bytes.get(at) {
                 Some(b'\r' | b'\n') => at += 1,
-                Some(b'#') if at == 0 || bytes[at - 1] == b'\n' => {
-                    at = memchr::memchr(b'\n', &bytes[at..]).map_or(bytes.len(), |n| at + n + 1);
+                Some(b'#') if at == 0 || matches!(bytes[at - 1], b'\n' | b'\r') => {
+                    at = (at..bytes.len())
+                        .find(|&i| ends_line(i))
+                        .map_or(bytes.len(), |i| i + 1);
                 }
                 _ => break,
             }
@@ -130,14 +137,14 @@ pub fn parse_csv_within(
         line_starts.partition_point(|&start| start <= at)
     };
     let line_of = |line: usize| -> String {
-        raw_lines
-            .get(line.saturating_sub(1))
-            .map(|l| {
-                String::from_utf8_lossy(l)
-                    .trim_end_matches('\r')
-                    .to_string()
-            })
-            .unwrap_or_default()
+        let Some(&start) = line.checked_sub(1).and_then(|i| line_starts.get(i)) else {
+            return String::new();
+        };
+        let end = line_starts.get(line).copied().unwrap_or(bytes.len());
+        let text = &bytes[start..end];
+        let text = text.strip_suffix(b"\n").unwrap_or(text);
+        let text = text.strip_suffix(b"\r").unwrap_or(text);
+        String::from_utf8_lossy(text).into_owned()
     };
     let error = |line: usize, col: usize, message: String, help: Option<&str>| MeasureError {
         file: file.to_string(),
@@ -455,15 +462,26 @@ mod tests {
             "p,0,-90,90,0,0,0,abc,2,3",
             "",
         ];
-        for end in ["\n", "\r\n"] {
-            let src = rows.join(end);
+        for end in ["\n", "\r\n", "\r"] {
+            // The csv reader ends a comment at `\n` only: a lone `\r` file has none here.
+            let src = rows.join(end).replace("# note\r", "\r");
             let e = parse_csv(src.as_bytes(), "m.csv").unwrap_err();
-            assert_eq!((e.line, e.col), (5, 18), "{end:?}");
+            assert_eq!((e.line, e.col), (5, 18), "{end:?}: {}", e.message);
             assert_eq!(e.source_line, "p,0,-90,90,0,0,0,abc,2,3");
             let ok = src.replace("abc", "1");
             let m = parse_csv(ok.as_bytes(), "m.csv").unwrap();
             assert_eq!(m.stops.iter().map(|s| s.line).collect::<Vec<_>>(), [2, 5]);
         }
+    }
+
+    /// A header ended by a lone `\r` (found by the fuzzer: the row after it was placed on
+    /// line 1, the header's).
+    #[test]
+    fn a_lone_carriage_return_ends_a_line() {
+        let src = b"test,a1,a2,a3,a4,a5,a6,x,y,z,t,dir1\r\xf3\x87,0,-90,90,0,0,0,,,,0,1\r\n\
+            # c\r\n\r\nx,1,-90,90,0,0,0,1340.1,23.4,1810.0,2.5,-1\r\n";
+        let m = parse_csv(src, "m.csv").unwrap();
+        assert_eq!(m.stops.iter().map(|s| s.line).collect::<Vec<_>>(), [2, 5]);
     }
 
     /// Numbers beyond any physical range, and angles outside the robot's limits, are located
