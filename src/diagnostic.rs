@@ -9,6 +9,10 @@ use annotate_snippets::{Level, Renderer, Snippet};
 use std::fmt;
 use std::ops::Range;
 
+/// The most characters underlined under a source line: the line shown is clipped around the
+/// underline, so this bounds what one diagnostic prints whatever the line's length.
+pub const MAX_UNDERLINE: usize = 80;
+
 /// How serious a diagnostic is: errors reject the input, warnings only inform.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Severity {
@@ -76,6 +80,23 @@ impl Diagnostic {
             .iter()
             .rposition(|&b| b == b'\n')
             .map_or(0, |p| p + 1);
+        let line = src[..line_start].iter().filter(|&&b| b == b'\n').count() + 1;
+        Diagnostic::at_line(severity, file, src, (line, line_start), range, message)
+    }
+
+    /// [`Diagnostic::at_bytes`] where the caller knows the 1-based line of `range.start` and
+    /// where that line starts (from a line index: counting the lines before is linear in the
+    /// file, and a file with many problems would take quadratic time).
+    pub fn at_line(
+        severity: Severity,
+        file: &str,
+        src: &[u8],
+        (line, line_start): (usize, usize),
+        range: Range<usize>,
+        message: impl Into<String>,
+    ) -> Diagnostic {
+        let start = range.start.min(src.len());
+        let line_start = line_start.min(start);
         let mut line_end = src[start..]
             .iter()
             .position(|&b| b == b'\n')
@@ -83,7 +104,6 @@ impl Diagnostic {
         if line_end > line_start && src[line_end - 1] == b'\r' {
             line_end -= 1;
         }
-        let line = src[..line_start].iter().filter(|&&b| b == b'\n').count() + 1;
         let text = &src[line_start..line_end];
         let start_in_line = (start - line_start).min(text.len());
         let end_in_line = range
@@ -150,7 +170,10 @@ impl Diagnostic {
             let at = |c: usize| byte_at[c.min(byte_at.len() - 1)];
             let c0 = self.col.saturating_sub(1);
             let start = at(c0);
-            let end = at(c0 + self.width.max(1)).max(start);
+            // A long span (a statement on a 10 MB line) is underlined for its first
+            // characters only: annotate-snippets clips the line around the annotation, and
+            // would otherwise print all of it.
+            let end = at(c0 + self.width.clamp(1, MAX_UNDERLINE)).max(start);
             let mut annotation = level.span(start..end);
             if let Some(label) = &self.label {
                 annotation = annotation.label(label);
@@ -220,6 +243,29 @@ mod tests {
         assert!(r.contains("--> a.src:2:12"), "{r}");
         assert!(r.contains("2 |   LIN {X 1,"), "{r}");
         assert!(r.contains("help: close the aggregate with }"), "{r}");
+    }
+
+    /// A diagnostic on a 10 MB line prints a few hundred bytes, with the true column.
+    #[test]
+    fn a_long_line_is_clipped_around_the_caret() {
+        let mut src = b"DEF a()\nPTP {A1 0".to_vec();
+        src.extend(vec![b' '; 10_000_000]);
+        src.extend(
+            b"}\nLIN {X 1, Y 2, Q 7"
+                .iter()
+                .chain(&vec![b' '; 5_000_000]),
+        );
+        src.extend(b"BAD}\nEND\n");
+        let whole = Diagnostic::at_bytes(Severity::Warning, "a.src", &src, 8..10_000_018, "w");
+        let r = whole.render();
+        assert!(r.len() < 1000, "{} bytes", r.len());
+        assert!(r.contains("--> a.src:2:1"), "{r}");
+        let at = src.windows(3).position(|w| w == b"BAD").unwrap();
+        let late = Diagnostic::at_bytes(Severity::Error, "a.src", &src, at..at + 3, "e");
+        let r = late.render();
+        assert!(r.len() < 1000, "{} bytes", r.len());
+        assert!(r.contains("--> a.src:3:5000019"), "{r}");
+        assert!(r.contains("BAD}"), "{r}");
     }
 
     #[test]

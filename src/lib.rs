@@ -20,6 +20,7 @@ pub mod krl;
 pub mod measure;
 pub mod model;
 pub mod motion;
+pub mod paths;
 pub mod report;
 pub mod simulate;
 pub mod stats;

@@ -131,6 +131,138 @@ fn with_robot(edit: impl FnOnce(&mut serde_json::Value)) -> String {
     serde_json::to_string_pretty(&file).unwrap()
 }
 
+/// Numbers that parse but describe no robot are refused with their key and range (the
+/// issue's cases: a 45° map rewrote targets by 1.3 m; 1e300, a grid 1e-300° wide, a negative
+/// or zero upper arm, a target 1e308 mm away, a limit at 1e308° all loaded).
+#[test]
+fn absurd_values_are_refused_with_their_range() {
+    let map = |values: &str, grid: &str| {
+        with_effects(&format!(
+            r#"[{{"name": "map:A2", "table": {{"grid_deg": {grid}, "values_deg": {values}}}}}]"#
+        ))
+    };
+    let with_top = |key: &str, value: serde_json::Value| {
+        let mut file: serde_json::Value = serde_json::from_str(&with_effects("[]")).unwrap();
+        file[key] = value;
+        serde_json::to_string_pretty(&file).unwrap()
+    };
+    let param = |effect: &str, name: &str, v: f64| {
+        with_effects(&format!(
+            r#"[{{"name": "{effect}", "parameters": {{"{name}": {v}}}}}]"#
+        ))
+    };
+    let cases = [
+        (
+            map("[45, 0]", "[0, 1]"),
+            "effects[0].table.values_deg[0]",
+            "from -1 to 1 degrees",
+        ),
+        (
+            map("[0, 1e300]", "[0, 1]"),
+            "effects[0].table.values_deg[1]",
+            "from -1 to 1 degrees",
+        ),
+        (
+            map("[0, 0]", "[0, 1e-300]"),
+            "effects[0].table.grid_deg[1]",
+            "at least 0.001°",
+        ),
+        (
+            map("[0, 0]", "[0, 1000]"),
+            "effects[0].table.grid_deg[1]",
+            "from -720 to 720",
+        ),
+        (
+            with_robot(|d| d["links"]["l2"] = serde_json::json!(-850.0)),
+            "robot.description.links.l2",
+            "from 1 to 5000 mm",
+        ),
+        (
+            with_robot(|d| d["links"]["l2"] = serde_json::json!(0.0)),
+            "robot.description.links.l2",
+            "from 1 to 5000 mm",
+        ),
+        (
+            with_robot(|d| d["limits_deg"][0] = serde_json::json!([-185.0, 1e308])),
+            "robot.description.limits_deg[0][1]",
+            "from -720 to 720 degrees",
+        ),
+        (
+            with_top("target_mm", serde_json::json!([1e308, 0.0, 0.0])),
+            "target_mm[0]",
+            "from -2000 to 2000 mm",
+        ),
+        (
+            with_top(
+                "payload",
+                serde_json::json!({"mass_kg": -5.0, "cog_mm": [0, 0, 0]}),
+            ),
+            "payload.mass_kg",
+            "from 0 to 10000 kg",
+        ),
+        (
+            with_top(
+                "frame",
+                serde_json::json!({"tracker": {"x": 1e9, "y": 0, "z": 0, "a": 0, "b": 0, "c": 0}}),
+            ),
+            "frame.tracker.x",
+            "from -100000 to 100000 mm",
+        ),
+        (
+            param("geometric", "dx21", 80.0),
+            "effects[0].parameters.dx21",
+            "from -50 to 50 mm",
+        ),
+        (
+            param("geometric", "dth20", 5.0),
+            "effects[0].parameters.dth20",
+            "from -2 to 2 degrees",
+        ),
+        (
+            param("geometric", "a21", -3.0),
+            "effects[0].parameters.a21",
+            "from -2 to 2 degrees",
+        ),
+        (
+            param("compliance:A2", "c", 4.0),
+            "effects[0].parameters.c",
+            "degrees per kN·m",
+        ),
+        (
+            param("tilt:A1", "x.cos1", 2.0),
+            "effects[0].parameters.x.cos1",
+            "from -1 to 1 degrees",
+        ),
+        (
+            param("drift", "l1z", 50.0),
+            "effects[0].parameters.l1z",
+            "from -10 to 10 mm per hour",
+        ),
+    ];
+    for (text, key, expected) in cases {
+        match calibration::parse(&text, Path::new("cal.json")) {
+            Err(CalError::Invalid {
+                key: k,
+                expected: e,
+                ..
+            }) => {
+                assert_eq!(k, key);
+                assert!(e.contains(expected), "{key}: {e}");
+            }
+            other => panic!("{key}: {other:?}"),
+        }
+    }
+    // Values just inside every range load.
+    let inside = [
+        map("[1, -1]", "[-720, 720]"),
+        param("geometric", "dx21", 50.0),
+        with_top("target_mm", serde_json::json!([2000.0, -2000.0, 0.0])),
+    ];
+    for text in inside {
+        calibration::parse(&text, Path::new("cal.json")).unwrap();
+    }
+}
+
 #[test]
 fn bad_files_name_key_expected_and_found() {
     let cases = [

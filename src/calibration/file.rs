@@ -27,6 +27,7 @@ pub struct CalibrationFile {
     pub payload: Option<Payload>,
     /// Measurement target (retroreflector) in the KUKA flange frame, mm; origin when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(inner(range(min = -2000, max = 2000)))]
     pub target_mm: Option<[f64; 3]>,
     /// Frame of the measured positions; `base` when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]

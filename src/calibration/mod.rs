@@ -50,6 +50,7 @@
 
 mod error;
 mod file;
+pub mod ranges;
 
 use std::path::Path;
 
@@ -280,6 +281,7 @@ fn validate(file: &CalibrationFile, path: &Path) -> Result<Model, CalError> {
     for (c, v) in target.iter().enumerate() {
         finite(*v, || format!("target_mm[{c}]"), path)?;
     }
+    ranges::check(file, path)?;
     if let Some(MeasurementFrame::Tracker(f)) = &file.frame {
         for (name, v) in [
             ("x", f.x),

@@ -2,8 +2,9 @@
 //! programs in parallel into a mirrored tree; a progress bar on a terminal, a summary at the
 //! end, every failure reported without stopping the others.
 
+use std::collections::BTreeSet;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
@@ -12,6 +13,7 @@ use super::compensate::{calibrated, load_calibration, ProgramArgs};
 use super::Exit;
 use crate::compensate::batch::{self, Done};
 use crate::compensate::files;
+use crate::krl;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -35,29 +37,33 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Exit {
+    let started = std::time::SystemTime::now();
     let (cal, cal_bytes) = match load_calibration(&args.cal) {
         Ok(c) => c,
         Err(exit) => return exit,
     };
+    let mut guard = crate::paths::Guard::new();
+    guard
+        .read(&args.cal)
+        .read_all(args.program.config.as_deref());
     for input in &args.inputs {
-        if !input.exists() {
-            eprintln!("error: {}: no such file or directory", input.display());
-            return Exit::Usage;
+        if std::fs::symlink_metadata(input).is_err() {
+            return super::usage(format!("{}: no such file or directory", input.display()));
         }
-        let overlap = files::same_file(input, &args.out)
-            || args
-                .out
-                .canonicalize()
-                .ok()
-                .zip(input.canonicalize().ok())
-                .is_some_and(|(o, i)| o.starts_with(&i) && i.is_dir());
-        if overlap {
-            eprintln!(
-                "error: the output directory {} is inside the input {}: choose another output",
-                args.out.display(),
-                input.display()
-            );
-            return Exit::Usage;
+        if input.is_dir() {
+            guard.read_tree(input);
+        } else {
+            guard
+                .read(input)
+                .read_all(krl::companion_dat(input).as_deref());
+        }
+    }
+    if let Err(clash) = guard.write_tree(&args.out) {
+        return super::refuse(&clash);
+    }
+    if let Some(report) = &args.report {
+        if let Err(clash) = guard.write(report) {
+            return super::refuse(&clash);
         }
     }
     let pool = match rayon::ThreadPoolBuilder::new()
@@ -65,22 +71,82 @@ pub fn run(args: Args) -> Exit {
         .build()
     {
         Ok(p) => p,
-        Err(e) => {
-            eprintln!("error: --jobs: {e}");
-            return Exit::Usage;
-        }
+        Err(e) => return super::usage(format!("--jobs: {e}")),
     };
-    pool.install(|| run_in_pool(&args, &cal, &cal_bytes))
+    let plan = match pool.install(|| batch::plan(&args.inputs, &args.out)) {
+        Ok(p) => p,
+        Err(e) => return super::usage(format!("reading the inputs: {e}")),
+    };
+    // A link inside the output tree must not lead a write back into an input.
+    let outputs = plan.jobs.iter().map(|j| &j.out);
+    for out in outputs.chain(plan.copies.iter().map(|(_, to)| to)) {
+        if let Err(clash) = guard.write(out) {
+            return super::refuse(&clash);
+        }
+    }
+    let _lock = match lock(&args.out) {
+        Ok(lock) => lock,
+        Err(exit) => return exit,
+    };
+    let dirs: BTreeSet<&Path> = plan
+        .jobs
+        .iter()
+        .map(|j| &j.out)
+        .chain(plan.copies.iter().map(|(_, to)| to))
+        .filter_map(|p| p.parent())
+        .collect();
+    let stale: Vec<PathBuf> = dirs
+        .into_iter()
+        .flat_map(|d| crate::atomic_file::remove_stale(d, started))
+        .collect();
+    if !stale.is_empty() {
+        eprintln!(
+            "note: removed {} temporary file(s) an interrupted run left in {} (robopost's own `.robopost-XXXXXX` files, older than this run), e.g. {}",
+            stale.len(),
+            args.out.display(),
+            stale[0].display()
+        );
+    }
+    for dir in &plan.skipped {
+        eprintln!(
+            "note: {}: skipped, a link to a directory already searched",
+            dir.display()
+        );
+    }
+    pool.install(|| run_in_pool(&args, &cal, &cal_bytes, &plan))
 }
 
-fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[u8]) -> Exit {
-    let plan = match batch::plan(&args.inputs, &args.out) {
-        Ok(p) => p,
-        Err(e) => {
-            eprintln!("error: reading the inputs: {e}");
-            return Exit::Usage;
+/// The output directory (created) locked against a second batch writing into it at the same
+/// time: an advisory `flock` on the directory itself, released when the value is dropped (or
+/// the process ends), so nothing is left behind.
+fn lock(out: &Path) -> Result<std::fs::File, Exit> {
+    let fail = |e: std::io::Error| super::usage(format!("{}: {e}", out.display()));
+    std::fs::create_dir_all(out).map_err(fail)?;
+    let dir = std::fs::File::open(out).map_err(fail)?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::io::AsRawFd;
+        // SAFETY: `flock` on a descriptor this function owns; it reads nothing else.
+        if unsafe { libc::flock(dir.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == std::io::ErrorKind::WouldBlock {
+                return Err(super::usage(format!(
+                    "{}: another robopost batch is writing into this directory; wait for it or choose another output",
+                    out.display()
+                )));
+            }
+            return Err(fail(e));
         }
-    };
+    }
+    Ok(dir)
+}
+
+fn run_in_pool(
+    args: &Args,
+    cal: &crate::calibration::Calibration,
+    cal_bytes: &[u8],
+    plan: &batch::Plan,
+) -> Exit {
     let calibrated = calibrated(cal, &args.cal, cal_bytes);
     let options = args.program.options(true, false);
     let config = args.program.config.as_deref();

@@ -32,6 +32,9 @@ pub fn run(args: Args) -> Exit {
     }
     let mut exit = Exit::Success;
     let mut programs = Vec::new();
+    // Programs that parsed without errors, simulated with -c (one with errors is already
+    // reported and rejected: loading it again would print its errors twice).
+    let mut to_simulate = Vec::new();
     // A .dat given explicitly after its .src is already checked with it.
     let mut companions: HashSet<PathBuf> = HashSet::new();
     for path in &args.files {
@@ -40,6 +43,11 @@ pub fn run(args: Args) -> Exit {
         }
         match Program::load(path) {
             Ok(p) => {
+                if let Some(d) = not_krl(&p) {
+                    eprint!("{}", d.render());
+                    exit = worse(exit, Exit::Usage);
+                    continue;
+                }
                 if let Some(d) = &p.dat_path {
                     companions.insert(canonical(d));
                 }
@@ -50,6 +58,8 @@ pub fn run(args: Args) -> Exit {
                 }
                 if rejected {
                     exit = worse(exit, Exit::Rejected);
+                } else {
+                    to_simulate.push(path.clone());
                 }
                 programs.push(p);
             }
@@ -62,10 +72,21 @@ pub fn run(args: Args) -> Exit {
     if let Some(cal) = &args.cal {
         // Simulate and compensate in memory: unreachable, out-of-limit and near-singular
         // targets, nothing written.
-        let sim = super::compensate::check_programs(&args.files, cal, &args.program);
+        let sim = super::compensate::check_programs(&to_simulate, cal, &args.program);
         exit = worse(exit, sim);
     }
     exit
+}
+
+/// The first file of `p` that is not KRL at all, as a located error (see `krl::sniff`).
+fn not_krl(p: &Program) -> Option<crate::diagnostic::Diagnostic> {
+    let main = (&p.main, p.path.display().to_string());
+    let dat = p.dat.as_ref().zip(p.dat_path.as_ref());
+    let dat = dat.map(|(f, path)| (f, path.display().to_string()));
+    [Some(main), dat]
+        .into_iter()
+        .flatten()
+        .find_map(|(f, name)| crate::krl::not_krl(f).map(|problem| f.diagnostic(&problem, &name)))
 }
 
 /// The one-line summary of a program and whether it is rejected.

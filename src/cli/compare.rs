@@ -47,8 +47,10 @@ pub(crate) fn load_inputs(
         }
     }
     let mut data = Vec::new();
+    // Every row within the joint limits of the robot the measurements are compared with.
+    let limits = loaded.first().map(|c| c.model_ref().robot.limits_deg);
     for path in files {
-        match measure::read_csv(path) {
+        match measure::read_csv_within(path, limits.as_ref()) {
             Ok(m) => {
                 if !m.ignored_columns.is_empty() {
                     eprintln!(
@@ -90,6 +92,15 @@ fn summary_json(s: &Summary, path: &Path) -> Value {
 pub fn run(args: Args) -> Exit {
     let mut cal_paths = vec![args.cal.as_path()];
     cal_paths.extend(args.against.as_deref());
+    if let Some(dir) = &args.report {
+        let mut guard = crate::paths::Guard::new();
+        guard
+            .read_all(cal_paths.iter().copied())
+            .read_all(args.measurements.iter().map(PathBuf::as_path));
+        if let Err(clash) = guard.write(&dir.join(report::INDEX)) {
+            return super::refuse(&clash);
+        }
+    }
     let Some((cals, data)) = load_inputs(&cal_paths, &args.measurements) else {
         return Exit::Usage;
     };

@@ -186,6 +186,10 @@ pub fn run(args: Args) -> Exit {
                 eprintln!("error: {e}");
                 return Exit::Usage;
             }
+            Err(e @ crate::motion::workspace::LoadError::NotKrl { .. }) => {
+                eprint!("{e}");
+                return Exit::Usage;
+            }
             Err(e) => {
                 eprintln!("{e}");
                 return Exit::Rejected;
@@ -198,20 +202,25 @@ pub fn run(args: Args) -> Exit {
         eprintln!("  streamed: {} runs in {windows} windows", runs.len());
     }
     let to_stdout = is_dash(&args.out);
+    let mut guard = crate::paths::Guard::new();
+    guard
+        .read(&args.cal)
+        .read_all(ws.files.iter().filter_map(|f| f.path.as_deref()));
+    let outputs = if to_stdout {
+        Vec::new()
+    } else {
+        files::output_paths(&ws, &args.out)
+    };
+    let written = outputs.iter().map(|(_, p)| p.as_path());
+    for path in written.chain(args.report.as_deref()) {
+        if let Err(clash) = guard.write(path) {
+            return super::refuse(&clash);
+        }
+    }
     if !to_stdout {
-        for f in &ws.files {
-            if let Some(p) = &f.path {
-                for (_, out) in files::output_paths(&ws, &args.out) {
-                    if files::same_file(p, &out) {
-                        eprintln!(
-                            "error: the output {} would overwrite the input {}: choose another output",
-                            out.display(),
-                            p.display()
-                        );
-                        return Exit::Usage;
-                    }
-                }
-            }
+        if let Err(e) = files::no_stale_dat(&ws, &args.out) {
+            eprintln!("error: {e}");
+            return Exit::Usage;
         }
     }
     let calibrated = calibrated(&cal, &args.cal, &cal_bytes);

@@ -12,7 +12,8 @@ use super::Exit;
 use crate::identify::pipeline::{identify, Effects, Identified, Request, PAPER_EFFECTS};
 use crate::identify::setup::GridChoice;
 use crate::identify::{Progress, Status};
-use crate::measure::read_csv;
+use crate::kinematics::RobotDescription;
+use crate::measure::read_csv_within;
 use crate::model::expand_list;
 use crate::stats::ErrorStats;
 
@@ -55,17 +56,41 @@ pub struct Args {
 }
 
 fn usage(message: &str) -> Exit {
-    eprintln!("robopost identify: {message}");
-    Exit::Usage
+    super::usage(message)
 }
 
 pub fn run(args: Args) -> Exit {
-    if !(args.map_pitch.is_finite() && args.map_pitch > 0.0) {
-        return usage("--map-pitch must be a positive number of degrees");
+    let finest = crate::model::table::MIN_PITCH_DEG;
+    if !(args.map_pitch.is_finite() && args.map_pitch >= finest) {
+        return usage(&format!(
+            "--map-pitch {}: the table pitch must be at least {finest} degrees",
+            args.map_pitch
+        ));
     }
+    let mut guard = crate::paths::Guard::new();
+    guard
+        .read_all(args.files.iter().map(PathBuf::as_path))
+        .read_all(args.cal.as_deref());
+    if let Err(clash) = guard.write(&args.out) {
+        return super::refuse(&clash);
+    }
+    let base = match &args.cal {
+        Some(path) => match crate::calibration::load(path) {
+            Ok(c) => Some(c),
+            Err(e) => return usage(&e.to_string()),
+        },
+        None => None,
+    };
+    // Every row within the joint limits of the robot identified (the nominal KR 30 HA's
+    // without -c, as the identification assumes).
+    let limits = base
+        .as_ref()
+        .map_or(RobotDescription::kr30ha().limits_deg, |c| {
+            c.model_ref().robot.limits_deg
+        });
     let mut stops = Vec::new();
     for file in &args.files {
-        match read_csv(file) {
+        match read_csv_within(file, Some(&limits)) {
             Ok(m) => {
                 if !m.ignored_columns.is_empty() {
                     eprintln!(
@@ -82,13 +107,6 @@ pub fn run(args: Args) -> Exit {
             }
         }
     }
-    let base = match &args.cal {
-        Some(path) => match crate::calibration::load(path) {
-            Ok(c) => Some(c),
-            Err(e) => return usage(&e.to_string()),
-        },
-        None => None,
-    };
     let effects = match args.effects.as_deref() {
         None => None,
         Some(list) => {

@@ -122,7 +122,7 @@ fn axis_notes(robot: &RobotDescription, axes: &[f64; 6]) {
 fn six_finite(command: &str, values: &[f64]) -> Result<[f64; 6], Exit> {
     match values.iter().find(|a| !a.is_finite()) {
         Some(bad) => {
-            eprintln!("robopost {command}: {bad} is not a finite number");
+            eprintln!("error: {command}: {bad} is not a finite number");
             Err(Exit::Usage)
         }
         None => Ok(axes_of(values)),
@@ -130,13 +130,10 @@ fn six_finite(command: &str, values: &[f64]) -> Result<[f64; 6], Exit> {
 }
 
 /// The calibration of `-c`, if given; an unreadable or invalid file is a usage error.
-fn load_calibration(
-    command: &str,
-    path: Option<&PathBuf>,
-) -> Result<Option<calibration::Calibration>, Exit> {
+fn load_calibration(path: Option<&PathBuf>) -> Result<Option<calibration::Calibration>, Exit> {
     path.map(|path| {
         calibration::load(path).map_err(|e| {
-            eprintln!("robopost {command}: {e}");
+            eprintln!("error: {e}");
             Exit::Usage
         })
     })
@@ -146,7 +143,7 @@ fn load_calibration(
 pub fn run_fk(args: FkArgs) -> Exit {
     let (axes, cal) = match (
         six_finite("fk", &args.axes),
-        load_calibration("fk", args.cal.as_ref()),
+        load_calibration(args.cal.as_ref()),
     ) {
         (Ok(axes), Ok(cal)) => (axes, cal),
         (Err(exit), _) | (_, Err(exit)) => return exit,
@@ -306,7 +303,7 @@ fn selected_row(
 pub fn run_ik(args: IkArgs) -> Exit {
     let (values, cal) = match (
         six_finite("ik", &args.pose),
-        load_calibration("ik", args.cal.as_ref()),
+        load_calibration(args.cal.as_ref()),
     ) {
         (Ok(values), Ok(cal)) => (values, cal),
         (Err(exit), _) | (_, Err(exit)) => return exit,
@@ -315,7 +312,7 @@ pub fn run_ik(args: IkArgs) -> Exit {
     let flange = Pose::from_array(values).to_isometry();
     let rows = match args.s {
         Some(s) if s > 7 => {
-            eprintln!("robopost ik: S {s} has bits above bit 2 (S is 0..7)");
+            eprintln!("error: --s {s} has bits above bit 2 (S is 0..7)");
             return Exit::Usage;
         }
         Some(s) => selected_row(&robot, &flange, s, args.t).map(|r| vec![r]),
@@ -326,15 +323,12 @@ pub fn run_ik(args: IkArgs) -> Exit {
     };
     let rows = match rows {
         Ok(rows) if rows.is_empty() => {
-            eprintln!(
-                "robopost ik: no solution with T {}",
-                args.t.unwrap_or_default()
-            );
+            eprintln!("error: no solution with T {}", args.t.unwrap_or_default());
             return Exit::Rejected;
         }
         Ok(rows) => rows,
         Err(e) => {
-            eprintln!("robopost ik: {e}");
+            eprintln!("error: {e}");
             return Exit::Rejected;
         }
     };

@@ -15,7 +15,7 @@ pub mod identify;
 pub mod kin;
 pub mod simulate;
 
-/// Exit status per `../shared/CONTRACTS.md`.
+/// Exit status per `docs/cli.md`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Exit {
     /// The job ran and every input was accepted.
@@ -24,6 +24,17 @@ pub enum Exit {
     Rejected = 1,
     /// Usage error or unreadable input; nothing was written.
     Usage = 2,
+}
+
+/// A usage error: `error: message` on standard error, exit 2 (nothing written).
+pub fn usage(message: impl std::fmt::Display) -> Exit {
+    eprintln!("error: {message}");
+    Exit::Usage
+}
+
+/// An output refused by the guard of [`crate::paths`]: exit 2, nothing written.
+pub fn refuse(clash: &crate::paths::Clash) -> Exit {
+    usage(clash)
 }
 
 #[derive(Parser, Debug)]
@@ -72,11 +83,20 @@ const SUBCOMMANDS: &[&str] = &[
     "help",
 ];
 
-/// Inserts the implicit `compensate` subcommand when the first argument is not a subcommand.
+/// Inserts the implicit `compensate` subcommand when the first argument is a program: not a
+/// subcommand, and a file that exists or a name that looks like one (`-`, an extension, a
+/// directory part). A bare word that is neither (`identfy`) is left to clap, which names the
+/// subcommand meant ("a similar subcommand exists: 'identify'").
 fn with_default_subcommand(mut args: Vec<String>) -> Vec<String> {
     if let Some(first) = args.get(1) {
         let is_flag = first.starts_with('-') && first != "-";
-        if !is_flag && !SUBCOMMANDS.contains(&first.as_str()) {
+        let path = std::path::Path::new(first);
+        let looks_like_a_file = first == "-"
+            || path.extension().is_some()
+            || first.contains(std::path::MAIN_SEPARATOR)
+            || first.contains('/')
+            || std::fs::symlink_metadata(path).is_ok();
+        if !is_flag && !SUBCOMMANDS.contains(&first.as_str()) && looks_like_a_file {
             args.insert(1, "compensate".to_string());
         }
     }
@@ -138,5 +158,18 @@ mod tests {
             with_default_subcommand(v(&["robopost", "--help"]))[1],
             "--help"
         );
+        assert_eq!(
+            with_default_subcommand(v(&["robopost", "cells/weld", "-c", "x"]))[1],
+            "compensate"
+        );
+    }
+
+    /// A mistyped subcommand gets clap's suggestion, not a "cannot read identfy" error.
+    #[test]
+    fn a_mistyped_subcommand_is_named() {
+        let args = with_default_subcommand(v(&["robopost", "identfy", "m.csv", "-o", "c.json"]));
+        assert_eq!(args[1], "identfy");
+        let e = Cli::try_parse_from(args).unwrap_err().to_string();
+        assert!(e.contains("similar subcommand exists: 'identify'"), "{e}");
     }
 }

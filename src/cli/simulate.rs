@@ -124,6 +124,10 @@ pub fn run(args: Args) -> Exit {
             seed,
             out,
         } => {
+            let inputs = [Some(truth.as_path()), campaign.as_deref()];
+            if let Err(exit) = guard_output(inputs.into_iter().flatten(), &out) {
+                return exit;
+            }
             let plan = match campaign {
                 None if reversal => Campaign::paper_with_reversals().plan(),
                 None => Campaign::paper().plan(),
@@ -144,6 +148,9 @@ pub fn run(args: Args) -> Exit {
             pace,
             out,
         } => {
+            if let Err(exit) = guard_output([truth.as_path(), file.as_path()], &out) {
+                return exit;
+            }
             let (dwell, speed) = match pace.checked() {
                 Ok(p) => p,
                 Err(exit) => return exit,
@@ -188,8 +195,14 @@ pub fn run(args: Args) -> Exit {
 }
 
 fn usage(message: &str) -> Exit {
-    eprintln!("robopost simulate: {message}");
-    Exit::Usage
+    super::usage(message)
+}
+
+/// The guard of a run that reads `inputs` and writes `out` (see [`crate::paths`]).
+fn guard_output<'a>(inputs: impl IntoIterator<Item = &'a Path>, out: &Path) -> Result<(), Exit> {
+    let mut guard = crate::paths::Guard::new();
+    guard.read_all(inputs);
+    guard.write(out).map_err(|clash| super::refuse(&clash))
 }
 
 fn read_campaign(path: &Path) -> Result<Campaign, String> {
@@ -254,11 +267,19 @@ fn run_program(
     let ws = match files::load_program((!stdin).then_some(path), &bytes, frames.config.as_deref()) {
         Ok(ws) => ws,
         Err(e @ LoadError::Io { .. }) => return usage(&e.to_string()),
+        Err(e @ LoadError::NotKrl { .. }) => {
+            eprint!("{e}");
+            return Exit::Usage;
+        }
         Err(e) => {
             eprintln!("{e}");
             return Exit::Rejected;
         }
     };
+    let read = ws.files.iter().filter_map(|f| f.path.as_deref());
+    if let Err(exit) = guard_output(read.chain([truth]), out) {
+        return exit;
+    }
     let sim = crate::motion::simulate(&ws, robot.robot(), &frames.given());
     for d in &sim.diagnostics {
         eprintln!("{}", d.render());

@@ -48,6 +48,9 @@ pub struct Plan {
     pub copies: Vec<(PathBuf, PathBuf)>,
     /// Files that could not be read while planning.
     pub unreadable: Vec<(PathBuf, String)>,
+    /// Directories not entered because they were reached before (a link back up the tree,
+    /// or a second link to one directory).
+    pub skipped: Vec<PathBuf>,
 }
 
 fn is_krl(p: &Path) -> bool {
@@ -63,14 +66,41 @@ fn is_src(p: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("src") || e.eq_ignore_ascii_case("sub"))
 }
 
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
+/// Device and inode of a directory (links followed), the identity a walk remembers.
+#[cfg(unix)]
+fn dir_id(dir: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(dir).ok().map(|m| (m.dev(), m.ino()))
+}
+
+#[cfg(not(unix))]
+fn dir_id(dir: &Path) -> Option<PathBuf> {
+    dir.canonicalize().ok()
+}
+
+/// The KRL files under `dir`, sorted. A directory is entered once: a symbolic link back up
+/// the tree (`loop -> ..`) or a second link to a directory already walked is skipped and
+/// listed in `skipped`, so a loop cannot multiply the library.
+fn walk<Id: Eq + std::hash::Hash>(
+    dir: &Path,
+    id: &impl Fn(&Path) -> Option<Id>,
+    visited: &mut HashSet<Id>,
+    out: &mut Vec<PathBuf>,
+    skipped: &mut Vec<PathBuf>,
+) -> std::io::Result<()> {
+    if let Some(me) = id(dir) {
+        if !visited.insert(me) {
+            skipped.push(dir.to_path_buf());
+            return Ok(());
+        }
+    }
     let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .collect();
     entries.sort();
     for p in entries {
         if p.is_dir() {
-            walk(&p, out)?;
+            walk(&p, id, visited, out, skipped)?;
         } else if is_krl(&p) {
             out.push(p);
         }
@@ -98,10 +128,11 @@ fn calls(path: &Path) -> Result<HashSet<Vec<u8>>, String> {
 /// `out_dir`.
 pub fn plan(inputs: &[PathBuf], out_dir: &Path) -> std::io::Result<Plan> {
     let mut plan = Plan::default();
+    let mut visited = HashSet::new();
     for input in inputs {
         let (root, found) = if input.is_dir() {
             let mut v = Vec::new();
-            walk(input, &mut v)?;
+            walk(input, &dir_id, &mut visited, &mut v, &mut plan.skipped)?;
             (input.clone(), v)
         } else {
             let parent = input.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -198,6 +229,9 @@ pub fn run_job(
             .map(|d| d.render())
             .collect();
         return failed(text.join("\n"));
+    }
+    if let Err(e) = files::no_stale_dat(&ws, &job.out) {
+        return failed(e);
     }
     let outputs = files::outputs(&ws, &result.files, &job.out);
     if let Err(e) = files::write_atomic_pieces(&outputs) {

@@ -110,22 +110,31 @@ pub fn output_paths(ws: &Workspace, out: &Path) -> Vec<(FileId, PathBuf)> {
     v
 }
 
-/// Whether two paths name the same file (the second may not exist yet).
-pub fn same_file(a: &Path, b: &Path) -> bool {
-    let canon = |p: &Path| -> Option<PathBuf> {
-        if let Ok(c) = p.canonicalize() {
-            return Some(c);
+/// The rule that keeps a `.src` and its `.dat` one unit on output: both are written (an
+/// unchanged `.dat` too) or neither. A program without a `.dat` may therefore not be written
+/// beside a `.dat` of its output name (left by an earlier run, or someone else's): the
+/// controller would load that data list with the new program. That is refused, not removed.
+pub fn no_stale_dat(ws: &Workspace, out: &Path) -> Result<(), String> {
+    for (id, path) in output_paths(ws, out) {
+        let f = ws.get(id);
+        let is_src = f.file.kind() == krl::FileKind::Src;
+        if !is_src || f.partner.is_some() {
+            continue;
         }
-        let parent = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        Some(parent.canonicalize().ok()?.join(p.file_name()?))
-    };
-    match (canon(a), canon(b)) {
-        (Some(x), Some(y)) => x == y,
-        _ => false,
+        let stale = ["dat", "DAT", "Dat"]
+            .iter()
+            .map(|e| path.with_extension(e))
+            .find(|d| std::fs::symlink_metadata(d).is_ok());
+        if let Some(dat) = stale {
+            return Err(format!(
+                "{} exists beside the output {}, but {} has no .dat: the controller would load that data list with the new program; remove it or choose another output",
+                dat.display(),
+                path.display(),
+                f.name
+            ));
+        }
     }
+    Ok(())
 }
 
 /// Writes every `(path, bytes)` atomically: all temporary files first, then the renames.

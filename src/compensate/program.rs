@@ -336,6 +336,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     lap("rewrite");
     diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());
+    diagnostics.append(&mut seg.tally.large_corrections());
     let unfilled = report.clone();
     seg.tally.fill(&mut report, &rw, &diagnostics);
     drop(sim);

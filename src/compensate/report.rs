@@ -148,7 +148,19 @@ pub(super) struct Tally {
     held_axes: usize,
     reversals_inside_play: usize,
     points: Vec<PointReport>,
+    /// Corrections above [`LARGE_CORRECTION_UM`] or [`LARGE_CORRECTION_MDEG`]: how many, and
+    /// the first few as located warnings.
+    large: usize,
+    large_shown: Vec<Diagnostic>,
 }
+
+/// A correction larger than this (5 mm, 1°) is no calibrated robot's error but a calibration
+/// that does not fit the robot (a table in the wrong unit, another robot's file): warned
+/// about, with its line, before anything is written.
+pub const LARGE_CORRECTION_UM: f64 = 5000.0;
+pub const LARGE_CORRECTION_MDEG: f64 = 1000.0;
+/// Large corrections warned about one by one; the rest are counted.
+const LARGE_SHOWN: usize = 5;
 
 impl Tally {
     /// The targets `sim.stops[first..]` with their `outcomes` and `commands`.
@@ -200,7 +212,21 @@ impl Tally {
             .collect();
         self.targets += outcomes.len();
         self.rejected += outcomes.iter().filter(|o| o.error.is_some()).count();
-        for values in figures.into_iter().flatten() {
+        for (i, values) in figures.into_iter().enumerate() {
+            let Some(values) = values else { continue };
+            if values[0] > LARGE_CORRECTION_UM || values[1] > LARGE_CORRECTION_MDEG {
+                self.large += 1;
+                if self.large_shown.len() < LARGE_SHOWN {
+                    let s = &stops[i];
+                    let message = format!(
+                        "the calibration moves this target by {:.1} mm / {:.3}°, more than any robot's error (5 mm / 1°): check that the calibration belongs to this robot",
+                        values[0] / 1000.0,
+                        values[1] / 1000.0
+                    );
+                    let d = ws.diagnostic(Severity::Warning, s.file, s.stmt.head, message);
+                    self.large_shown.push(d);
+                }
+            }
             self.compensated += 1;
             for (f, v) in self.figures.iter_mut().zip(values) {
                 f.add(v);
@@ -218,6 +244,22 @@ impl Tally {
             .iter()
             .filter(|o| o.travels_play.contains(&true))
             .count();
+    }
+
+    /// Warnings about corrections above a sane size (the first few located, then a count).
+    pub fn large_corrections(&mut self) -> Vec<Diagnostic> {
+        let mut out = std::mem::take(&mut self.large_shown);
+        let more = self.large.saturating_sub(out.len());
+        if more > 0 {
+            if let Some(first) = out.first() {
+                out.push(Diagnostic::new(
+                    Severity::Warning,
+                    &first.file,
+                    format!("{more} more targets are moved by more than 5 mm or 1°"),
+                ));
+            }
+        }
+        out
     }
 
     /// The report with the figures, the split points and the diagnostics.

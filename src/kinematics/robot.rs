@@ -11,16 +11,22 @@ use serde::{Deserialize, Serialize};
 #[serde(deny_unknown_fields)]
 pub struct Links {
     /// A1 axis to A2 axis, horizontal.
+    #[schemars(range(min = 0, max = 5000))]
     pub l1x: f64,
     /// Base ($ROBROOT) to A2 axis, vertical.
+    #[schemars(range(min = 0, max = 5000))]
     pub l1z: f64,
     /// A2 axis to A3 axis.
+    #[schemars(range(min = 1, max = 5000))]
     pub l2: f64,
     /// A3 axis to the A4 axis (offset, wrist above A3 at HOME).
+    #[schemars(range(min = 0, max = 5000))]
     pub l3z: f64,
     /// A3 to the wrist point along A4.
+    #[schemars(range(min = 1, max = 5000))]
     pub l4x: f64,
     /// Wrist point to flange.
+    #[schemars(range(min = 0, max = 5000))]
     pub l5x: f64,
 }
 
@@ -33,8 +39,10 @@ pub struct Links {
 #[serde(deny_unknown_fields)]
 pub struct Gravity {
     /// Mass of each moving link in kg (link 1 = turntable ... link 6 = flange).
+    #[schemars(inner(range(min = 0, max = 10000)))]
     pub link_mass_kg: [f64; 6],
     /// Centre of gravity of each link in its own axis frame, mm.
+    #[schemars(inner(inner(range(min = -5000, max = 5000))))]
     pub link_cog_mm: [[f64; 3]; 6],
 }
 
@@ -42,8 +50,10 @@ pub struct Gravity {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Payload {
+    #[schemars(range(min = 0, max = 10000))]
     pub mass_kg: f64,
     /// Centre of gravity in the KUKA flange frame, mm.
+    #[schemars(inner(range(min = -5000, max = 5000)))]
     pub cog_mm: [f64; 3],
 }
 
@@ -61,12 +71,14 @@ impl Default for Payload {
 #[serde(deny_unknown_fields)]
 pub struct RobotDescription {
     pub links: Links,
-    /// Software limits per axis, [min, max] in degrees (KUKA command angles).
+    /// Software limits per axis, [min, max] in degrees (KUKA command angles), min < max.
+    #[schemars(inner(inner(range(min = -720, max = 720))))]
     pub limits_deg: [[f64; 2]; 6],
     /// Sign relating each KUKA axis angle to a right-handed rotation about the model axis
     /// (A1 −Z, A2 +Y, A3 +Y, A4 −X, A5 +Y, A6 −Z of the flange): `θ_model = sense·A + offset`.
     pub senses: [f64; 6],
     /// Offsets in degrees of the same relation (KUKA: A2 +90°, A3 −90°).
+    #[schemars(inner(range(min = -360, max = 360)))]
     pub offsets_deg: [f64; 6],
     /// Link masses for gravity torques; `None` when unknown (compliance then unavailable).
     #[serde(default, skip_serializing_if = "Option::is_none")]

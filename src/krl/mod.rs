@@ -90,6 +90,7 @@ pub mod motion;
 mod nodes;
 pub mod number;
 pub mod program;
+pub mod sniff;
 pub mod span;
 pub mod stmt;
 pub mod stream;
@@ -107,6 +108,7 @@ pub use motion::{
 };
 pub use nodes::{AggregateId, Members, MotionId, RawMember, RawMembers};
 pub use program::{LoadError, Program};
+pub use sniff::not_krl;
 pub use span::{LineIndex, Span};
 pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, Directive, For, Stmt, StmtKind};
 pub use stream::{StreamOptions, StreamedRun};
@@ -116,7 +118,9 @@ pub use tree::{
     TileKind,
 };
 
-/// The `.dat` beside a `.src` (same stem, `.dat` or `.DAT`), if it exists.
+/// The `.dat` beside a `.src` (same stem, `.dat` or `.DAT`), if there is anything of that
+/// name: a directory or a broken link there is then an error when it is read, not a program
+/// silently without its data list.
 pub fn companion_dat(src: &std::path::Path) -> Option<std::path::PathBuf> {
     if FileKind::from_path(src) == FileKind::Dat {
         return None;
@@ -124,5 +128,5 @@ pub fn companion_dat(src: &std::path::Path) -> Option<std::path::PathBuf> {
     ["dat", "DAT", "Dat"]
         .iter()
         .map(|e| src.with_extension(e))
-        .find(|p| p.is_file())
+        .find(|p| std::fs::symlink_metadata(p).is_ok())
 }

@@ -340,6 +340,10 @@ struct Builder {
     /// Pages mapped ahead of the statement list being filled (see `memory`).
     ahead: Ahead,
     routines: u32,
+    /// Blocks opened beyond [`MAX_BLOCK_DEPTH`], innermost last: kept as opaque lines, not
+    /// followed. Their arms and closers are theirs (not strays of the followed blocks), and
+    /// only the outermost is warned about.
+    deep: Vec<BlockKind>,
 }
 
 fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<FoldId>) -> Stmt {
@@ -401,12 +405,18 @@ impl Builder {
                 if matches!(bk, BlockKind::Routine | BlockKind::DefDat) {
                     self.close_all();
                 }
-                if self.stack.len() >= MAX_BLOCK_DEPTH {
-                    self.stray(
-                        "blocks nested too deeply; this line is kept but not followed".into(),
-                        "split the routine",
-                        simple(StmtKind::Opaque, leading, head, line, fold),
-                    );
+                if self.stack.len() >= MAX_BLOCK_DEPTH || !self.deep.is_empty() {
+                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
+                    if self.deep.is_empty() {
+                        self.stray(
+                            format!("blocks nested more than {MAX_BLOCK_DEPTH} deep: this block is kept as written but not followed"),
+                            "split the routine",
+                            s,
+                        );
+                    } else {
+                        self.body().push(s);
+                    }
+                    self.deep.push(bk);
                     return;
                 }
                 let mut s = simple(kind, leading, head, line, fold);
@@ -420,6 +430,10 @@ impl Builder {
                     kind: bk,
                     main,
                 });
+            }
+            Line::Arm(..) if !self.deep.is_empty() => {
+                let s = simple(StmtKind::Opaque, leading, head, line, fold);
+                self.body().push(s);
             }
             Line::Arm(bk, arm) => {
                 let clause = Clause {
@@ -443,7 +457,16 @@ impl Builder {
                     ),
                 }
             }
+            // Searched from the innermost: the cost is the blocks closed, linear overall.
+            Line::Close(bk, _) if self.deep.iter().rev().any(|k| *k == bk) => {
+                let at = self.deep.iter().rposition(|k| *k == bk).unwrap_or(0);
+                self.deep.truncate(at);
+                let s = simple(StmtKind::Opaque, leading, head, line, fold);
+                self.body().push(s);
+            }
             Line::Close(bk, until) => {
+                // Blocks left open beyond the depth limit end with the followed one closed here.
+                self.deep.clear();
                 let Some(at) = self.stack.iter().rposition(|f| f.kind == bk) else {
                     self.stray(
                         format!("`{}` without an open `{}`", bk.closer(), bk.opener()),
@@ -499,6 +522,7 @@ impl Builder {
     }
 
     fn close_all(&mut self) {
+        self.deep.clear();
         while !self.stack.is_empty() {
             self.pop_unclosed();
         }
@@ -813,15 +837,30 @@ impl SourceFile {
 
     /// A problem as a located diagnostic of file `name`.
     pub fn diagnostic(&self, p: &Problem, name: &str) -> Diagnostic {
-        Diagnostic::at_bytes(
-            p.severity,
+        self.diagnostic_at(p.severity, name, p.span, p.message.clone())
+            .with_label(p.label)
+            .with_help(p.help)
+    }
+
+    /// A message about `span` of this file, located through the line index (in time
+    /// independent of the file's length).
+    pub fn diagnostic_at(
+        &self,
+        severity: crate::diagnostic::Severity,
+        name: &str,
+        span: Span,
+        message: impl Into<String>,
+    ) -> Diagnostic {
+        let (line, col) = self.lines.line_col(span.start as usize);
+        let line_start = (span.start as usize).saturating_sub(col - 1);
+        Diagnostic::at_line(
+            severity,
             name,
             &self.src,
-            p.span.range(),
-            p.message.clone(),
+            (line, line_start),
+            span.range(),
+            message,
         )
-        .with_label(p.label)
-        .with_help(p.help)
     }
 
     /// The file again, byte for byte, from the tree's tiles.

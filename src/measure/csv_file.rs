@@ -48,8 +48,28 @@ const KNOWN: [&str; 17] = [
     "dir5", "dir6",
 ];
 
+/// The physical range of a command angle, degrees (two full turns either way: no joint
+/// limit is wider), of a measured coordinate, mm (100 m from the tracker's origin), and of
+/// the clock, seconds (30 years).
+pub const ANGLE_RANGE_DEG: f64 = 720.0;
+pub const POSITION_RANGE_MM: f64 = 100_000.0;
+pub const TIME_RANGE_S: f64 = 1e9;
+
+/// A command angle this far beyond a joint limit (degrees) is still taken as at the limit
+/// (the decimals a controller writes).
+const LIMIT_SLACK_DEG: f64 = 1e-6;
+
 /// Reads a measurement file (`-` reads stdin).
 pub fn read_csv(path: &Path) -> Result<Measurements, MeasureError> {
+    read_csv_within(path, None)
+}
+
+/// [`read_csv`], refusing a row whose command angles lie outside `limits_deg` (the robot's
+/// joint limits, `[min, max]` per axis) with the row's line and column.
+pub fn read_csv_within(
+    path: &Path,
+    limits_deg: Option<&[[f64; 2]; 6]>,
+) -> Result<Measurements, MeasureError> {
     let name = path.display().to_string();
     let bytes = if name == "-" {
         let mut buf = Vec::new();
@@ -65,7 +85,7 @@ pub fn read_csv(path: &Path) -> Result<Measurements, MeasureError> {
         message: format!("cannot read the measurement file: {e}"),
         help: None,
     })?;
-    parse_csv(&bytes, &name)
+    parse_csv_within(&bytes, &name, limits_deg)
 }
 
 struct Columns {
@@ -78,17 +98,53 @@ struct Columns {
 
 /// Parses measurement CSV bytes; `file` names the source in errors.
 pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError> {
-    // Split once: looking a line up per row must not rescan the file (quadratic time).
-    let raw_lines: Vec<&[u8]> = bytes.split(|&b| b == b'\n').collect();
+    parse_csv_within(bytes, file, None)
+}
+
+/// [`parse_csv`] within the joint limits `limits_deg` (see [`read_csv_within`]).
+pub fn parse_csv_within(
+    bytes: &[u8],
+    file: &str,
+    limits_deg: Option<&[[f64; 2]; 6]>,
+) -> Result<Measurements, MeasureError> {
+    // Lines end with `\n`, `\r\n` or a lone `\r`, as the csv reader reads them. Their starts
+    // are found once: looking a line up per row must not rescan the file (quadratic time).
+    let ends_line = |i: usize| match bytes[i] {
+        b'\n' => true,
+        b'\r' => bytes.get(i + 1) != Some(&b'\n'),
+        _ => false,
+    };
+    let line_starts: Vec<usize> = std::iter::once(0)
+        .chain((0..bytes.len()).filter(|&i| ends_line(i)).map(|i| i + 1))
+        .collect();
+    // The csv reader's line count lags behind on CRLF files, and a record's position is
+    // taken before the line ends, blank lines and comment lines in front of it are skipped:
+    // the line is found from the byte offset, past those, instead.
+    let line_at = |pos: Option<&csv::Position>| -> usize {
+        let Some(pos) = pos else { return 0 };
+        let mut at = pos.byte() as usize;
+        loop {
+            match bytes.get(at) {
+                Some(b'\r' | b'\n') => at += 1,
+                Some(b'#') if at == 0 || matches!(bytes[at - 1], b'\n' | b'\r') => {
+                    at = (at..bytes.len())
+                        .find(|&i| ends_line(i))
+                        .map_or(bytes.len(), |i| i + 1);
+                }
+                _ => break,
+            }
+        }
+        line_starts.partition_point(|&start| start <= at)
+    };
     let line_of = |line: usize| -> String {
-        raw_lines
-            .get(line.saturating_sub(1))
-            .map(|l| {
-                String::from_utf8_lossy(l)
-                    .trim_end_matches('\r')
-                    .to_string()
-            })
-            .unwrap_or_default()
+        let Some(&start) = line.checked_sub(1).and_then(|i| line_starts.get(i)) else {
+            return String::new();
+        };
+        let end = line_starts.get(line).copied().unwrap_or(bytes.len());
+        let text = &bytes[start..end];
+        let text = text.strip_suffix(b"\n").unwrap_or(text);
+        let text = text.strip_suffix(b"\r").unwrap_or(text);
+        String::from_utf8_lossy(text).into_owned()
     };
     let error = |line: usize, col: usize, message: String, help: Option<&str>| MeasureError {
         file: file.to_string(),
@@ -155,7 +211,7 @@ pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError>
     let mut record = csv::ByteRecord::new();
     loop {
         let more = reader.read_byte_record(&mut record).map_err(|e| {
-            let line = e.position().map(|p| p.line() as usize).unwrap_or(0);
+            let line = line_at(e.position());
             error(
                 line,
                 1,
@@ -166,7 +222,7 @@ pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError>
         if !more {
             break;
         }
-        let line = record.position().map(|p| p.line() as usize).unwrap_or(0);
+        let line = line_at(record.position());
         let raw = line_of(line);
         let col_of = |field: usize| column_of_field(&raw, field);
         let text =
@@ -176,8 +232,22 @@ pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError>
             if s.is_empty() {
                 return Ok(None);
             }
+            let (range, unit) = match what {
+                "t" => (TIME_RANGE_S, "s"),
+                "x" | "y" | "z" => (POSITION_RANGE_MM, "mm"),
+                _ if what.starts_with('a') => (ANGLE_RANGE_DEG, "°"),
+                _ => (f64::INFINITY, ""),
+            };
             match s.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(Some(v)),
+                Ok(v) if v.abs() <= range => Ok(Some(v)),
+                Ok(v) if v.is_finite() => Err(error(
+                    line,
+                    col_of(i),
+                    format!("{what} = {s} is beyond any physical range (at most ±{range} {unit})"),
+                    Some(
+                        "check the column's unit (mm, degrees, seconds) and the number's exponent",
+                    ),
+                )),
                 _ => Err(error(
                     line,
                     col_of(i),
@@ -196,6 +266,20 @@ pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError>
                     Some("every row, measured or not, needs the six command angles"),
                 )
             })?;
+            if let Some([lo, hi]) = limits_deg.map(|l| l[k]) {
+                if !(lo - LIMIT_SLACK_DEG..=hi + LIMIT_SLACK_DEG).contains(&axes[k]) {
+                    return Err(error(
+                        line,
+                        col_of(c),
+                        format!(
+                            "{} = {}° is outside the robot's joint limits [{lo}, {hi}]°",
+                            AXES[k].to_uppercase(),
+                            axes[k]
+                        ),
+                        Some("the robot cannot have been commanded there: check the column and the robot's limits (robot.description.limits_deg of the calibration)"),
+                    ));
+                }
+            }
         }
         let xyz = [
             number(cols.xyz[0], "x")?,
@@ -359,6 +443,75 @@ mod tests {
             e.message
         );
         assert!(e.render().contains("bad.csv:2:9"));
+    }
+
+    /// On a CRLF file the error names the row's own line (the csv reader's count lags one
+    /// line behind there), with that line's text; comment and blank lines are counted too.
+    #[test]
+    fn errors_name_the_right_line_whatever_the_line_ends() {
+        let rows = [
+            "test,a1,a2,a3,a4,a5,a6,x,y,z",
+            "p,0,-90,90,0,0,0,1,2,3",
+            "# note",
+            "",
+            "p,0,-90,90,0,0,0,abc,2,3",
+            "",
+        ];
+        for end in ["\n", "\r\n", "\r"] {
+            // The csv reader ends a comment at `\n` only: a lone `\r` file has none here.
+            let src = rows.join(end).replace("# note\r", "\r");
+            let e = parse_csv(src.as_bytes(), "m.csv").unwrap_err();
+            assert_eq!((e.line, e.col), (5, 18), "{end:?}: {}", e.message);
+            assert_eq!(e.source_line, "p,0,-90,90,0,0,0,abc,2,3");
+            let ok = src.replace("abc", "1");
+            let m = parse_csv(ok.as_bytes(), "m.csv").unwrap();
+            assert_eq!(m.stops.iter().map(|s| s.line).collect::<Vec<_>>(), [2, 5]);
+        }
+    }
+
+    /// A header ended by a lone `\r` (found by the fuzzer: the row after it was placed on
+    /// line 1, the header's).
+    #[test]
+    fn a_lone_carriage_return_ends_a_line() {
+        let src = b"test,a1,a2,a3,a4,a5,a6,x,y,z,t,dir1\r\xf3\x87,0,-90,90,0,0,0,,,,0,1\r\n\
+            # c\r\n\r\nx,1,-90,90,0,0,0,1340.1,23.4,1810.0,2.5,-1\r\n";
+        let m = parse_csv(src, "m.csv").unwrap();
+        assert_eq!(m.stops.iter().map(|s| s.line).collect::<Vec<_>>(), [2, 5]);
+    }
+
+    /// Numbers beyond any physical range, and angles outside the robot's limits, are located
+    /// errors (an angle of 1e20 once reached a grid of 1e20 points).
+    #[test]
+    fn absurd_numbers_and_angles_outside_the_limits_are_located_errors() {
+        let head = "test,a1,a2,a3,a4,a5,a6,x,y,z,t\n";
+        let cases = [
+            (
+                "p,0,1e20,90,0,0,0,1,2,3,0",
+                5,
+                "a2 = 1e20 is beyond any physical range",
+            ),
+            ("p,0,0,90,0,0,0,1e308,2,3,0", 16, "x = 1e308 is beyond"),
+            ("p,0,0,90,0,0,0,1,2,3,1e12", 22, "t = 1e12 is beyond"),
+            ("p,0,0,90,0,0,0,1,2,inf,0", 20, "`inf` is not a number (z)"),
+        ];
+        for (row, col, message) in cases {
+            let e = parse_csv(format!("{head}{row}\n").as_bytes(), "m.csv").unwrap_err();
+            assert_eq!((e.line, e.col), (2, col), "{row}");
+            assert!(e.message.contains(message), "{}", e.message);
+        }
+        let limits = crate::kinematics::RobotDescription::kr30ha().limits_deg;
+        let row = format!("{head}p,0,-90,90,0,0,0,1,2,3,0\np,0,-136,90,0,0,0,1,2,3,0\n");
+        assert!(parse_csv(row.as_bytes(), "m.csv").is_ok());
+        let e = parse_csv_within(row.as_bytes(), "m.csv", Some(&limits)).unwrap_err();
+        assert_eq!((e.line, e.col), (3, 5));
+        assert!(
+            e.message
+                .contains("A2 = -136° is outside the robot's joint limits [-135, 35]°"),
+            "{}",
+            e.message
+        );
+        let at_limit = format!("{head}p,0,-135,90,0,0,0,1,2,3,0\n");
+        assert!(parse_csv_within(at_limit.as_bytes(), "m.csv", Some(&limits)).is_ok());
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! Laser-tracker measurements: the measurement CSV of `../shared/CONTRACTS.md` read into
+//! Laser-tracker measurements: the measurement CSV of `docs/measurements.md` read into
 //! [`Stop`]s (command axis angles, each axis's history — rotation direction and gear-play
 //! memory — inferred from the visiting order, time, measured position) and written back.
 //! Histories are inferred here once, so that identification, diagnosis and the virtual robot
@@ -7,7 +7,10 @@
 mod csv_file;
 mod directions;
 
-pub use csv_file::{parse_csv, read_csv, write_csv, MeasureError};
+pub use csv_file::{
+    parse_csv, parse_csv_within, read_csv, read_csv_within, write_csv, MeasureError,
+    ANGLE_RANGE_DEG, POSITION_RANGE_MM, TIME_RANGE_S,
+};
 pub use directions::infer_histories;
 
 use crate::model::AxisState;

@@ -28,13 +28,17 @@ pub struct EffectRecord {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TableRecord {
-    /// Command angles of the table's own axis, strictly increasing.
+    /// Command angles of the table's own axis, strictly increasing, at least 0.001° apart.
+    #[schemars(length(min = 1, max = 100000), inner(range(min = -720, max = 720)))]
     pub grid_deg: Vec<f64>,
-    /// Crosstalk only: command angles of the other (influencing) axis, strictly increasing.
+    /// Crosstalk only: command angles of the other (influencing) axis, strictly increasing,
+    /// at least 0.001° apart.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1, max = 100000), inner(range(min = -720, max = 720)))]
     pub other_grid_deg: Option<Vec<f64>>,
-    /// Deviations; for crosstalk row-major, `values_deg[i·len(other_grid_deg) + j]` at
-    /// `(grid_deg[i], other_grid_deg[j])`.
+    /// Deviations, degrees (|value| ≤ 1°); for crosstalk row-major,
+    /// `values_deg[i·len(other_grid_deg) + j]` at `(grid_deg[i], other_grid_deg[j])`.
+    #[schemars(inner(range(min = -1, max = 1)))]
     pub values_deg: Vec<f64>,
 }
 
@@ -132,6 +136,7 @@ pub fn grid(points: &[f64], key: &str) -> Result<Grid, RecordError> {
             format!("a value greater than {previous} (grid strictly increasing)"),
             found.to_string(),
         ),
+        e @ GridError::TooFine { .. } => RecordError::new(key, "a coarser grid", e.to_string()),
     })
 }
 

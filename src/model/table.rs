@@ -41,7 +41,20 @@ pub enum GridError {
         previous: f64,
         found: f64,
     },
+    #[error("a grid from {lo}° to {hi}° every {pitch}° would have {points} points; at most {MAX_POINTS} are allowed and the pitch must be at least {MIN_PITCH_DEG}°")]
+    TooFine {
+        lo: f64,
+        hi: f64,
+        pitch: f64,
+        points: f64,
+    },
 }
+
+/// The finest pitch [`Grid::from_range`] lays out, degrees (a gear error does not vary over a
+/// thousandth of a degree, and a finer grid would only be memory).
+pub const MIN_PITCH_DEG: f64 = 1e-3;
+/// The most points [`Grid::from_range`] lays out (a whole turn at 0.004°).
+pub const MAX_POINTS: usize = 100_000;
 
 impl Grid {
     /// Checks the points (finite, strictly increasing) and detects equal spacing.
@@ -80,7 +93,16 @@ impl Grid {
             });
         }
         // The small tolerance keeps a pitch that divides the range from adding a spare point.
-        let cells = ((hi - lo) / pitch - 1e-9).ceil().max(0.0) as usize;
+        let cells = ((hi - lo) / pitch - 1e-9).ceil().max(0.0);
+        if pitch < MIN_PITCH_DEG || cells >= MAX_POINTS as f64 {
+            return Err(GridError::TooFine {
+                lo,
+                hi,
+                pitch,
+                points: cells + 1.0,
+            });
+        }
+        let cells = cells as usize;
         Grid::new((0..=cells).map(|i| lo + i as f64 * pitch).collect())
     }
 
@@ -299,5 +321,28 @@ impl Table2 {
             .columns
             .slope(&cc, lerp(ll, hl, cr.w), lerp(lh, hh, cr.w));
         (value, d_row, d_column)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A range of 1e20° or a pitch of 1e-9° is an error, not an allocation of terabytes.
+    #[test]
+    fn absurd_ranges_and_pitches_are_errors() {
+        assert!(matches!(
+            Grid::from_range(-135.0, 1e20, 1.0),
+            Err(GridError::TooFine { .. })
+        ));
+        assert!(matches!(
+            Grid::from_range(-135.0, 35.0, 1e-9),
+            Err(GridError::TooFine { .. })
+        ));
+        let finest = Grid::from_range(0.0, 1.0, MIN_PITCH_DEG).unwrap();
+        assert_eq!(finest.len(), 1001);
+        let most = Grid::from_range(0.0, (MAX_POINTS - 1) as f64 * 0.01, 0.01).unwrap();
+        assert_eq!(most.len(), MAX_POINTS);
+        assert!(Grid::from_range(0.0, MAX_POINTS as f64 * 0.01, 0.01).is_err());
     }
 }

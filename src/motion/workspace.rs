@@ -53,10 +53,39 @@ pub enum LoadError {
     },
     #[error("{}", .diagnostics.iter().map(|d| d.render()).collect::<Vec<_>>().join("\n"))]
     Parse { diagnostics: Vec<Diagnostic> },
+    /// Not a KRL file at all (binary data, or text without a KRL statement): like an
+    /// unreadable file, a usage error.
+    #[error("{}", .diagnostic.render())]
+    NotKrl { diagnostic: Box<Diagnostic> },
+}
+
+impl LoadError {
+    /// A file that could not be used at all (unreadable, or not KRL): exit status 2, where a
+    /// parse error in a program is its rejection (exit 1).
+    pub fn is_unusable(&self) -> bool {
+        matches!(self, LoadError::Io { .. } | LoadError::NotKrl { .. })
+    }
 }
 
 fn parse(bytes: &[u8], kind: FileKind, name: &str) -> Result<SourceFile, LoadError> {
-    krl::parse(bytes, kind).map_err(|e| LoadError::Parse {
+    checked(krl::parse(bytes, kind), name)
+}
+
+/// A parsed file, unless it is not KRL at all (see `krl::sniff`) or has errors.
+fn checked(
+    parsed: Result<SourceFile, krl::ParseError>,
+    name: &str,
+) -> Result<SourceFile, LoadError> {
+    let file = match &parsed {
+        Ok(f) => f,
+        Err(e) => e.partial(),
+    };
+    if let Some(p) = krl::not_krl(file) {
+        return Err(LoadError::NotKrl {
+            diagnostic: Box::new(file.diagnostic(&p, name)),
+        });
+    }
+    parsed.map_err(|e| LoadError::Parse {
         diagnostics: e.diagnostics(name),
     })
 }
@@ -91,13 +120,11 @@ impl Workspace {
     ) -> Result<Workspace, LoadError> {
         let mut ws = Workspace::default();
         let (bytes, path, name) = src;
-        let file = match stream {
+        let parsed = match stream {
             Some(opts) => krl::parse_streaming(bytes, FileKind::Src, opts),
             None => krl::parse_recovering_owned(bytes, FileKind::Src).checked(),
-        }
-        .map_err(|e| LoadError::Parse {
-            diagnostics: e.diagnostics(name),
-        })?;
+        };
+        let file = checked(parsed, name)?;
         ws.files.push(Loaded {
             path: path.map(Path::to_path_buf),
             name: name.to_string(),
@@ -281,6 +308,6 @@ impl Workspace {
         message: impl Into<String>,
     ) -> Diagnostic {
         let f = self.get(id);
-        Diagnostic::at_bytes(severity, &f.name, f.file.source(), span.range(), message)
+        f.file.diagnostic_at(severity, &f.name, span, message)
     }
 }

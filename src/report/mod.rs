@@ -35,6 +35,9 @@ pub fn html(input: &ReportInput) -> String {
     page::render(input)
 }
 
+/// The page written into the report directory.
+pub const INDEX: &str = "index.html";
+
 /// Writes `dir/index.html` atomically (creating `dir`) and returns its path.
 pub fn write(dir: &Path, input: &ReportInput) -> std::io::Result<PathBuf> {
     if input.models.is_empty() {
@@ -42,7 +45,7 @@ pub fn write(dir: &Path, input: &ReportInput) -> std::io::Result<PathBuf> {
     }
     let text = html(input);
     std::fs::create_dir_all(dir)?;
-    let path = dir.join("index.html");
+    let path = dir.join(INDEX);
     crate::atomic_file::write(&path, text.as_bytes())?;
     Ok(path)
 }
