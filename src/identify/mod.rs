@@ -13,3 +13,10 @@ pub mod setup;
 pub use refine::{
     refine, Fit, Free, IdentifyError, Progress, ProgressFn, RefineOptions, Status, Warning,
 };
+
+// shim: `AxisState::directions()` until the lead's `AxisHistory` (issue 22) lands; drop at merge.
+impl crate::model::AxisState {
+    pub fn directions(&self) -> [crate::model::Direction; 6] {
+        self.directions
+    }
+}
