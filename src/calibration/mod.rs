@@ -54,7 +54,9 @@ use std::path::Path;
 use nalgebra::Vector3;
 
 pub use error::CalError;
-pub use file::{CalibrationFile, KukaFrame, MeasurementFrame, Provenance, RobotRecord, FORMAT};
+pub use file::{
+    CalibrationFile, ExcludedPoint, KukaFrame, MeasurementFrame, Provenance, RobotRecord, FORMAT,
+};
 
 use crate::kinematics::{Payload, RobotDescription};
 use crate::model::{EffectName, Model};

@@ -8,7 +8,11 @@ pub mod lsq;
 pub mod pipeline;
 pub mod refine;
 pub mod register;
+pub mod robust;
+pub mod screen;
 pub mod setup;
+pub mod thin;
+pub mod verdict;
 
 pub use refine::{
     refine, Fit, Free, IdentifyError, Progress, ProgressFn, RefineOptions, Status, Warning,

@@ -167,21 +167,24 @@ pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError>
             break;
         }
         let line = record.position().map(|p| p.line() as usize).unwrap_or(0);
-        let raw = line_of(line);
-        let col_of = |field: usize| column_of_field(&raw, field);
+        // The raw line only when an error needs its column (a million rows, no copies).
+        let col_of = |field: usize| column_of_field(&line_of(line), field);
         let text =
             |i: usize| String::from_utf8_lossy(record.get(i).unwrap_or_default()).to_string();
         let number = |i: usize, what: &str| -> Result<Option<f64>, MeasureError> {
-            let s = text(i);
-            if s.is_empty() {
+            let bytes = record.get(i).unwrap_or_default();
+            if bytes.is_empty() {
                 return Ok(None);
             }
-            match s.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(Some(v)),
+            let value = std::str::from_utf8(bytes)
+                .ok()
+                .and_then(|s| s.parse::<f64>().ok());
+            match value {
+                Some(v) if v.is_finite() => Ok(Some(v)),
                 _ => Err(error(
                     line,
                     col_of(i),
-                    format!("`{s}` is not a number ({what})"),
+                    format!("`{}` is not a number ({what})", text(i)),
                     None,
                 )),
             }
