@@ -93,11 +93,23 @@ pub fn indexing_tests(data: &[Stop]) -> Vec<IndexingTest> {
 /// row; empty: one file): a label is a test of its own file.
 pub fn indexing_tests_grouped(data: &[Stop], group_of: &[usize]) -> Vec<IndexingTest> {
     let mut groups: BTreeMap<(usize, &str), Vec<usize>> = BTreeMap::new();
+    let mut run: Option<((usize, &str), Vec<usize>)> = None;
     for (i, s) in data.iter().enumerate() {
         if s.measured_mm.is_some() {
-            let g = group_of.get(i).copied().unwrap_or(0);
-            groups.entry((g, s.test.as_str())).or_default().push(i);
+            let key = (group_of.get(i).copied().unwrap_or(0), s.test.as_str());
+            // Rows of a test come in runs: one map look-up per run.
+            match &mut run {
+                Some((k, rows)) if *k == key => rows.push(i),
+                _ => {
+                    if let Some((k, rows)) = run.replace((key, vec![i])) {
+                        groups.entry(k).or_default().extend(rows);
+                    }
+                }
+            }
         }
+    }
+    if let Some((k, rows)) = run {
+        groups.entry(k).or_default().extend(rows);
     }
     let mut tests = Vec::new();
     for ((group, test), rows) in groups {

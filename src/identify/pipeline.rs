@@ -197,6 +197,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
     let fit_data: Vec<Stop> = fit_rows.iter().map(|&i| stops[i].clone()).collect();
     let fit_file: Vec<usize> = fit_rows.iter().map(|&i| file_of(i)).collect();
     let fit_test = test_ids(&fit_data, &fit_file);
+    let n_measured = stops.iter().filter(|s| s.measured_mm.is_some()).count();
 
     // Gross errors each indexing test shows by itself, over every measured row (positions in
     // the tracker's frame are fine: a test only looks at its own circle). A point of an
@@ -293,12 +294,16 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
     let mut initial_stats = None;
     let mut screening = None;
     let (mut rounds, mut iterations) = (0, 0);
-    for _ in 0..MAX_ROUNDS {
+    // Standard errors cost a solve per block of columns: computed in a round expected to be
+    // the last (no point left out yet), else once more at the end.
+    let mut with_errors = !excluded.iter().any(|&x| x);
+    let mut settled_fit = None;
+    for round in 0..MAX_ROUNDS {
         let options = RefineOptions {
             tracker_frame: tracker,
             initial_frames: frames.clone(),
             frame_of: fit_file.clone(),
-            standard_errors: false,
+            standard_errors: with_errors,
             progress: progress.clone(),
             ..RefineOptions::default()
         };
@@ -319,37 +324,49 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
             })
             .collect();
         let in_fit: Vec<bool> = excluded.iter().map(|x| !x).collect();
-        let mut s = robust::screen(&residuals, &sigma, &in_fit, &fit_test);
+        let mut s = robust::screen(&residuals, &sigma, &in_fit, &fit_test, n_measured);
         for (g, may) in s.gross.iter_mut().zip(&may_flag) {
             *g &= may;
         }
         robust::limit_share(&mut s.gross, &fit_test);
-        let settled = s.gross == excluded;
+        let settled = s.gross == excluded || round + 1 == MAX_ROUNDS;
+        if s.gross != excluded {
+            with_errors = false;
+        }
         excluded = s.gross.clone();
         screening = Some(s);
         if settled {
+            settled_fit = with_errors.then_some(f);
             break;
         }
     }
-    // Standard errors once, at the final set of points.
-    report(progress, "standard errors", 0, 1);
-    let options = RefineOptions {
-        tracker_frame: tracker,
-        initial_frames: frames.clone(),
-        frame_of: fit_file.clone(),
-        progress: progress.clone(),
-        ..RefineOptions::default()
+    let mut fit = match settled_fit {
+        Some(f) => f,
+        None => {
+            // Standard errors once, at the final set of points.
+            report(progress, "standard errors", 0, 1);
+            let options = RefineOptions {
+                tracker_frame: tracker,
+                initial_frames: frames.clone(),
+                frame_of: fit_file.clone(),
+                progress: progress.clone(),
+                ..RefineOptions::default()
+            };
+            let f = refine(&mut model, &masked(&excluded), &options)?;
+            if tracker {
+                frames = f.tracker_frames.clone();
+            }
+            iterations += f.iterations;
+            f
+        }
     };
-    let mut fit = refine(&mut model, &masked(&excluded), &options)?;
-    if tracker {
-        frames = fit.tracker_frames.clone();
-    }
     // "Before" is before the first refinement, not before the last (warm) one.
     if let Some(s) = initial_stats {
         fit.initial_stats = s;
     }
-    fit.iterations += iterations;
-    let scale = screening.map_or(1.0, |s| s.scale);
+    fit.iterations = iterations;
+    let scale = screening.as_ref().map_or(1.0, |s| s.scale);
+    let limit = screening.as_ref().map_or(robust::THRESHOLD, |s| s.limit);
 
     // Every measured point against the result (the thinned-out ones too).
     report(progress, "checking every point", 0, 1);
@@ -383,12 +400,19 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         .iter()
         .map(|i| fit_rows.binary_search(i).is_ok())
         .collect();
+    // Points the fit did not use are predictions, not fitted values: judged against their own
+    // robust scatter when that is the larger.
+    let normalised: Vec<f64> = (0..measured.len())
+        .map(|k| detrended[k].norm() / checked[k].2)
+        .collect();
+    let not_fitted: Vec<bool> = in_fit.iter().map(|f| !f).collect();
+    let limit = robust::screen_normalised(normalised.clone(), &not_fitted, n_measured)
+        .limit
+        .max(limit);
     let mut others: Vec<bool> = (0..measured.len())
         .map(|k| {
             let i = measured[k];
-            !in_fit[k]
-                && (!in_indexing[i] || suspect_of.contains_key(&i))
-                && detrended[k].norm() / checked[k].2 > robust::THRESHOLD * scale
+            !in_fit[k] && (!in_indexing[i] || suspect_of.contains_key(&i)) && normalised[k] > limit
         })
         .collect();
     robust::limit_share(&mut others, &all_tests);
@@ -449,8 +473,12 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         .iter()
         .map(|(t, (e, _))| (t.clone(), error_stats(e)))
         .collect();
+    // The floor from the points of the fit (all of them unless the data were thinned).
+    let of_fit: Vec<bool> = (0..measured.len())
+        .map(|k| in_fit[k] && !is_gross[k])
+        .collect();
     let floor = noise_floor(
-        stops, &measured, &files, &checked, &is_gross, &frames, tracker,
+        stops, &measured, &files, &checked, &of_fit, &frames, tracker,
     );
     let residual_tests: Vec<TestResidual> = by_test
         .iter()
@@ -518,12 +546,25 @@ fn test_ids(data: &[Stop], file_of: &[usize]) -> Vec<usize> {
 
 fn test_ids_of(data: &[&Stop], file_of: &[usize]) -> Vec<usize> {
     let mut ids: std::collections::HashMap<(usize, &str, [i8; 6]), usize> = Default::default();
+    let mut last = None;
     data.iter()
         .zip(file_of)
         .map(|(s, &f)| {
+            let key = (
+                f,
+                s.test.as_str(),
+                s.state.directions().map(|d| d.sign() as i8),
+            );
+            // Consecutive rows mostly share their key: look it up only when it changes.
+            if let Some((k, id)) = last {
+                if k == key {
+                    return id;
+                }
+            }
             let next = ids.len();
-            let directions = s.state.directions().map(|d| d.sign() as i8);
-            *ids.entry((f, s.test.as_str(), directions)).or_insert(next)
+            let id = *ids.entry(key).or_insert(next);
+            last = Some((key, id));
+            id
         })
         .collect()
 }
@@ -658,14 +699,14 @@ fn least_squares_target(
     p
 }
 
-/// The noise floor of the points without gross errors, as `diagnose` estimates it (per file
+/// The noise floor of the `used` points, as `diagnose` estimates it (per file
 /// with tracker frames: each has its own station; combined as an RMS).
 fn noise_floor(
     stops: &[Stop],
     measured: &[usize],
     files: &[usize],
     checked: &[(Vector3<f64>, Vector3<f64>, f64)],
-    is_gross: &[bool],
+    used: &[bool],
     frames: &[Isometry3<f64>],
     tracker: bool,
 ) -> NoiseFloor {
@@ -674,7 +715,7 @@ fn noise_floor(
         let rows: Vec<Row> = measured
             .iter()
             .enumerate()
-            .filter(|(k, _)| files[*k] == g && !is_gross[*k])
+            .filter(|(k, _)| files[*k] == g && used[*k])
             .map(|(k, &i)| Row {
                 test: String::new(),
                 source: String::new(),

@@ -17,7 +17,9 @@
 use nalgebra::Vector3;
 
 /// A residual beyond this many scaled standard deviations (3-D length / σ per coordinate) is
-/// a gross error: for three normal coordinates the chance is 1.5·10⁻⁵ per point.
+/// a gross error: for three normal coordinates the chance is 1.5·10⁻⁵ per point. With many
+/// points the threshold rises so that noise alone flags fewer than half a point over all of
+/// them (Chauvenet's criterion, [`threshold`]): 5.7 σ for a million.
 pub const THRESHOLD: f64 = 5.0;
 /// Most of a test's points that may be gross errors (see the module documentation).
 pub const MAX_SHARE: f64 = 0.05;
@@ -27,6 +29,56 @@ pub const SIGMA_UM_PER_M: f64 = 2.5;
 /// Median of the χ distribution with 3 degrees of freedom: the median length of a 3-D normal
 /// vector with unit standard deviation per coordinate.
 const CHI3_MEDIAN: f64 = 1.538_172_254_455_582;
+
+/// Complementary error function (W. H. Press et al., Numerical Recipes, `erfcc`: relative
+/// error below 1.2·10⁻⁷ everywhere).
+fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let poly = -z * z - 1.265_512_23
+        + t * (1.000_023_68
+            + t * (0.374_091_96
+                + t * (0.096_784_18
+                    + t * (-0.186_288_06
+                        + t * (0.278_868_07
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+    let r = t * poly.exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+/// The chance that a vector of `dof` (1, 2 or 3) independent unit normals is longer than `x`.
+pub fn tail(dof: u8, x: f64) -> f64 {
+    let half = (-0.5 * x * x).exp();
+    match dof {
+        1 => erfc(x / std::f64::consts::SQRT_2),
+        2 => half,
+        _ => erfc(x / std::f64::consts::SQRT_2) + (2.0 / std::f64::consts::PI).sqrt() * x * half,
+    }
+}
+
+/// The threshold (in σ) for `n` statistics of `dof` degrees of freedom: [`THRESHOLD`], or
+/// where noise alone would exceed it at fewer than half a point of the `n` when that is
+/// higher.
+pub fn threshold(n: usize, dof: u8) -> f64 {
+    let (mut lo, mut hi) = (THRESHOLD, 40.0);
+    if n as f64 * tail(dof, lo) <= 0.5 {
+        return lo;
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if n as f64 * tail(dof, mid) > 0.5 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
 
 /// The tracker's typical standard deviation per coordinate (mm) at `point` measured from
 /// `station` (both mm, one frame).
@@ -41,6 +93,8 @@ pub struct Screening {
     pub normalised: Vec<f64>,
     /// The robust scale of the normalised residuals of the points in the fit (≥ 1).
     pub scale: f64,
+    /// The threshold on the normalised residuals, scale included.
+    pub limit: f64,
     /// Whether each point is a gross error.
     pub gross: Vec<bool>,
 }
@@ -48,23 +102,25 @@ pub struct Screening {
 /// Screens residuals (`residuals[i]`, mm, points in visiting order, `test[i]` the test a
 /// point belongs to) with the tracker's σ at each point (`sigma_mm[i]`); the scale comes from
 /// the points with `in_fit[i]` (a fitted model shrinks their residuals alike; left-out points
-/// would inflate it).
+/// would inflate it); the threshold is [`threshold`] for `population` points (all the data's,
+/// when these are a subset).
 pub fn screen(
     residuals: &[Vector3<f64>],
     sigma_mm: &[f64],
     in_fit: &[bool],
     test: &[usize],
+    population: usize,
 ) -> Screening {
     let normalised: Vec<f64> = detrended(residuals, test)
         .iter()
         .zip(sigma_mm)
         .map(|(r, s)| r.norm() / s.max(1e-9))
         .collect();
-    screen_normalised(normalised, in_fit)
+    screen_normalised(normalised, in_fit, population)
 }
 
 /// [`screen`] of statistics already normalised.
-pub fn screen_normalised(normalised: Vec<f64>, in_fit: &[bool]) -> Screening {
+pub fn screen_normalised(normalised: Vec<f64>, in_fit: &[bool], population: usize) -> Screening {
     let mut fitted: Vec<f64> = normalised
         .iter()
         .zip(in_fit)
@@ -78,10 +134,12 @@ pub fn screen_normalised(normalised: Vec<f64>, in_fit: &[bool]) -> Screening {
         let (_, median, _) = fitted.select_nth_unstable_by(mid, f64::total_cmp);
         (*median / CHI3_MEDIAN).max(1.0)
     };
-    let gross = normalised.iter().map(|u| *u > THRESHOLD * scale).collect();
+    let limit = threshold(population.max(normalised.len()), 3) * scale;
+    let gross = normalised.iter().map(|u| *u > limit).collect();
     Screening {
         normalised,
         scale,
+        limit,
         gross,
     }
 }
@@ -116,14 +174,14 @@ const HALF_WINDOW: usize = 2;
 /// [`HALF_WINDOW`] before to [`HALF_WINDOW`] after it (itself included; the window shifted
 /// inwards at a test's ends; a test of fewer than five points is left as it is).
 pub fn detrended(residuals: &[Vector3<f64>], test: &[usize]) -> Vec<Vector3<f64>> {
-    let mut members: std::collections::HashMap<usize, Vec<usize>> = Default::default();
-    for (i, t) in test.iter().enumerate() {
-        members.entry(*t).or_default().push(i);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); test.iter().max().map_or(0, |t| t + 1)];
+    for (i, &t) in test.iter().enumerate() {
+        members[t].push(i);
     }
     let mut out = residuals.to_vec();
     let width = 2 * HALF_WINDOW + 1;
     let mut window = [0.0; 2 * HALF_WINDOW + 1];
-    for rows in members.values() {
+    for rows in &members {
         let n = rows.len();
         if n < width {
             continue;
@@ -147,6 +205,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn tails_and_thresholds_by_hand() {
+        // P(|z| > 1.96) = 0.05; χ₂: e^(−x²/2); χ₃ at x = 5 (χ²₃ > 25): 1.544·10⁻⁵.
+        assert!((tail(1, 1.959_964) - 0.05).abs() < 1e-7);
+        assert!((tail(2, 3.0) - (-4.5f64).exp()).abs() < 1e-15);
+        assert!((tail(3, 5.0) - 1.5442e-5).abs() < 1e-8, "{}", tail(3, 5.0));
+        // Few points: the floor; a million: where 10⁶·P = 0.5.
+        assert_eq!(threshold(3232, 3), THRESHOLD);
+        let t = threshold(1_000_000, 3);
+        assert!(
+            (1e6 * tail(3, t) - 0.5).abs() < 1e-6 && (5.6..5.7).contains(&t),
+            "{t}"
+        );
+    }
+
+    #[test]
     fn sigma_by_hand_and_scale_from_the_fitted_points() {
         // 3 m from the tracker: 5 + 7.5 = 12.5 µm.
         let s = tracker_sigma_mm(&Vector3::new(3000.0, 0.0, 0.0), &Vector3::zeros());
@@ -159,18 +232,18 @@ mod tests {
         let mut in_fit = vec![true; 11];
         // Each point its own test: nothing to take off.
         let alone: Vec<usize> = (0..11).collect();
-        let s = screen(&residuals, &sigma, &in_fit, &alone);
+        let s = screen(&residuals, &sigma, &in_fit, &alone, 0);
         assert_eq!(s.scale, 1.0);
         assert_eq!(s.gross.iter().filter(|&&g| g).count(), 1);
         assert!(s.gross[9] && !s.gross[10]);
         // A noisier set-up (everything twice as large) doubles the scale: same verdicts.
         let doubled: Vec<Vector3<f64>> = residuals.iter().map(|r| r * 2.0).collect();
-        let s2 = screen(&doubled, &sigma, &in_fit, &alone);
+        let s2 = screen(&doubled, &sigma, &in_fit, &alone, 0);
         assert!((s2.scale - 2.0).abs() < 1e-9);
         assert_eq!(s2.gross, s.gross);
         // Left-out points do not set the scale.
         in_fit[9] = false;
-        assert_eq!(screen(&residuals, &sigma, &in_fit, &alone).scale, 1.0);
+        assert_eq!(screen(&residuals, &sigma, &in_fit, &alone, 0).scale, 1.0);
     }
 
     #[test]
@@ -186,12 +259,12 @@ mod tests {
         residuals.extend((0..80).map(|k| Vector3::new(noise(k + 7), noise(k + 3), noise(k))));
         let test: Vec<usize> = (0..121).map(|i| usize::from(i >= 41)).collect();
         let sigma = vec![0.01; 121];
-        let s = screen(&residuals, &sigma, &[true; 121], &test);
+        let s = screen(&residuals, &sigma, &[true; 121], &test, 0);
         let flagged: Vec<usize> = (0..121).filter(|&i| s.gross[i]).collect();
         assert_eq!(flagged, vec![17]);
         // Taken point by point (no neighbours), the drift itself would be flagged.
         let alone: Vec<usize> = (0..121).collect();
-        let plain = screen(&residuals, &sigma, &[true; 121], &alone);
+        let plain = screen(&residuals, &sigma, &[true; 121], &alone, 0);
         assert!(plain.gross.iter().filter(|&&g| g).count() > 10);
         // With test 0 as one test again, that many flags in it are not gross errors.
         let mut gross = plain.gross.clone();

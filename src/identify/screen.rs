@@ -15,7 +15,8 @@
 //!
 //! Each statistic is scaled by the tracker's noise at the point and by the test's own robust
 //! scatter of that statistic (never below the tracker's noise), so a noisier set-up does not
-//! flag its good points. Global screening (against the fitted model) comes later in the
+//! flag its good points, and compared with 5 such standard deviations, more in long tests
+//! ([`super::robust::threshold`]). Global screening (against the fitted model) comes later in the
 //! pipeline; this stage keeps the circles of the direct method clean and catches what a fitted
 //! table would absorb: a displacement along the circle at a command angle only one point of
 //! that direction visits.
@@ -26,8 +27,6 @@ use super::circle::{fit_circle, Circle3};
 use crate::measure::Stop;
 use crate::model::Direction;
 
-/// A statistic beyond this many (scaled) noise standard deviations is a gross error.
-pub const THRESHOLD: f64 = 5.0;
 /// Half-width of the running median (points on each side).
 const HALF_WINDOW: usize = 2;
 /// Median of the χ distribution with 2 degrees of freedom, √(2 ln 2): the median length of a
@@ -261,16 +260,18 @@ fn suspects(locals: &[Local], axis: u8) -> Vec<Suspect> {
         .collect();
     let diff_scale = scale(&diff_n, HALF_NORMAL_MEDIAN);
 
+    use super::robust::threshold;
+    let (limit_off, limit_along) = (threshold(n, 2), threshold(n, 1));
     let mut out = Vec::new();
     for i in 0..n {
         let l = &locals[i];
-        let circle_off = off_circle[i] > THRESHOLD * off_scale;
+        let circle_off = off_circle[i] > limit_off * off_scale;
         let tangential = match difference[i] {
             // Paired: the difference must jump, and this point must be the one that moved.
-            Some((s, partner)) => (s.abs() / l.sigma > THRESHOLD * diff_scale
+            Some((s, partner)) => (s.abs() / l.sigma > limit_along * diff_scale
                 && along_n[i] >= along_n[partner])
                 .then_some(along[i]),
-            None => (along_n[i] > THRESHOLD * along_scale).then_some(along[i]),
+            None => (along_n[i] > limit_along * along_scale).then_some(along[i]),
         };
         if !circle_off && tangential.is_none() {
             continue;

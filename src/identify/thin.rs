@@ -13,11 +13,12 @@
 //! errors, statistics, the verdict).
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::measure::Stop;
 
 /// Default budget of measured points for the fit.
-pub const DEFAULT_MAX_POINTS: usize = 50_000;
+pub const DEFAULT_MAX_POINTS: usize = 20_000;
 
 /// What thinning did, for the output and the provenance.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,13 +60,24 @@ pub fn thin(
     if budget == 0 || measured.len() <= budget {
         return (measured, None);
     }
-    // Cells, each with its rows in visiting order; wider until one point each fits.
-    let mut cell_deg = cell_deg;
-    let mut cells = cells_of(stops, file_of, &measured, cell_deg);
-    while cells.len() > budget {
-        cell_deg *= 2.0;
-        cells = cells_of(stops, file_of, &measured, cell_deg);
+    // Cells, each with its rows in visiting order; wider (by powers of two, the smallest that
+    // works) until one point each fits.
+    let groups = group_ids(stops, file_of, &measured);
+    let cells_at = |k: i32| cells_of(stops, &measured, &groups, cell_deg * 2f64.powi(k));
+    let (mut lo, mut hi) = (0, 24);
+    let mut cells = cells_at(0);
+    if cells.len() > budget {
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if cells_at(mid).len() <= budget {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        cells = cells_at(lo);
     }
+    let cell_deg = cell_deg * 2f64.powi(lo);
     // The largest cap that fits the budget (the kept count grows with the cap).
     let kept_with = |cap: usize| cells.iter().map(|c| c.len().min(cap)).sum::<usize>();
     let (mut lo, mut hi) = (1, cells.iter().map(Vec::len).max().unwrap_or(1));
@@ -97,33 +109,80 @@ pub fn thin(
     (kept, Some(thinning))
 }
 
-/// A cell: file, test, rotation directions, bin of every axis angle.
-type CellKey<'a> = (usize, &'a str, [i8; 6], [i64; 6]);
+/// A number per (file, test, rotation directions) for each of the `measured` rows.
+fn group_ids(stops: &[Stop], file_of: &[usize], measured: &[usize]) -> Vec<u32> {
+    let mut ids: HashMap<(usize, &str, [i8; 6]), u32> = HashMap::new();
+    let mut last: Option<((usize, &str, [i8; 6]), u32)> = None;
+    measured
+        .iter()
+        .map(|&i| {
+            let s = &stops[i];
+            let key = (
+                file_of.get(i).copied().unwrap_or(0),
+                s.test.as_str(),
+                s.state.directions().map(|d| d.sign() as i8),
+            );
+            // Consecutive rows mostly share their key: look it up only when it changes.
+            if let Some((k, id)) = last {
+                if k == key {
+                    return id;
+                }
+            }
+            let next = ids.len() as u32;
+            let id = *ids.entry(key).or_insert(next);
+            last = Some((key, id));
+            id
+        })
+        .collect()
+}
 
 /// The rows of `measured` grouped by cell of `cell_deg` (in order of first appearance).
-fn cells_of(
-    stops: &[Stop],
-    file_of: &[usize],
-    measured: &[usize],
-    cell_deg: f64,
-) -> Vec<Vec<usize>> {
-    let mut index: HashMap<CellKey, usize> = HashMap::new();
+fn cells_of(stops: &[Stop], measured: &[usize], groups: &[u32], cell_deg: f64) -> Vec<Vec<usize>> {
+    let mut index: HashMap<(u32, [i64; 6]), usize, BuildHasherDefault<Mix>> =
+        HashMap::with_capacity_and_hasher(measured.len().min(1 << 20), Default::default());
     let mut cells: Vec<Vec<usize>> = Vec::new();
-    for &i in measured {
-        let s = &stops[i];
-        let key = (
-            file_of.get(i).copied().unwrap_or(0),
-            s.test.as_str(),
-            s.state.directions().map(|d| d.sign() as i8),
-            s.state.axes_deg.map(|a| (a / cell_deg).floor() as i64),
-        );
-        let c = *index.entry(key).or_insert_with(|| {
+    for (&i, &g) in measured.iter().zip(groups) {
+        let bins = stops[i]
+            .state
+            .axes_deg
+            .map(|a| (a / cell_deg).floor() as i64);
+        let c = *index.entry((g, bins)).or_insert_with(|| {
             cells.push(Vec::new());
             cells.len() - 1
         });
         cells[c].push(i);
     }
     cells
+}
+
+/// A multiply-rotate hash of integer keys (the keys here are not chosen by an adversary;
+/// SipHash over a million keys, ten times, was most of the thinning's time).
+#[derive(Default)]
+struct Mix(u64);
+
+impl Hasher for Mix {
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.write_u64(u64::from_le_bytes(word));
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_u32(&mut self, v: u32) {
+        self.write_u64(u64::from(v));
+    }
+    fn write_i64(&mut self, v: i64) {
+        self.write_u64(v as u64);
+    }
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+    fn finish(&self) -> u64 {
+        self.0
+    }
 }
 
 #[cfg(test)]
