@@ -211,6 +211,12 @@ fn fit_geometry(
         }
         Some(out)
     };
+    let mismatch = |m: &Model| -> Option<f64> {
+        let p = predict(m)?;
+        Some(target.iter().zip(&p).map(|(t, b)| (t - b).powi(2)).sum())
+    };
+    let start = mismatch(&geo)?;
+    let start_values = geo.values();
     for _ in 0..6 {
         let base = predict(&geo)?;
         let r = DVector::from_iterator(target.len(), target.iter().zip(&base).map(|(t, b)| t - b));
@@ -240,6 +246,12 @@ fn fit_geometry(
         if step.amax() < 1e-9 {
             break;
         }
+    }
+    // Circles that no geometry of this robot matches (data in another frame, another robot)
+    // send Gauss–Newton anywhere: keep the start then, and let the verdict say why.
+    let end = mismatch(&geo).filter(|e| e.is_finite())?;
+    if end > start {
+        geo.set_values(&start_values);
     }
     Some(geo)
 }
