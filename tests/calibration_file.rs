@@ -87,6 +87,17 @@ fn save_then_load_gives_the_same_calibration() {
         date: Some("2026-03-01".into()),
         fit: [("rms_um".to_string(), 21.4)].into_iter().collect(),
         notes: Some("round trip".into()),
+        excluded: vec![calibration::ExcludedPoint {
+            source: "a2.csv".into(),
+            line: 17,
+            test: "A2".into(),
+            size_um: 812.5,
+            why: "0.812 mm off the A2 circle".into(),
+        }],
+        frames: [("a2.csv".to_string(), KukaFrame::default())]
+            .into_iter()
+            .collect(),
+        failed: Some("the fit failed: A2 stays far above the noise floor".into()),
     };
     let cal = Calibration::from_model("KR 30 HA #1", full_model(), frame, provenance);
     cal.save_atomic(&path).unwrap();

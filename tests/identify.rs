@@ -531,15 +531,25 @@ fn cli_simulate_and_identify_round_trip_and_bad_input() {
     assert_eq!(m.stops.len(), 40);
     assert!(m.stops[39].state.time_s > 39.0 * 3.2);
     let cal = dir.path().join("cal.json");
-    let out = std::process::Command::new(exe)
-        .arg("identify")
-        .arg(&meas)
-        .args(["--effects", "map:A1", "-c"])
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("calibrations/kr30ha-example.json"))
-        .arg("-o")
-        .arg(&cal)
-        .output()
-        .unwrap();
+    // `map:A1` alone (the example's other effects dropped) cannot explain the truth's other
+    // errors: the fit fails its check, is refused, and is written only when asked for.
+    let run = |accept: bool| {
+        let mut c = std::process::Command::new(exe);
+        c.arg("identify")
+            .arg(&meas)
+            .args(["--effects", "map:A1", "-c"])
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("calibrations/kr30ha-example.json"))
+            .arg("-o")
+            .arg(&cal);
+        if accept {
+            c.arg("--accept-poor-fit");
+        }
+        c.output().unwrap()
+    };
+    let out = run(false);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(!cal.exists());
+    let out = run(true);
     assert!(
         out.status.success(),
         "{}",
@@ -549,6 +559,7 @@ fn cli_simulate_and_identify_round_trip_and_bad_input() {
     assert!(report.contains("effects: map:A1"), "{report}");
     let loaded = robopost::calibration::load(&cal).unwrap();
     assert_eq!(loaded.model_ref().effects().len(), 1);
+    assert!(loaded.provenance.failed.is_some());
     assert!(!loaded.provenance.sources.is_empty() && loaded.provenance.fit.contains_key("rms_um"));
 
     // Bad measurement file: exit 2, located error, nothing written.

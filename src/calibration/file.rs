@@ -77,4 +77,30 @@ pub struct Provenance {
     /// Free text.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notes: Option<String>,
+    /// Measured points left out of the fit as gross errors (`compare` marks them).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub excluded: Vec<ExcludedPoint>,
+    /// With data from several tracker set-ups: the tracker → base frame of each measurement
+    /// file (as `frame`), by the file's name as given to `identify`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub frames: BTreeMap<String, KukaFrame>,
+    /// Why the fit failed its check against the noise floor, when the file was written
+    /// anyway (`identify --accept-poor-fit`); absent for a fit that passed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failed: Option<String>,
+}
+
+/// A measured point `identify` left out as a gross error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ExcludedPoint {
+    /// The measurement file, as given to `identify`.
+    pub source: String,
+    /// 1-based line of the row in that file.
+    pub line: usize,
+    pub test: String,
+    /// The point's residual against the model fitted without it, µm.
+    pub size_um: f64,
+    /// Why it was left out.
+    pub why: String,
 }

@@ -58,7 +58,8 @@ use nalgebra::Vector3;
 
 pub use error::CalError;
 pub use file::{
-    CalibrationFile, KukaFrame, MeasurementFrame, Provenance, RobotRecord, FORMAT, FORMAT_V1,
+    CalibrationFile, ExcludedPoint, KukaFrame, MeasurementFrame, Provenance, RobotRecord, FORMAT,
+    FORMAT_V1,
 };
 
 use crate::kinematics::{Payload, RobotDescription};

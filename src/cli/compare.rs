@@ -105,8 +105,22 @@ pub fn run(args: Args) -> Exit {
         return Exit::Usage;
     };
     let rows: Vec<Vec<Row>> = cals.iter().map(|c| compare::compare(c, &data)).collect();
-    let summaries: Vec<Summary> = rows.iter().map(|r| Summary::residuals(r)).collect();
-    let nominal = Summary::uncompensated(&rows[0]);
+    // Points the main calibration's identification left out as gross errors: marked, and not
+    // in the statistics of any model (the same points for all).
+    let marks = compare::gross_errors(&cals[0], &data);
+    let n_marked = marks.iter().filter(|m| m.is_some()).count();
+    let unmarked = |r: &[Row]| -> Vec<Row> {
+        r.iter()
+            .zip(&marks)
+            .filter(|(_, m)| m.is_none())
+            .map(|(row, _)| row.clone())
+            .collect()
+    };
+    let summaries: Vec<Summary> = rows
+        .iter()
+        .map(|r| Summary::residuals(&unmarked(r)))
+        .collect();
+    let nominal = Summary::uncompensated(&unmarked(&rows[0]));
 
     if let Some(dir) = &args.report {
         let labels: Vec<String> = cal_paths.iter().map(|p| short_name(p)).collect();
@@ -126,6 +140,7 @@ pub fn run(args: Args) -> Exit {
                 .iter()
                 .map(|p| p.display().to_string())
                 .collect(),
+            gross_errors: marks.clone(),
         };
         match report::write(dir, &input) {
             Ok(path) => eprintln!("report: {}", path.display()),
@@ -139,6 +154,7 @@ pub fn run(args: Args) -> Exit {
     if args.json {
         let mut out = summary_json(&summaries[0], &args.cal);
         if let Value::Object(map) = &mut out {
+            map.insert("gross_errors".into(), json!(n_marked));
             map.insert(
                 "nominal".into(),
                 serde_json::to_value(&nominal).unwrap_or(Value::Null),
@@ -163,6 +179,13 @@ pub fn run(args: Args) -> Exit {
         println!(
             "(residual = measured − predicted; `nominal` is the robot's error from the command)"
         );
+        if n_marked > 0 {
+            println!(
+                "{n_marked} point(s) that identify left out as gross errors are not in these \
+                 statistics (marked in the --report page; listed in the calibration's \
+                 provenance.excluded)"
+            );
+        }
     }
     Exit::Success
 }

@@ -1,7 +1,10 @@
 //! `robopost identify MEAS.csv... -o CAL.json [--effects LIST] [--frame base|tracker]
-//! [--map-pitch DEG] [-c OLD.json]`: identify a calibration from laser-tracker measurements
-//! and print the fit report. `--effects +NAME` with `-c OLD.json` adds an effect to an
-//! existing calibration and re-identifies. Thin over `crate::identify::pipeline`.
+//! [--map-pitch DEG] [-c OLD.json] [--target X,Y,Z] [--accept-poor-fit] [--max-points N]`:
+//! identify a calibration from laser-tracker measurements and print the fit report.
+//! `--effects +NAME` with `-c OLD.json` adds an effect to an existing calibration and
+//! re-identifies. A fit that fails its check against the noise floor is refused (exit 1,
+//! nothing written) unless `--accept-poor-fit`. Thin over `crate::identify::pipeline`: read
+//! the files, identify, report, then write or refuse.
 
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
@@ -9,7 +12,10 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use super::Exit;
-use crate::identify::pipeline::{identify, Effects, Identified, Request, PAPER_EFFECTS};
+use crate::identify::direct::TARGET_HINT_TOLERANCE_MM;
+use crate::identify::pipeline::{
+    identify, Effects, Identified, Request, TargetSource, PAPER_EFFECTS,
+};
 use crate::identify::setup::GridChoice;
 use crate::identify::{Progress, Status};
 use crate::kinematics::RobotDescription;
@@ -47,13 +53,26 @@ pub struct Args {
     /// Existing calibration: robot, target and starting values.
     #[arg(short = 'c', long = "cal")]
     pub cal: Option<PathBuf>,
-    /// Measurement target in the flange frame, mm (`X,Y,Z`), when there is no `-c`.
+    /// A hint for the measurement target in the flange frame, mm (`X,Y,Z`), when there is no
+    /// `-c`. Not needed: the A5 and A6 indexing tests give the target; the hint is kept as
+    /// `target_mm` when within 1 mm of it, and is the start when the data hold no such tests.
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub target: Option<Vec<f64>>,
     /// Robot name written into the calibration.
     #[arg(long = "robot-name")]
     pub robot_name: Option<String>,
+    /// Write the calibration even when the fit fails its check against the noise floor (the
+    /// failure is recorded in the file's provenance).
+    #[arg(long = "accept-poor-fit")]
+    pub accept_poor_fit: bool,
+    /// Most measured points the fit uses; denser data are thinned evenly (every point is
+    /// still checked against the result). 0: use all.
+    #[arg(long = "max-points", default_value_t = crate::identify::thin::DEFAULT_MAX_POINTS)]
+    pub max_points: usize,
 }
+
+/// Gross errors printed one per line (all are in the calibration's provenance).
+const GROSS_LINES: usize = 40;
 
 fn usage(message: &str) -> Exit {
     super::usage(message)
@@ -89,7 +108,11 @@ pub fn run(args: Args) -> Exit {
             c.model_ref().robot.limits_deg
         });
     let mut stops = Vec::new();
-    for file in &args.files {
+    let mut file_of = Vec::new();
+    for (k, file) in args.files.iter().enumerate() {
+        if let Some(bar) = &spinner {
+            bar.set_message(format!("reading {}", file.display()));
+        }
         match read_csv_within(file, Some(&limits)) {
             Ok(m) => {
                 if !m.ignored_columns.is_empty() {
@@ -99,6 +122,7 @@ pub fn run(args: Args) -> Exit {
                         m.ignored_columns.join(", ")
                     );
                 }
+                file_of.resize(file_of.len() + m.stops.len(), k);
                 stops.extend(m.stops);
             }
             Err(e) => {
@@ -106,6 +130,9 @@ pub fn run(args: Args) -> Exit {
                 return Exit::Usage;
             }
         }
+    }
+    if let Some(bar) = spinner {
+        bar.finish_and_clear();
     }
     let effects = match args.effects.as_deref() {
         None => None,
@@ -142,9 +169,10 @@ pub fn run(args: Args) -> Exit {
     let progress = std::io::stderr().is_terminal().then(|| {
         let bar = indicatif::ProgressBar::new(30);
         bar.set_style(
-            indicatif::ProgressStyle::with_template("{spinner} refining {pos}/{len} {msg}")
+            indicatif::ProgressStyle::with_template("{spinner} {prefix} {pos}/{len} {msg}")
                 .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
         );
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
         bar
     });
     let request = Request {
@@ -158,11 +186,18 @@ pub fn run(args: Args) -> Exit {
         target_mm,
         robot_name: args.robot_name.clone(),
         sources: args.files.iter().map(|f| f.display().to_string()).collect(),
+        file_of,
+        max_points: Some(args.max_points),
         progress: progress.clone().map(|bar| {
             Arc::new(move |p: &Progress| {
+                bar.set_prefix(p.stage);
                 bar.set_length(p.max_iterations as u64);
                 bar.set_position(p.iteration as u64);
-                bar.set_message(format!("rms {:.1} µm", p.rms_um));
+                if p.rms_um.is_finite() {
+                    bar.set_message(format!("rms {:.1} µm", p.rms_um));
+                } else {
+                    bar.set_message("");
+                }
             }) as Arc<dyn Fn(&Progress) + Send + Sync>
         }),
     };
@@ -174,9 +209,6 @@ pub fn run(args: Args) -> Exit {
         Ok(r) => r,
         Err(e) => return usage(&e.to_string()),
     };
-    if let Err(e) = identified.calibration.save_atomic(&args.out) {
-        return usage(&e.to_string());
-    }
     print!(
         "{}",
         report(
@@ -184,8 +216,58 @@ pub fn run(args: Args) -> Exit {
             args.effects.as_deref().unwrap_or(PAPER_EFFECTS)
         )
     );
+    if let Some(failure) = &identified.verdict.failure {
+        if !args.accept_poor_fit {
+            eprint!("robopost identify: {failure}");
+            eprintln!(
+                "Nothing was written. `--accept-poor-fit` writes the calibration anyway (its \
+                 provenance records the failure)."
+            );
+            return Exit::Rejected;
+        }
+        eprint!("warning: {failure}");
+        eprintln!(
+            "warning: written anyway (--accept-poor-fit); the provenance records the failure"
+        );
+    }
+    if let Err(e) = identified.calibration.save_atomic(&args.out) {
+        return usage(&e.to_string());
+    }
     println!("wrote {}", args.out.display());
     Exit::Success
+}
+
+fn describe_target(r: &Identified) -> String {
+    let m = r.calibration.model_ref();
+    let t = m.target_mm;
+    let written = format!("target_mm ({:.3}, {:.3}, {:.3})", t.x, t.y, t.z);
+    match &r.target {
+        TargetSource::Circles {
+            target_a6,
+            hint_off_mm,
+        } => {
+            let mut s = format!(
+                "from the A5/A6 circles ({:.3}, {:.3}, {:.3} mm, A6 frame); {written}",
+                target_a6[0], target_a6[1], target_a6[2]
+            );
+            if let Some(off) = hint_off_mm {
+                s += &if *off > TARGET_HINT_TOLERANCE_MM {
+                    format!("; the --target hint was {off:.1} mm from it and is not used")
+                } else {
+                    format!("; the --target hint is {off:.3} mm from it, kept as target_mm")
+                };
+            }
+            s
+        }
+        TargetSource::LeastSquares { hint } => format!(
+            "fitted to all points (no A5/A6 indexing tests) from {}; {written}",
+            hint.map_or("the flange origin".into(), |h| format!(
+                "the --target hint ({}, {}, {})",
+                h[0], h[1], h[2]
+            ))
+        ),
+        TargetSource::Calibration => format!("from the calibration given with -c; {written}"),
+    }
 }
 
 fn stats_row(label: &str, s: &ErrorStats) -> String {
@@ -203,6 +285,9 @@ pub fn report(r: &Identified, requested: &str) -> String {
         "effects: {} (requested: {requested})\n",
         r.effects.join(",")
     );
+    if let Some(t) = &r.thinning {
+        out += &format!("data: {}\n", t.describe());
+    }
     if let Some(d) = &r.direct {
         out += &format!(
             "direct method: {} indexing tests, {} deviation samples\n",
@@ -219,9 +304,12 @@ pub fn report(r: &Identified, requested: &str) -> String {
             );
         }
     }
+    out += &format!("target: {}\n", describe_target(r));
     out += &format!(
-        "refinement: {} iterations ({}), σ per coordinate {:.1} µm\n",
+        "refinement: {} iterations in {} round(s) of leaving out gross errors ({}), σ per \
+         coordinate {:.1} µm\n",
         fit.iterations,
+        r.rounds,
         if fit.converged {
             "converged"
         } else {
@@ -234,9 +322,42 @@ pub fn report(r: &Identified, requested: &str) -> String {
         "residual (µm)", "points", "XY mean", "XY 2σ", "Z mean", "Z 2σ", "3-D max", "RMS"
     );
     out += &stats_row("before", &fit.initial_stats);
-    out += &stats_row("after", &fit.stats);
-    for (test, s) in &fit.per_test {
+    out += &stats_row("after", &r.stats);
+    for (test, s) in &r.per_test {
         out += &stats_row(&format!("  {test}"), s);
+    }
+    out += &format!(
+        "noise floor {:.1} µm RMS ({}); {}\n",
+        r.verdict.noise.rms_um,
+        r.verdict.noise.source.describe(),
+        if r.verdict.failed() {
+            "the fit FAILED (see below)"
+        } else {
+            "every test within the check"
+        }
+    );
+    if let Some(note) = &r.verdict.note {
+        out += &format!("note: {note}\n");
+    }
+    if r.gross.is_empty() {
+        out += "gross errors: none\n";
+    } else {
+        out += &format!(
+            "gross errors: {} left out of the fit (file:line test size: why)\n",
+            r.gross.len()
+        );
+        for g in r.gross.iter().take(GROSS_LINES) {
+            out += &format!(
+                "  {}:{} {} {:.0} µm: {}\n",
+                g.file, g.line, g.test, g.size_um, g.why
+            );
+        }
+        if r.gross.len() > GROSS_LINES {
+            out += &format!(
+                "  … and {} more (all under provenance.excluded in the calibration)\n",
+                r.gross.len() - GROSS_LINES
+            );
+        }
     }
     if let (Some(f), Some(se)) = (fit.tracker_frame, fit.tracker_frame_standard_errors) {
         let k = crate::calibration::KukaFrame::from_isometry(&f);

@@ -85,9 +85,50 @@ pub fn rows_of(model: &Model, frame: &MeasurementFrame, files: &[Measurements]) 
         .collect()
 }
 
-/// The rows of a calibration against measurement files.
+/// The rows of a calibration against measurement files (each file in the tracker frame
+/// `identify` found for it when the calibration lists one per file, else in its `frame`).
 pub fn compare(cal: &Calibration, files: &[Measurements]) -> Vec<Row> {
-    rows_of(cal.model_ref(), &cal.frame, files)
+    if cal.provenance.frames.is_empty() {
+        return rows_of(cal.model_ref(), &cal.frame, files);
+    }
+    files
+        .iter()
+        .flat_map(|m| {
+            let frame = cal
+                .provenance
+                .frames
+                .iter()
+                .find(|(source, _)| same_file(source, &m.source))
+                .map_or(cal.frame, |(_, f)| MeasurementFrame::Tracker(*f));
+            rows_of(cal.model_ref(), &frame, std::slice::from_ref(m))
+        })
+        .collect()
+}
+
+/// Whether two names of a measurement file are the same file: `identify` records them as
+/// given on its command line, `compare` may be run from elsewhere, so by file name.
+fn same_file(recorded: &str, given: &str) -> bool {
+    let name = |s: &str| std::path::Path::new(s).file_name().map(|n| n.to_owned());
+    recorded == given || (name(recorded).is_some() && name(recorded) == name(given))
+}
+
+/// For each row of [`compare`] (same order): why `identify` left it out of the fit as a gross
+/// error, if it did (the calibration's `provenance.excluded`, matched by file and line).
+pub fn gross_errors(cal: &Calibration, files: &[Measurements]) -> Vec<Option<String>> {
+    let excluded = &cal.provenance.excluded;
+    files
+        .iter()
+        .flat_map(|m| {
+            let listed: std::collections::HashMap<usize, &str> = excluded
+                .iter()
+                .filter(|e| same_file(&e.source, &m.source))
+                .map(|e| (e.line, e.why.as_str()))
+                .collect();
+            m.measured()
+                .map(move |(stop, _)| listed.get(&stop.line).map(|w| w.to_string()))
+                .collect::<Vec<_>>()
+        })
+        .collect()
 }
 
 /// Test labels in the order they first appear.

@@ -1,13 +1,20 @@
 //! The paper's direct method (section 2.3 and its reference \[8\]), the starting point of the
 //! global refinement:
-//! 1. every *indexing test* in the data — a test label whose measured rows move exactly one
-//!    axis over at least five angles while the others stand still — gets its best-fit circle
-//!    ([`super::circle`]): the centre and normal are that axis's average line at the test's
-//!    reference pose;
-//! 2. the geometric parameters (and the target vector) are fitted so that the model's circles
-//!    match the measured ones (Gauss–Newton with a numerical Jacobian on centre, normal and
-//!    radius: 7 numbers per test against 21 parameters);
-//! 3. the angular position of each measured point on its circle, against where the geometric
+//! 1. every *indexing test* in the data — a test label (per file) whose measured rows move
+//!    exactly one axis over at least five angles while the others stand still — gets its
+//!    best-fit circle ([`super::circle`]): the centre and normal are that axis's average line
+//!    at the test's reference pose, the normal oriented by the points' own sense of rotation
+//!    (no model or frame needed);
+//! 2. the target vector in closed form from the A5 and A6 circles ([`target_from_circles`]):
+//!    the A6 circle's radius and phase give the target's offset from the A6 axis, the point
+//!    where the A6 axis meets the A5 axis (the wrist point) its position along it. Fitting the
+//!    target together with the axis lines from a wrong start can end in a wrong minimum (the
+//!    A6 circle does not change with the target's phase about A6, and a target started on
+//!    the A6 axis has no A6 circle at all), so the target comes first;
+//! 3. the geometric parameters are fitted so that the model's circles match the measured ones
+//!    (Gauss–Newton with a numerical Jacobian on centre, normal and radius: 7 numbers per
+//!    test against 21 parameters), from that target;
+//! 4. the angular position of each measured point on its circle, against where the geometric
 //!    model puts the same command, is the angular positioning deviation of that axis at that
 //!    command angle and rotation direction; the mean of the two directions fills `map:An`,
 //!    their difference (negative minus positive: the play's width) `backlash:An`, and the
@@ -22,11 +29,16 @@ use std::collections::BTreeMap;
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::circle::{fit_circle, Circle3};
+use super::screen::oriented_by_motion;
 use crate::measure::Stop;
-use crate::model::{AxisState, Direction, Model};
+use crate::model::{Direction, Model};
 
 /// Fewest measured angles for a test to count as an indexing test.
 const MIN_ANGLES: usize = 5;
+
+/// Most rows of a test at which the model's circle is evaluated while fitting the geometry
+/// (evenly spread over the test): more add time, not information, to a 7-number circle.
+const MAX_MODEL_CIRCLE_ROWS: usize = 240;
 
 /// One indexing test found in the data.
 #[derive(Clone, Debug, PartialEq)]
@@ -38,6 +50,8 @@ pub struct IndexingTest {
     pub reference_deg: [f64; 6],
     /// Indices into the data of the test's measured rows.
     pub rows: Vec<usize>,
+    /// The file (tracker set-up) the test was measured in.
+    pub group: usize,
 }
 
 /// The measured average line of an axis in one test.
@@ -48,6 +62,8 @@ pub struct AxisLine {
     pub reference_deg: [f64; 6],
     /// Normal oriented along a positive KUKA rotation of the axis.
     pub circle: Circle3,
+    /// The test's measured points: (row, command angle of the axis, position).
+    pub points: Vec<(usize, f64, Vector3<f64>)>,
 }
 
 /// One measured angular positioning deviation.
@@ -69,16 +85,35 @@ pub struct DirectResult {
     pub samples: Vec<DeviationSample>,
 }
 
-/// The indexing tests of `data` (see the module documentation).
+/// The indexing tests of `data` (see the module documentation), all from one file.
 pub fn indexing_tests(data: &[Stop]) -> Vec<IndexingTest> {
-    let mut groups: BTreeMap<&str, Vec<usize>> = BTreeMap::new();
+    indexing_tests_grouped(data, &[])
+}
+
+/// The indexing tests of `data` whose rows come from the files `group_of` (one entry per
+/// row; empty: one file): a label is a test of its own file.
+pub fn indexing_tests_grouped(data: &[Stop], group_of: &[usize]) -> Vec<IndexingTest> {
+    let mut groups: BTreeMap<(usize, &str), Vec<usize>> = BTreeMap::new();
+    let mut run: Option<((usize, &str), Vec<usize>)> = None;
     for (i, s) in data.iter().enumerate() {
         if s.measured_mm.is_some() {
-            groups.entry(s.test.as_str()).or_default().push(i);
+            let key = (group_of.get(i).copied().unwrap_or(0), s.test.as_str());
+            // Rows of a test come in runs: one map look-up per run.
+            match &mut run {
+                Some((k, rows)) if *k == key => rows.push(i),
+                _ => {
+                    if let Some((k, rows)) = run.replace((key, vec![i])) {
+                        groups.entry(k).or_default().extend(rows);
+                    }
+                }
+            }
         }
     }
+    if let Some((k, rows)) = run {
+        groups.entry(k).or_default().extend(rows);
+    }
     let mut tests = Vec::new();
-    for (test, rows) in groups {
+    for ((group, test), rows) in groups {
         let first = data[rows[0]].state.axes_deg;
         let moving: Vec<usize> = (0..6)
             .filter(|&k| rows.iter().any(|&i| data[i].state.axes_deg[k] != first[k]))
@@ -93,6 +128,7 @@ pub fn indexing_tests(data: &[Stop]) -> Vec<IndexingTest> {
                     axis: k as u8 + 1,
                     reference_deg: first,
                     rows,
+                    group,
                 });
             }
         }
@@ -111,20 +147,33 @@ fn geometric_only(model: &Model) -> Option<(Model, usize)> {
     Some((m, model.effect_start(g)))
 }
 
-/// The circle a model predicts for a test: fitted to its predictions at the test's states.
+/// The circle a model predicts for a test: fitted to its predictions at (up to
+/// [`MAX_MODEL_CIRCLE_ROWS`] of) the test's states.
 fn model_circle(model: &Model, data: &[Stop], test: &IndexingTest) -> Option<Circle3> {
+    let step = test.rows.len().div_ceil(MAX_MODEL_CIRCLE_ROWS).max(1);
     let points: Vec<Vector3<f64>> = test
         .rows
         .iter()
+        .step_by(step)
         .map(|&i| model.target_position(&data[i].state))
         .collect();
     fit_circle(&points)
 }
 
-/// The world direction of a positive KUKA rotation of the test's axis, per the model.
-fn joint_axis(model: &Model, test: &IndexingTest) -> Vector3<f64> {
-    let (frames, _) = model.frames(&AxisState::new(test.reference_deg));
-    frames.joint_axis(test.axis as usize)
+/// The measured circle of a test, its normal along a positive rotation of the axis.
+pub fn measured_circle(data: &[Stop], test: &IndexingTest) -> Option<Circle3> {
+    let points: Vec<Vector3<f64>> = test
+        .rows
+        .iter()
+        .filter_map(|&i| data[i].measured_mm)
+        .collect();
+    let circle = fit_circle(&points)?;
+    Some(oriented_by_motion(
+        circle,
+        data,
+        &test.rows,
+        test.axis as usize - 1,
+    ))
 }
 
 fn oriented(mut circle: Circle3, axis: &Vector3<f64>) -> Circle3 {
@@ -163,6 +212,12 @@ fn fit_geometry(
         }
         Some(out)
     };
+    let mismatch = |m: &Model| -> Option<f64> {
+        let p = predict(m)?;
+        Some(target.iter().zip(&p).map(|(t, b)| (t - b).powi(2)).sum())
+    };
+    let start = mismatch(&geo)?;
+    let start_values = geo.values();
     for _ in 0..6 {
         let base = predict(&geo)?;
         let r = DVector::from_iterator(target.len(), target.iter().zip(&base).map(|(t, b)| t - b));
@@ -193,6 +248,12 @@ fn fit_geometry(
             break;
         }
     }
+    // Circles that no geometry of this robot matches (data in another frame, another robot)
+    // send Gauss–Newton anywhere: keep the start then, and let the verdict say why.
+    let end = mismatch(&geo).filter(|e| e.is_finite())?;
+    if end > start {
+        geo.set_values(&start_values);
+    }
     Some(geo)
 }
 
@@ -200,24 +261,44 @@ fn fit_geometry(
 /// into the model's `geometric`, `map`, `backlash` and `crosstalk` effects. `None` when the
 /// data hold no indexing test.
 pub fn direct_method(model: &mut Model, data: &[Stop]) -> Option<DirectResult> {
-    let tests = indexing_tests(data);
+    direct_method_grouped(model, data, &[])
+}
+
+/// [`direct_method`] for rows from several files (`group_of`, one entry per row; each file's
+/// positions already mapped into the base frame). When the data hold an A5 and an A6 test
+/// at the same A1..A4 the target vector is set from them first ([`target_from_circles`]).
+pub fn direct_method_grouped(
+    model: &mut Model,
+    data: &[Stop],
+    group_of: &[usize],
+) -> Option<DirectResult> {
+    let tests = indexing_tests_grouped(data, group_of);
     let mut lines = Vec::new();
     let mut kept = Vec::new();
     for t in &tests {
-        let points: Vec<Vector3<f64>> =
-            t.rows.iter().filter_map(|&i| data[i].measured_mm).collect();
-        if let Some(c) = fit_circle(&points) {
+        if let Some(circle) = measured_circle(data, t) {
             lines.push(AxisLine {
                 test: t.test.clone(),
                 axis: t.axis,
                 reference_deg: t.reference_deg,
-                circle: oriented(c, &joint_axis(model, t)),
+                circle,
+                points: t
+                    .rows
+                    .iter()
+                    .filter_map(|&i| {
+                        let m = data[i].measured_mm?;
+                        Some((i, data[i].state.axes_deg[t.axis as usize - 1], m))
+                    })
+                    .collect(),
             });
             kept.push(t.clone());
         }
     }
     if kept.is_empty() {
         return None;
+    }
+    if let Some(p) = target_from_circles(&model.robot, &kept, &lines) {
+        set_target_a6(model, &p);
     }
     let geometry = fit_geometry(model, data, &kept, &lines);
     if let (Some(geo), Some(g)) = (
@@ -242,6 +323,121 @@ pub fn direct_method(model: &mut Model, data: &[Stop]) -> Option<DirectResult> {
     samples = deviation_samples(&kept, &lines, data, |axis| without_axis_tables(&full, axis));
     fill_tables(model, &samples);
     Some(DirectResult { lines, samples })
+}
+
+/// A given target within this distance (mm) of the one the circles give is kept as the
+/// calibration's `target_mm` (the difference goes into the target correction `p6`): it is the
+/// user's `$TOOL` for the target. Farther off, the hint was wrong and the circles' target is
+/// written instead.
+pub const TARGET_HINT_TOLERANCE_MM: f64 = 1.0;
+
+/// The effective target of `model` in the A6 frame: `target_mm` plus the correction `p6`.
+pub fn effective_target_a6(model: &Model) -> Vector3<f64> {
+    let mut p = model.target_a6();
+    if let Some(g) = model.effects().iter().position(|e| e.name() == "geometric") {
+        let names = crate::model::effects::geometric::parameter_names();
+        let values = model.effects()[g].values();
+        for (c, key) in ["p6x", "p6y", "p6z"].iter().enumerate() {
+            if let Some(j) = names.iter().position(|n| n == key) {
+                p[c] += values[j];
+            }
+        }
+    }
+    p
+}
+
+/// Makes `p` (A6 frame, mm) the model's effective target: `target_mm` stays when it is within
+/// [`TARGET_HINT_TOLERANCE_MM`] of `p`, else becomes `p` rounded to the micrometre; the
+/// correction `p6` of the `geometric` effect (when the model has it) takes the rest.
+pub fn set_target_a6(model: &mut Model, p: &Vector3<f64>) {
+    let to_flange = crate::model::chain::a6_to_flange().transpose();
+    let g = model.effects().iter().position(|e| e.name() == "geometric");
+    if g.is_none() || (model.target_a6() - p).norm() > TARGET_HINT_TOLERANCE_MM {
+        let flange = to_flange * p;
+        model.target_mm = if g.is_some() {
+            flange.map(|v| (v * 1000.0).round() / 1000.0)
+        } else {
+            flange
+        };
+    }
+    let Some(g) = g else {
+        return;
+    };
+    let rest = p - model.target_a6();
+    let names = crate::model::effects::geometric::parameter_names();
+    let start = model.effect_start(g);
+    let mut values = model.values();
+    for (c, key) in ["p6x", "p6y", "p6z"].iter().enumerate() {
+        if let Some(j) = names.iter().position(|n| n == key) {
+            values[start + j] = rest[c];
+        }
+    }
+    model.set_values(&values);
+}
+
+/// The target vector in the A6 frame (mm) from an A5 and an A6 indexing test measured in one
+/// file at the same A1..A4 (averaged over such pairs); `None` when the data hold none.
+///
+/// All from the measured circles, so neither a starting target nor the tracker frame enters:
+/// the A6 axis `x6` is the A6 circle's normal times A6's sense, the A5 axis (the A6 frame's
+/// `y` at A6 = 0) the A5 circle's normal times A5's sense. The target's offset from the A6 axis
+/// is each A6 point's position about the circle's centre, turned back by its command angle;
+/// its position along the axis is the A6 centre's distance from the wrist point (where the A6
+/// axis comes closest to the A5 axis) minus `l5x`. What the geometric errors of the last
+/// links add (tens of micrometres) is left to the fits that follow.
+pub fn target_from_circles(
+    robot: &crate::kinematics::RobotDescription,
+    tests: &[IndexingTest],
+    lines: &[AxisLine],
+) -> Option<Vector3<f64>> {
+    let same_arm = |a: &IndexingTest, b: &IndexingTest| {
+        a.group == b.group && (0..4).all(|k| (a.reference_deg[k] - b.reference_deg[k]).abs() < 1e-6)
+    };
+    let mut sum = Vector3::zeros();
+    let mut count = 0.0;
+    for (t6, l6) in tests.iter().zip(lines).filter(|(t, _)| t.axis == 6) {
+        for (_, l5) in tests
+            .iter()
+            .zip(lines)
+            .filter(|(t, _)| t.axis == 5 && same_arm(t, t6))
+        {
+            let x6 = l6.circle.normal.into_inner() * robot.senses[5];
+            let a5 = l5.circle.normal.into_inner() * robot.senses[4];
+            let y0 = a5 - x6 * x6.dot(&a5);
+            if y0.norm() < 0.5 {
+                continue; // the axes are far from perpendicular: not this robot's wrist
+            }
+            let y0 = y0.normalize();
+            let z0 = x6.cross(&y0);
+            // Offset from the A6 axis: each point turned back by its model angle θ6.
+            let (mut py, mut pz, mut n) = (0.0, 0.0, 0.0);
+            for (_, command, m) in &l6.points {
+                let d = m - l6.circle.centre;
+                let (u, v) = (d.dot(&y0), d.dot(&z0));
+                let theta =
+                    robot.senses[5] * command.to_radians() + robot.offsets_deg[5].to_radians();
+                let (sin, cos) = theta.sin_cos();
+                py += cos * u + sin * v;
+                pz += -sin * u + cos * v;
+                n += 1.0;
+            }
+            if n == 0.0 {
+                continue;
+            }
+            // Along the axis: the wrist point is where the A6 line comes closest to the A5 line.
+            let w0 = l6.circle.centre - l5.circle.centre;
+            let b = x6.dot(&a5);
+            let denominator = 1.0 - b * b;
+            if denominator < 1e-6 {
+                continue;
+            }
+            let s = (b * a5.dot(&w0) - x6.dot(&w0)) / denominator;
+            let px = -s - robot.links.l5x;
+            sum += Vector3::new(px, py / n, pz / n);
+            count += 1.0;
+        }
+    }
+    (count > 0.0).then(|| sum / count)
 }
 
 /// The angular deviation of every measured point of every test, against the positions the

@@ -8,8 +8,19 @@ pub mod lsq;
 pub mod pipeline;
 pub mod refine;
 pub mod register;
+pub mod robust;
+pub mod screen;
 pub mod setup;
+pub mod thin;
+pub mod verdict;
 
 pub use refine::{
     refine, Fit, Free, IdentifyError, Progress, ProgressFn, RefineOptions, Status, Warning,
 };
+
+// shim: `AxisState::directions()` until the lead's `AxisHistory` (issue 22) lands; drop at merge.
+impl crate::model::AxisState {
+    pub fn directions(&self) -> [crate::model::Direction; 6] {
+        self.directions
+    }
+}

@@ -58,6 +58,9 @@ pub type ProgressFn = Arc<dyn Fn(&Progress) + Send + Sync>;
 /// Progress of the iteration, for a progress bar.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Progress {
+    /// What is running (`refining`; the pipeline reports its other stages through the same
+    /// callback, with `rms_um` and `lambda` NaN).
+    pub stage: &'static str,
     pub iteration: usize,
     pub max_iterations: usize,
     /// RMS of the 3-D residual, µm.
@@ -75,6 +78,13 @@ pub struct RefineOptions {
     /// Starting pose of the tracker frame in the base frame; `None`: the rigid best fit of the
     /// measured points onto the current model's predictions.
     pub initial_frame: Option<Isometry3<f64>>,
+    /// Tracker frame of every data stop (an index into the frames), for data measured from
+    /// several tracker set-ups (one file per day, the tracker moved): each gets its own pose.
+    /// Empty: every stop in frame 0. Only with `tracker_frame`.
+    pub frame_of: Vec<usize>,
+    /// Starting poses of the frames by index; a missing one starts from `initial_frame` (frame
+    /// 0) or the rigid best fit of its points.
+    pub initial_frames: Vec<Isometry3<f64>>,
     pub max_iterations: usize,
     /// Converged when an accepted step lowers the cost by less than this fraction.
     pub tolerance: f64,
@@ -100,6 +110,8 @@ impl Default for RefineOptions {
             free: Free::All,
             tracker_frame: false,
             initial_frame: None,
+            frame_of: Vec::new(),
+            initial_frames: Vec::new(),
             max_iterations: 30,
             tolerance: 1e-10,
             smoothing: 1.0,
@@ -117,6 +129,8 @@ impl std::fmt::Debug for RefineOptions {
             .field("free", &self.free)
             .field("tracker_frame", &self.tracker_frame)
             .field("initial_frame", &self.initial_frame)
+            .field("frame_of", &self.frame_of.len())
+            .field("initial_frames", &self.initial_frames)
             .field("max_iterations", &self.max_iterations)
             .field("tolerance", &self.tolerance)
             .field("smoothing", &self.smoothing)
@@ -230,11 +244,16 @@ pub struct Fit {
     pub status: Vec<Status>,
     /// One standard error per model parameter, in its unit; `None` unless identified.
     pub standard_errors: Vec<Option<f64>>,
-    /// Identified pose of the tracker frame in the base frame (`p_base = F·p_tracker`).
+    /// Identified pose of the tracker frame in the base frame (`p_base = F·p_tracker`); the
+    /// first of [`Self::tracker_frames`].
     pub tracker_frame: Option<Isometry3<f64>>,
     /// Standard errors of the frame: translation x, y, z (mm), rotation about the base x, y,
     /// z axes (degrees).
     pub tracker_frame_standard_errors: Option<[f64; 6]>,
+    /// Every identified tracker frame, by index ([`RefineOptions::frame_of`]).
+    pub tracker_frames: Vec<Isometry3<f64>>,
+    /// Their standard errors (as [`Self::tracker_frame_standard_errors`]).
+    pub tracker_frames_standard_errors: Vec<[f64; 6]>,
     pub warnings: Vec<Warning>,
     pub iterations: usize,
     pub converged: bool,
@@ -260,6 +279,8 @@ impl Fit {
 struct Point {
     state: AxisState,
     measured: Vector3<f64>,
+    /// Its tracker frame.
+    frame: usize,
 }
 
 /// A linear row `weight · Σ coef·x[flat] ≈ 0` over the flat parameter vector.
@@ -333,6 +354,13 @@ pub fn refine(
     data: &[Stop],
     options: &RefineOptions,
 ) -> Result<Fit, IdentifyError> {
+    let frame_of = |i: usize| {
+        if options.tracker_frame {
+            options.frame_of.get(i).copied().unwrap_or(0)
+        } else {
+            0
+        }
+    };
     let (indices, points): (Vec<usize>, Vec<Point>) = data
         .iter()
         .enumerate()
@@ -343,6 +371,7 @@ pub fn refine(
                     Point {
                         state: s.state,
                         measured: m,
+                        frame: frame_of(i),
                     },
                 )
             })
@@ -355,21 +384,28 @@ pub fn refine(
     let mut free = free_mask(model, &options.free)?;
     let mut warnings = Vec::new();
 
-    let mut frame = if options.tracker_frame {
-        match options.initial_frame {
-            Some(f) => f,
-            None => {
-                let predicted: Vec<Vector3<f64>> = points
+    let n_frames = points.iter().map(|p| p.frame + 1).max().unwrap_or(1);
+    let mut frames = Vec::with_capacity(n_frames);
+    for f in 0..n_frames {
+        let given = options.initial_frames.get(f).copied().or(if f == 0 {
+            options.initial_frame
+        } else {
+            None
+        });
+        frames.push(match (options.tracker_frame, given) {
+            (false, _) => Isometry3::identity(),
+            (true, Some(frame)) => frame,
+            (true, None) => {
+                let (measured, predicted): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = points
                     .iter()
-                    .map(|p| model.target_position(&p.state))
-                    .collect();
-                let measured: Vec<Vector3<f64>> = points.iter().map(|p| p.measured).collect();
+                    .filter(|p| p.frame == f)
+                    .map(|p| (p.measured, model.target_position(&p.state)))
+                    .unzip();
                 rigid_fit(&measured, &predicted).ok_or(IdentifyError::FrameStart)?
             }
-        }
-    } else {
-        Isometry3::identity()
-    };
+        });
+    }
+    let mut frame = frames;
 
     // Observation strength of every parameter: its column norm over the data rows.
     let mut norms = column_norms(model, &points);
@@ -460,7 +496,12 @@ pub fn refine(
         col_of[i] = Some(c);
     }
     let n_model_cols = flat_of.len();
-    let n_cols = n_model_cols + if options.tracker_frame { 6 } else { 0 };
+    let n_frame_cols = if options.tracker_frame {
+        6 * n_frames
+    } else {
+        0
+    };
+    let n_cols = n_model_cols + n_frame_cols;
     let rows = 3 * points.len();
     let n_data_cols = n_cols - flat_of.iter().filter(|&&i| smoothed[i]).count();
     if rows < n_data_cols {
@@ -472,21 +513,24 @@ pub fn refine(
     }
     let mut col_scale: Vec<f64> = flat_of.iter().map(|&i| scale[i]).collect();
     if options.tracker_frame {
-        // Frame columns: translation moves every point by 1 mm per mm; rotation by the
-        // distance from the base origin (rad).
-        let sqrt_n = (points.len() as f64).sqrt();
-        let radius = (points
-            .iter()
-            .map(|p| {
-                (frame * nalgebra::Point3::from(p.measured))
-                    .coords
-                    .norm_squared()
-            })
-            .sum::<f64>()
-            / points.len() as f64)
-            .sqrt();
-        col_scale.extend([sqrt_n; 3]);
-        col_scale.extend([sqrt_n * radius.max(1.0); 3]);
+        // Frame columns: translation moves every point of the frame by 1 mm per mm; rotation
+        // by the distance from the base origin (rad).
+        for (f, pose) in frame.iter().enumerate() {
+            let own: Vec<&Point> = points.iter().filter(|p| p.frame == f).collect();
+            let n = own.len().max(1) as f64;
+            let radius = (own
+                .iter()
+                .map(|p| {
+                    (pose * nalgebra::Point3::from(p.measured))
+                        .coords
+                        .norm_squared()
+                })
+                .sum::<f64>()
+                / n)
+                .sqrt();
+            col_scale.extend([n.sqrt(); 3]);
+            col_scale.extend([n.sqrt() * radius.max(1.0); 3]);
+        }
     }
 
     let problem = Problem {
@@ -500,7 +544,7 @@ pub fn refine(
 
     let initial = problem.residuals(model, &frame);
     let initial_stats = error_stats(&initial.iter().map(|r| -r).collect::<Vec<_>>());
-    let mut cost = problem.cost(model, &frame, &initial);
+    let mut cost = problem.cost(model, &initial);
     let mut lambda = 1e-3;
     const LAMBDA_MIN: f64 = 1e-9;
     let mut iterations = 0;
@@ -519,7 +563,7 @@ pub fn refine(
         };
         let (trial_model, trial_frame) = problem.apply(model, &frame, &step);
         let trial_residuals = problem.residuals(&trial_model, &trial_frame);
-        let trial_cost = problem.cost(&trial_model, &trial_frame, &trial_residuals);
+        let trial_cost = problem.cost(&trial_model, &trial_residuals);
         if trial_cost <= cost {
             let decrease = (cost - trial_cost) / cost.max(f64::MIN_POSITIVE);
             *model = trial_model;
@@ -538,6 +582,7 @@ pub fn refine(
         }
         if let Some(progress) = &options.progress {
             progress(&Progress {
+                stage: "refining",
                 iteration: iterations,
                 max_iterations: options.max_iterations,
                 rms_um: rms_um(&residuals),
@@ -589,18 +634,21 @@ pub fn refine(
         }
     }
     let mut standard_errors = vec![None; n_flat];
-    let mut frame_se = None;
+    let mut frames_se = Vec::new();
     if options.standard_errors {
         let lsq = problem.system(model, &frame, &residuals, LAMBDA_MIN)?;
         let solution = lsq.solve()?;
         let mut col_names: Vec<String> = flat_of.iter().map(|&i| names[i].clone()).collect();
         if options.tracker_frame {
-            col_names.extend(
-                [
-                    "frame.x", "frame.y", "frame.z", "frame.rx", "frame.ry", "frame.rz",
-                ]
-                .map(String::from),
-            );
+            for f in 0..n_frames {
+                let prefix = if n_frames == 1 {
+                    "frame".to_string()
+                } else {
+                    format!("frame[{f}]")
+                };
+                col_names
+                    .extend(["x", "y", "z", "rx", "ry", "rz"].map(|k| format!("{prefix}.{k}")));
+            }
         }
         // Columns of the inverse in blocks, the blocks in parallel.
         const CHUNK: usize = 128;
@@ -689,15 +737,17 @@ pub fn refine(
         }
         if options.tracker_frame {
             let se = |c: usize| sigma_mm * vif[c].max(0.0).sqrt() / col_scale[c];
-            let b = n_model_cols;
-            frame_se = Some([
-                se(b),
-                se(b + 1),
-                se(b + 2),
-                se(b + 3).to_degrees(),
-                se(b + 4).to_degrees(),
-                se(b + 5).to_degrees(),
-            ]);
+            for f in 0..n_frames {
+                let b = n_model_cols + 6 * f;
+                frames_se.push([
+                    se(b),
+                    se(b + 1),
+                    se(b + 2),
+                    se(b + 3).to_degrees(),
+                    se(b + 4).to_degrees(),
+                    se(b + 5).to_degrees(),
+                ]);
+            }
         }
     }
 
@@ -712,8 +762,14 @@ pub fn refine(
         units,
         status,
         standard_errors,
-        tracker_frame: options.tracker_frame.then_some(frame),
-        tracker_frame_standard_errors: frame_se,
+        tracker_frame: options.tracker_frame.then(|| frame[0]),
+        tracker_frame_standard_errors: frames_se.first().copied(),
+        tracker_frames: if options.tracker_frame {
+            frame
+        } else {
+            Vec::new()
+        },
+        tracker_frames_standard_errors: frames_se,
         warnings,
         iterations,
         converged,
@@ -898,12 +954,12 @@ struct Problem<'a> {
 
 impl Problem<'_> {
     /// `predicted − T·measured` per point (the negated error), base frame.
-    fn residuals(&self, model: &Model, frame: &Isometry3<f64>) -> Vec<Vector3<f64>> {
+    fn residuals(&self, model: &Model, frames: &[Isometry3<f64>]) -> Vec<Vector3<f64>> {
         self.points
-            .iter()
+            .par_iter()
             .map(|p| {
                 model.target_position(&p.state)
-                    - (frame * nalgebra::Point3::from(p.measured)).coords
+                    - (frames[p.frame] * nalgebra::Point3::from(p.measured)).coords
             })
             .collect()
     }
@@ -912,7 +968,7 @@ impl Problem<'_> {
         c.entries.iter().map(|&(i, w)| w * values[i]).sum()
     }
 
-    fn cost(&self, model: &Model, _frame: &Isometry3<f64>, residuals: &[Vector3<f64>]) -> f64 {
+    fn cost(&self, model: &Model, residuals: &[Vector3<f64>]) -> f64 {
         let values = model.values();
         residuals.iter().map(|r| r.norm_squared()).sum::<f64>()
             + self
@@ -926,7 +982,7 @@ impl Problem<'_> {
     fn system(
         &self,
         model: &Model,
-        frame: &Isometry3<f64>,
+        frames: &[Isometry3<f64>],
         residuals: &[Vector3<f64>],
         lambda: f64,
     ) -> Result<SparseLsq, LsqError> {
@@ -948,13 +1004,14 @@ impl Problem<'_> {
             }
             if self.tracker {
                 // d(p̂ − T·m)/dδt = −I; d/dδω = [T·m]×.
-                let a = (frame * nalgebra::Point3::from(p.measured)).coords;
+                let a = (frames[p.frame] * nalgebra::Point3::from(p.measured)).coords;
                 let cross = a.cross_matrix();
+                let first = frame_start + 6 * p.frame;
                 for k in 0..3 {
-                    let c = frame_start + k;
+                    let c = first + k;
                     row[k].push((c, -1.0 / self.col_scale[c]));
                     for j in 0..3 {
-                        let c = frame_start + 3 + j;
+                        let c = first + 3 + j;
                         row[k].push((c, cross[(k, j)] / self.col_scale[c]));
                     }
                 }
@@ -976,26 +1033,29 @@ impl Problem<'_> {
         Ok(lsq)
     }
 
-    /// The model and frame after a scaled step.
+    /// The model and frames after a scaled step.
     fn apply(
         &self,
         model: &Model,
-        frame: &Isometry3<f64>,
+        frames: &[Isometry3<f64>],
         step: &[f64],
-    ) -> (Model, Isometry3<f64>) {
+    ) -> (Model, Vec<Isometry3<f64>>) {
         let mut values = model.values();
         for (c, &i) in self.flat_of.iter().enumerate() {
             values[i] += step[c] / self.col_scale[c];
         }
         let mut next = model.clone();
         next.set_values(&values);
-        let mut frame = *frame;
+        let mut frames = frames.to_vec();
         if self.tracker {
-            let b = self.flat_of.len();
-            let d = |k: usize| step[b + k] / self.col_scale[b + k];
-            let rotation = UnitQuaternion::from_scaled_axis(Vector3::new(d(3), d(4), d(5)));
-            frame = Isometry3::from_parts(Translation3::new(d(0), d(1), d(2)), rotation) * frame;
+            for (f, frame) in frames.iter_mut().enumerate() {
+                let b = self.flat_of.len() + 6 * f;
+                let d = |k: usize| step[b + k] / self.col_scale[b + k];
+                let rotation = UnitQuaternion::from_scaled_axis(Vector3::new(d(3), d(4), d(5)));
+                *frame =
+                    Isometry3::from_parts(Translation3::new(d(0), d(1), d(2)), rotation) * *frame;
+            }
         }
-        (next, frame)
+        (next, frames)
     }
 }

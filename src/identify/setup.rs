@@ -5,6 +5,8 @@
 //! sweeping the affected one (the paper: A3 at 58°, 105°, 153° for the A2 tests), or a 15°
 //! grid over its range when there are none or many (path data).
 
+use std::collections::BTreeMap;
+
 use crate::measure::Stop;
 use crate::model::{EffectName, GridOptions, Model};
 
@@ -55,20 +57,20 @@ pub fn data_range(data: &[Stop], axis: u8, pitch: f64) -> Option<[f64; 2]> {
 /// the repeated A2 tests (58°, 105°, 153°). Sorted.
 pub fn sweep_angles(data: &[Stop], swept: u8, held: u8) -> Vec<f64> {
     let (s, h) = (swept as usize - 1, held as usize - 1);
-    let mut tests: Vec<&str> = data.iter().map(|st| st.test.as_str()).collect();
-    tests.sort_unstable();
-    tests.dedup();
     let round = |a: f64| (a * 1e6).round() / 1e6;
+    // Per test: the held axis's distinct angles in visiting order (consecutive repeats
+    // merged), and the swept axis's angles.
+    let mut tests: BTreeMap<&str, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+    for st in data.iter().filter(|st| st.measured_mm.is_some()) {
+        let (held_angles, swept_angles) = tests.entry(st.test.as_str()).or_default();
+        let a = round(st.state.axes_deg[h]);
+        if held_angles.last() != Some(&a) {
+            held_angles.push(a);
+        }
+        swept_angles.push(round(st.state.axes_deg[s]));
+    }
     let mut out = Vec::new();
-    for test in tests {
-        let rows: Vec<&Stop> = data
-            .iter()
-            .filter(|st| st.test == test && st.measured_mm.is_some())
-            .collect();
-        let mut held_angles: Vec<f64> = rows.iter().map(|st| round(st.state.axes_deg[h])).collect();
-        held_angles.dedup();
-        let mut swept_angles: Vec<f64> =
-            rows.iter().map(|st| round(st.state.axes_deg[s])).collect();
+    for (held_angles, mut swept_angles) in tests.into_values() {
         swept_angles.sort_by(f64::total_cmp);
         swept_angles.dedup();
         if held_angles.len() == 1 && swept_angles.len() >= 3 {

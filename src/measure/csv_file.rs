@@ -223,13 +223,13 @@ pub fn parse_csv_within(
             break;
         }
         let line = line_at(record.position());
-        let raw = line_of(line);
-        let col_of = |field: usize| column_of_field(&raw, field);
+        // The raw line only when an error needs its column (a million rows, no copies).
+        let col_of = |field: usize| column_of_field(&line_of(line), field);
         let text =
             |i: usize| String::from_utf8_lossy(record.get(i).unwrap_or_default()).to_string();
         let number = |i: usize, what: &str| -> Result<Option<f64>, MeasureError> {
-            let s = text(i);
-            if s.is_empty() {
+            let bytes = record.get(i).unwrap_or_default();
+            if bytes.is_empty() {
                 return Ok(None);
             }
             let (range, unit) = match what {
@@ -238,12 +238,18 @@ pub fn parse_csv_within(
                 _ if what.starts_with('a') => (ANGLE_RANGE_DEG, "°"),
                 _ => (f64::INFINITY, ""),
             };
-            match s.parse::<f64>() {
-                Ok(v) if v.abs() <= range => Ok(Some(v)),
-                Ok(v) if v.is_finite() => Err(error(
+            let value = std::str::from_utf8(bytes)
+                .ok()
+                .and_then(|s| s.parse::<f64>().ok());
+            match value {
+                Some(v) if v.abs() <= range => Ok(Some(v)),
+                Some(v) if v.is_finite() => Err(error(
                     line,
                     col_of(i),
-                    format!("{what} = {s} is beyond any physical range (at most ±{range} {unit})"),
+                    format!(
+                        "{what} = {} is beyond any physical range (at most ±{range} {unit})",
+                        text(i)
+                    ),
                     Some(
                         "check the column's unit (mm, degrees, seconds) and the number's exponent",
                     ),
@@ -251,7 +257,7 @@ pub fn parse_csv_within(
                 _ => Err(error(
                     line,
                     col_of(i),
-                    format!("`{s}` is not a number ({what})"),
+                    format!("`{}` is not a number ({what})", text(i)),
                     None,
                 )),
             }

@@ -28,6 +28,9 @@ pub struct ReportInput<'a> {
     pub models: Vec<ReportModel<'a>>,
     /// The measurement files, as the user named them.
     pub sources: Vec<String>,
+    /// Per row (the models' common order): why `identify` left it out as a gross error, if it
+    /// did. Such rows are marked and kept out of the statistics; empty: none.
+    pub gross_errors: Vec<Option<String>>,
 }
 
 /// The page as a string.

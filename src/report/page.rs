@@ -14,7 +14,7 @@ table{border-collapse:collapse;font-size:.9em}td,th{padding:2px 8px;text-align:r
 th{background:#f0f0f0}td.l,th.l{text-align:left}tr.first td{border-top:1px solid #ddd}\
 .fall{color:#1a7f37}.rise{color:#b42318}figure{display:inline-block;margin:8px;vertical-align:top}\
 figcaption{max-width:660px;font-size:.85em;color:#555}.grid{display:flex;flex-wrap:wrap}\
-.error{color:#b42318}nav a{margin-right:12px}";
+.error{color:#b42318}nav a{margin-right:12px}tr.gross td{color:#b42318;background:#fdecea}";
 
 /// Escapes text for HTML.
 pub fn escape(text: &str) -> String {
@@ -85,6 +85,7 @@ pub fn render(input: &ReportInput) -> String {
 
     statistics(&mut out, input);
     worst(&mut out, input, &order);
+    gross_errors(&mut out, input);
 
     out.push_str("<h2 id=\"dist\">Error distributions</h2>\n<div class=\"grid\">");
     for f in figures::histograms(models) {
@@ -134,11 +135,11 @@ pub fn render(input: &ReportInput) -> String {
 /// The paper's Table 1 per test: the nominal robot, the baseline, the calibration.
 fn statistics(out: &mut String, input: &ReportInput) {
     let main = &input.models[0];
-    let nominal = Summary::uncompensated(main.rows);
+    let nominal = Summary::uncompensated(&unmarked(input, main.rows));
     let summaries: Vec<Summary> = input
         .models
         .iter()
-        .map(|m| Summary::residuals(m.rows))
+        .map(|m| Summary::residuals(&unmarked(input, m.rows)))
         .collect();
     let mut columns: Vec<(&str, &Summary)> = vec![("nominal", &nominal)];
     for (m, s) in input.models.iter().zip(&summaries).rev() {
@@ -185,10 +186,57 @@ fn statistics(out: &mut String, input: &ReportInput) {
     out.push_str("</table>\n");
 }
 
+/// The rows not marked as gross errors.
+fn unmarked(input: &ReportInput, rows: &[Row]) -> Vec<Row> {
+    rows.iter()
+        .enumerate()
+        .filter(|(i, _)| gross_mark(input, *i).is_none())
+        .map(|(_, r)| r.clone())
+        .collect()
+}
+
+fn gross_mark<'a>(input: &'a ReportInput, row: usize) -> Option<&'a str> {
+    input.gross_errors.get(row).and_then(|m| m.as_deref())
+}
+
+/// The points `identify` left out as gross errors, marked in red with the reason.
+fn gross_errors(out: &mut String, input: &ReportInput) {
+    let main = &input.models[0];
+    let marked: Vec<usize> = (0..main.rows.len())
+        .filter(|&i| gross_mark(input, i).is_some())
+        .collect();
+    if marked.is_empty() {
+        return;
+    }
+    let _ = write!(
+        out,
+        "<h2 id=\"gross\">Gross errors</h2>\n<p>{} measured points were left out of the fit \
+         by <code>identify</code> as gross errors (a broken beam, a stray reflection). They are \
+         shown in red here and in the table above, and are not in the statistics.</p>\n\
+         <table><tr><th class=\"l\">test</th><th class=\"l\">row</th><th>|residual| µm</th>\
+         <th class=\"l\">why</th></tr>\n",
+        marked.len()
+    );
+    for &i in &marked {
+        let r = &main.rows[i];
+        let _ = writeln!(
+            out,
+            "<tr class=\"gross\"><td class=\"l\">{}</td><td class=\"l\">{}:{}</td>\
+             <td>{:.1}</td><td class=\"l\">{}</td></tr>",
+            escape(&r.test),
+            escape(&r.source),
+            r.line,
+            r.residual().norm() * 1000.0,
+            escape(gross_mark(input, i).unwrap_or_default())
+        );
+    }
+    out.push_str("</table>\n");
+}
+
 /// Tests ranked by the main model's RMS residual, and its ten worst points.
 fn worst(out: &mut String, input: &ReportInput, order: &[String]) {
     let main = &input.models[0];
-    let summary = Summary::residuals(main.rows);
+    let summary = Summary::residuals(&unmarked(input, main.rows));
     let mut ranked: Vec<(&String, f64)> = order
         .iter()
         .map(|t| (t, summary.tests.get(t).map_or(0.0, |s| s.rms_um)))
@@ -209,13 +257,17 @@ fn worst(out: &mut String, input: &ReportInput, order: &[String]) {
          <th>A2</th><th>A3</th><th>A4</th><th>A5</th><th>A6</th><th>residual X</th>\
          <th>Y</th><th>Z</th><th>|residual| µm</th></tr>\n",
     );
-    let mut rows: Vec<&Row> = main.rows.iter().collect();
-    rows.sort_by(|a, b| b.residual().norm().total_cmp(&a.residual().norm()));
-    for r in rows.iter().take(10) {
+    let mut rows: Vec<(usize, &Row)> = main.rows.iter().enumerate().collect();
+    rows.sort_by(|a, b| b.1.residual().norm().total_cmp(&a.1.residual().norm()));
+    for (i, r) in rows.iter().take(10) {
         let e = r.residual() * 1000.0;
+        let (class, flag) = match gross_mark(input, *i) {
+            Some(_) => (" class=\"gross\"", " (gross error, left out)"),
+            None => ("", ""),
+        };
         let _ = write!(
             out,
-            "<tr><td class=\"l\">{}</td><td class=\"l\">{}:{}</td>",
+            "<tr{class}><td class=\"l\">{}{flag}</td><td class=\"l\">{}:{}</td>",
             escape(&r.test),
             escape(&r.source),
             r.line
