@@ -17,6 +17,7 @@ pub mod merged;
 pub mod model;
 pub mod record;
 pub mod registry;
+mod shim;
 pub mod state;
 pub mod table;
 
