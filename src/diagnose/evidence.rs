@@ -132,7 +132,7 @@ fn by_direction(
         let Some(u) = along(model, r, n) else {
             continue;
         };
-        match r.state.directions[n as usize - 1] {
+        match r.state.directions()[n as usize - 1] {
             Direction::Positive => out[0].push((x(r), u)),
             Direction::Negative => out[1].push((x(r), u)),
             Direction::Unknown => {}
