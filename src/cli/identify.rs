@@ -52,6 +52,10 @@ pub struct Args {
     /// Robot name written into the calibration.
     #[arg(long = "robot-name")]
     pub robot_name: Option<String>,
+    /// Measurement files kept out of the fit, on which `-c OLD --effects +NAME` compares the
+    /// old and the new model (besides held-out folds of the fit's data).
+    #[arg(long = "validate", value_name = "FILE.csv")]
+    pub validate: Vec<PathBuf>,
 }
 
 fn usage(message: &str) -> Exit {
@@ -64,6 +68,7 @@ pub fn run(args: Args) -> Exit {
         return usage("--map-pitch must be a positive number of degrees");
     }
     let mut stops = Vec::new();
+    let mut files = Vec::new();
     for file in &args.files {
         match read_csv(file) {
             Ok(m) => {
@@ -74,8 +79,19 @@ pub fn run(args: Args) -> Exit {
                         m.ignored_columns.join(", ")
                     );
                 }
-                stops.extend(m.stops);
+                stops.extend(m.stops.iter().cloned());
+                files.push(m);
             }
+            Err(e) => {
+                eprint!("{}", e.render());
+                return Exit::Usage;
+            }
+        }
+    }
+    let mut validation = Vec::new();
+    for file in &args.validate {
+        match read_csv(file) {
+            Ok(m) => validation.push(m),
             Err(e) => {
                 eprint!("{}", e.render());
                 return Exit::Usage;
@@ -148,6 +164,11 @@ pub fn run(args: Args) -> Exit {
             }) as Arc<dyn Fn(&Progress) + Send + Sync>
         }),
     };
+    let added = match &request.effects {
+        Some(Effects::Add(names)) => names.clone(),
+        _ => Vec::new(),
+    };
+    let old = request.base.clone();
     let result = identify(&stops, &request);
     if let Some(bar) = progress {
         bar.finish_and_clear();
@@ -167,6 +188,25 @@ pub fn run(args: Args) -> Exit {
         )
     );
     println!("wrote {}", args.out.display());
+    if let (Some(old), false) = (&old, added.is_empty()) {
+        let (text, worse) = crate::identify::promise::run(
+            old,
+            &identified.calibration,
+            &files,
+            &validation,
+            &added,
+            &args
+                .cal
+                .as_deref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default(),
+            &args.out.display().to_string(),
+        );
+        print!("{text}");
+        if worse {
+            eprintln!("warning: the new calibration predicts held-out data worse than the old one (see the promise check above)");
+        }
+    }
     Exit::Success
 }
 

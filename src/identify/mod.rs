@@ -6,6 +6,7 @@ pub mod circle;
 pub mod direct;
 pub mod lsq;
 pub mod pipeline;
+pub mod promise;
 pub mod refine;
 pub mod register;
 pub mod setup;
