@@ -124,6 +124,7 @@ pub fn run(args: Args) -> Exit {
 
     if let Some(dir) = &args.report {
         let labels: Vec<String> = cal_paths.iter().map(|p| short_name(p)).collect();
+        let learned = crate::diagnose::learned_only(&cals[0], &data);
         let input = ReportInput {
             models: cals
                 .iter()
@@ -141,6 +142,7 @@ pub fn run(args: Args) -> Exit {
                 .map(|p| p.display().to_string())
                 .collect(),
             gross_errors: marks.clone(),
+            learned: learned.as_ref(),
         };
         match report::write(dir, &input) {
             Ok(path) => eprintln!("report: {}", path.display()),

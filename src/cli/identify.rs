@@ -69,6 +69,10 @@ pub struct Args {
     /// still checked against the result). 0: use all.
     #[arg(long = "max-points", default_value_t = crate::identify::thin::DEFAULT_MAX_POINTS)]
     pub max_points: usize,
+    /// Measurement files kept out of the fit, on which `-c OLD --effects +NAME` compares the
+    /// old and the new model (besides held-out folds of the fit's data).
+    #[arg(long = "validate", value_name = "FILE.csv")]
+    pub validate: Vec<PathBuf>,
 }
 
 /// Gross errors printed one per line (all are in the calibration's provenance).
@@ -89,7 +93,8 @@ pub fn run(args: Args) -> Exit {
     let mut guard = crate::paths::Guard::new();
     guard
         .read_all(args.files.iter().map(PathBuf::as_path))
-        .read_all(args.cal.as_deref());
+        .read_all(args.cal.as_deref())
+        .read_all(args.validate.iter().map(PathBuf::as_path));
     if let Err(clash) = guard.write(&args.out) {
         return super::refuse(&clash);
     }
@@ -107,7 +112,23 @@ pub fn run(args: Args) -> Exit {
         .map_or(RobotDescription::kr30ha().limits_deg, |c| {
             c.model_ref().robot.limits_deg
         });
+    let mut validation = Vec::new();
+    for file in &args.validate {
+        match read_csv_within(file, Some(&limits)) {
+            Ok(m) => validation.push(m),
+            Err(e) => {
+                eprint!("{}", e.render());
+                return Exit::Usage;
+            }
+        }
+    }
+    let spinner = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new_spinner();
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        bar
+    });
     let mut stops = Vec::new();
+    let mut files = Vec::new();
     let mut file_of = Vec::new();
     for (k, file) in args.files.iter().enumerate() {
         if let Some(bar) = &spinner {
@@ -123,7 +144,8 @@ pub fn run(args: Args) -> Exit {
                     );
                 }
                 file_of.resize(file_of.len() + m.stops.len(), k);
-                stops.extend(m.stops);
+                stops.extend(m.stops.iter().cloned());
+                files.push(m);
             }
             Err(e) => {
                 eprint!("{}", e.render());
@@ -201,6 +223,11 @@ pub fn run(args: Args) -> Exit {
             }) as Arc<dyn Fn(&Progress) + Send + Sync>
         }),
     };
+    let added = match &request.effects {
+        Some(Effects::Add(names)) => names.clone(),
+        _ => Vec::new(),
+    };
+    let old = request.base.clone();
     let result = identify(&stops, &request);
     if let Some(bar) = progress {
         bar.finish_and_clear();
@@ -234,6 +261,25 @@ pub fn run(args: Args) -> Exit {
         return usage(&e.to_string());
     }
     println!("wrote {}", args.out.display());
+    if let (Some(old), false) = (&old, added.is_empty()) {
+        let (text, worse) = crate::identify::promise::run(
+            old,
+            &identified.calibration,
+            &files,
+            &validation,
+            &added,
+            &args
+                .cal
+                .as_deref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default(),
+            &args.out.display().to_string(),
+        );
+        print!("{text}");
+        if worse {
+            eprintln!("warning: the new calibration predicts held-out data worse than the old one (see the promise check above)");
+        }
+    }
     Exit::Success
 }
 

@@ -13,6 +13,8 @@ pub fn all_effects() -> Vec<EffectName> {
         let spelled: Vec<String> = match kind.arity {
             Arity::Robot => vec![p.to_string()],
             Arity::Axis => (1..=6).map(|n| format!("{p}:A{n}")).collect(),
+            // Defined by the data, not enumerable: `diagnose::learn` proposes one.
+            Arity::Spec => continue,
             Arity::Pair => (1..=6)
                 .flat_map(|m| {
                     (1..=6)

@@ -1,20 +1,116 @@
-//! Cross-validated worth of one candidate effect: the measured points are dealt into `k`
-//! interleaved folds (point i in fold i mod k, so every stretch of every sweep is in every
-//! fold); for each fold the candidate is added at zero to a copy of the current model and
-//! fitted with only its own parameters free (`identify::refine`) on the other folds, then
-//! scored on the held-out fold. Each point is predicted once by a fit that never saw it, so
-//! a table with many parameters that only follows the noise predicts worse than the current
-//! model, and cannot win by overfitting.
+//! Cross-validated worth of one candidate effect under a blocked plan ([`super::blocks`]): for
+//! each fold the candidate is added at zero to a copy of the current model and fitted with only
+//! its own parameters free (`identify::refine`) on the points the fold may learn from, then
+//! predicts the points it holds out. Each held-out point is predicted by a fit that saw neither
+//! it nor its neighbours in time, so a table with many parameters that only follows the noise,
+//! or an effect that explains each test's own offsets, predicts worse than the current model
+//! and cannot win.
 //!
-//! Score: `explained = 1 − Σ|r_after|² / Σ|r_before|²` over the held-out predictions, and a
-//! paired t statistic of the per-point gains `|r_before|² − |r_after|²`.
+//! Score ([`Score`]): `explained = 1 − Σ|r_after|² / Σ|r_before|²` over the held-out
+//! predictions, a paired t statistic of the per-point gains `|r_before|² − |r_after|²`, and the
+//! share of the residual each fold's gain removes — its stability: a gain that one fold carries
+//! is not a finding.
 
 use nalgebra::Vector3;
+use serde::Serialize;
 
+use super::blocks::{Plan, Scheme};
 use crate::identify::setup::{add_effects, GridChoice};
 use crate::identify::{refine, Free, RefineOptions, Warning};
 use crate::measure::Stop;
 use crate::model::{EffectName, Model};
+
+/// Iterations of each fit: the candidate enters linearly to first order, so a few suffice.
+const MAX_ITERATIONS: usize = 3;
+/// A stable gain: positive in all folds but at most one, and no fold carrying more than this
+/// share of it.
+pub const MAX_FOLD_SHARE: f64 = 0.6;
+/// Significantly worse: a t statistic of the gains at or below this, …
+pub const WORSE_T: f64 = -2.0;
+/// … or a loss of more than this fraction of the residual whatever its t.
+pub const WORSE_EXPLAINED: f64 = -0.02;
+
+/// The held-out score of one candidate under one scheme.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Score {
+    pub scheme: Scheme,
+    /// Fraction of the held-out residual sum of squares removed (negative: worse).
+    pub explained: f64,
+    /// RMS 3-D residual of the held-out points before and after, µm.
+    pub rms_before_um: f64,
+    pub rms_after_um: f64,
+    /// Paired t statistic of the per-point gains.
+    pub t: f64,
+    /// Per fold, the fraction of that fold's residual sum of squares removed.
+    pub fold_explained: Vec<f64>,
+    /// Share of the total gain carried by the fold that gains most (1/folds: evenly spread;
+    /// 1: all in one fold).
+    pub best_fold_share: f64,
+    pub points: usize,
+}
+
+impl Score {
+    /// Scores held-out predictions `after` (`None`: not predicted) against `before`.
+    pub fn new(plan: &Plan, before: &[Vector3<f64>], after: &[Option<Vector3<f64>>]) -> Score {
+        let mut gains = Vec::new();
+        let (mut ss_before, mut ss_after) = (0.0, 0.0);
+        let mut fold_gain = Vec::new();
+        let mut fold_explained = Vec::new();
+        for held in &plan.held {
+            let (mut g, mut ss) = (0.0, 0.0);
+            for &i in held {
+                let Some(a) = after[i] else { continue };
+                let (b2, a2) = (before[i].norm_squared(), a.norm_squared());
+                gains.push(b2 - a2);
+                ss_before += b2;
+                ss_after += a2;
+                g += b2 - a2;
+                ss += b2;
+            }
+            fold_gain.push(g);
+            fold_explained.push(if ss > 0.0 { g / ss } else { 0.0 });
+        }
+        let total: f64 = fold_gain.iter().sum();
+        let best = fold_gain.iter().copied().fold(0.0, f64::max);
+        let n = gains.len().max(1) as f64;
+        Score {
+            scheme: plan.scheme,
+            explained: if ss_before > 0.0 {
+                1.0 - ss_after / ss_before
+            } else {
+                0.0
+            },
+            rms_before_um: (ss_before / n).sqrt() * 1000.0,
+            rms_after_um: (ss_after / n).sqrt() * 1000.0,
+            t: t_statistic(&gains),
+            fold_explained,
+            best_fold_share: if total > 0.0 { best / total } else { 1.0 },
+            points: gains.len(),
+        }
+    }
+
+    /// The gain holds across the folds (see [`MAX_FOLD_SHARE`]).
+    pub fn stable(&self) -> bool {
+        let losing = self.fold_explained.iter().filter(|e| **e <= 0.0).count();
+        losing <= 1 && self.best_fold_share <= MAX_FOLD_SHARE
+    }
+
+    /// The candidate predicts these held-out points worse than the current model.
+    pub fn worse(&self) -> bool {
+        self.explained < 0.0 && (self.t <= WORSE_T || self.explained < WORSE_EXPLAINED)
+    }
+
+    /// "explains 12% (stable over 4 folds)" or "… worse: −8%".
+    pub fn describe(&self) -> String {
+        format!(
+            "{:+.0}% on {} ({:.1} → {:.1} µm RMS)",
+            100.0 * self.explained,
+            self.scheme.describe(),
+            self.rms_before_um,
+            self.rms_after_um
+        )
+    }
+}
 
 /// The cross-validated result for one candidate.
 #[derive(Clone, Debug)]
@@ -22,13 +118,18 @@ pub struct Evaluation {
     pub name: EffectName,
     /// Parameters the candidate adds.
     pub parameters: usize,
-    /// Fraction of the held-out residual sum of squares the candidate removes (negative when
-    /// it makes predictions worse).
+    /// Fraction of the held-out residual sum of squares the candidate removes on the main
+    /// plan (negative when it makes predictions worse).
     pub explained: f64,
     /// RMS 3-D residual of the held-out predictions with the candidate, µm.
     pub rms_after_um: f64,
     /// Paired t statistic of the per-point gains.
     pub t: f64,
+    /// The main plan's score.
+    pub within: Option<Score>,
+    /// Scores on the checks: whole tests held out, the latest data (for effects that
+    /// extrapolate in time).
+    pub checks: Vec<Score>,
     /// What the candidate changes at each measured point (held-out prediction − current
     /// prediction, mm): its signature, to tell which candidates explain the same residual.
     pub correction: Vec<Vector3<f64>>,
@@ -36,94 +137,156 @@ pub struct Evaluation {
     pub not_evaluated: Option<String>,
 }
 
-/// Iterations of each fit: the candidate enters linearly to first order, so a few suffice.
-const MAX_ITERATIONS: usize = 3;
+impl Evaluation {
+    /// The check of `scheme`, if it ran.
+    pub fn check(&self, scheme: Scheme) -> Option<&Score> {
+        self.checks.iter().find(|s| s.scheme == scheme)
+    }
+}
 
-/// Evaluates `name` on top of `base`. `stops` are the measured points in the base frame (one
-/// per point, in order) and `before` the current residuals (measured − predicted, mm).
+/// `base` with `name` added at zero, and the number of parameters it adds.
+fn with_candidate(
+    base: &Model,
+    stops: &[Stop],
+    name: &EffectName,
+    grid: &GridChoice,
+) -> Result<(Model, usize), String> {
+    let mut with = base.clone();
+    add_effects(&mut with, &[*name], stops, grid)?;
+    let added = with.n_parameters() - base.n_parameters();
+    Ok((with, added))
+}
+
+/// Held-out predictions of `with` (fitting only `free`) under `plan`: the residual of every
+/// held-out point, `None` elsewhere. An effect the training points do not observe stays at
+/// zero for that fold when `unobserved_is_zero`; otherwise it is an error.
+pub fn held_out(
+    with: &Model,
+    free: &[String],
+    stops: &[Stop],
+    plan: &Plan,
+    max_iterations: usize,
+    unobserved_is_zero: bool,
+) -> Result<Vec<Option<Vector3<f64>>>, String> {
+    let options = RefineOptions {
+        free: Free::Effects(free.to_vec()),
+        max_iterations,
+        standard_errors: false,
+        ..RefineOptions::default()
+    };
+    let mut after = vec![None; stops.len()];
+    for (held, train) in plan.held.iter().zip(&plan.train) {
+        let training: Vec<Stop> = stops
+            .iter()
+            .zip(train)
+            .map(|(s, &t)| Stop {
+                measured_mm: if t { s.measured_mm } else { None },
+                ..s.clone()
+            })
+            .collect();
+        let mut model = with.clone();
+        let fit = refine(&mut model, &training, &options).map_err(|e| e.to_string())?;
+        if let Some(w) = fit
+            .warnings
+            .iter()
+            .find(|w| matches!(w, Warning::Unobserved { .. }))
+        {
+            if !unobserved_is_zero {
+                return Err(w.to_string());
+            }
+            model = with.clone();
+        }
+        for &i in held {
+            if let Some(measured) = stops[i].measured_mm {
+                after[i] = Some(measured - model.target_position(&stops[i].state));
+            }
+        }
+    }
+    Ok(after)
+}
+
+/// Evaluates `name` on top of `base` under `plan`. `stops` are the measured points in the
+/// base frame (one per point, in order) and `before` the current residuals (measured −
+/// predicted, mm).
 pub fn evaluate(
     base: &Model,
     stops: &[Stop],
     before: &[Vector3<f64>],
     name: &EffectName,
-    folds: usize,
+    plan: &Plan,
     grid: &GridChoice,
 ) -> Evaluation {
-    let folds = folds.max(2);
     let mut result = Evaluation {
         name: *name,
         parameters: 0,
         explained: 0.0,
         rms_after_um: rms_um(before),
         t: 0.0,
+        within: None,
+        checks: Vec::new(),
         correction: vec![Vector3::zeros(); stops.len()],
         not_evaluated: None,
     };
-    let mut with = base.clone();
-    if let Err(e) = add_effects(&mut with, &[*name], stops, grid) {
-        result.not_evaluated = Some(e);
-        return result;
-    }
-    result.parameters = with.n_parameters() - base.n_parameters();
-    let options = RefineOptions {
-        free: Free::Effects(vec![name.to_string()]),
-        max_iterations: MAX_ITERATIONS,
-        standard_errors: false,
-        ..RefineOptions::default()
+    let (with, added) = match with_candidate(base, stops, name, grid) {
+        Ok(w) => w,
+        Err(e) => {
+            result.not_evaluated = Some(e);
+            return result;
+        }
     };
-    let mut after = before.to_vec();
-    for fold in 0..folds {
-        let train: Vec<Stop> = stops
-            .iter()
-            .enumerate()
-            .map(|(i, s)| Stop {
-                measured_mm: if i % folds == fold {
-                    None
-                } else {
-                    s.measured_mm
-                },
-                ..s.clone()
-            })
-            .collect();
-        let mut model = with.clone();
-        match refine(&mut model, &train, &options) {
-            Ok(fit) => {
-                if let Some(w) = fit
-                    .warnings
-                    .iter()
-                    .find(|w| matches!(w, Warning::Unobserved { .. }))
-                {
-                    result.not_evaluated = Some(w.to_string());
-                    return result;
-                }
-            }
-            Err(e) => {
-                result.not_evaluated = Some(e.to_string());
-                return result;
-            }
+    result.parameters = added;
+    let after = match held_out(
+        &with,
+        &[name.to_string()],
+        stops,
+        plan,
+        MAX_ITERATIONS,
+        false,
+    ) {
+        Ok(a) => a,
+        Err(e) => {
+            result.not_evaluated = Some(e);
+            return result;
         }
-        for i in (fold..stops.len()).step_by(folds) {
-            let Some(measured) = stops[i].measured_mm else {
-                continue;
-            };
-            after[i] = measured - model.target_position(&stops[i].state);
-            result.correction[i] = before[i] - after[i];
+    };
+    for (i, a) in after.iter().enumerate() {
+        if let Some(a) = a {
+            result.correction[i] = before[i] - a;
         }
     }
-    let gains: Vec<f64> = before
+    let score = Score::new(plan, before, &after);
+    let full: Vec<Vector3<f64>> = after
         .iter()
-        .zip(&after)
-        .map(|(b, a)| b.norm_squared() - a.norm_squared())
+        .zip(before)
+        .map(|(a, b)| a.unwrap_or(*b))
         .collect();
-    let total: f64 = before.iter().map(|b| b.norm_squared()).sum();
-    result.explained = if total > 0.0 {
-        gains.iter().sum::<f64>() / total
-    } else {
-        0.0
-    };
-    result.rms_after_um = rms_um(&after);
-    result.t = t_statistic(&gains);
+    result.explained = score.explained;
+    result.t = score.t;
+    result.rms_after_um = rms_um(&full);
+    result.within = Some(score);
     result
+}
+
+/// The score of `name` on top of `base` under another `plan` (a check of a candidate the main
+/// plan found); folds whose training points do not observe it leave it at zero.
+pub fn check(
+    base: &Model,
+    stops: &[Stop],
+    before: &[Vector3<f64>],
+    name: &EffectName,
+    plan: &Plan,
+    grid: &GridChoice,
+) -> Result<Score, String> {
+    let (with, _) = with_candidate(base, stops, name, grid)?;
+    let after = held_out(
+        &with,
+        &[name.to_string()],
+        stops,
+        plan,
+        MAX_ITERATIONS,
+        true,
+    )?;
+    Ok(Score::new(plan, before, &after))
 }
 
 pub fn rms_um(residuals: &[Vector3<f64>]) -> f64 {
@@ -175,5 +338,41 @@ mod tests {
         let c = [Vector3::new(0.0, 1.0, 0.0), Vector3::new(-1.0, 0.0, 0.0)];
         assert!((similarity(&a, &b) - 1.0).abs() < 1e-12);
         assert!(similarity(&a, &c).abs() < 1e-12);
+    }
+
+    #[test]
+    fn score_per_fold_and_stability_by_hand() {
+        // Two folds of two points; residual 2 mm along x everywhere (|r|² = 4). Fold 0 is
+        // predicted to 1 mm (gain 3 per point), fold 1 to 2 mm (no gain).
+        let plan = Plan {
+            scheme: Scheme::Stretches,
+            held: vec![vec![0, 1], vec![2, 3]],
+            train: vec![
+                vec![false, false, true, true],
+                vec![true, true, false, false],
+            ],
+        };
+        let before = vec![Vector3::new(2.0, 0.0, 0.0); 4];
+        let after: Vec<Option<Vector3<f64>>> = vec![
+            Some(Vector3::new(1.0, 0.0, 0.0)),
+            Some(Vector3::new(1.0, 0.0, 0.0)),
+            Some(Vector3::new(2.0, 0.0, 0.0)),
+            Some(Vector3::new(2.0, 0.0, 0.0)),
+        ];
+        let s = Score::new(&plan, &before, &after);
+        // Σ before 16, Σ after 4 + 8 = 10: explained 6/16.
+        assert!((s.explained - 6.0 / 16.0).abs() < 1e-12);
+        assert_eq!(s.fold_explained, [0.75, 0.0]);
+        // All of the gain in one fold: not stable.
+        assert_eq!(s.best_fold_share, 1.0);
+        assert!(!s.stable());
+        assert!((s.rms_before_um - 2000.0).abs() < 1e-9);
+        assert!((s.rms_after_um - (10.0f64 / 4.0).sqrt() * 1000.0).abs() < 1e-9);
+        // Both folds gain alike: stable.
+        let even: Vec<Option<Vector3<f64>>> = vec![Some(Vector3::new(1.0, 0.0, 0.0)); 4];
+        assert!(Score::new(&plan, &before, &even).stable());
+        // Worse everywhere by a lot: worse.
+        let bad: Vec<Option<Vector3<f64>>> = vec![Some(Vector3::new(3.0, 0.0, 0.0)); 4];
+        assert!(Score::new(&plan, &before, &bad).worse());
     }
 }

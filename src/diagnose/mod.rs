@@ -1,18 +1,29 @@
 //! Diagnosis: which physical effect is the model missing? From the current calibration's
-//! residuals it estimates the noise floor ([`noise`]), tries every effect of the contract
-//! table the calibration lacks ([`candidates`]) by fitting it alone on top of the current
-//! model and scoring it on held-out points ([`crossval`], candidates in parallel), ranks them
-//! by how much of the residual they explain, and words the evidence from the data
-//! ([`evidence`]) with the command that adds the effect. A finding must be significant on the
-//! held-out points; when none is, the residual is at what the data can tell apart from noise
-//! and the verdict says that nothing significant is missing.
+//! residuals it estimates the noise floor ([`noise`], exact copies of rows left out), tries every
+//! effect of the contract table the calibration lacks ([`candidates`]) by fitting it alone on
+//! top of the current model and scoring it on data the fit has not seen ([`crossval`] under the
+//! blocked plans of [`blocks`]: held-out stretches of every test; a finding is then checked on
+//! whole tests it did not learn from, and an effect that extrapolates in time on the latest
+//! data), ranks them by how much of the residual they explain, words the evidence from the data
+//! ([`evidence`]) with the command that adds the effect, and learns from the residual which
+//! generic drivers carry what the table cannot explain ([`learn`]), as an effect the user can
+//! add (`learned:…`). A finding must be significant, stable across the folds and no worse
+//! elsewhere; when none is, the verdict says whether the residual is at the noise floor or
+//! where it lives. Large campaigns are screened on a sample ([`sample`]).
 
+pub mod blocks;
 pub mod candidates;
 pub mod crossval;
 pub mod evidence;
+pub mod learn;
 pub mod noise;
+pub mod sample;
 pub mod twins;
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
+use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -22,8 +33,26 @@ use crate::identify::setup::GridChoice;
 use crate::measure::{Measurements, Stop};
 use crate::model::{EffectName, Model};
 
-pub use crossval::Evaluation;
+use blocks::{Plan, Scheme};
+pub use crossval::{Evaluation, Score};
+pub use learn::LearnedDrivers;
 pub use noise::{NoiseFloor, NoiseSource};
+
+/// Reports progress: (stage, done, of).
+#[derive(Clone)]
+pub struct ProgressSink(pub Arc<dyn Fn(&str, usize, usize) + Send + Sync>);
+
+impl std::fmt::Debug for ProgressSink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ProgressSink")
+    }
+}
+
+impl PartialEq for ProgressSink {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
 
 /// Choices of a diagnosis.
 #[derive(Clone, Debug, PartialEq)]
@@ -32,6 +61,11 @@ pub struct DiagnoseOptions {
     pub folds: usize,
     /// Effects to try; `None`: every effect of the table the calibration lacks.
     pub only: Option<Vec<EffectName>>,
+    /// Learn the drivers of the residual (a `learned:` effect).
+    pub learn: bool,
+    /// Most points the candidates are screened on ([`sample::MAX_SCREENED`]).
+    pub max_screened: usize,
+    pub progress: Option<ProgressSink>,
 }
 
 impl Default for DiagnoseOptions {
@@ -39,6 +73,9 @@ impl Default for DiagnoseOptions {
         DiagnoseOptions {
             folds: 4,
             only: None,
+            learn: true,
+            max_screened: sample::MAX_SCREENED,
+            progress: None,
         }
     }
 }
@@ -46,10 +83,13 @@ impl Default for DiagnoseOptions {
 /// A finding must remove at least this fraction of the held-out residual sum of squares …
 pub const MIN_EXPLAINED: f64 = 0.01;
 /// … with a paired t statistic of the per-point gains at least this large (a missing effect
-/// on a campaign gives 7 to 20; on data without one every candidate stays under 1) …
+/// on a campaign gives 7 to 20; on data without one every candidate stays under 2) …
 pub const MIN_T: f64 = 5.0;
-/// … and lower the RMS by at least this much, µm.
+/// … and lower the RMS by at least this much, µm …
 pub const MIN_RMS_GAIN_UM: f64 = 0.1;
+/// … and, for an effect that extrapolates in time, predict the latest data better by this
+/// t statistic.
+pub const MIN_LATEST_T: f64 = 2.0;
 /// Two findings whose corrections agree this closely (cosine) explain the same residual.
 pub const SAME_RESIDUAL: f64 = 0.9;
 /// A significant candidate scoring at least this share of the best's `explained` on top of
@@ -61,6 +101,8 @@ pub const MAX_TWIN_FITS: usize = 4;
 /// A residual within this factor of the noise floor is "at the noise floor" (the tracker's
 /// specification is a rough guide to one set-up's noise, good to some tens of percent).
 pub const AT_FLOOR: f64 = 1.5;
+/// Tests named as where the residual lives: those carrying this share of it, at most three.
+const WHERE_SHARE: f64 = 0.5;
 
 /// One evaluated effect (CONTRACTS.md keys first).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -76,6 +118,16 @@ pub struct Finding {
     pub significant: bool,
     pub t_statistic: f64,
     pub parameters: usize,
+    /// The gain holds in every fold but at most one, no fold carrying most of it.
+    pub stable: bool,
+    /// Per fold of the held-out stretches, the fraction of its residual removed.
+    pub fold_explained: Vec<f64>,
+    /// The checks it went through: whole tests held out, the latest data.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub checks: Vec<Score>,
+    /// Why it is not a finding although it explains part of the held-out stretches.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vetoed: Option<String>,
     /// Effects that explain the same residual on these data (physically indistinguishable
     /// here); either may be the cause.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -83,6 +135,16 @@ pub struct Finding {
     /// Why it could not be evaluated (then it is not significant).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub not_evaluated: Option<String>,
+}
+
+/// One test's part of the residual.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TestShare {
+    pub test: String,
+    pub points: usize,
+    pub rms_um: f64,
+    /// Its share of the residual sum of squares.
+    pub share: f64,
 }
 
 /// The result of [`diagnose`] (`diagnose --json`).
@@ -94,10 +156,21 @@ pub struct Diagnosis {
     pub noise_um: f64,
     pub noise_source: NoiseSource,
     pub points: usize,
+    /// Rows left out as exact copies of another row (not repeated measurements).
+    pub duplicates: usize,
+    /// How the candidates were screened when not on every point.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub screened: Option<String>,
     /// Significant findings, best first; empty at the noise floor.
     pub candidates: Vec<Finding>,
     /// Every effect evaluated, best first.
     pub considered: Vec<Finding>,
+    /// What the residual follows, learned from it (`None` when it was not asked for or the
+    /// data teach nothing).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub learned: Option<LearnedDrivers>,
+    /// The tests by their share of the residual, largest first.
+    pub residual_by_test: Vec<TestShare>,
     pub verdict: String,
 }
 
@@ -113,22 +186,130 @@ pub fn add_option(name: &str) -> String {
     format!("--effects '+{name}'")
 }
 
+/// Whether the effect extrapolates in time (validated on the latest data).
+pub fn extrapolates_in_time(name: &EffectName) -> bool {
+    match name.axes {
+        crate::model::registry::Axes::Spec(s) => {
+            learn_spec(s).is_some_and(|s| learn::uses_time(&s))
+        }
+        _ => name.kind.prefix == "drift",
+    }
+}
+
+fn learn_spec(text: &str) -> Option<crate::model::effects::learned::Spec> {
+    crate::model::effects::learned::Spec::parse(text).ok()
+}
+
+/// The plans of one diagnosis.
+struct Plans {
+    within: Plan,
+    tests: Plan,
+    latest: Option<Plan>,
+}
+
+/// What a finding must pass on the held-out stretches.
+fn passes_within(e: &Evaluation, rms: f64) -> bool {
+    e.not_evaluated.is_none()
+        && e.explained >= MIN_EXPLAINED
+        && e.t >= MIN_T
+        && rms - e.rms_after_um >= MIN_RMS_GAIN_UM
+        && e.within.as_ref().is_some_and(Score::stable)
+}
+
+/// Why a candidate that passes on the stretches is not a finding, if it is not.
+fn veto(e: &Evaluation, time: bool) -> Option<String> {
+    if let Some(t) = e.check(Scheme::Tests) {
+        if t.worse() {
+            return Some(format!(
+                "it predicts whole tests it did not learn from worse: {}",
+                t.describe()
+            ));
+        }
+    }
+    if time {
+        match e.check(Scheme::Latest) {
+            Some(l) if l.explained >= MIN_EXPLAINED && l.t >= MIN_LATEST_T => {}
+            Some(l) => {
+                return Some(format!(
+                    "it extrapolates in time and does not predict the latest data better: {}",
+                    l.describe()
+                ))
+            }
+            None => {}
+        }
+    }
+    None
+}
+
+/// The checks of a candidate that passes on the stretches.
+fn run_checks(
+    model: &Model,
+    stops: &[Stop],
+    rows: &[&Row],
+    before: &[Vector3<f64>],
+    name: &EffectName,
+    plans: &Plans,
+    grid: &GridChoice,
+) -> Vec<Score> {
+    let mut out = Vec::new();
+    if let Ok(s) = crossval::check(model, stops, before, name, &plans.tests, grid) {
+        out.push(s);
+    }
+    if extrapolates_in_time(name) {
+        if let Some(plan) = &plans.latest {
+            out.extend(learn::latest_effect_score(model, rows, name, plan));
+        }
+    }
+    out
+}
+
+fn tick(options: &DiagnoseOptions, stage: &str, done: usize, of: usize) {
+    if let Some(p) = &options.progress {
+        (p.0)(stage, done, of);
+    }
+}
+
 /// Diagnoses `cal` against `data`.
 pub fn diagnose(
     cal: &Calibration,
     data: &[Measurements],
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
-    let rows = compare::compare(cal, data);
-    if rows.is_empty() {
+    tick(options, "comparing", 0, 1);
+    let all_rows = compare::compare(cal, data);
+    if all_rows.is_empty() {
         return Err(DiagnoseError::NoMeasurements);
     }
+    // Exact copies are not repeated measurements: out, before anything is estimated.
+    let copies = noise::duplicates(&all_rows);
+    let duplicates = copies.iter().filter(|c| **c).count();
+    let rows: Vec<Row> = if duplicates == 0 {
+        all_rows
+    } else {
+        all_rows
+            .into_iter()
+            .zip(copies)
+            .filter(|(_, c)| !c)
+            .map(|(r, _)| r)
+            .collect()
+    };
     let model = cal.model_ref();
     let floor = noise::estimate(&rows, &cal.frame);
-    let before: Vec<_> = rows.iter().map(Row::residual).collect();
-    let rms = crossval::rms_um(&before);
+    let all_before: Vec<Vector3<f64>> = rows.iter().map(Row::residual).collect();
+    let rms = crossval::rms_um(&all_before);
+    let residual_by_test = shares(&rows);
+
+    // The points the candidates are screened on.
+    let all_groups = blocks::groups(rows.iter().map(|r| (r.source.as_str(), r.test.as_str())));
+    let (screen, screened): (Vec<&Row>, Option<String>) =
+        match sample::subsample(&all_groups, options.max_screened.max(100)) {
+            None => (rows.iter().collect(), None),
+            Some((kept, why)) => (kept.iter().map(|&i| &rows[i]).collect(), Some(why)),
+        };
+    let before: Vec<Vector3<f64>> = screen.iter().map(|r| r.residual()).collect();
+    let screen_rms = crossval::rms_um(&before);
     // The measured points in the base frame, as identification takes them.
-    let stops: Vec<Stop> = rows
+    let stops: Vec<Stop> = screen
         .iter()
         .map(|r| Stop {
             test: r.test.clone(),
@@ -137,83 +318,272 @@ pub fn diagnose(
             line: r.line,
         })
         .collect();
+    let groups = blocks::groups(screen.iter().map(|r| (r.source.as_str(), r.test.as_str())));
+    let times: Vec<f64> = screen.iter().map(|r| r.state.time_s).collect();
+    let latest = blocks::latest(&groups, &times);
     let grid = grid_choice(model);
+    let plans = Plans {
+        within: blocks::stretches(&groups, options.folds),
+        tests: blocks::tests(&groups, options.folds),
+        latest,
+    };
+
     let names = options
         .only
         .clone()
         .unwrap_or_else(|| candidates::missing(model));
+    let done = AtomicUsize::new(0);
     let mut evaluations: Vec<Evaluation> = names
         .par_iter()
-        .map(|name| crossval::evaluate(model, &stops, &before, name, options.folds, &grid))
+        .map(|name| {
+            let e = crossval::evaluate(model, &stops, &before, name, &plans.within, &grid);
+            tick(
+                options,
+                "candidates",
+                done.fetch_add(1, Ordering::Relaxed) + 1,
+                names.len(),
+            );
+            e
+        })
         .collect();
     evaluations.sort_by(|a, b| b.explained.total_cmp(&a.explained));
 
-    let significant = |e: &Evaluation| {
-        e.not_evaluated.is_none()
-            && e.explained >= MIN_EXPLAINED
-            && e.t >= MIN_T
-            && rms - e.rms_after_um >= MIN_RMS_GAIN_UM
-    };
+    // Checks of those that pass on the stretches.
+    let to_check: Vec<usize> = (0..evaluations.len())
+        .filter(|&i| passes_within(&evaluations[i], screen_rms))
+        .collect();
+    tick(options, "checks", 0, to_check.len());
+    let checked: Vec<(usize, Vec<Score>)> = to_check
+        .par_iter()
+        .map(|&i| {
+            let e = &evaluations[i];
+            (
+                i,
+                run_checks(model, &stops, &screen, &before, &e.name, &plans, &grid),
+            )
+        })
+        .collect();
+    for (i, checks) in checked {
+        evaluations[i].checks = checks;
+    }
+    let vetoes: Vec<Option<String>> = evaluations
+        .iter()
+        .map(|e| {
+            passes_within(e, screen_rms)
+                .then(|| veto(e, extrapolates_in_time(&e.name)))
+                .flatten()
+        })
+        .collect();
+    let significant = |i: usize| passes_within(&evaluations[i], screen_rms) && vetoes[i].is_none();
+
     // Twins of the best significant candidate: significant candidates that correct the
     // points the same way, and candidates close to it or that gravity makes look alike that
-    // explain as much once the model is re-identified around them.
-    let best = evaluations.iter().find(|e| significant(e));
+    // explain as much once the model is re-identified around them. Of twins, the one that
+    // explains most once re-identified comes first.
+    let mut best = (0..evaluations.len()).find(|&i| significant(i));
     let twins_of_best: Vec<String> = match best {
         None => Vec::new(),
-        Some(b) => {
-            let similar = evaluations.iter().filter(|o| {
-                o.name != b.name
+        Some(bi) => {
+            tick(options, "twins", 0, 1);
+            let b = &evaluations[bi];
+            let similar = (0..evaluations.len()).filter(|&o| {
+                o != bi
                     && significant(o)
-                    && crossval::similarity(&b.correction, &o.correction) >= SAME_RESIDUAL
+                    && crossval::similarity(&b.correction, &evaluations[o].correction)
+                        >= SAME_RESIDUAL
             });
             let partners = twins::gravity_partners(&b.name);
-            let mut plausible: Vec<&Evaluation> = evaluations
-                .iter()
-                .filter(|o| {
-                    let close = significant(o) && o.explained >= TWIN_CLOSE * b.explained;
-                    o.not_evaluated.is_none() && (close || partners.contains(&o.name))
+            let mut plausible: Vec<&Evaluation> = (0..evaluations.len())
+                .filter(|&o| {
+                    let e = &evaluations[o];
+                    let close = significant(o) && e.explained >= TWIN_CLOSE * b.explained;
+                    e.not_evaluated.is_none() && (close || partners.contains(&e.name))
                 })
+                .map(|o| &evaluations[o])
                 .collect();
             plausible.sort_by(|x, y| y.t.total_cmp(&x.t));
             plausible.truncate(MAX_TWIN_FITS);
             let plausible: Vec<EffectName> = plausible.iter().map(|o| o.name).collect();
-            let mut names: Vec<String> = similar.map(|o| o.name.to_string()).collect();
-            for t in twins::twins(model, &stops, &b.name, &plausible, &grid) {
+            let mut names: Vec<String> = similar.map(|o| evaluations[o].name.to_string()).collect();
+            let found = twins::twins(model, &stops, &b.name, &plausible, &grid);
+            // A significant twin that explains more than the best once re-identified leads.
+            let stronger = found
+                .iter()
+                .filter(|(_, share)| *share > 1.0)
+                .filter_map(|(t, share)| {
+                    let i = evaluations.iter().position(|e| e.name.to_string() == *t)?;
+                    significant(i).then_some((i, *share))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            for (t, _) in found {
                 if !names.contains(&t) {
                     names.push(t);
                 }
+            }
+            if let Some((i, _)) = stronger {
+                let old = b.name.to_string();
+                let new = evaluations[i].name.to_string();
+                names.retain(|n| *n != new);
+                names.insert(0, old);
+                best = Some(i);
             }
             names
         }
     };
     let considered: Vec<Finding> = evaluations
         .iter()
-        .map(|e| {
-            let same = if best.is_some_and(|b| b.name == e.name) {
+        .enumerate()
+        .map(|(i, e)| {
+            let same = if best == Some(i) {
                 twins_of_best.clone()
             } else if twins_of_best.contains(&e.name.to_string()) {
-                best.map(|b| vec![b.name.to_string()]).unwrap_or_default()
+                best.map(|b| vec![evaluations[b].name.to_string()])
+                    .unwrap_or_default()
             } else {
                 Vec::new()
             };
-            finding(e, significant(e), same, model, &rows, rms)
+            finding(
+                e,
+                significant(i),
+                vetoes[i].clone(),
+                same,
+                model,
+                &rows,
+                screen_rms,
+            )
         })
         .collect();
-    let candidates: Vec<Finding> = considered
+    let mut candidates: Vec<Finding> = considered
         .iter()
         .filter(|f| f.significant)
         .cloned()
         .collect();
-    let verdict = verdict(rms, &floor, &candidates);
+    // The best first (a twin may have overtaken the best on the held-out score).
+    if let Some(b) = best {
+        let name = evaluations[b].name.to_string();
+        if let Some(k) = candidates.iter().position(|f| f.effect == name) {
+            let first = candidates.remove(k);
+            candidates.insert(0, first);
+        }
+    }
+
+    let learned = if options.learn {
+        tick(options, "learning drivers", 0, 1);
+        learned_drivers(model, &screen, &plans, screen_rms)
+    } else {
+        None
+    };
+    let verdict = verdict(
+        rms,
+        &floor,
+        &candidates,
+        learned.as_ref(),
+        &residual_by_test,
+    );
     Ok(Diagnosis {
         rms_um: rms,
         noise_um: floor.rms_um,
         noise_source: floor.source,
         points: rows.len(),
+        duplicates,
+        screened,
         candidates,
         considered,
+        learned,
+        residual_by_test,
         verdict,
     })
+}
+
+/// The drivers learned from `cal`'s residual on `data` alone (no candidate of the table), for
+/// the report.
+pub fn learned_only(cal: &Calibration, data: &[Measurements]) -> Option<LearnedDrivers> {
+    let options = DiagnoseOptions {
+        only: Some(Vec::new()),
+        ..DiagnoseOptions::default()
+    };
+    diagnose(cal, data, &options).ok()?.learned
+}
+
+/// The drivers learned from the residual, checked like a candidate: scored (in [`learn`]) on
+/// held-out stretches, on whole tests and, on the clock, on the latest data, with what the
+/// model can take up partialled out.
+fn learned_drivers(
+    model: &Model,
+    screen: &[&Row],
+    plans: &Plans,
+    rms: f64,
+) -> Option<LearnedDrivers> {
+    let (_, mut found) = learn::screen_drivers(
+        model,
+        screen,
+        &plans.within,
+        &plans.tests,
+        plans.latest.as_ref(),
+    )?;
+    let passes = found.explained >= MIN_EXPLAINED
+        && found.t_statistic >= MIN_T
+        && found.stable
+        && rms * (1.0 - found.explained).max(0.0).sqrt() <= rms - MIN_RMS_GAIN_UM;
+    if !passes {
+        found.vetoed = Some(format!(
+            "it explains {:.0}% of held-out stretches (t = {:.1}{}), short of a finding",
+            100.0 * found.explained.max(0.0),
+            found.t_statistic,
+            if found.stable {
+                ""
+            } else {
+                ", not stable across the folds"
+            }
+        ));
+        return Some(found);
+    }
+    if let Some(t) = found.checks.iter().find(|c| c.scheme == Scheme::Tests) {
+        if t.worse() {
+            found.vetoed = Some(format!(
+                "it predicts whole tests it did not learn from worse: {}",
+                t.describe()
+            ));
+            return Some(found);
+        }
+    }
+    if let Some(l) = found.checks.iter().find(|c| c.scheme == Scheme::Latest) {
+        if !(l.explained >= MIN_EXPLAINED && l.t >= MIN_LATEST_T) {
+            found.vetoed = Some(format!(
+                "it extrapolates in time and does not predict the latest data better: {}",
+                l.describe()
+            ));
+        }
+    }
+    found.significant = found.vetoed.is_none();
+    Some(found)
+}
+
+/// The tests by their share of the residual sum of squares.
+fn shares(rows: &[Row]) -> Vec<TestShare> {
+    let mut order: Vec<(String, usize, f64)> = Vec::new();
+    for r in rows {
+        let ss = r.residual().norm_squared();
+        match order.iter_mut().find(|o| o.0 == r.test) {
+            Some(o) => {
+                o.1 += 1;
+                o.2 += ss;
+            }
+            None => order.push((r.test.clone(), 1, ss)),
+        }
+    }
+    let total: f64 = order.iter().map(|o| o.2).sum();
+    let mut out: Vec<TestShare> = order
+        .into_iter()
+        .map(|(test, points, ss)| TestShare {
+            test,
+            points,
+            rms_um: (ss / points as f64).sqrt() * 1000.0,
+            share: if total > 0.0 { ss / total } else { 0.0 },
+        })
+        .collect();
+    out.sort_by(|a, b| b.share.total_cmp(&a.share));
+    out
 }
 
 /// Grids of candidate tables: the pitch of the calibration's own map and backlash tables
@@ -240,6 +610,7 @@ pub fn grid_choice(model: &Model) -> GridChoice {
 fn finding(
     e: &Evaluation,
     significant: bool,
+    vetoed: Option<String>,
     same: Vec<String>,
     model: &Model,
     rows: &[Row],
@@ -251,17 +622,21 @@ fn finding(
         None => {
             let mut s = evidence::describe(&e.name, model, rows);
             s += &format!(
-                "; fitted without the points it is scored on, it explains {:.0}% of their \
-                 residual ({rms:.1} → {:.1} µm RMS)",
+                "; fitted without the stretches of the tests it is scored on, it explains {:.0}% \
+                 of their residual ({rms:.1} → {:.1} µm RMS)",
                 100.0 * e.explained.max(0.0),
                 e.rms_after_um
             );
+            if let Some(why) = &vetoed {
+                s += &format!(", but {why}");
+            }
             if !same.is_empty() {
                 s += &format!("; indistinguishable on these data from {}", same.join(", "));
             }
             s
         }
     };
+    let within = e.within.as_ref();
     Finding {
         add: add_option(&name),
         effect: name,
@@ -271,27 +646,87 @@ fn finding(
         significant,
         t_statistic: e.t,
         parameters: e.parameters,
+        stable: within.is_some_and(Score::stable),
+        fold_explained: within.map(|w| w.fold_explained.clone()).unwrap_or_default(),
+        checks: e.checks.clone(),
+        vetoed,
         indistinguishable_from: same,
         not_evaluated: e.not_evaluated.clone(),
     }
 }
 
-fn verdict(rms: f64, floor: &NoiseFloor, candidates: &[Finding]) -> String {
+/// Where the residual lives: the largest tests carrying half of it (at most three).
+fn where_it_lives(shares: &[TestShare]) -> String {
+    let mut named = Vec::new();
+    let mut carried = 0.0;
+    for s in shares.iter().take(3) {
+        named.push(format!(
+            "{} ({:.0}%, {:.1} µm RMS)",
+            s.test,
+            100.0 * s.share,
+            s.rms_um
+        ));
+        carried += s.share;
+        if carried >= WHERE_SHARE {
+            break;
+        }
+    }
+    named.join(", ")
+}
+
+fn verdict(
+    rms: f64,
+    floor: &NoiseFloor,
+    candidates: &[Finding],
+    learned: Option<&LearnedDrivers>,
+    shares: &[TestShare],
+) -> String {
     let at = format!(
         "{rms:.1} µm RMS against a noise floor of {:.1} µm ({})",
         floor.rms_um,
         floor.source.describe()
     );
+    let above = rms > AT_FLOOR * floor.rms_um;
     match candidates.first() {
-        None if rms <= AT_FLOOR * floor.rms_um => format!(
+        None if !above => format!(
             "Nothing significant is missing: no effect of the table explains any of the \
-             residual on held-out points, and the residual is at the noise floor ({at})."
+             residual on held-out data, and the residual is at the noise floor ({at})."
         ),
-        None => format!(
-            "Nothing the table offers is missing: no effect of it explains the residual on \
-             held-out points, yet the residual is well above the noise floor ({at}); look at \
-             the report (`robopost compare --report`) for outliers or a set-up problem."
-        ),
+        None => {
+            let mut s = format!(
+                "None of my candidates: no effect of the table removes a meaningful, stable part \
+                 of the residual on data it did not learn from, yet the residual is well above \
+                 the noise floor ({at}). Most of it lives in {}.",
+                where_it_lives(shares)
+            );
+            match learned {
+                Some(l) if l.significant => {
+                    s += &format!(
+                        " Learned from the residual: it {}; as an effect it explains {:.0}% on \
+                         held-out stretches ({rms:.1} → {:.1} µm RMS). Add it with `robopost \
+                         identify -c CAL.json MEAS.csv {} -o NEW.json`.",
+                        l.shape,
+                        100.0 * l.explained,
+                        l.rms_after_um,
+                        l.add
+                    );
+                }
+                Some(l) => {
+                    s += &format!(
+                        " No smooth function of the generic drivers explains it either (best: it \
+                         {}, {:.0}% on held-out stretches); look at the report (`robopost \
+                         compare --report`) for outliers or a set-up problem.",
+                        l.shape,
+                        100.0 * l.explained.max(0.0)
+                    );
+                }
+                None => {
+                    s += " Look at the report (`robopost compare --report`) for outliers or a \
+                          set-up problem.";
+                }
+            }
+            s
+        }
         Some(best) => {
             let mut s = format!(
                 "Missing: {} — it explains {:.0}% of the residual ({rms:.1} → {:.1} µm RMS; \

@@ -5,6 +5,11 @@
 //! (Leica AT960: MPE ±(15 µm + 6 µm/m) of a measured point, `U_xyz`; the typical 3-D error is
 //! about half of it).
 //!
+//! Exact copies of a row (the same angles and the same measured position to the last digit: a
+//! row pasted twice, or a file given twice) are not repeated measurements — a tracker never
+//! reads the same point twice to the tenth of a micrometre — and would make the floor zero:
+//! [`duplicates`] finds them, and diagnosis leaves them out altogether.
+//!
 //! Bidirectional points are not used: on indexing data a map and a backlash table fit every
 //! forward/backward pair exactly along the motion, so their residuals understate the noise,
 //! and without backlash in the model they measure backlash, not noise.
@@ -107,6 +112,25 @@ pub fn from_spec(rows: &[Row], station: &Vector3<f64>, station_assumed: bool) ->
     }
 }
 
+/// For each row, whether it is an exact copy of an earlier one (same command angles and same
+/// measured position, bit for bit).
+pub fn duplicates(rows: &[Row]) -> Vec<bool> {
+    let mut seen: std::collections::HashSet<[u64; 9]> =
+        std::collections::HashSet::with_capacity(rows.len());
+    rows.iter()
+        .map(|r| {
+            let mut key = [0u64; 9];
+            for (k, a) in r.state.axes_deg.iter().enumerate() {
+                key[k] = a.to_bits();
+            }
+            for c in 0..3 {
+                key[6 + c] = r.measured[c].to_bits();
+            }
+            !seen.insert(key)
+        })
+        .collect()
+}
+
 /// Pooled within-group scatter of repeated points: `√(Σ|r − r̄_g|² / Σ(n_g − 1))` in µm (a 3-D
 /// RMS), with its degrees of freedom; `None` when there are too few repeats.
 fn from_repeats(rows: &[Row]) -> Option<(f64, usize)> {
@@ -205,5 +229,48 @@ mod tests {
         assert!((rms - 0.02 / 2f64.sqrt() * 1000.0).abs() < 1e-9, "{rms}");
         // Too few repeats: no estimate.
         assert!(from_repeats(&rows[..9]).is_none());
+    }
+
+    #[test]
+    fn exact_copies_are_found_and_a_file_given_twice_is_all_copies() {
+        let rows: Vec<Row> = (0..5)
+            .map(|k| {
+                row(
+                    [k as f64, 0.0, 0.0, 0.0, 0.0, 0.0],
+                    k as f64,
+                    Vector3::new(1.0, 2.0, 3.0),
+                )
+            })
+            .collect();
+        assert!(duplicates(&rows).iter().all(|d| !d));
+        let twice: Vec<Row> = rows.iter().chain(&rows).cloned().collect();
+        assert_eq!(
+            duplicates(&twice),
+            [false, false, false, false, false, true, true, true, true, true]
+        );
+        // A real repeat differs in the measured position: not a copy.
+        let mut repeat = rows[0].clone();
+        repeat.measured.x += 1e-4;
+        assert!(!duplicates(&[rows[0].clone(), repeat])[1]);
+        // Twelve rows each given twice would be 12 zero-scatter repeats: the floor they give is
+        // 0 µm, which is why diagnosis drops copies before estimating it.
+        let copies: Vec<Row> = (0..12)
+            .flat_map(|k| {
+                let r = row(
+                    [k as f64, 0.0, 0.0, 0.0, 0.0, 0.0],
+                    k as f64,
+                    Vector3::new(1.0, 2.0, 3.0),
+                );
+                [r.clone(), r]
+            })
+            .collect();
+        assert_eq!(from_repeats(&copies), Some((0.0, 12)));
+        let kept: Vec<Row> = copies
+            .iter()
+            .zip(duplicates(&copies))
+            .filter(|(_, d)| !d)
+            .map(|(r, _)| r.clone())
+            .collect();
+        assert!(from_repeats(&kept).is_none());
     }
 }

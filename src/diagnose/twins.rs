@@ -62,15 +62,16 @@ fn refit_rss(
     Some(fit.residuals_mm.iter().map(|r| r.norm_squared()).sum())
 }
 
-/// Those of `others` that are twins of `best` on `stops` (measured, base frame). The fits run
-/// in parallel.
+/// Those of `others` that are twins of `best` on `stops` (measured, base frame), each with its
+/// gain relative to `best`'s (`gain(X) / gain(best)`, once the model is re-identified around
+/// each). The fits run in parallel.
 pub fn twins(
     model: &Model,
     stops: &[Stop],
     best: &EffectName,
     others: &[EffectName],
     grid: &GridChoice,
-) -> Vec<String> {
+) -> Vec<(String, f64)> {
     let others: Vec<&EffectName> = others.iter().filter(|o| *o != best).collect();
     if others.is_empty() {
         return Vec::new();
@@ -91,8 +92,10 @@ pub fn twins(
     others
         .iter()
         .zip(&rss[2..])
-        .filter(|(_, r)| r.is_some_and(|r| base - r >= TWIN_SHARE * gain))
-        .map(|(o, _)| o.to_string())
+        .filter_map(|(o, r)| {
+            let g = base - (*r)?;
+            (g >= TWIN_SHARE * gain).then(|| (o.to_string(), g / gain))
+        })
         .collect()
 }
 

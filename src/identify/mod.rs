@@ -6,6 +6,7 @@ pub mod circle;
 pub mod direct;
 pub mod lsq;
 pub mod pipeline;
+pub mod promise;
 pub mod refine;
 pub mod register;
 pub mod robust;
@@ -18,9 +19,3 @@ pub use refine::{
     refine, Fit, Free, IdentifyError, Progress, ProgressFn, RefineOptions, Status, Warning,
 };
 
-// shim: `AxisState::directions()` until the lead's `AxisHistory` (issue 22) lands; drop at merge.
-impl crate::model::AxisState {
-    pub fn directions(&self) -> [crate::model::Direction; 6] {
-        self.directions
-    }
-}

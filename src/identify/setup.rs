@@ -110,7 +110,7 @@ pub fn grid_options(name: &EffectName, data: &[Stop], choice: &GridChoice) -> Gr
                 other_grid_deg,
             }
         }
-        Axes::None => GridOptions::default(),
+        Axes::None | Axes::Spec(_) => GridOptions::default(),
     }
 }
 

@@ -7,7 +7,7 @@ use std::fmt;
 
 use super::effects::{
     compliance::Compliance, crosstalk::Crosstalk, drift::Drift, geometric::Geometric,
-    map::AngleMap, play::GearPlay, tilt::Tilt, GridOptions, ModelEffect,
+    learned::Learned, map::AngleMap, play::GearPlay, tilt::Tilt, GridOptions, ModelEffect,
 };
 use super::record::{EffectRecord, RecordError};
 use crate::kinematics::RobotDescription;
@@ -21,6 +21,8 @@ pub enum Arity {
     Axis,
     /// `crosstalk:Am->An`.
     Pair,
+    /// `learned:<definition>`: the name carries the effect's definition.
+    Spec,
 }
 
 /// The axes of one effect name.
@@ -28,7 +30,12 @@ pub enum Arity {
 pub enum Axes {
     None,
     One(u8),
-    Pair { from: u8, to: u8 },
+    Pair {
+        from: u8,
+        to: u8,
+    },
+    /// The canonical definition after the prefix (`rotation@A1(reach*A1)`).
+    Spec(&'static str),
 }
 
 /// A kind of effect: how its name is spelled and how to build one.
@@ -62,6 +69,12 @@ fn pair(axes: Axes) -> (u8, u8) {
     match axes {
         Axes::Pair { from, to } => (from, to),
         _ => (0, 0),
+    }
+}
+fn spec(axes: Axes) -> &'static str {
+    match axes {
+        Axes::Spec(s) => s,
+        _ => "",
     }
 }
 fn boxed<E: ModelEffect + 'static, Er>(r: Result<E, Er>) -> Result<Box<dyn ModelEffect>, Er> {
@@ -132,6 +145,14 @@ pub static KINDS: &[Kind] = &[
         decode: |_, r, _| boxed(Drift::from_record(r)),
         upgrade_v1: None,
     },
+    Kind {
+        prefix: "learned",
+        arity: Arity::Spec,
+        meaning: "a smooth function of chosen drivers, acting as an angle deviation, a rotation or an offset",
+        create: |a, _, r| boxed(Learned::zeros(spec(a), r)),
+        decode: |a, rec, r| boxed(Learned::from_record(spec(a), rec, r)),
+        upgrade_v1: None,
+    },
 ];
 
 /// A parsed effect name.
@@ -160,6 +181,7 @@ impl fmt::Display for EffectName {
             Axes::None => write!(f, "{}", self.kind.prefix),
             Axes::One(n) => write!(f, "{}:A{n}", self.kind.prefix),
             Axes::Pair { from, to } => write!(f, "{}:A{from}->A{to}", self.kind.prefix),
+            Axes::Spec(s) => write!(f, "{}:{s}", self.kind.prefix),
         }
     }
 }
@@ -179,7 +201,7 @@ fn name_error(expected: impl Into<String>, found: &str) -> NameError {
     }
 }
 
-const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, tilt:An, drift)";
+const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, tilt:An, drift, learned:<action>(<drivers>))";
 
 /// `a3` / `A3` → 3, checking the range 1..=6.
 fn parse_axis(text: &str, whole: &str) -> Result<u8, NameError> {
@@ -230,6 +252,17 @@ impl EffectName {
                     ));
                 }
                 Axes::Pair { from, to }
+            }
+            (Arity::Spec, Some(r)) => {
+                Axes::Spec(super::effects::learned::canonical(r).map_err(|e| {
+                    name_error(
+                        format!("{} ({e})", super::effects::learned::SPELLING),
+                        trimmed,
+                    )
+                })?)
+            }
+            (Arity::Spec, None) => {
+                return Err(name_error(super::effects::learned::SPELLING, trimmed))
             }
             (Arity::Axis, None) => return Err(name_error(format!("{}:An", kind.prefix), trimmed)),
             (Arity::Pair, None) => return Err(name_error("crosstalk:Am->An", trimmed)),

@@ -360,3 +360,41 @@ fn binned_means(points: impl Iterator<Item = (f64, f64)> + Clone) -> Vec<(f64, f
         .map(|(sx, sy, n)| (sx / n as f64, sy / n as f64))
         .collect()
 }
+
+/// The residual along the learned correction against the main learned driver, beside the
+/// learned correction itself: where the dots follow the line, the learned effect explains
+/// the residual.
+pub fn learned(l: &crate::diagnose::LearnedDrivers) -> Figure {
+    let c = &l.curve;
+    let series = [
+        Series {
+            label: Some("residual along the correction".into()),
+            color: plot::MEASURED,
+            style: Style::Dots { radius: 1 },
+            points: c.points.iter().map(|p| (p.0, p.1)).collect(),
+        },
+        Series {
+            label: Some("learned correction".into()),
+            color: plot::PALETTE[1],
+            style: Style::Dots { radius: 2 },
+            points: c.points.iter().map(|p| (p.0, p.2)).collect(),
+        },
+        Series {
+            label: None,
+            color: plot::MEASURED,
+            style: Style::Line { width: 2 },
+            points: binned_means(c.points.iter().map(|p| (p.0, p.1))),
+        },
+    ];
+    let title = format!("learned: {}", l.effect);
+    figure(
+        title.clone(),
+        format!(
+            "The residual at each point projected on the direction the learned effect corrects \
+             it (black; line: mean per bin) and the size of that correction (orange), against \
+             {}. The residual {}.",
+            c.driver, l.shape
+        ),
+        plot::xy_chart(&title, &c.driver, "µm", &series, (560, 320)),
+    )
+}

@@ -2,7 +2,9 @@
 //! (`DIR/index.html`, inline SVG, no script, no external file) that shows a user where the
 //! model fails — the paper's Table 1 per test, the tests and points the model explains worst,
 //! its Figs. 9–11, per indexing test the residual over the swept angle by rotation direction,
-//! and the residual against every candidate driver. Written atomically.
+//! the residual against every candidate driver, and the drivers learned from the residual
+//! (what a `learned:` effect would add, with its plot) when a diagnosis found them. Written
+//! atomically.
 
 pub mod figures;
 mod page;
@@ -31,6 +33,8 @@ pub struct ReportInput<'a> {
     /// Per row (the models' common order): why `identify` left it out as a gross error, if it
     /// did. Such rows are marked and kept out of the statistics; empty: none.
     pub gross_errors: Vec<Option<String>>,
+    /// The drivers a diagnosis learned from the main model's residual.
+    pub learned: Option<&'a crate::diagnose::LearnedDrivers>,
 }
 
 /// The page as a string.

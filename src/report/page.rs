@@ -101,6 +101,9 @@ pub fn render(input: &ReportInput) -> String {
         figure_html(&mut out, f);
     }
     out.push_str("</div>\n");
+    if let Some(l) = input.learned {
+        learned(&mut out, l);
+    }
     if !constant.is_empty() {
         let names: Vec<String> = constant.iter().map(|d| d.phrase()).collect();
         let _ = writeln!(
@@ -130,6 +133,44 @@ pub fn render(input: &ReportInput) -> String {
     }
     out.push_str("</body></html>\n");
     out
+}
+
+/// The drivers learned from the residual: what they are, how well they predict held-out data,
+/// the command that adds them, and the plot.
+fn learned(out: &mut String, l: &crate::diagnose::LearnedDrivers) {
+    let _ = write!(
+        out,
+        "<h3 id=\"learned\">Learned from the residual</h3>\n<p>Fitted against generic drivers \
+         (axis angles, reach, height, orientation to gravity, gravity torques, time, rotation \
+         directions) and scored on held-out stretches of every test: the residual {}. As the \
+         effect <code>{}</code> ({} parameters) it explains {:.0}% of held-out data ({:.1} µm \
+         RMS after){}.</p>\n",
+        escape(&l.shape),
+        escape(&l.effect),
+        l.parameters,
+        100.0 * l.explained.max(0.0),
+        l.rms_after_um,
+        if l.stable {
+            ", the same in every fold"
+        } else {
+            ", not stable across the folds"
+        }
+    );
+    match &l.vetoed {
+        None => {
+            let _ = writeln!(
+                out,
+                "<p>Add it: <code>robopost identify -c CAL.json MEAS.csv {} -o NEW.json</code></p>",
+                escape(&l.add)
+            );
+        }
+        Some(why) => {
+            let _ = writeln!(out, "<p>Not a finding: {}.</p>", escape(why));
+        }
+    }
+    out.push_str("<div class=\"grid\">");
+    figure_html(out, &figures::learned(l));
+    out.push_str("</div>\n");
 }
 
 /// The paper's Table 1 per test: the nominal robot, the baseline, the calibration.

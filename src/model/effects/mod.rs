@@ -8,6 +8,7 @@ pub mod compliance;
 pub mod crosstalk;
 pub mod drift;
 pub mod geometric;
+pub mod learned;
 pub mod map;
 pub mod play;
 pub mod tilt;
