@@ -1,6 +1,8 @@
 //! `robopost batch IN_DIR... -c CAL.json -o OUT_DIR [--jobs N]`: compensate a library of
-//! programs in parallel into a mirrored tree; a progress bar on a terminal, a summary at the
-//! end, every failure reported without stopping the others.
+//! programs in parallel into a mirrored tree; a progress bar on a terminal, one summary line
+//! per program on standard output and a total at the end, every failure reported without
+//! stopping the others (a rejected program is copied into the tree unchanged, with a note
+//! beside it saying why).
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -8,7 +10,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use super::compensate::{calibrated, load_calibration, ProgramArgs};
+use super::compensate::{
+    calibrated, fit_robot, load_calibration, robot_label, stated_robots, ProgramArgs,
+};
 use super::Exit;
 use crate::compensate::batch::{self, Done};
 use crate::compensate::files;
@@ -35,10 +39,24 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Exit {
-    let (cal, cal_bytes) = match load_calibration(&args.cal) {
+    let (mut cal, cal_bytes) = match load_calibration(&args.cal) {
         Ok(c) => c,
         Err(exit) => return exit,
     };
+    let cell = match args.program.cell() {
+        Ok(c) => c,
+        Err(exit) => return exit,
+    };
+    let stated = match stated_robots(args.program.robot.as_deref(), cell.as_ref()) {
+        Ok(s) => s,
+        Err(exit) => return exit,
+    };
+    if let Err(exit) = fit_robot(&mut cal, &args.cal, &stated) {
+        return exit;
+    }
+    for n in cell.iter().flat_map(|c| &c.notes) {
+        eprintln!("note: {n}");
+    }
     for input in &args.inputs {
         if !input.exists() {
             eprintln!("error: {}: no such file or directory", input.display());
@@ -70,10 +88,15 @@ pub fn run(args: Args) -> Exit {
             return Exit::Usage;
         }
     };
-    pool.install(|| run_in_pool(&args, &cal, &cal_bytes))
+    pool.install(|| run_in_pool(&args, &cal, &cal_bytes, cell.as_ref()))
 }
 
-fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[u8]) -> Exit {
+fn run_in_pool(
+    args: &Args,
+    cal: &crate::calibration::Calibration,
+    cal_bytes: &[u8],
+    cell: Option<&crate::motion::Cell>,
+) -> Exit {
     let plan = match batch::plan(&args.inputs, &args.out) {
         Ok(p) => p,
         Err(e) => {
@@ -83,7 +106,7 @@ fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[
     };
     let calibrated = calibrated(cal, &args.cal, cal_bytes);
     let options = args.program.options(true, false);
-    let config = args.program.config.as_deref();
+    let robot = robot_label(cal, &args.cal);
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new((plan.jobs.len() + plan.copies.len()) as u64);
         b.set_style(
@@ -101,7 +124,7 @@ fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[
         .jobs
         .par_iter()
         .map(|job| {
-            let d = batch::run_job(job, &calibrated, &options, config);
+            let d = batch::run_job(job, &calibrated, &options, cell, &robot);
             if matches!(d, Done::Failed { .. }) {
                 let n = failed_count.fetch_add(1, Ordering::Relaxed) + 1;
                 bar.set_message(format!("{n} failed"));
@@ -120,7 +143,7 @@ fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[
         })
         .collect();
     bar.finish_and_clear();
-    // Summary.
+    // One line per program on standard output, in the plan's order; the details on stderr.
     let mut exit = super::Exit::Success;
     let (mut written, mut targets, mut compensated, mut target_errors, mut warnings) =
         (0, 0, 0, 0, 0);
@@ -139,23 +162,31 @@ fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[
                 target_errors += te;
                 warnings += w;
                 max_um = max_um.max(report.correction.position_um.max);
+                println!(
+                    "{}: {}, {w} warning{}",
+                    path.display(),
+                    report.counts(),
+                    if *w == 1 { "" } else { "s" }
+                );
                 if *te > 0 {
-                    eprintln!(
-                        "{}: {te} target(s) left unchanged by an error (see `robopost check`)",
-                        path.display()
-                    );
                     exit = super::Exit::Rejected;
                 }
                 reports.push(report.as_ref());
             }
-            Done::Failed { message } => {
-                eprintln!("{}: failed, nothing written\n{message}", path.display());
+            Done::Failed { message, copied } => {
+                let first = message.lines().next().unwrap_or_default();
+                if *copied {
+                    println!("{}: rejected, copied unchanged ({first})", path.display());
+                } else {
+                    println!("{}: failed, nothing written ({first})", path.display());
+                }
+                eprintln!("{}: rejected\n{message}", path.display());
                 exit = super::Exit::Rejected;
             }
         }
     }
     for (path, e) in &plan.unreadable {
-        eprintln!("{}: unreadable: {e}", path.display());
+        println!("{}: unreadable ({e})", path.display());
         exit = super::Exit::Rejected;
     }
     for e in &copy_errors {
@@ -164,7 +195,7 @@ fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[
     }
     let failed = done.len() - written + plan.unreadable.len();
     eprintln!(
-        "batch: {written} of {} programs written, {failed} failed, {} other files copied; {compensated} of {targets} targets compensated (max correction {max_um:.1} µm), {target_errors} targets rejected, {warnings} warnings",
+        "batch: {written} of {} programs written, {failed} rejected (copied unchanged where readable), {} other files copied; {compensated} of {targets} targets compensated, {target_errors} rejected (max correction {max_um:.1} µm), {warnings} warnings",
         done.len() + plan.unreadable.len(),
         plan.copies.len() - copy_errors.len(),
     );
@@ -178,7 +209,7 @@ fn run_in_pool(args: &Args, cal: &crate::calibration::Calibration, cal_bytes: &[
             "rejected_targets": target_errors,
             "reports": reports,
             "failures": done.iter().filter_map(|(p, d)| match d {
-                Done::Failed { message } => Some(serde_json::json!({ "program": p.display().to_string(), "message": message })),
+                Done::Failed { message, copied } => Some(serde_json::json!({ "program": p.display().to_string(), "message": message, "copied_unchanged": copied })),
                 _ => None,
             }).collect::<Vec<_>>(),
         });

@@ -182,12 +182,15 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
         .iter()
         .find(|s| !matches!(s.kind, StmtKind::Directive { .. }))
         .map_or(src.len(), |s| s.leading.start as usize);
-    // After the directives' last line ending (the controller wants `&…` lines first).
+    // After the directives' last line ending (the controller wants `&…` lines first); a
+    // UTF-8 byte order mark stays the file's first bytes.
     let at = if directives {
         src[first..]
             .iter()
             .position(|&b| b == b'\n')
             .map_or(src.len(), |p| first + p + 1)
+    } else if src.starts_with(b"\xEF\xBB\xBF") {
+        3
     } else {
         0
     };
@@ -204,7 +207,7 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
     .into_bytes();
     // A file whose directives end without a line ending needs one first.
     let mut bytes = Vec::new();
-    if at > 0 && src[at - 1] != b'\n' {
+    if directives && at > 0 && src[at - 1] != b'\n' {
         bytes.extend_from_slice(newline);
     }
     bytes.append(&mut text);
@@ -328,7 +331,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             "  re-solved: {state} for the compensated state, {motion} for the compensated motion"
         );
     }
-    let target_errors = sim.unreachable + seg.target_errors.len();
+    seg.count_target_errors();
     diagnostics.append(&mut seg.singular);
     diagnostics.append(&mut seg.target_errors);
     let placed = rewrite::Placed {
@@ -339,8 +342,18 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     lap("rewrite");
     diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());
+    if let Some(e) = rewrite::EulerLeft::merge(seg.euler.take(), rw.euler.take()) {
+        diagnostics.push(e.diagnostic());
+    }
     let unfilled = report.clone();
     seg.tally.fill(&mut report, &rw, &diagnostics);
+    // Targets the walk refused (unreachable, beyond the joint limits) are targets rejected:
+    // one count of rejected targets everywhere (summary, report, `check`, exit status).
+    report.targets += sim.unreachable;
+    report.rejected += sim.unreachable;
+    report.unresolved = sim.lost;
+    report.needs = sim.needs.iter().cloned().collect();
+    let target_errors = report.rejected;
     drop(sim);
     if let Some(d) = seg.failed.take() {
         diagnostics.push(*d);

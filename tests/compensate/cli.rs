@@ -183,13 +183,28 @@ fn batch_mirrors_the_tree_and_survives_a_broken_file() {
         .unwrap();
     let err = String::from_utf8_lossy(&st.stderr);
     assert_eq!(st.status.code(), Some(1), "{err}");
+    let stdout = String::from_utf8_lossy(&st.stdout);
     assert!(
-        err.contains("broken.src") && err.contains("failed"),
+        err.contains("broken.src") && err.contains("rejected"),
         "{err}"
     );
     assert!(
-        err.contains("batch: 3 of 4 programs written, 1 failed"),
+        err.contains("batch: 3 of 4 programs written, 1 rejected"),
         "{err}"
+    );
+    // One line per program on standard output, the rejected one flagged.
+    assert_eq!(stdout.lines().count(), 4, "{stdout}");
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.contains("broken.src: rejected, copied unchanged")),
+        "{stdout}"
+    );
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.contains("paper_path1.src: 53 of 53 targets compensated, 0 rejected")),
+        "{stdout}"
     );
     for f in [
         "cell_a/paper_path1.src",
@@ -202,7 +217,14 @@ fn batch_mirrors_the_tree_and_survives_a_broken_file() {
     ] {
         assert!(out.join(f).is_file(), "{f} written");
     }
-    assert!(!out.join("cell_b/broken.src").exists());
+    // The rejected program is in the tree unchanged, with the note of why beside it.
+    assert_eq!(
+        std::fs::read(out.join("cell_b/broken.src")).unwrap(),
+        std::fs::read(lib.join("cell_b/broken.src")).unwrap()
+    );
+    let note =
+        std::fs::read_to_string(out.join("cell_b/broken.src.robopost-rejected.txt")).unwrap();
+    assert!(note.contains("expected a value for the member"), "{note}");
     // The module is compensated as part of its caller.
     let m = std::fs::read_to_string(out.join("cell_b/robodk/drill_cell1.src")).unwrap();
     assert!(m.starts_with("; robopost: compensated with"));
@@ -231,7 +253,11 @@ fn check_reports_without_writing() {
         .output()
         .unwrap();
     assert_eq!(ok.status.code(), Some(0));
-    assert!(String::from_utf8_lossy(&ok.stdout).contains("53 targets simulated"));
+    assert!(
+        String::from_utf8_lossy(&ok.stdout).contains("53 of 53 targets compensated, 0 rejected"),
+        "{}",
+        String::from_utf8_lossy(&ok.stdout)
+    );
     // A bad calibration: a usage error, reported before any summary.
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, "{ not json").unwrap();
