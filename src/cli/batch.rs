@@ -54,9 +54,6 @@ pub fn run(args: Args) -> Exit {
     if let Err(exit) = fit_robot(&mut cal, &args.cal, &stated) {
         return exit;
     }
-    for n in cell.iter().flat_map(|c| &c.notes) {
-        eprintln!("note: {n}");
-    }
     for input in &args.inputs {
         if !input.exists() {
             eprintln!("error: {}: no such file or directory", input.display());

@@ -343,9 +343,6 @@ pub fn run(args: Args) -> Exit {
         }
     };
     ws.robot = robot_label(&cal, &args.cal);
-    for n in &ws.notes {
-        eprintln!("note: {n}");
-    }
     program::lap("load");
     if std::env::var_os("ROBOPOST_TIMING").is_some() {
         let runs = ws.get(ws.main).file.streamed_runs();

@@ -309,6 +309,12 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         drop((sim, seg));
         return compensate_program(&ws.whole(), cal, options);
     }
+    // What loading the cell had to say (a shared data list with a line left out…).
+    diagnostics.extend(
+        ws.notes
+            .iter()
+            .map(|n| Diagnostic::new(Severity::Warning, &main.name, n.clone())),
+    );
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
         return rejected(report, diagnostics, 0);

@@ -124,7 +124,9 @@ fn min_decimals(axis: bool, k: usize) -> usize {
     }
 }
 
-/// The new component values of `stop` commanded at `axes` (`None`: nothing can be written).
+/// The new component values of `stop` commanded at `axes` (`None`: nothing can be written);
+/// `euler_left`: the orientation left out near B = ±90° (see `abc_continuous`), if any.
+#[allow(clippy::too_many_arguments)]
 fn new_values(
     sim: &Simulation,
     outcomes: &[Outcome],
@@ -994,7 +996,61 @@ pub fn rewrite_placed(
         let old = String::from_utf8_lossy(ws.get(var.file).file.text(var.name)).into_owned();
         out.splits.push((old, new_names));
     }
+    keep_pinned(ws, sim, &mut taken, &mut out);
     out
+}
+
+/// Points used as the offset of a geometric operator (`P1 : P2`, P2 pinned: `Simulation::
+/// pinned`) keep their written numbers there. Where such a point is rewritten in place for
+/// another use, the operator gets an unchanged copy of it (one per point), said once.
+fn keep_pinned(ws: &Workspace, sim: &Simulation, taken: &mut HashSet<Vec<u8>>, out: &mut Rewrite) {
+    let mut copies: Vec<(FileId, u32, Vec<u8>)> = Vec::new();
+    for p in &sim.pinned {
+        let Some(var) = p.origin.var.filter(|v| !v.element) else {
+            continue;
+        };
+        if ws.get(p.origin.file).role == crate::motion::workspace::Role::Config {
+            continue; // never written in place
+        }
+        let span = p.origin.agg.span;
+        let key = (p.origin.file, span.start);
+        let new = match copies.iter().find(|(f, s, _)| (*f, *s) == key) {
+            Some((_, _, n)) => n.clone(),
+            None => {
+                let touched = out.edits.get(&p.origin.file).is_some_and(|l| {
+                    l.to_edits().iter().any(|e| {
+                        e.range.start >= span.start as usize && e.range.end <= span.end as usize
+                    })
+                });
+                if !touched {
+                    continue;
+                }
+                let old = ws.get(var.file).file.text(var.name);
+                let new = fresh_name(ws, old, taken);
+                copy_declaration(ws, var.file, var.name, var.stmt, &new, &[], None, out);
+                if let Some(d) = &var.declared {
+                    declare_like(ws, d, &new, out);
+                }
+                out.diagnostics.push(ws.diagnostic(
+                    Severity::Warning,
+                    p.site.0,
+                    p.site.1,
+                    format!(
+                        "{} is compensated where it is a target; as the offset of this geometric operator it keeps its written numbers, through an unchanged copy {}",
+                        String::from_utf8_lossy(old),
+                        String::from_utf8_lossy(&new)
+                    ),
+                ));
+                out.splits.push((
+                    String::from_utf8_lossy(old).into_owned(),
+                    vec![String::from_utf8_lossy(&new).into_owned()],
+                ));
+                copies.push((key.0, key.1, new.clone()));
+                new
+            }
+        };
+        rename_site(ws, p.site.0, p.site.1, None, &new, None, taken, out);
+    }
 }
 
 /// A name not used by any loaded file nor taken before: `base_2`, `base_3`, …

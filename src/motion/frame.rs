@@ -202,9 +202,7 @@ pub fn abc_continuous(
         // Minimise |J·d − w|² + λ²|abc + d − start|².
         let lhs = j.transpose() * j + Matrix3::identity() * LAMBDA * LAMBDA;
         let rhs = j.transpose() * w - (abc - start) * LAMBDA * LAMBDA;
-        let Some(d) = lhs.lu().solve(&rhs) else {
-            return None;
-        };
+        let d = lhs.lu().solve(&rhs)?;
         abc += d;
         if d.norm() < 1e-15 {
             break;

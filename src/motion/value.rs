@@ -344,7 +344,7 @@ pub fn aggregate<'f>(
                         crate::krl::RawMember::plain_value_kept(src, *number, *kept)
                             .is_some_and(|v| v != 0.0)
                     }
-                    _ => literal(&file.member_of(*raw).value).map_or(true, |v| v != 0.0),
+                    _ => literal(&file.member_of(*raw).value) != Some(0.0),
                 }
         });
     }

@@ -131,10 +131,24 @@ impl Workspace {
                 }
                 let name = path.display().to_string();
                 let bytes = read(path, &name)?;
+                // Shared data with a line the controller would not accept either: that
+                // declaration is missing, the others are used (said once).
+                let file = krl::parse_recovering(&bytes, FileKind::Dat);
+                if let Some(p) = file
+                    .problems()
+                    .iter()
+                    .find(|p| p.severity == krl::Severity::Error)
+                {
+                    let d = file.diagnostic(p, &name);
+                    ws.notes.push(format!(
+                        "{}:{}: {} — that declaration is left out, the rest of the data list is used",
+                        d.file, d.line, d.message
+                    ));
+                }
                 ws.files.push(Loaded {
                     path: Some(path.to_path_buf()),
                     name: name.clone(),
-                    file: parse(&bytes, FileKind::Dat, &name)?,
+                    file,
                     partner: None,
                     role: Role::Config,
                 });

@@ -758,3 +758,39 @@ fn without_the_cell_the_missing_pieces_are_named() {
         && d.message
             .contains("routine SetBaseTool, which may set it, is not found")));
 }
+
+/// Item 7, the other operand: a point that is a target of its own and the offset of a
+/// geometric operator (`xLevel : xCorner`) keeps its written numbers in the operator, through
+/// an unchanged copy; the left operand is compensated for the operator's target.
+#[test]
+fn item07_an_offset_that_is_also_a_target_keeps_its_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let c = cell();
+    let ws = load(&items("item07_offset_points.src"), &c);
+    let (m, bytes) = model(&kr16_calibration(dir.path()));
+    let r = compensate_with(&ws, &m, &bytes);
+    assert!(!r.rejected && r.target_errors == 0, "{:?}", r.report.errors);
+    let src = String::from_utf8(r.files[0].bytes.to_vec()).unwrap();
+    assert!(src.contains("LIN xLevel : xCorner_2"), "{src}");
+    let dat = String::from_utf8(r.files[1].bytes.to_vec()).unwrap();
+    // The copy has xCorner's written numbers; xCorner and xLevel are compensated.
+    assert!(
+        dat.contains(
+            "DECL E6POS xCorner_2={X 150.000,Y 40.000,Z 60.000,A 0.0000,B 0.0000,C 180.0000,"
+        ),
+        "{dat}"
+    );
+    assert!(
+        !dat.contains("DECL E6POS xCorner={X 150.000,Y 40.000,Z 60.000,"),
+        "{dat}"
+    );
+    assert!(
+        !dat.contains("DECL FRAME xLevel={X 0.0,Y 0.0,Z 300.0,"),
+        "{dat}"
+    );
+    let original = simulate(&ws);
+    let ws2 = rewalk(&ws, &r, dir.path(), &c);
+    let again = motion::simulate(&ws2, &m.robot, &[]);
+    let (dp, dr) = reached(&m, &original, &again, &r);
+    assert!(dp < 3e-3 && dr < 5e-5, "{dp} mm, {dr} rad");
+}

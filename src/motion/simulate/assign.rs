@@ -290,20 +290,29 @@ impl<'f> Simulator<'f> {
         let place = match self.place(file, p, scope) {
             Ok(place) => place,
             Err(why) => {
-                self.warn(
-                    file,
-                    s.head,
-                    format!(
-                        "this assignment is not followed ({why}): what it sets is unknown after it"
-                    ),
-                );
-                // Whatever it set, its root is unknown now.
-                let unknown = Value::Unknown(format!(
-                    "{}, set at line {} from {why}",
-                    src.text_lossy(p.root),
-                    s.line
-                ));
-                self.set_var(file, &root, unknown, scope);
+                // An element whose index is known only at run time: which one it sets is not
+                // known, so none of the array's elements is known after it (said once).
+                let indexed = matches!(p.access.first(), Some(Access::Index { .. }));
+                let shown = src.text_lossy(p.root).into_owned();
+                let first = !self.unknown_arrays.contains_key(&root);
+                let said = format!("{shown}[…] set at line {} with an index {why}", s.line);
+                if indexed {
+                    self.unknown_arrays.entry(root.clone()).or_insert(said);
+                } else {
+                    self.set_var(file, &root, Value::Unknown(said), scope);
+                }
+                if first || !indexed {
+                    let whole = if indexed {
+                        " (the whole array; said once)"
+                    } else {
+                        ""
+                    };
+                    self.warn(
+                        file,
+                        s.head,
+                        format!("this assignment is not followed ({why}): what it sets is unknown after it{whole}"),
+                    );
+                }
                 return;
             }
         };

@@ -154,6 +154,16 @@ impl<'f> Simulator<'f> {
                     origin: None,
                 })
             }
+            // The operating mode: compensated programs are for the production run,
+            // automatic external (said once, see `Simulator::mode_assumed`).
+            b"$T1" | b"$T2" | b"$AUT" | b"$EXT" => {
+                self.mode_assumed.set(true);
+                return Value::Bool(name == b"$EXT");
+            }
+            b"$MODE_OP" => {
+                self.mode_assumed.set(true);
+                return Value::Enum(b"EX".to_vec());
+            }
             b"$POS_ACT" | b"$POS_INT" | b"$POS_RET" => return self.current_pos(false),
             b"$AXIS_ACT" | b"$AXIS_INT" | b"$AXIS_RET" => return self.current_pos(true),
             b"$BASE" | b"$TOOL" => {
@@ -245,6 +255,9 @@ impl<'f> Simulator<'f> {
     ) -> Value<'f> {
         if let Some(v) = scope.elements.get(&(name.to_vec(), idx.to_vec())) {
             return v.clone();
+        }
+        if let Some(why) = self.unknown_arrays.get(name) {
+            return Value::Unknown(why.clone());
         }
         if let Some((caller, array)) = scope.arrays.get(name) {
             // An array passed whole: the caller's elements.

@@ -211,7 +211,7 @@ impl<'f> Simulator<'f> {
         } else {
             return true;
         };
-        if n < 2 && n < MAX_ITERATIONS {
+        if n < 2 {
             return true;
         }
         self.warn(
@@ -288,7 +288,7 @@ impl<'f> Simulator<'f> {
             StmtKind::Switch(sel) => {
                 let b = s.block.as_ref().expect("SWITCH is a block");
                 let v = self.eval(file, sel, scope);
-                let Some(key) = v.as_int() else {
+                let Some(key) = case_key(&v) else {
                     let why = reason(&v, "the selector");
                     self.unresolved(
                         file,
@@ -302,7 +302,7 @@ impl<'f> Simulator<'f> {
                 for a in &b.arms {
                     if let ArmKind::Case(values) = &a.kind {
                         for e in values {
-                            match self.eval(file, e, scope).as_int() {
+                            match case_key(&self.eval(file, e, scope)) {
                                 Some(k) if k == key => chosen = chosen.or(Some(a)),
                                 Some(_) => {}
                                 None => {
@@ -550,5 +550,14 @@ fn constant(e: &crate::krl::Expr) -> bool {
         Expr::Paren(p) => constant(&p.inner),
         Expr::Unary(u) => constant(&u.operand),
         _ => false,
+    }
+}
+
+/// What a `SWITCH` selector and its `CASE` values compare by: an integer (or a character's
+/// code) or an enumeration value (upper case); `None` for anything else or unknown.
+pub(super) fn case_key(v: &Value) -> Option<Result<i64, Vec<u8>>> {
+    match v {
+        Value::Enum(e) => Some(Err(e.clone())),
+        v => v.as_int().map(Ok),
     }
 }

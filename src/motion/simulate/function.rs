@@ -164,14 +164,16 @@ impl<'f> Simulator<'f> {
             StmtKind::Switch(sel) => {
                 let b = s.block.as_ref().expect("SWITCH is a block");
                 let v = self.eval(file, sel, scope);
-                let key = v
-                    .as_int()
-                    .ok_or_else(|| format!("it depends on {}", reason(&v, "a selector")))?;
+                let key = super::flow::case_key(&v).ok_or_else(|| {
+                    format!("it depends on {}", reason(&v, "its SWITCH selector"))
+                })?;
                 let mut chosen = None;
                 for a in &b.arms {
                     if let ArmKind::Case(values) = &a.kind {
                         for e in values {
-                            if self.eval(file, e, scope).as_int() == Some(key) {
+                            if super::flow::case_key(&self.eval(file, e, scope)).as_ref()
+                                == Some(&key)
+                            {
                                 chosen = chosen.or(Some(a));
                             }
                         }

@@ -163,6 +163,17 @@ pub struct Simulation<'f> {
     /// What the program needs that was found nowhere (`routine SetFrames`, `BASE_DATA[3]`,
     /// `XHOME (declared nowhere)`): what the user must add.
     pub needs: std::collections::BTreeSet<String>,
+    /// Declared points used as the offset of a geometric operator (`P1 : P2`: P2), which
+    /// must keep their written numbers there.
+    pub pinned: Vec<Pinned<'f>>,
+}
+
+/// A declared point used, unchanged, as the offset of a geometric operator in a target.
+#[derive(Clone, Copy, Debug)]
+pub struct Pinned<'f> {
+    pub origin: Origin<'f>,
+    /// The place naming it (file, name).
+    pub site: (FileId, Span),
 }
 
 impl Simulation<'_> {
@@ -346,6 +357,11 @@ struct Simulator<'f> {
     exit_unknown: Option<(FileId, u32)>,
     /// Assignments executed (a loop whose iteration changes nothing never ends).
     assignments: u64,
+    /// Arrays an element of which was set with an index known only at run time: none of
+    /// their elements is known after it (why).
+    unknown_arrays: HashMap<Vec<u8>, String>,
+    /// The operating mode (`$T1`, `$EXT`, `$MODE_OP`) was read: automatic external assumed.
+    mode_assumed: std::cell::Cell<bool>,
     /// Functions being evaluated, and the statements they ran (see `function`).
     fn_depth: std::cell::Cell<usize>,
     fn_steps: std::cell::Cell<u64>,
@@ -449,6 +465,8 @@ impl<'f> Simulator<'f> {
             needs: Default::default(),
             exit_unknown: None,
             assignments: 0,
+            unknown_arrays: HashMap::new(),
+            mode_assumed: Default::default(),
             fn_depth: Default::default(),
             fn_steps: Default::default(),
         }
@@ -457,6 +475,13 @@ impl<'f> Simulator<'f> {
     /// The walk's result, its messages counted and its notes gathered.
     pub(super) fn into_simulation(mut self) -> Simulation<'f> {
         self.count_repeats();
+        if self.mode_assumed.get() {
+            self.out.diagnostics.push(Diagnostic::new(
+                Severity::Warning,
+                &self.ws.get(self.ws.main).name,
+                "the program reads the operating mode ($T1, $T2, $AUT, $EXT or $MODE_OP): walked as it runs in production, automatic external ($EXT)",
+            ));
+        }
         let mut out = self.out;
         out.prefixes = self.prefixes.into_inner();
         out.needs.append(&mut self.needs.into_inner());

@@ -767,6 +767,16 @@ impl<'f> Simulator<'f> {
         if offset.axis {
             return None;
         }
+        // A declared point as the offset keeps its numbers here (see `Simulation::pinned`).
+        if let (Some(o), Some(p)) = (
+            offset.origin.filter(|o| o.var.is_some()),
+            b.rhs.as_path().filter(|p| p.is_simple()),
+        ) {
+            self.out.pinned.push(super::Pinned {
+                origin: o,
+                site: (file, p.root),
+            });
+        }
         // Components the offset does not give are zero (a frame).
         let frame = Frame::from_kuka(&offset.v.map(|x| x.unwrap_or(0.0)));
         let mut table = self.prefixes.borrow_mut();
