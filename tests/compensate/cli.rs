@@ -342,3 +342,40 @@ fn a_streamed_program_on_one_thread_gives_the_same_file() {
     );
     assert!(a != std::fs::read(&input).unwrap(), "compensated");
 }
+
+/// An axis target beyond the joint limits: the controller refuses it, so the main job and
+/// `simulate program` both reject it — exit 1, the target left as written, named with its line.
+#[test]
+fn an_axis_target_beyond_the_limits_is_rejected_by_the_main_job_and_the_virtual_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("limits.src");
+    // KR 30 HA: A2 −135…35°; the second target asks for −150°.
+    let text = "DEF limits( )\n$BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}\n$TOOL = {X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 30, A6 0}\nPTP {A1 10, A2 -150, A3 100, A4 0, A5 30, A6 0}\nPTP {A1 0, A2 -80, A3 90, A4 0, A5 30, A6 0}\nEND\n";
+    std::fs::write(&prog, text).unwrap();
+    let out = dir.path().join("out.src");
+    let st = main_job(&prog, CAL, &out);
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("limits.src:5:1") && err.contains("beyond the joint limits (A2 = -150°"),
+        "{err}"
+    );
+    assert!(err.contains("2 of 3 targets compensated, 1 rejected"), "{err}");
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(written.contains("PTP {A1 10, A2 -150, A3 100, A4 0, A5 30, A6 0}"));
+    let csv = dir.path().join("m.csv");
+    let sim = robopost()
+        .args(["simulate", "program", "--truth", "fixtures/measurements/kr30ha-truth.json"])
+        .arg(&prog)
+        .arg("-o")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&sim.stderr);
+    assert_eq!(sim.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("limits.src:5:1") && err.contains("beyond the joint limits (A2 = -150°"),
+        "{err}"
+    );
+    assert!(!csv.exists());
+}
