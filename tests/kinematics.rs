@@ -783,3 +783,95 @@ mod cli {
         assert!(String::from_utf8_lossy(&out.stderr).contains("no/such/cal.json"));
     }
 }
+
+/// The shipped robot descriptions (`calibrations/*-nominal.json`) against an independent
+/// chain written here from the public numbers they came from: each robot's URDF joints
+/// (ROS-Industrial kuka_experimental: joint origins in the parent link, KUKA axis directions
+/// A1 −Z, A2 +Y, A3 +Y, A4 −X, A5 +Y, A6 −X, the KUKA angle as the joint value, the flange
+/// `tool0` frame turned +90° about Y), or, where no URDF is public, the machine data's
+/// `$TIRORO`, `$LENGTH_A/B`, `$TX3P3`, `$TFLWP` laid out the same way. The flange pose of
+/// robopost's closed-form FK must be the chain's at poses over the whole range.
+#[test]
+fn shipped_robots_match_their_public_chains() {
+    use nalgebra::{Rotation3, Translation3, UnitQuaternion};
+    use robopost::calibration::robots;
+    // Joint origins (mm): A1 z; A2 x; A3 x; A4 (x, z); A5 x; A6 x; flange x.
+    let chains: &[(&str, [f64; 8])] = &[
+        (
+            "KR 30 HA",
+            [815.0, 350.0, 850.0, 820.0, 145.0, 0.0, 0.0, 170.0],
+        ),
+        (
+            "KR 6 R700 sixx",
+            [400.0, 25.0, 315.0, 0.0, 35.0, 365.0, 80.0, 0.0],
+        ),
+        (
+            "KR 6 R900 sixx",
+            [400.0, 25.0, 455.0, 0.0, 35.0, 420.0, 80.0, 0.0],
+        ),
+        (
+            "KR 10 R1420",
+            [450.0, 150.0, 610.0, 0.0, 20.0, 660.0, 80.0, 0.0],
+        ),
+        (
+            "KR 16-2",
+            [675.0, 260.0, 680.0, 670.0, -35.0, 0.0, 0.0, 158.0],
+        ),
+        (
+            "KR 120 R2500 pro",
+            [675.0, 350.0, 1150.0, 1000.0, -41.0, 0.0, 0.0, 215.0],
+        ),
+        (
+            "KR 150 R3100-2",
+            [645.0, 330.0, 1350.0, 1420.0, 115.0, 0.0, 215.0, 0.0],
+        ),
+        // Machine data: $TIRORO Z, $LENGTH_A, $LENGTH_B, $TX3P3 X and Z, $TFLWP Z.
+        (
+            "KR 120 R2700-2",
+            [645.0, 330.0, 1150.0, 1220.0, 115.0, 0.0, 0.0, 215.0],
+        ),
+        (
+            "KR 210 R2700 prime",
+            [675.0, 350.0, 1150.0, 1200.0, -41.0, 0.0, 0.0, 240.0],
+        ),
+    ];
+    assert_eq!(chains.len(), robots::ROBOTS.len());
+    let rot = |axis: Vector3<f64>, deg: f64| {
+        UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_normalize(axis), deg.to_radians())
+    };
+    let joint = |origin: [f64; 3], axis: Vector3<f64>, deg: f64| {
+        Isometry3::from_parts(
+            Translation3::new(origin[0], origin[1], origin[2]),
+            rot(axis, deg),
+        )
+    };
+    for (name, o) in chains {
+        let robot = robots::by_name(name)
+            .unwrap()
+            .calibration()
+            .model_ref()
+            .robot;
+        let [lo, hi] = [0, 1].map(|k| robot.limits_deg.map(|l| l[k]));
+        for k in 0..40 {
+            // Poses spread over the range (deterministic), the limits included.
+            let q: [f64; 6] = std::array::from_fn(|i| {
+                let t = ((k * 7 + i * 13) % 41) as f64 / 40.0;
+                lo[i] + t * (hi[i] - lo[i])
+            });
+            let chain = joint([0.0, 0.0, o[0]], -Vector3::z(), q[0])
+                * joint([o[1], 0.0, 0.0], Vector3::y(), q[1])
+                * joint([o[2], 0.0, 0.0], Vector3::y(), q[2])
+                * joint([o[3], 0.0, o[4]], -Vector3::x(), q[3])
+                * joint([o[5], 0.0, 0.0], Vector3::y(), q[4])
+                * joint([o[6], 0.0, 0.0], -Vector3::x(), q[5])
+                * Isometry3::from_parts(
+                    Translation3::new(o[7], 0.0, 0.0),
+                    UnitQuaternion::from_rotation_matrix(&Rotation3::from_axis_angle(
+                        &Vector3::y_axis(),
+                        90f64.to_radians(),
+                    )),
+                );
+            assert_same_pose(&forward(&robot, &q), &chain, 1e-9, &format!("{name} {q:?}"));
+        }
+    }
+}

@@ -51,6 +51,7 @@
 mod error;
 mod file;
 pub mod ranges;
+pub mod robots;
 
 use std::path::Path;
 
@@ -96,6 +97,11 @@ impl Calibration {
 
     pub fn model_ref(&self) -> &Model {
         &self.model
+    }
+
+    /// The robot's software limits replaced (by those of the robot's machine data).
+    pub fn set_limits(&mut self, limits_deg: [[f64; 2]; 6]) {
+        self.model.robot.limits_deg = limits_deg;
     }
 
     /// The file contents for this calibration.

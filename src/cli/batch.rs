@@ -1,6 +1,8 @@
 //! `robopost batch IN_DIR... -c CAL.json -o OUT_DIR [--jobs N]`: compensate a library of
-//! programs in parallel into a mirrored tree; a progress bar on a terminal, a summary at the
-//! end, every failure reported without stopping the others.
+//! programs in parallel into a mirrored tree; a progress bar on a terminal, one summary line
+//! per program on standard output and a total at the end, every failure reported without
+//! stopping the others (a rejected program is copied into the tree unchanged, with a note
+//! beside it saying why).
 
 use std::collections::BTreeSet;
 use std::io::IsTerminal;
@@ -9,7 +11,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use super::compensate::{calibrated, load_calibration, ProgramArgs};
+use super::compensate::{
+    calibrated, fit_robot, load_calibration, robot_label, stated_robots, ProgramArgs,
+};
 use super::Exit;
 use crate::compensate::batch::{self, Done};
 use crate::compensate::files;
@@ -38,14 +42,28 @@ pub struct Args {
 
 pub fn run(args: Args) -> Exit {
     let started = std::time::SystemTime::now();
-    let (cal, cal_bytes) = match load_calibration(&args.cal) {
+    let (mut cal, cal_bytes) = match load_calibration(&args.cal) {
         Ok(c) => c,
         Err(exit) => return exit,
     };
     let mut guard = crate::paths::Guard::new();
     guard
         .read(&args.cal)
-        .read_all(args.program.config.as_deref());
+        .read_all(args.program.config.iter().map(PathBuf::as_path));
+    if let Some(cell) = &args.program.cell {
+        guard.read_tree(cell);
+    }
+    let cell = match args.program.cell() {
+        Ok(c) => c,
+        Err(exit) => return exit,
+    };
+    let stated = match stated_robots(args.program.robot.as_deref(), cell.as_ref()) {
+        Ok(s) => s,
+        Err(exit) => return exit,
+    };
+    if let Err(exit) = fit_robot(&mut cal, &args.cal, &stated) {
+        return exit;
+    }
     for input in &args.inputs {
         if std::fs::symlink_metadata(input).is_err() {
             return super::usage(format!("{}: no such file or directory", input.display()));
@@ -113,7 +131,7 @@ pub fn run(args: Args) -> Exit {
             dir.display()
         );
     }
-    pool.install(|| run_in_pool(&args, &cal, &cal_bytes, &plan))
+    pool.install(|| run_in_pool(&args, &cal, &cal_bytes, &plan, cell.as_ref()))
 }
 
 /// The output directory (created) locked against a second batch writing into it at the same
@@ -146,10 +164,11 @@ fn run_in_pool(
     cal: &crate::calibration::Calibration,
     cal_bytes: &[u8],
     plan: &batch::Plan,
+    cell: Option<&crate::motion::Cell>,
 ) -> Exit {
     let calibrated = calibrated(cal, &args.cal, cal_bytes);
     let options = args.program.options(true, false);
-    let config = args.program.config.as_deref();
+    let robot = robot_label(cal, &args.cal);
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new((plan.jobs.len() + plan.copies.len()) as u64);
         b.set_style(
@@ -167,7 +186,7 @@ fn run_in_pool(
         .jobs
         .par_iter()
         .map(|job| {
-            let d = batch::run_job(job, &calibrated, &options, config);
+            let d = batch::run_job(job, &calibrated, &options, cell, &robot);
             if matches!(d, Done::Failed { .. }) {
                 let n = failed_count.fetch_add(1, Ordering::Relaxed) + 1;
                 bar.set_message(format!("{n} failed"));
@@ -186,7 +205,7 @@ fn run_in_pool(
         })
         .collect();
     bar.finish_and_clear();
-    // Summary.
+    // One line per program on standard output, in the plan's order; the details on stderr.
     let mut exit = super::Exit::Success;
     let (mut written, mut targets, mut compensated, mut target_errors, mut warnings) =
         (0, 0, 0, 0, 0);
@@ -205,23 +224,31 @@ fn run_in_pool(
                 target_errors += te;
                 warnings += w;
                 max_um = max_um.max(report.correction.position_um.max);
+                println!(
+                    "{}: {}, {w} warning{}",
+                    path.display(),
+                    report.counts(),
+                    if *w == 1 { "" } else { "s" }
+                );
                 if *te > 0 {
-                    eprintln!(
-                        "{}: {te} target(s) left unchanged by an error (see `robopost check`)",
-                        path.display()
-                    );
                     exit = super::Exit::Rejected;
                 }
                 reports.push(report.as_ref());
             }
-            Done::Failed { message } => {
-                eprintln!("{}: failed, nothing written\n{message}", path.display());
+            Done::Failed { message, copied } => {
+                let first = message.lines().next().unwrap_or_default();
+                if *copied {
+                    println!("{}: rejected, copied unchanged ({first})", path.display());
+                } else {
+                    println!("{}: failed, nothing written ({first})", path.display());
+                }
+                eprintln!("{}: rejected\n{message}", path.display());
                 exit = super::Exit::Rejected;
             }
         }
     }
     for (path, e) in &plan.unreadable {
-        eprintln!("{}: unreadable: {e}", path.display());
+        println!("{}: unreadable ({e})", path.display());
         exit = super::Exit::Rejected;
     }
     for e in &copy_errors {
@@ -230,7 +257,7 @@ fn run_in_pool(
     }
     let failed = done.len() - written + plan.unreadable.len();
     eprintln!(
-        "batch: {written} of {} programs written, {failed} failed, {} other files copied; {compensated} of {targets} targets compensated (max correction {max_um:.1} µm), {target_errors} targets rejected, {warnings} warnings",
+        "batch: {written} of {} programs written, {failed} rejected (copied unchanged where readable), {} other files copied; {compensated} of {targets} targets compensated, {target_errors} rejected (max correction {max_um:.1} µm), {warnings} warnings",
         done.len() + plan.unreadable.len(),
         plan.copies.len() - copy_errors.len(),
     );
@@ -244,7 +271,7 @@ fn run_in_pool(
             "rejected_targets": target_errors,
             "reports": reports,
             "failures": done.iter().filter_map(|(p, d)| match d {
-                Done::Failed { message } => Some(serde_json::json!({ "program": p.display().to_string(), "message": message })),
+                Done::Failed { message, copied } => Some(serde_json::json!({ "program": p.display().to_string(), "message": message, "copied_unchanged": copied })),
                 _ => None,
             }).collect::<Vec<_>>(),
         });

@@ -16,7 +16,9 @@ pub struct Args {
     /// Programs to check (.src finds its .dat beside it; .dat alone is accepted).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// Calibration: also simulate the motion and report unreachable or near-singular targets.
+    /// Calibration: also simulate and compensate the motion, and report unreachable or
+    /// near-singular targets (with `--cell`, `--config` or `--robot` the programs are
+    /// simulated without one: what the walk resolves and what is missing).
     #[arg(short = 'c', long = "cal")]
     pub cal: Option<PathBuf>,
     #[command(flatten)]
@@ -30,6 +32,12 @@ pub fn run(args: Args) -> Exit {
             return exit;
         }
     }
+    // With a calibration, a cell or a robot the programs are simulated too, and the walk says
+    // what it could not resolve: the parse alone does not list undeclared names then (the
+    // cell may declare them).
+    let p = &args.program;
+    let simulate =
+        args.cal.is_some() || p.cell.is_some() || !p.config.is_empty() || p.robot.is_some();
     let mut exit = Exit::Success;
     let mut programs = Vec::new();
     // Programs that parsed without errors, simulated with -c (one with errors is already
@@ -51,9 +59,9 @@ pub fn run(args: Args) -> Exit {
                 if let Some(d) = &p.dat_path {
                     companions.insert(canonical(d));
                 }
-                let (line, rejected) = summary(&p);
+                let (line, rejected) = summary(&p, !simulate);
                 println!("{line}");
-                for d in p.diagnostics() {
+                for d in p.diagnostics_with(!simulate) {
                     eprintln!("{}", d.render());
                 }
                 if rejected {
@@ -69,10 +77,11 @@ pub fn run(args: Args) -> Exit {
             }
         }
     }
-    if let Some(cal) = &args.cal {
-        // Simulate and compensate in memory: unreachable, out-of-limit and near-singular
-        // targets, nothing written.
-        let sim = super::compensate::check_programs(&to_simulate, cal, &args.program);
+    if simulate {
+        // Simulate (and compensate) in memory: what the walk resolves, unreachable,
+        // out-of-limit and near-singular targets, nothing written.
+        let sim =
+            super::compensate::check_programs(&to_simulate, args.cal.as_deref(), &args.program);
         exit = worse(exit, sim);
     }
     exit
@@ -90,7 +99,7 @@ fn not_krl(p: &Program) -> Option<crate::diagnostic::Diagnostic> {
 }
 
 /// The one-line summary of a program and whether it is rejected.
-fn summary(p: &Program) -> (String, bool) {
+fn summary(p: &Program, undeclared: bool) -> (String, bool) {
     let mut st = p.main.stats();
     let mut name = p.path.display().to_string();
     if let (Some(dat), Some(dp)) = (&p.dat, &p.dat_path) {
@@ -99,7 +108,7 @@ fn summary(p: &Program) -> (String, bool) {
         st.opaque += ds.opaque;
         name += &format!(" (+ {})", file_name(dp));
     }
-    let diags = p.diagnostics();
+    let diags = p.diagnostics_with(undeclared);
     let errors = diags
         .iter()
         .filter(|d| d.severity == Severity::Error)

@@ -8,15 +8,22 @@ use super::Exit;
 use crate::calibration;
 use crate::compensate::{self, files, program, Calibrated, Method};
 use crate::diagnostic::Severity;
-use crate::motion::GivenFrame;
+use crate::kinematics::RobotDescription;
+use crate::motion::{Cell, GivenFrame};
 
-/// How a program's frames are found: shared by the main job, `batch`, `check` and
-/// `simulate program` (which runs a program as the main job reads it).
+/// How a program's frames and shared data are found: shared by the main job, `batch`,
+/// `check` and `simulate program` (which runs a program as the main job reads it).
 #[derive(clap::Args, Debug, Clone)]
 pub struct FrameArgs {
-    /// The robot's `$config.dat` (BASE_DATA, TOOL_DATA).
-    #[arg(long = "config", value_name = "CONFIG.dat")]
-    pub config: Option<PathBuf>,
+    /// The robot's `$config.dat` (BASE_DATA, TOOL_DATA…), or another data list or module of
+    /// its cell; repeatable, for a partial backup.
+    #[arg(long = "config", value_name = "FILE")]
+    pub config: Vec<PathBuf>,
+    /// The robot's cell: a backup or project tree (`KRC/R1/…`, or any folder). Its
+    /// `$config.dat`, the GLOBAL data of its public data lists, the modules defining the
+    /// routines a program calls (wherever they are) and its machine data are used.
+    #[arg(long = "cell", value_name = "DIR")]
+    pub cell: Option<PathBuf>,
     /// A base frame: `N=X,Y,Z,A,B,C` for `BASE_DATA[N]` (repeatable).
     #[arg(long = "base", value_name = "N=X,Y,Z,A,B,C", value_parser = parse_frame_arg, allow_hyphen_values = true)]
     pub base: Vec<(i64, [f64; 6])>,
@@ -26,6 +33,33 @@ pub struct FrameArgs {
 }
 
 impl FrameArgs {
+    /// The cell of `--cell` and `--config` (`None` when neither is given); a directory or
+    /// file that cannot be read is a usage error, said here.
+    pub fn cell(&self) -> Result<Option<Cell>, Exit> {
+        if self.cell.is_none() && self.config.is_empty() {
+            return Ok(None);
+        }
+        for p in &self.config {
+            if !p.is_file() {
+                eprintln!("error: --config {}: no such file", p.display());
+                return Err(Exit::Usage);
+            }
+        }
+        if let Some(d) = &self.cell {
+            if !d.is_dir() {
+                eprintln!("error: --cell {}: not a directory", d.display());
+                return Err(Exit::Usage);
+            }
+        }
+        match Cell::scan(self.cell.as_deref(), &self.config) {
+            Ok(c) => Ok(Some(c)),
+            Err(e) => {
+                eprintln!("error: reading the cell: {e}");
+                Err(Exit::Usage)
+            }
+        }
+    }
+
     /// The frames given on the command line.
     pub fn given(&self) -> Vec<GivenFrame> {
         let mut frames = Vec::new();
@@ -52,6 +86,10 @@ impl FrameArgs {
 pub struct ProgramArgs {
     #[command(flatten)]
     pub frames: FrameArgs,
+    /// The robot: a name (`"KR 16"`, see the README) or a calibration file. With `-c` it
+    /// must be the calibration's robot (a check); without, the robot `check` simulates.
+    #[arg(long = "robot", value_name = "NAME|FILE")]
+    pub robot: Option<String>,
     /// Apply the paper's equation (3) once instead of iterating to 0.1 µm (for comparison).
     #[arg(long = "one-step")]
     pub one_step: bool,
@@ -79,6 +117,109 @@ impl ProgramArgs {
             points,
         }
     }
+}
+
+/// A robot the user or the cell states: by `--robot`, or by the cell's machine data.
+#[derive(Clone, Debug)]
+pub struct StatedRobot {
+    pub name: String,
+    pub robot: RobotDescription,
+    /// Where it was said (`--robot`, the machine data's path).
+    pub source: String,
+    /// Its limits are the controller's configured ones (machine data).
+    pub configured: bool,
+}
+
+/// The robots `--robot` and the cell's machine data state; an unknown name, an unreadable
+/// file or machine data of a robot robopost cannot model are usage errors, said here.
+pub fn stated_robots(robot: Option<&str>, cell: Option<&Cell>) -> Result<Vec<StatedRobot>, Exit> {
+    let mut out = Vec::new();
+    if let Some(arg) = robot {
+        match crate::calibration::robots::resolve(arg) {
+            Ok(c) => out.push(StatedRobot {
+                name: c.robot_name.clone(),
+                robot: c.model_ref().robot,
+                source: format!("--robot {arg}"),
+                configured: false,
+            }),
+            Err(e) => {
+                eprintln!("error: --robot: {e}");
+                return Err(Exit::Usage);
+            }
+        }
+    }
+    if let Some(path) = cell.and_then(|c| c.machine.as_deref()) {
+        match crate::motion::cell::machine_robot(path) {
+            Ok((name, robot)) => out.push(StatedRobot {
+                name,
+                robot,
+                source: format!("the machine data {}", path.display()),
+                configured: true,
+            }),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return Err(Exit::Usage);
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn links_text(r: &RobotDescription) -> String {
+    let l = &r.links;
+    format!(
+        "l1x {} l1z {} l2 {} l3z {} l4x {} l5x {} mm",
+        l.l1x, l.l1z, l.l2, l.l3z, l.l4x, l.l5x
+    )
+}
+
+/// Checks that the robots stated are the calibration's (links within 0.5 mm: a calibration
+/// of one robot compensates no other) and takes the software limits of the machine data,
+/// which the controller enforces. A mismatch is a usage error, said here.
+pub fn fit_robot(
+    cal: &mut calibration::Calibration,
+    cal_path: &Path,
+    stated: &[StatedRobot],
+) -> Result<(), Exit> {
+    for s in stated {
+        let mine = cal.model_ref().robot;
+        let (a, b) = (mine.links, s.robot.links);
+        let same = [
+            (a.l1x, b.l1x),
+            (a.l1z, b.l1z),
+            (a.l2, b.l2),
+            (a.l3z, b.l3z),
+            (a.l4x, b.l4x),
+            (a.l5x, b.l5x),
+        ]
+        .iter()
+        .all(|(x, y)| (x - y).abs() <= 0.5);
+        if !same {
+            eprintln!(
+                "error: the calibration {} describes a {} ({}), but {} says the robot is a {} ({}): compensate with a calibration of that robot",
+                cal_path.display(),
+                cal.robot_name,
+                links_text(&mine),
+                s.source,
+                s.name,
+                links_text(&s.robot)
+            );
+            return Err(Exit::Usage);
+        }
+        if s.configured && s.robot.limits_deg != mine.limits_deg {
+            cal.set_limits(s.robot.limits_deg);
+        }
+    }
+    Ok(())
+}
+
+/// How messages name the robot of a calibration: `KR 16-2 (cal.json)`.
+pub fn robot_label(cal: &calibration::Calibration, cal_path: &Path) -> String {
+    let file = cal_path.file_name().map_or_else(
+        || cal_path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    format!("{} ({file})", cal.robot_name)
 }
 
 /// `N=X,Y,Z,A,B,C`.
@@ -155,10 +296,21 @@ fn is_dash(p: &Path) -> bool {
 }
 
 pub fn run(args: Args) -> Exit {
-    let (cal, cal_bytes) = match load_calibration(&args.cal) {
+    let (mut cal, cal_bytes) = match load_calibration(&args.cal) {
         Ok(c) => c,
         Err(exit) => return exit,
     };
+    let cell = match args.program.cell() {
+        Ok(c) => c,
+        Err(exit) => return exit,
+    };
+    let stated = match stated_robots(args.program.robot.as_deref(), cell.as_ref()) {
+        Ok(s) => s,
+        Err(exit) => return exit,
+    };
+    if let Err(exit) = fit_robot(&mut cal, &args.cal, &stated) {
+        return exit;
+    }
     let stdin = is_dash(&args.input);
     let bytes = if stdin {
         let mut b = Vec::new();
@@ -179,22 +331,22 @@ pub fn run(args: Args) -> Exit {
     let input = (!stdin).then_some(args.input.as_path());
     program::lap_start();
     let stream = Some(crate::krl::StreamOptions::default());
-    let ws =
-        match files::load_program_streaming(input, bytes, args.program.config.as_deref(), stream) {
-            Ok(ws) => ws,
-            Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
-                eprintln!("error: {e}");
-                return Exit::Usage;
-            }
-            Err(e @ crate::motion::workspace::LoadError::NotKrl { .. }) => {
-                eprint!("{e}");
-                return Exit::Usage;
-            }
-            Err(e) => {
-                eprintln!("{e}");
-                return Exit::Rejected;
-            }
-        };
+    let mut ws = match files::load_program_in(input, bytes, cell.as_ref(), stream) {
+        Ok(ws) => ws,
+        Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
+            eprintln!("error: {e}");
+            return Exit::Usage;
+        }
+        Err(e @ crate::motion::workspace::LoadError::NotKrl { .. }) => {
+            eprint!("{e}");
+            return Exit::Usage;
+        }
+        Err(e) => {
+            eprintln!("{e}");
+            return Exit::Rejected;
+        }
+    };
+    ws.robot = robot_label(&cal, &args.cal);
     program::lap("load");
     if std::env::var_os("ROBOPOST_TIMING").is_some() {
         let runs = ws.get(ws.main).file.streamed_runs();
@@ -295,28 +447,75 @@ fn exit_status(result: &compensate::ProgramResult) -> Exit {
 /// One line on standard error.
 pub fn summary(r: &compensate::Report) {
     eprintln!(
-        "{}: {} of {} targets compensated (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} rejected, {} direction flips, {} held axes kept, {} reversals inside the play",
+        "{}: {} (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} direction flips, {} held axes kept, {} reversals inside the play",
         r.program,
-        r.compensated,
-        r.targets,
+        r.counts(),
         r.correction.position_um.max,
         r.correction.orientation_mdeg.max,
         r.correction.position_um.mean,
-        r.rejected,
         r.direction_flips,
         r.held_axes,
         r.reversals_inside_play
     );
 }
 
-/// `check -c`: each program simulated and compensated in memory; prints a summary line per
-/// program and every error and warning; writes nothing.
-pub fn check_programs(programs: &[PathBuf], cal_path: &Path, args: &ProgramArgs) -> Exit {
-    let (cal, cal_bytes) = match load_calibration(cal_path) {
+/// `check -c` / `check --cell`: each program simulated (and with a calibration compensated)
+/// in memory; prints a summary line per program — the counts of the main job's summary, and
+/// what the walk could not resolve and the user must add — and every error and warning;
+/// writes nothing. Without a calibration the robot is `--robot`'s or the cell's (machine
+/// data), else the KR 30 HA, said so.
+pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &ProgramArgs) -> Exit {
+    let cell = match args.cell() {
         Ok(c) => c,
         Err(exit) => return exit,
     };
-    let calibrated = calibrated(&cal, cal_path, &cal_bytes);
+    let stated = match stated_robots(args.robot.as_deref(), cell.as_ref()) {
+        Ok(s) => s,
+        Err(exit) => return exit,
+    };
+    let (cal, cal_bytes, label) = match cal_path {
+        Some(p) => {
+            let (mut cal, bytes) = match load_calibration(p) {
+                Ok(c) => c,
+                Err(exit) => return exit,
+            };
+            if let Err(exit) = fit_robot(&mut cal, p, &stated) {
+                return exit;
+            }
+            let label = robot_label(&cal, p);
+            (cal, bytes, label)
+        }
+        None => {
+            let (name, robot, source) = match stated.first() {
+                Some(s) => (s.name.clone(), s.robot, s.source.clone()),
+                None => {
+                    let r = crate::calibration::robots::ROBOTS[0];
+                    eprintln!(
+                        "note: no calibration, --robot or machine data: simulating a {}",
+                        r.name
+                    );
+                    (
+                        r.name.to_string(),
+                        r.calibration().model_ref().robot,
+                        "assumed".into(),
+                    )
+                }
+            };
+            let model = crate::model::Model::new(
+                robot,
+                crate::kinematics::Payload::default(),
+                nalgebra::Vector3::zeros(),
+            );
+            let cal = calibration::Calibration::from_model(
+                &name,
+                model,
+                Default::default(),
+                Default::default(),
+            );
+            (cal, Vec::new(), format!("{name} ({source})"))
+        }
+    };
+    let calibrated = calibrated(&cal, cal_path.unwrap_or(Path::new("nominal")), &cal_bytes);
     let mut exit = Exit::Success;
     for path in programs {
         if path
@@ -334,7 +533,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: &Path, args: &ProgramArgs)
             }
         };
         let input = (!is_dash(path)).then_some(path.as_path());
-        let ws = match files::load_program(input, &bytes, args.config.as_deref()) {
+        let mut ws = match files::load_program_in(input, bytes, cell.as_ref(), None) {
             Ok(ws) => ws,
             Err(e) => {
                 eprintln!("{e}");
@@ -342,6 +541,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: &Path, args: &ProgramArgs)
                 continue;
             }
         };
+        ws.robot = label.clone();
         let result = compensate::compensate_program(&ws, &calibrated, &args.options(true, false));
         for d in &result.diagnostics {
             eprintln!("{}", d.render());
@@ -352,15 +552,13 @@ pub fn check_programs(programs: &[PathBuf], cal_path: &Path, args: &ProgramArgs)
             exit = exit.max(Exit::Rejected);
             continue;
         }
-        println!(
-            "{}: {} targets simulated, {} compensable, {} rejected (unreachable, out of limits or configuration), predicted error max {:.1} µm",
-            path.display(),
-            r.targets,
-            r.compensated,
-            result.target_errors,
-            r.predicted_before.position_um.max
-        );
-        if result.target_errors > 0 {
+        let counts = if cal_path.is_some() {
+            r.counts()
+        } else {
+            r.resolution()
+        };
+        println!("{}: {counts}{}", path.display(), r.needs_text());
+        if r.rejected > 0 {
             exit = exit.max(Exit::Rejected);
         }
     }

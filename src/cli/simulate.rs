@@ -264,7 +264,12 @@ fn run_program(
         Err(e) => return usage(&e.to_string()),
     };
     let stdin = path.as_os_str() == "-";
-    let ws = match files::load_program((!stdin).then_some(path), &bytes, frames.config.as_deref()) {
+    let cell = match frames.cell() {
+        Ok(c) => c,
+        Err(exit) => return exit,
+    };
+    let mut ws = match files::load_program_in((!stdin).then_some(path), bytes, cell.as_ref(), None)
+    {
         Ok(ws) => ws,
         Err(e @ LoadError::Io { .. }) => return usage(&e.to_string()),
         Err(e @ LoadError::NotKrl { .. }) => {
@@ -280,6 +285,7 @@ fn run_program(
     if let Err(exit) = guard_output(read.chain([truth]), out) {
         return exit;
     }
+    ws.robot = format!("the truth {}", truth.display());
     let sim = crate::motion::simulate(&ws, robot.robot(), &frames.given());
     for d in &sim.diagnostics {
         eprintln!("{}", d.render());

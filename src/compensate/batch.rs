@@ -6,7 +6,8 @@
 //! A `.src` whose routine is called by another program of its directory is a module (RoboDK
 //! numbered files): it is compensated as part of its caller, not on its own. KRL files that
 //! belong to no program (a lone `.dat`, an uncalled `.sub`) are copied unchanged so that the
-//! output tree is a complete library.
+//! output tree is a complete library; so is a program that is rejected, with a note beside it
+//! saying why (`NAME.src.robopost-rejected.txt`).
 
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -37,8 +38,9 @@ pub enum Done {
         target_errors: usize,
         warnings: usize,
     },
-    /// Rejected (parse error, unknown frame, …) or not readable/writable: nothing written.
-    Failed { message: String },
+    /// Rejected (parse error, unknown frame, …) or not readable/writable: nothing of it
+    /// compensated; `copied`: its files are in the output tree unchanged, with the note.
+    Failed { message: String, copied: bool },
 }
 
 /// The plan of a batch: programs to compensate and files to copy as they are.
@@ -198,23 +200,35 @@ pub fn plan(inputs: &[PathBuf], out_dir: &Path) -> std::io::Result<Plan> {
     Ok(plan)
 }
 
-/// Compensates one program and writes its files atomically.
+/// Compensates one program (in the robot's `cell`, when given; `robot` names the robot in
+/// messages) and writes its files atomically. A program rejected is copied unchanged, with
+/// the note of why beside it.
 pub fn run_job(
     job: &Job,
     cal: &Calibrated,
     options: &program::Options,
-    config: Option<&Path>,
+    cell: Option<&crate::motion::Cell>,
+    robot: &str,
 ) -> Done {
-    let failed = |message: String| Done::Failed { message };
+    let failed = |message: String| {
+        let copied = keep_unchanged(job, &message).is_ok();
+        Done::Failed { message, copied }
+    };
     let bytes = match std::fs::read(&job.src) {
         Ok(b) => b,
-        Err(e) => return failed(format!("{}: {e}", job.src.display())),
+        Err(e) => {
+            return Done::Failed {
+                message: format!("{}: {e}", job.src.display()),
+                copied: false,
+            }
+        }
     };
     let stream = Some(crate::krl::StreamOptions::default());
-    let ws = match files::load_program_streaming(Some(&job.src), bytes, config, stream) {
+    let mut ws = match files::load_program_in(Some(&job.src), bytes, cell, stream) {
         Ok(ws) => ws,
         Err(e) => return failed(e.to_string()),
     };
+    ws.robot = robot.to_string();
     let result = program::compensate_program(&ws, cal, options);
     let warnings = result
         .diagnostics
@@ -235,13 +249,41 @@ pub fn run_job(
     }
     let outputs = files::outputs(&ws, &result.files, &job.out);
     if let Err(e) = files::write_atomic_pieces(&outputs) {
-        return failed(format!("writing {}: {e}", job.out.display()));
+        return Done::Failed {
+            message: format!("writing {}: {e}", job.out.display()),
+            copied: false,
+        };
     }
     Done::Written {
         report: Box::new(result.report),
         target_errors: result.target_errors,
         warnings,
     }
+}
+
+/// The note written beside a rejected program in the output tree.
+pub fn rejected_note(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_os_string();
+    name.push(".robopost-rejected.txt");
+    PathBuf::from(name)
+}
+
+/// A rejected program's files copied unchanged into the output tree, and the note of why.
+fn keep_unchanged(job: &Job, message: &str) -> Result<(), String> {
+    copy(&job.src, &job.out)?;
+    if let Some(dat) = krl::companion_dat(&job.src) {
+        let ext = dat
+            .extension()
+            .map(|e| e.to_os_string())
+            .unwrap_or_default();
+        copy(&dat, &job.out.with_extension(ext))?;
+    }
+    let note = format!(
+        "robopost rejected this program: it is copied here unchanged (not compensated).\n\n{message}\n"
+    );
+    let path = rejected_note(&job.out);
+    files::write_atomic(&[(path.clone(), note.as_bytes())])
+        .map_err(|e| format!("writing {}: {e}", path.display()))
 }
 
 /// Copies a file atomically.

@@ -354,7 +354,8 @@ impl EditList {
                 });
             }
         }
-        let mut out = Vec::with_capacity(within.len() - removed + added + BLOCK);
+        // Overlapping edits may remove more than the stretch holds: refused below.
+        let mut out = Vec::with_capacity(within.len().saturating_sub(removed) + added + BLOCK);
         let mut at = within.start;
         let mut last: Option<Range<usize>> = None;
         for (s, p) in self.pieces() {

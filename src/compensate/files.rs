@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use crate::krl;
 use crate::motion::workspace::{LoadError, Role};
-use crate::motion::{FileId, Workspace};
+use crate::motion::{Cell, FileId, Workspace};
 
 use super::program::FileOutput;
 
@@ -31,6 +31,21 @@ pub fn load_program_streaming(
     config: Option<&Path>,
     stream: Option<krl::StreamOptions>,
 ) -> Result<Workspace, LoadError> {
+    let cell = config.map(|c| Cell {
+        config: Some(c.to_path_buf()),
+        ..Cell::default()
+    });
+    load_program_in(path, bytes, cell.as_ref(), stream)
+}
+
+/// [`load_program_streaming`] in the robot's cell (`--cell`, `--config`): its shared data
+/// and the modules it defines.
+pub fn load_program_in(
+    path: Option<&Path>,
+    bytes: Vec<u8>,
+    cell: Option<&Cell>,
+    stream: Option<krl::StreamOptions>,
+) -> Result<Workspace, LoadError> {
     let name = path.map_or_else(|| "<stdin>".to_string(), |p| p.display().to_string());
     let dat = match path.and_then(krl::companion_dat) {
         Some(d) => {
@@ -47,7 +62,7 @@ pub fn load_program_streaming(
         (bytes, path, &name),
         dat.as_ref()
             .map(|(b, d, s)| (b.as_slice(), d.as_path(), s.as_str())),
-        config,
+        cell,
         stream,
     )
 }

@@ -183,12 +183,15 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
         .iter()
         .find(|s| !matches!(s.kind, StmtKind::Directive { .. }))
         .map_or(src.len(), |s| s.leading.start as usize);
-    // After the directives' last line ending (the controller wants `&…` lines first).
+    // After the directives' last line ending (the controller wants `&…` lines first); a
+    // UTF-8 byte order mark stays the file's first bytes.
     let at = if directives {
         src[first..]
             .iter()
             .position(|&b| b == b'\n')
             .map_or(src.len(), |p| first + p + 1)
+    } else if src.starts_with(b"\xEF\xBB\xBF") {
+        3
     } else {
         0
     };
@@ -205,7 +208,7 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
     .into_bytes();
     // A file whose directives end without a line ending needs one first.
     let mut bytes = Vec::new();
-    if at > 0 && src[at - 1] != b'\n' {
+    if directives && at > 0 && src[at - 1] != b'\n' {
         bytes.extend_from_slice(newline);
     }
     bytes.append(&mut text);
@@ -307,6 +310,12 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         drop((sim, seg));
         return compensate_program(&ws.whole(), cal, options);
     }
+    // What loading the cell had to say (a shared data list with a line left out…).
+    diagnostics.extend(
+        ws.notes
+            .iter()
+            .map(|n| Diagnostic::new(Severity::Warning, &main.name, n.clone())),
+    );
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
         return rejected(report, diagnostics, 0);
@@ -325,7 +334,7 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             ms(&st::SINK_NS)
         );
     }
-    let target_errors = sim.unreachable + seg.target_errors.len();
+    seg.count_target_errors();
     diagnostics.append(&mut seg.singular);
     diagnostics.append(&mut seg.target_errors);
     let placed = rewrite::Placed {
@@ -337,8 +346,18 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());
     diagnostics.append(&mut seg.tally.large_corrections());
+    if let Some(e) = rewrite::EulerLeft::merge(seg.euler.take(), rw.euler.take()) {
+        diagnostics.push(e.diagnostic());
+    }
     let unfilled = report.clone();
     seg.tally.fill(&mut report, &rw, &diagnostics);
+    // Targets the walk refused (unreachable, beyond the joint limits) are targets rejected:
+    // one count of rejected targets everywhere (summary, report, `check`, exit status).
+    report.targets += sim.unreachable;
+    report.rejected += sim.unreachable;
+    report.unresolved = sim.lost;
+    report.needs = sim.needs.iter().cloned().collect();
+    let target_errors = report.rejected;
     drop(sim);
     if let Some(d) = seg.failed.take() {
         diagnostics.push(*d);

@@ -64,7 +64,16 @@ pub struct Report {
     pub targets: usize,
     /// Targets whose numbers changed.
     pub compensated: usize,
+    /// Targets refused by an error of their own (unreachable, beyond the joint limits, not
+    /// compensable): left as written, named with their line; counted in `targets`.
     pub rejected: usize,
+    /// Targets whose numbers can be rewritten (literal positions in files robopost writes).
+    pub compensable: usize,
+    /// Motion executions whose target the walk could not resolve before run time (left
+    /// unchanged; not counted in `targets`).
+    pub unresolved: usize,
+    /// What the program needs that was found nowhere (`routine SetFrames`, `BASE_DATA[3]`).
+    pub needs: Vec<String>,
     pub correction: PoseStats,
     pub predicted_before: PoseStats,
     pub predicted_after: PoseStats,
@@ -80,6 +89,50 @@ pub struct Report {
     pub warnings: Vec<String>,
     pub errors: Vec<String>,
     pub points: Vec<PointReport>,
+}
+
+impl Report {
+    /// `40 of 46 targets compensated, 2 rejected` — the one count every summary gives (the
+    /// main job, `batch`, `check -c`), with the motions the walk could not resolve.
+    pub fn counts(&self) -> String {
+        format!(
+            "{} of {} targets compensated, {} rejected{}",
+            self.compensated,
+            self.targets,
+            self.rejected,
+            self.unresolved_text()
+        )
+    }
+
+    /// What `check` without a calibration says: the targets it resolved and could rewrite.
+    pub fn resolution(&self) -> String {
+        format!(
+            "{} of {} targets resolved and compensable, {} rejected{}",
+            self.compensable,
+            self.targets,
+            self.rejected,
+            self.unresolved_text()
+        )
+    }
+
+    fn unresolved_text(&self) -> String {
+        match self.unresolved {
+            0 => String::new(),
+            n => format!(
+                ", {n} motion{} not resolved before run time (left unchanged)",
+                if n == 1 { "" } else { "s" }
+            ),
+        }
+    }
+
+    /// `; needs: routine SetFrames, BASE_DATA[3]` (empty when nothing is missing).
+    pub fn needs_text(&self) -> String {
+        if self.needs.is_empty() {
+            String::new()
+        } else {
+            format!("; needs: {}", self.needs.join(", "))
+        }
+    }
 }
 
 #[derive(Clone, Debug, Default, Serialize)]
@@ -142,6 +195,7 @@ pub(super) struct Tally {
     targets: usize,
     compensated: usize,
     rejected: usize,
+    compensable: usize,
     /// Correction, predicted error before and after: position and orientation each.
     figures: [Running; 6],
     direction_flips: usize,
@@ -212,6 +266,7 @@ impl Tally {
             .collect();
         self.targets += outcomes.len();
         self.rejected += outcomes.iter().filter(|o| o.error.is_some()).count();
+        self.compensable += stops.iter().filter(|s| s.compensable).count();
         for (i, values) in figures.into_iter().enumerate() {
             let Some(values) = values else { continue };
             if values[0] > LARGE_CORRECTION_UM || values[1] > LARGE_CORRECTION_MDEG {
@@ -268,6 +323,7 @@ impl Tally {
         report.targets = self.targets;
         report.compensated = self.compensated;
         report.rejected = self.rejected;
+        report.compensable = self.compensable;
         report.correction = PoseStats {
             position_um: f[0].get(),
             orientation_mdeg: f[1].get(),

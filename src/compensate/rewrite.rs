@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::krl::{self, number::format_like, Aggregate, Edit, Expr, RawMember, SourceFile, Span};
 
-use crate::motion::frame::{kuka_near, Frame};
+use crate::motion::frame::{abc_continuous, kuka_near, Frame};
 use crate::motion::nominal::{Arm, Nominal};
 use crate::motion::value::{self, Declared, Origin, VarRef, AXIS_NAMES, CARTESIAN_NAMES};
 use crate::motion::{FileId, Rel, Role, Simulation, Stop, Workspace};
@@ -42,6 +42,52 @@ pub struct Rewrite {
     pub diagnostics: Vec<Diagnostic>,
     /// Declared points split into copies (original name, new names).
     pub splits: Vec<(String, Vec<String>)>,
+    /// Targets near B = ±90° written continuous with the program's angles (`abc_continuous`).
+    pub euler: Option<EulerLeft>,
+}
+
+/// Targets written with A, B, C continuous near B = ±90°: said once per program.
+#[derive(Debug, Clone)]
+pub struct EulerLeft {
+    pub count: usize,
+    /// The most orientation left out, rad.
+    pub max_rad: f64,
+    /// Where the first of them (in file and line order) is: the warning's place.
+    pub first: Diagnostic,
+}
+
+impl EulerLeft {
+    /// Both programs' parts together.
+    pub fn merge(a: Option<EulerLeft>, b: Option<EulerLeft>) -> Option<EulerLeft> {
+        match (a, b) {
+            (Some(a), Some(b)) => {
+                let key = |d: &Diagnostic| (d.file.clone(), d.line, d.col);
+                let first = if key(&b.first) < key(&a.first) {
+                    b.first
+                } else {
+                    a.first
+                };
+                Some(EulerLeft {
+                    count: a.count + b.count,
+                    max_rad: a.max_rad.max(b.max_rad),
+                    first,
+                })
+            }
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// The warning.
+    pub fn diagnostic(self) -> Diagnostic {
+        let n = self.count;
+        let mut d = self.first;
+        d.message = format!(
+            "{n} target{} near B = ±90° (this one the first) written with A, B, C continuous with the program's: the part of the orientation correction the Euler angles cannot express there with small changes is left out (at most {:.3} mdeg; the position is compensated)",
+            if n == 1 { "" } else { "s" },
+            self.max_rad.to_degrees() * 1e3
+        );
+        d
+    }
 }
 
 /// The commands the compensation placed already ([`Command`]): those of the stops
@@ -78,7 +124,9 @@ fn min_decimals(axis: bool, k: usize) -> usize {
     }
 }
 
-/// The new component values of `stop` commanded at `axes` (`None`: nothing can be written).
+/// The new component values of `stop` commanded at `axes` (`None`: nothing can be written);
+/// `euler_left`: the orientation left out near B = ±90° (see `abc_continuous`), if any.
+#[allow(clippy::too_many_arguments)]
 fn new_values(
     sim: &Simulation,
     outcomes: &[Outcome],
@@ -87,6 +135,7 @@ fn new_values(
     command: &Commanded,
     original: &[Option<f64>; 6],
     robot: &crate::kinematics::RobotDescription,
+    euler_left: &mut Option<f64>,
 ) -> Option<[f64; 6]> {
     // A relative circle's points are both relative to where the motion starts: the target's
     // `prev` is its auxiliary point, whose own `prev` is the start.
@@ -119,16 +168,31 @@ fn new_values(
                 original[4].unwrap_or(stop.programmed[4]),
                 original[5].unwrap_or(stop.programmed[5]),
             ];
-            Some(match stop.origin.and_then(|o| o.prefix) {
-                Some(i) => sim.prefixes[i as usize]
-                    .inverse()
-                    .compose(&in_base())
-                    .to_kuka_near(&near_abc),
-                None => match &command.unchosen {
-                    Some(u) => kuka_near(u, &near_abc),
-                    None => in_base().to_kuka_near(&near_abc),
-                },
-            })
+            let suffix = stop.origin.and_then(|o| o.suffix);
+            // The pose written: in the base, or before a geometric operator's prefix frame or
+            // after its suffix (`P : offset`: the point is what puts the TCP there once offset).
+            let written = || match (stop.origin.and_then(|o| o.prefix), suffix) {
+                (Some(i), _) => sim.prefixes[i as usize].inverse().compose(&in_base()),
+                (None, Some(i)) => in_base().compose(&sim.prefixes[i as usize].inverse()),
+                (None, None) => in_base(),
+            };
+            let mut v = match (
+                stop.origin.and_then(|o| o.prefix),
+                suffix,
+                &command.unchosen,
+            ) {
+                (None, None, Some(u)) => kuka_near(u, &near_abc),
+                _ => written().to_kuka_near(&near_abc),
+            };
+            // Near B = ±90° the angles stay continuous with the program's (`abc_continuous`).
+            if let Some((abc, left)) =
+                abc_continuous(&written().rotation, [v[3], v[4], v[5]], &near_abc)
+                    .filter(|_| stop.role == Role::Target)
+            {
+                v[3..].copy_from_slice(&abc);
+                *euler_left = Some(left);
+            }
+            Some(v)
         }
         Some(Rel::Tool) => {
             let start = base.inverse().compose(&arm.tcp(&prev_cmd?, tool));
@@ -673,6 +737,13 @@ pub fn rewrite_placed(
         },
     };
     let command_tcp = |i: usize| command(i).tcp;
+    // Targets written continuous near B = ±90°: how many, the first in the files (file and
+    // byte), the most left out (rad, as bits: a maximum of non-negative numbers).
+    let euler = (
+        std::sync::atomic::AtomicUsize::new(0),
+        std::sync::atomic::AtomicU64::new(u64::MAX),
+        std::sync::atomic::AtomicU64::new(0),
+    );
     let edits_into = |i: usize, list: &mut EditList| -> Option<Result<(), Skip>> {
         let (stop, o) = (&sim.stops[i], &outcomes[i]);
         let origin = stop.origin?;
@@ -695,6 +766,7 @@ pub fn rewrite_placed(
             .then_some((&stop.programmed, origin.literals));
         let present = components(file, origin.agg, stop.axis, read);
         let original = present.map(|c| c.and_then(|c| c.value));
+        let mut left = None;
         let Some(values) = new_values(
             sim,
             outcomes,
@@ -703,9 +775,17 @@ pub fn rewrite_placed(
             &commanded,
             &original,
             robot,
+            &mut left,
         ) else {
             return Some(Err(Skip::Relative(i)));
         };
+        if let Some(l) = left {
+            use std::sync::atomic::Ordering::Relaxed;
+            euler.0.fetch_add(1, Relaxed);
+            let place = (u64::from(stop.file) << 32) | u64::from(stop.stmt.head.start);
+            euler.1.fetch_min(place, Relaxed);
+            euler.2.fetch_max(l.to_bits(), Relaxed);
+        }
         let write: [bool; 6] = std::array::from_fn(|k| stop.role == Role::Target || k < 3);
         let written = aggregate_edits(
             file,
@@ -826,6 +906,20 @@ pub fn rewrite_placed(
     for s in skips {
         report(s, &mut out);
     }
+    let n = euler.0.into_inner();
+    if n > 0 {
+        let place = euler.1.into_inner();
+        let stop = sim
+            .stops
+            .iter()
+            .find(|s| (u64::from(s.file) << 32) | u64::from(s.stmt.head.start) == place)
+            .expect("a stop written");
+        out.euler = Some(EulerLeft {
+            count: n,
+            max_rad: f64::from_bits(euler.2.into_inner()),
+            first: ws.diagnostic(Severity::Warning, stop.file, stop.stmt.head, String::new()),
+        });
+    }
     let mut taken: HashSet<Vec<u8>> = HashSet::new();
     for ((file, _), list) in uses {
         if ws.get(file).role == crate::motion::workspace::Role::Config {
@@ -902,7 +996,61 @@ pub fn rewrite_placed(
         let old = String::from_utf8_lossy(ws.get(var.file).file.text(var.name)).into_owned();
         out.splits.push((old, new_names));
     }
+    keep_pinned(ws, sim, &mut taken, &mut out);
     out
+}
+
+/// Points used as the offset of a geometric operator (`P1 : P2`, P2 pinned: `Simulation::
+/// pinned`) keep their written numbers there. Where such a point is rewritten in place for
+/// another use, the operator gets an unchanged copy of it (one per point), said once.
+fn keep_pinned(ws: &Workspace, sim: &Simulation, taken: &mut HashSet<Vec<u8>>, out: &mut Rewrite) {
+    let mut copies: Vec<(FileId, u32, Vec<u8>)> = Vec::new();
+    for p in &sim.pinned {
+        let Some(var) = p.origin.var.filter(|v| !v.element) else {
+            continue;
+        };
+        if ws.get(p.origin.file).role == crate::motion::workspace::Role::Config {
+            continue; // never written in place
+        }
+        let span = p.origin.agg.span;
+        let key = (p.origin.file, span.start);
+        let new = match copies.iter().find(|(f, s, _)| (*f, *s) == key) {
+            Some((_, _, n)) => n.clone(),
+            None => {
+                let touched = out.edits.get(&p.origin.file).is_some_and(|l| {
+                    l.to_edits().iter().any(|e| {
+                        e.range.start >= span.start as usize && e.range.end <= span.end as usize
+                    })
+                });
+                if !touched {
+                    continue;
+                }
+                let old = ws.get(var.file).file.text(var.name);
+                let new = fresh_name(ws, old, taken);
+                copy_declaration(ws, var.file, var.name, var.stmt, &new, &[], None, out);
+                if let Some(d) = &var.declared {
+                    declare_like(ws, d, &new, out);
+                }
+                out.diagnostics.push(ws.diagnostic(
+                    Severity::Warning,
+                    p.site.0,
+                    p.site.1,
+                    format!(
+                        "{} is compensated where it is a target; as the offset of this geometric operator it keeps its written numbers, through an unchanged copy {}",
+                        String::from_utf8_lossy(old),
+                        String::from_utf8_lossy(&new)
+                    ),
+                ));
+                out.splits.push((
+                    String::from_utf8_lossy(old).into_owned(),
+                    vec![String::from_utf8_lossy(&new).into_owned()],
+                ));
+                copies.push((key.0, key.1, new.clone()));
+                new
+            }
+        };
+        rename_site(ws, p.site.0, p.site.1, None, &new, None, taken, out);
+    }
 }
 
 /// A name not used by any loaded file nor taken before: `base_2`, `base_3`, …

@@ -120,8 +120,12 @@ pub(super) struct Segments<'a> {
     /// Near-singular targets and targets not compensated, in execution order.
     pub singular: Vec<Diagnostic>,
     pub target_errors: Vec<Diagnostic>,
+    /// The line of each target error said so far: (its diagnostic, repeats).
+    errors_at: std::collections::HashMap<(crate::motion::FileId, u32), (usize, usize)>,
     /// What rewriting the windows said.
     pub rewrite_diagnostics: Vec<Diagnostic>,
+    /// The windows' targets written continuous near B = ±90°.
+    pub euler: Option<rewrite::EulerLeft>,
     /// Applying a window's edits failed (an internal error: nothing may be written).
     pub failed: Option<Box<Diagnostic>>,
 }
@@ -143,7 +147,9 @@ impl<'a> Segments<'a> {
             tally: Tally::default(),
             singular: Vec::new(),
             target_errors: Vec::new(),
+            errors_at: Default::default(),
             rewrite_diagnostics: Vec::new(),
+            euler: None,
             failed: None,
         }
     }
@@ -232,6 +238,13 @@ impl<'a> Segments<'a> {
                 }
             }
             if let Some(e) = &o.error {
+                // A line executed many times (a loop) says it once, with the count.
+                let at = (stop.file, stop.stmt.head.start);
+                if let Some((_, n)) = self.errors_at.get_mut(&at) {
+                    *n += 1;
+                    continue;
+                }
+                self.errors_at.insert(at, (self.target_errors.len(), 0));
                 self.target_errors.push(
                     ws.diagnostic(
                         Severity::Error,
@@ -245,6 +258,16 @@ impl<'a> Segments<'a> {
                 );
             }
         }
+    }
+
+    /// Appends to each target error given for a line executed several times how often.
+    pub fn count_target_errors(&mut self) {
+        for (i, n) in self.errors_at.values() {
+            if *n > 0 {
+                self.target_errors[*i].message += &crate::motion::simulate::repeats(n + 1);
+            }
+        }
+        self.errors_at.clear();
     }
 
     /// The skeleton's stops from `from` on (the rest after the walk).
@@ -293,6 +316,7 @@ impl<'a> Segments<'a> {
             points,
         );
         self.rewrite_diagnostics.append(&mut rw.diagnostics);
+        self.euler = rewrite::EulerLeft::merge(self.euler.take(), rw.euler.take());
         let Some(edits) = rw.edits.remove(&0).filter(|e| !e.is_empty()) else {
             return;
         };

@@ -1,7 +1,8 @@
 //! Declarations, in `.src` and `.dat` alike: variables (`DECL`, optional; `GLOBAL`, `CONST`;
 //! built-in and user types; arrays of up to three dimensions; initialisers on the same line),
-//! user types (`STRUC`, `ENUM`), `SIGNAL`, external routines (`EXT`, `EXTFCT`), and the
-//! headers of routines (`DEF`, `DEFFCT` with `p:IN`, `a[,]:OUT` parameters) and data lists
+//! user types (`STRUC`, `ENUM`), `SIGNAL`, external routines (`EXT`, `EXTFCT` and the
+//! protected `EXTP`, `EXTFCTP` of system files), and the headers of routines (`DEF`,
+//! `DEFFCT` with `p:IN`, `a[,]:OUT` parameters, an array return type `CHAR[15]`) and data lists
 //! (`DEFDAT name PUBLIC`). A line starting with `DECL` or a built-in type is committed:
 //! malformed means error, because position data would otherwise go unseen.
 
@@ -133,10 +134,13 @@ pub struct Signal {
     pub to: Option<Expr>,
 }
 
-/// `EXT name(params)` / `EXTFCT TYPE name(params)`; parameters kept as text.
+/// `EXT name(params)` / `EXTFCT TYPE name(params)` (or the protected `EXTP`, `EXTFCTP`);
+/// parameters kept as text.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Ext {
     pub function: bool,
+    /// `EXTP` / `EXTFCTP`.
+    pub protected: bool,
     pub ret: Option<TypeRef>,
     pub name: Span,
     pub params: Span,
@@ -165,7 +169,7 @@ pub enum ParamMode {
 pub struct Param {
     pub span: Span,
     pub name: Span,
-    /// `[]`, `[,]` of an array parameter.
+    /// `[]`, `[,]` of an array parameter (or `[256]`, a size as system listings write it).
     pub array: Option<Span>,
     pub mode: ParamMode,
 }
@@ -397,19 +401,35 @@ pub(crate) fn signal<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Signal> {
     ))
 }
 
-/// `WORD name` or `FCT_WORD TYPE name` (`EXT`/`EXTFCT`, `DEF`/`DEFFCT`) and the blanks
-/// after the name: (rest, (is a function, return type, name)).
+/// `WORD name` or `FCT_WORD TYPE name` (`EXT`/`EXTFCT`, `DEF`/`DEFFCT`, each also with a
+/// `P` for the protected forms when `protected` allows them) and the blanks after the
+/// name: (rest, (is a function, is protected, return type, name)). A function's type may be
+/// an array (`CHAR[15]`).
+#[allow(clippy::type_complexity)]
 fn callable_head<'a>(
     cx: Cx<'a>,
     word: &[u8],
     fct_word: &[u8],
+    protected_forms: bool,
     i: &'a [u8],
-) -> Fails<'a, (bool, Option<TypeRef>, &'a [u8])> {
+) -> Fails<'a, (bool, bool, Option<TypeRef>, &'a [u8])> {
     let (j, kw) = ident(i)?;
-    let function = kw.eq_ignore_ascii_case(fct_word);
-    if !function && !kw.eq_ignore_ascii_case(word) {
-        return super::lex::backtrack(i);
-    }
+    let is = |w: &[u8], p: bool| {
+        let (base, tail) = kw.split_at(kw.len().min(w.len()));
+        base.eq_ignore_ascii_case(w)
+            && if p {
+                protected_forms && tail.eq_ignore_ascii_case(b"P")
+            } else {
+                tail.is_empty()
+            }
+    };
+    let (function, protected) = match () {
+        _ if is(fct_word, false) => (true, false),
+        _ if is(word, false) => (false, false),
+        _ if is(fct_word, true) => (true, true),
+        _ if is(word, true) => (false, true),
+        _ => return super::lex::backtrack(i),
+    };
     let (mut j, _) = ws(j)?;
     let mut ret = None;
     if function {
@@ -418,21 +438,31 @@ fn callable_head<'a>(
             kind: TypeKind::of(t),
             span: cx.span_of(t),
         });
+        let (k2, _) = ws(k)?;
+        let k = match k2.first() {
+            // `CHAR[15]`: a string (or array) result.
+            Some(b'[') => match k2.iter().position(|&b| b == b']') {
+                Some(n) => &k2[n + 1..],
+                None => return super::lex::backtrack(k2),
+            },
+            _ => k,
+        };
         j = ws(k)?.0;
     }
     let (j, name) = ident(j)?;
     let (j, _) = ws(j)?;
-    Ok((j, (function, ret, name)))
+    Ok((j, (function, protected, ret, name)))
 }
 
-/// `EXT name(…)` or `EXTFCT TYPE name(…)`.
+/// `EXT name(…)` or `EXTFCT TYPE name(…)`, or the protected `EXTP`, `EXTFCTP`.
 pub(crate) fn ext<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Ext> {
-    let (j, (function, ret, name)) = callable_head(cx, b"EXT", b"EXTFCT", i)?;
+    let (j, (function, protected, ret, name)) = callable_head(cx, b"EXT", b"EXTFCT", true, i)?;
     let (rest, params) = paren_text(j)?;
     Ok((
         rest,
         Ext {
             function,
+            protected,
             ret,
             name: cx.span_of(name),
             params: cx.span_of(params),
@@ -466,7 +496,7 @@ const HELP_DEF: &str = "routines start with DEF name(p1:IN, p2:OUT) or DEFFCT TY
 /// `[GLOBAL] DEF name ( params )` / `[GLOBAL] DEFFCT TYPE name ( params )`.
 pub(crate) fn routine_header<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, RoutineHeader> {
     let (j, global) = opt_word("GLOBAL", i);
-    let (j, (function, ret, name)) = callable_head(cx, b"DEF", b"DEFFCT", j)?;
+    let (j, (function, _, ret, name)) = callable_head(cx, b"DEF", b"DEFFCT", false, j)?;
     let (mut j, _) = punct(b'(')(j)?;
     let mut params = Vec::new();
     let (k, _) = ws(j)?;
@@ -505,7 +535,12 @@ fn param<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Param> {
     let mut array = None;
     if j.first() == Some(&b'[') {
         let n = j.iter().position(|&b| b == b']').map(|p| p + 1);
-        let Some(n) = n.filter(|&n| j[1..n - 1].iter().all(|&b| b == b',' || b == b' ')) else {
+        // `[]`, `[,]`; a size (`[256]`) as system listings write it.
+        let Some(n) = n.filter(|&n| {
+            j[1..n - 1]
+                .iter()
+                .all(|&b| b == b',' || b == b' ' || b.is_ascii_digit())
+        }) else {
             return fail!(
                 j,
                 "expected `[]` or `[,]` after an array parameter",

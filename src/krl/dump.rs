@@ -148,8 +148,9 @@ fn stmt_text(f: &SourceFile, s: &Stmt) -> String {
                 .map_or(String::new(), |x| format!(" TO {}", e(x)))
         ),
         StmtKind::Ext(x) => format!(
-            "{} {}{}",
+            "{}{} {}{}",
             if x.function { "EXTFCT" } else { "EXT" },
+            if x.protected { "P" } else { "" },
             t(x.name),
             t(x.params)
         ),
@@ -182,6 +183,21 @@ fn stmt_text(f: &SourceFile, s: &Stmt) -> String {
         StmtKind::Exit => "EXIT".into(),
         StmtKind::Halt => "HALT".into(),
         StmtKind::Continue => "CONTINUE".into(),
+        StmtKind::OnErrorProceed => "ON_ERROR_PROCEED".into(),
+        StmtKind::Resume => "RESUME".into(),
+        StmtKind::Anout(a) => format!(
+            "{} {} {}{}{}",
+            if a.input { "ANIN" } else { "ANOUT" },
+            if a.on { "ON" } else { "OFF" },
+            e(&a.signal),
+            a.value
+                .as_ref()
+                .map_or(String::new(), |v| format!(" = {}", e(v))),
+            a.options
+                .iter()
+                .map(|(n, v)| format!(" {}={}", t(*n), e(v)))
+                .collect::<String>()
+        ),
         StmtKind::Brake(fl) => format!("BRAKE{}", if fl.is_some() { " F" } else { "" }),
         StmtKind::Return(v) => format!(
             "RETURN{}",
@@ -410,6 +426,9 @@ pub fn expr_text(f: &SourceFile, e: &Expr) -> String {
             let mut s = t(p.root);
             for a in &p.access {
                 match a {
+                    Access::Index {
+                        span, slice: true, ..
+                    } => s += &t(*span),
                     Access::Index { items, .. } => s += &format!("[{}]", list(f, items)),
                     Access::Field { name, .. } => s += &format!(".{}", t(*name)),
                 }

@@ -81,8 +81,13 @@ pub struct Path {
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Access {
-    /// `[i, j]` (empty for `[]`).
-    Index { span: Span, items: Vec<Expr> },
+    /// `[i, j]` (empty for `[]`). `slice`: some position is left empty (`[,]`, `[1,]`: the
+    /// whole array, or a row of it, as an argument or a string row is written).
+    Index {
+        span: Span,
+        items: Vec<Expr>,
+        slice: bool,
+    },
     /// `.NAME`.
     Field { span: Span, name: Span },
 }
@@ -654,13 +659,14 @@ pub(crate) fn path<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr> {
     ))
 }
 
-/// `[ [expr {, expr}] ]`.
+/// `[ [expr {, expr}] ]`, or a slice with empty positions: `[,]`, `[1,]`.
 fn index<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Access> {
     if d > MAX_DEPTH {
         return fail!(i, "expression nested too deeply", "simplify the index");
     }
     let (mut j, _) = punct(b'[')(i)?;
     let mut items = Vec::new();
+    let mut slice = false;
     let (k, _) = ws(j)?;
     if let Ok((k, _)) = punct(b']')(k) {
         return Ok((
@@ -668,13 +674,23 @@ fn index<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Access> {
             Access::Index {
                 span: cx.span(i, k),
                 items,
+                slice,
             },
         ));
     }
     loop {
         let (k, _) = ws(j)?;
-        let (k, e) = expr(cx, d + 1, k)?;
-        items.push(e);
+        let k = match k.first() {
+            Some(b',') | Some(b']') => {
+                slice = true;
+                k
+            }
+            _ => {
+                let (k, e) = expr(cx, d + 1, k)?;
+                items.push(e);
+                k
+            }
+        };
         let (k, _) = ws(k)?;
         if let Ok((k, _)) = punct(b',')(k) {
             j = k;
@@ -686,6 +702,7 @@ fn index<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Access> {
             Access::Index {
                 span: cx.span(i, k),
                 items,
+                slice,
             },
         ));
     }

@@ -143,7 +143,8 @@ impl FoldTracker {
 
     /// A comment that is alone on its line (`comment` starts with `;`).
     pub fn comment_line(&mut self, cx: Cx<'_>, comment: &[u8], line: u32) {
-        let body = &comment[1..];
+        // `; FOLD` with blanks after the `;`, as system files write it.
+        let body = &comment[1 + super::lex::blanks(&comment[1..])..];
         if starts_word(body, b"FOLD") {
             let id = FoldId(self.folds.len() as u32);
             let fold = parse_fold(cx, comment, line, self.current());
@@ -224,7 +225,7 @@ fn trim(s: &[u8]) -> &[u8] {
 
 /// Reads a `;FOLD` comment: title, ILF meta data, motion parameters.
 fn parse_fold(cx: Cx<'_>, comment: &[u8], line: u32, parent: Option<FoldId>) -> Fold {
-    let rest = &comment[5..];
+    let rest = &comment[5 + super::lex::blanks(&comment[1..])..];
     let meta_at = rest.windows(2).position(|w| w == b";%");
     let title = trim(&rest[..meta_at.unwrap_or(rest.len())]);
     let ilf = meta_at.and_then(|p| {

@@ -75,12 +75,23 @@ impl Program {
 
     /// Every problem of both files as diagnostics, including targets declared nowhere.
     pub fn diagnostics(&self) -> Vec<Diagnostic> {
+        self.diagnostics_with(true)
+    }
+
+    /// Every problem of both files as diagnostics; targets declared in neither file only when
+    /// `undeclared` (a cell may declare them: the walk says what it could not resolve).
+    pub fn diagnostics_with(&self, undeclared: bool) -> Vec<Diagnostic> {
         let name = self.path.display().to_string();
+        let unresolved = if undeclared {
+            unresolved_targets(&self.main, &self.symbols())
+        } else {
+            Vec::new()
+        };
         let mut out: Vec<Diagnostic> = self
             .main
             .problems()
             .iter()
-            .chain(&unresolved_targets(&self.main, &self.symbols()))
+            .chain(&unresolved)
             .map(|p| self.main.diagnostic(p, &name))
             .collect();
         if let (Some(dat), Some(p)) = (&self.dat, &self.dat_path) {

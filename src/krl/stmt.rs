@@ -107,6 +107,13 @@ pub enum StmtKind {
     Exit,
     Halt,
     Continue,
+    /// `ON_ERROR_PROCEED`: the next statement's run-time error is ignored (KSS 8.3).
+    OnErrorProceed,
+    /// `RESUME`: ends an interrupt routine and the routines interrupted.
+    Resume,
+    /// `ANOUT ON signal = value …` / `ANOUT OFF signal`: a cyclic analog output (and
+    /// `ANIN ON variable = factor * $ANIN[n] …`, a cyclic analog input).
+    Anout(Box<Anout>),
     /// `BRAKE` or `BRAKE F`.
     Brake(Option<Span>),
     Return(Option<Box<Expr>>),
@@ -128,6 +135,18 @@ pub enum StmtKind {
 pub struct Directive {
     pub name: Span,
     pub value: Span,
+}
+
+/// `ANOUT ON signal = value [DELAY = t] [MINIMUM = a] [MAXIMUM = b]` or `ANOUT OFF signal`;
+/// `ANIN ON variable = value` or `ANIN OFF variable` (`input`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Anout {
+    pub input: bool,
+    pub on: bool,
+    pub signal: Expr,
+    /// The value (`ON` only) and the options after it, by name.
+    pub value: Option<Expr>,
+    pub options: Vec<(Span, Expr)>,
 }
 
 /// `SPLINE [WITH …]` or `PTP_SPLINE [WITH …]`.
@@ -352,6 +371,10 @@ const STATEMENT_WORDS: &[&[u8]] = &[
     b"SIGNAL",
     b"EXT",
     b"EXTFCT",
+    b"EXTP",
+    b"EXTFCTP",
+    b"ANOUT",
+    b"ANIN",
     b"SPLINE",
     b"PTP_SPLINE",
     b"IF",
@@ -419,7 +442,10 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
         b"STRUC" => struc(cx, i).map(|(r, s)| (r, Line::Simple(K::Struc(Box::new(s))))),
         b"ENUM" => enum_decl(cx, i).map(|(r, e)| (r, Line::Simple(K::Enum(Box::new(e))))),
         b"SIGNAL" => signal(cx, i).map(|(r, s)| (r, Line::Simple(K::Signal(Box::new(s))))),
-        b"EXT" | b"EXTFCT" => ext(cx, i).map(|(r, e)| (r, Line::Simple(K::Ext(Box::new(e))))),
+        b"EXT" | b"EXTFCT" | b"EXTP" | b"EXTFCTP" => {
+            ext(cx, i).map(|(r, e)| (r, Line::Simple(K::Ext(Box::new(e)))))
+        }
+        b"ANOUT" | b"ANIN" => anout_line(cx, i),
         b"SPLINE" | b"PTP_SPLINE" => spline_line(cx, word == b"PTP_SPLINE", i),
         b"ENDSPLINE" => alone(Line::Close(BlockKind::Spline, None)),
         b"IF" => if_line(cx, i),
@@ -455,6 +481,8 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
         b"EXIT" => alone(Line::Simple(K::Exit)),
         b"HALT" => alone(Line::Simple(K::Halt)),
         b"CONTINUE" => alone(Line::Simple(K::Continue)),
+        b"RESUME" => alone(Line::Simple(K::Resume)),
+        b"ON_ERROR_PROCEED" => alone(Line::Simple(K::OnErrorProceed)),
         b"BRAKE" => brake_line(cx, i),
         b"RETURN" => return_line(cx, i),
         b"GOTO" => {
@@ -634,6 +662,49 @@ fn for_header<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, For> {
             step,
         },
     ))
+}
+
+/// `ANOUT ON signal = value {option = value}` / `ANOUT OFF signal`, and the same with `ANIN`.
+fn anout_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
+    let (j, word) = ident(i)?;
+    let input = word.eq_ignore_ascii_case(b"ANIN");
+    let (j, _) = ws(j)?;
+    let (j, op) = ident(j)?;
+    let on = op.eq_ignore_ascii_case(b"ON");
+    if !on && !op.eq_ignore_ascii_case(b"OFF") {
+        return backtrack(j);
+    }
+    let (j, _) = ws(j)?;
+    let (mut j, signal) = path(cx, 0, j)?;
+    let mut value = None;
+    let mut options = Vec::new();
+    if on {
+        let (k, _) = ws(j)?;
+        let (k, _) = punct(b'=')(k)?;
+        let (k, _) = ws(k)?;
+        let (k, v) = expr(cx, 0, k)?;
+        value = Some(v);
+        j = k;
+        loop {
+            let (k, _) = ws(j)?;
+            let Ok((k2, name)) = ident(k) else { break };
+            let (k2, _) = ws(k2)?;
+            let (k2, _) = punct(b'=')(k2)?;
+            let (k2, _) = ws(k2)?;
+            let (k2, v) = expr(cx, 0, k2)?;
+            options.push((cx.span_of(name), v));
+            j = k2;
+        }
+    }
+    let (r, _) = ws(j)?;
+    let a = Anout {
+        input,
+        on,
+        signal,
+        value,
+        options,
+    };
+    Ok((r, Line::Simple(StmtKind::Anout(Box::new(a)))))
 }
 
 fn brake_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {

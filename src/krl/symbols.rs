@@ -59,6 +59,47 @@ impl<'f> Symbols<'f> {
         s
     }
 
+    /// What data lists share with every program: all declarations of a system data list
+    /// (`DEFDAT $CONFIG`, or a file without a `DEFDAT` line, as a `$config.dat` given alone),
+    /// the `GLOBAL` ones of any other, with their arrays' element initialisers. Earlier
+    /// files win.
+    pub fn shared(files: &[&'f SourceFile]) -> Symbols<'f> {
+        let mut s = Symbols::default();
+        for &f in files {
+            let system = f
+                .statements()
+                .find_map(|st| match &st.kind {
+                    StmtKind::DefDat(h) => Some(f.text(h.name).starts_with(b"$")),
+                    _ => None,
+                })
+                .unwrap_or(true);
+            let mut arrays = std::collections::HashSet::new();
+            for st in f.statements() {
+                match &st.kind {
+                    StmtKind::Decl(d) if system || d.global.is_some() => {
+                        for v in &d.vars {
+                            arrays.insert(key(f.text(v.name)));
+                            s.names.entry(key(f.text(v.name))).or_insert(Symbol {
+                                file: f,
+                                decl: d,
+                                var: v,
+                            });
+                        }
+                    }
+                    StmtKind::Assign(a) => {
+                        if let Some((name, idx)) = element_of(f, &a.lhs) {
+                            if arrays.contains(&key(name)) {
+                                s.elements.entry((key(name), idx)).or_insert((f, &a.rhs));
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        s
+    }
+
     /// The declaration of `name`.
     pub fn get(&self, name: &[u8]) -> Option<&Symbol<'f>> {
         self.names.get(&key(name))
@@ -82,7 +123,12 @@ impl<'f> Symbols<'f> {
 /// `NAME[1,2]` with integer literal indices → (name, indices).
 fn element_of<'a>(f: &'a SourceFile, e: &Expr) -> Option<(&'a [u8], Vec<i64>)> {
     let p = e.as_path()?;
-    let [Access::Index { items, .. }] = p.access.as_slice() else {
+    let [Access::Index {
+        items,
+        slice: false,
+        ..
+    }] = p.access.as_slice()
+    else {
         return None;
     };
     let idx = items

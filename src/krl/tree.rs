@@ -777,6 +777,101 @@ impl SourceFile {
         e.visit(&self.nodes, &self.src, f);
     }
 
+    /// Calls `f` on every expression of statement `s` (its own line only, not a block's body)
+    /// and their sub-expressions, parents first.
+    pub fn visit_stmt_exprs(&self, s: &Stmt, f: &mut impl FnMut(&Expr)) {
+        use super::stmt::{Action, Interrupt};
+        let mut v = |e: &Expr| self.visit_expr(e, f);
+        let action = |a: &Action, v: &mut dyn FnMut(&Expr)| match a {
+            Action::Call(e) => v(e),
+            Action::Assign(a) => {
+                v(&a.lhs);
+                v(&a.rhs);
+            }
+        };
+        match &s.kind {
+            StmtKind::Decl(d) => d
+                .vars
+                .iter()
+                .filter_map(|x| x.init.as_ref())
+                .for_each(&mut v),
+            StmtKind::Motion(id) => {
+                let m = self.motion(*id);
+                v(&m.target);
+                if let Some(a) = m.aux() {
+                    v(a);
+                }
+                if let Some(ca) = m.angle() {
+                    v(&ca.value);
+                }
+                for w in m.with() {
+                    v(&w.value);
+                }
+            }
+            StmtKind::Spline(h) => h.with.iter().for_each(|w| v(&w.value)),
+            StmtKind::Assign(a) => {
+                v(&a.lhs);
+                v(&a.rhs);
+            }
+            StmtKind::Call(c) => c.args.iter().flatten().for_each(&mut v),
+            StmtKind::If(e)
+            | StmtKind::Switch(e)
+            | StmtKind::While(e)
+            | StmtKind::WaitFor(e)
+            | StmtKind::WaitSec(e) => v(e),
+            StmtKind::Repeat(Some(e)) | StmtKind::Return(Some(e)) => v(e),
+            StmtKind::For(Some(x)) => {
+                v(&x.from);
+                v(&x.to);
+                if let Some(st) = &x.step {
+                    v(st);
+                }
+            }
+            StmtKind::Interrupt(i) => {
+                if let Interrupt::Decl {
+                    cond, action: a, ..
+                } = &**i
+                {
+                    v(cond);
+                    action(a, &mut v);
+                }
+            }
+            StmtKind::Trigger(t) => {
+                v(&t.value);
+                action(&t.action, &mut v);
+            }
+            StmtKind::Anout(a) => {
+                v(&a.signal);
+                a.value.iter().for_each(&mut v);
+            }
+            _ => {}
+        }
+        if let Some(b) = &s.block {
+            for arm in &b.arms {
+                if let super::stmt::ArmKind::Case(values) = &arm.kind {
+                    values.iter().for_each(&mut v);
+                }
+            }
+        }
+    }
+
+    /// The names of the routines the file calls, statements and functions in expressions
+    /// alike, in source order (repeats included).
+    pub fn called_names(&self) -> Vec<Span> {
+        let mut out = Vec::new();
+        for st in self.statements() {
+            if let StmtKind::Call(c) = &st.kind {
+                out.push(c.name);
+            }
+            self.visit_stmt_exprs(st, &mut |e| {
+                if let Expr::Call(c) = e {
+                    out.push(c.name);
+                }
+            });
+        }
+        out
+    }
+
     /// Every numeric literal in `e`, in source order.
     pub fn numbers(&self, e: &Expr) -> Vec<Number> {
         let mut out = Vec::new();

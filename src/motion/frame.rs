@@ -153,6 +153,67 @@ fn choose_abc([a, b, c]: [f64; 3], near: &[f64; 3]) -> [f64; 3] {
     }
 }
 
+/// Within this many degrees of B = ±90° a written orientation is near gimbal lock.
+const NEAR_LOCK_DEG: f64 = 3.0;
+/// The Euler triple jumping by more than this (degrees, A or C) is not written there.
+const JUMP_DEG: f64 = 1.0;
+
+/// Near B = ±90° (gimbal lock) the Euler triple of a rotation a hundredth of a degree away
+/// from the written one can be tens of degrees from it in A and C (`A 0, B 90, C 0` →
+/// `A -37.3, B 89.988, C -37.3`): exact, but not what the program wrote. There the angles
+/// cannot express one direction of rotation (about the axis A and C both turn about at
+/// B = ±90°) with small changes. Where the exact triple `chosen` jumps by more than a degree
+/// from the written `near` (B within 3° of ±90°), this gives the triple nearest `near` that
+/// turns by as much of the rotation as small changes of A, B and C can (damped least squares
+/// from `near`), and the rotation left out (rad). `None`: `chosen` is continuous, keep it.
+pub fn abc_continuous(
+    rotation: &Matrix3<f64>,
+    chosen: [f64; 3],
+    near: &[f64; 3],
+) -> Option<([f64; 3], f64)> {
+    if (near[1].abs() - 90.0).abs() > NEAR_LOCK_DEG {
+        return None;
+    }
+    let jump = (chosen[0] - near[0]).abs().max((chosen[2] - near[2]).abs());
+    if jump <= JUMP_DEG {
+        return None;
+    }
+    // Damping in rad per rad: directions the angles turn about by more than it are solved
+    // exactly; the one they cannot reach near the lock is left.
+    const LAMBDA: f64 = 0.02;
+    let mut abc = Vector3::new(near[0], near[1], near[2]).map(f64::to_radians);
+    let start = abc;
+    for _ in 0..6 {
+        let r = abc_to_matrix(
+            abc[0].to_degrees(),
+            abc[1].to_degrees(),
+            abc[2].to_degrees(),
+        );
+        // World rotation still needed: from the current triple to the target.
+        let w = log_so3(&(rotation * r.transpose()));
+        // World angular velocity per radian of A, B, C (R = Rz(A)·Ry(B)·Rx(C)).
+        let (sa, ca) = abc[0].sin_cos();
+        let (sb, cb) = abc[1].sin_cos();
+        let j = Matrix3::from_columns(&[
+            Vector3::z(),
+            Vector3::new(-sa, ca, 0.0),
+            Vector3::new(ca * cb, sa * cb, -sb),
+        ]);
+        // Minimise |J·d − w|² + λ²|abc + d − start|².
+        let lhs = j.transpose() * j + Matrix3::identity() * LAMBDA * LAMBDA;
+        let rhs = j.transpose() * w - (abc - start) * LAMBDA * LAMBDA;
+        let d = lhs.lu().solve(&rhs)?;
+        abc += d;
+        if d.norm() < 1e-15 {
+            break;
+        }
+    }
+    let abc = abc.map(f64::to_degrees);
+    let r = abc_to_matrix(abc[0], abc[1], abc[2]);
+    let left = log_so3(&(rotation * r.transpose())).norm();
+    Some(([abc[0], abc[1], abc[2]], left))
+}
+
 /// `actual − goal` as a world-frame six-vector: `[p_a − p_g; log(R_a · R_gᵀ)]`.
 pub fn error(actual: &Frame, goal: &Frame) -> Vector6<f64> {
     let dp = actual.position - goal.position;

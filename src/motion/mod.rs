@@ -4,6 +4,7 @@
 //! (from the simulated interpolation), together with where in the source its numbers live.
 //! Knows nothing of error models; `compensate` consumes what it yields.
 
+pub mod cell;
 pub mod frame;
 pub mod interpolate;
 pub mod lu6;
@@ -13,6 +14,7 @@ pub mod spline;
 pub mod value;
 pub mod workspace;
 
+pub use cell::Cell;
 pub use simulate::{
     simulate, simulate_streaming, CircularAngle, GivenFrame, Rel, Role, RunSink, Simulation,
     SplineEnds, Stop, Walked,

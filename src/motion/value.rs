@@ -1,7 +1,8 @@
 //! Values of KRL expressions as far as they can be known before run time: integers, reals,
-//! booleans, enum literals, frame data (`FDAT`) and positions (`FRAME POS E6POS AXIS E6AXIS`,
-//! possibly partial), each position remembering the aggregate its numbers were read from so
-//! that compensation can write them back. Anything that depends on run time (inputs, sensor
+//! booleans, enum literals, frame data (`FDAT`), positions (`FRAME POS E6POS AXIS E6AXIS`,
+//! possibly partial) and user structures (`STRUC`: members by name, nested), each position
+//! remembering the aggregate its numbers were read from so that compensation can write them
+//! back. Anything that depends on run time (inputs, sensor
 //! values, unknown functions) is `Unknown` with the reason.
 
 use crate::krl::{Aggregate, Expr, Number, SourceFile, Span};
@@ -20,12 +21,17 @@ pub struct Origin<'f> {
     /// [`Simulation::prefixes`](super::Simulation::prefixes) (a frame here would make every
     /// stop of a million-target program 100 bytes larger).
     pub prefix: Option<u32>,
+    /// A geometric-operator suffix: the motion's position is `this : suffix` (a point with
+    /// an offset applied after it, `P1 : {X 10}`), an index into the same table.
+    pub suffix: Option<u32>,
     /// Bit `k` set: the position's component `k` is the value of the aggregate's own literal
     /// (read once by the walk; the rewrite need not read the number again).
     pub literals: u8,
     /// The decimals each of those literals is written with ([`literal_decimals`], at most
     /// 255), for the components of `literals`.
     pub decimals: [u8; 6],
+    /// The aggregate gives external axes (`E1`…`E6`) other than zero.
+    pub external: bool,
 }
 
 /// Decimals a literal is written with (the digits after its dot).
@@ -103,6 +109,8 @@ pub enum Value<'f> {
     /// `LDAT` (an inline form's motion data): its orientation type `ORI_TYP` (`#VAR`,
     /// `#CONSTANT`, `#JOINT`: upper case, without `#`), when written as a constant.
     Ldat(Option<Vec<u8>>),
+    /// A user structure: its members set so far (upper-case name, value), in order.
+    Struc(Vec<(Vec<u8>, Value<'f>)>),
     /// Not known before run time, and why.
     Unknown(String),
 }
@@ -207,8 +215,10 @@ pub fn aggregate<'f>(
             agg,
             var: None,
             prefix: None,
+            suffix: None,
             literals: 0,
             decimals: [0; 6],
+            external: false,
         }),
     };
     let mut literals = 0u8;
@@ -217,6 +227,8 @@ pub fn aggregate<'f>(
     let mut fdat = Fdat::default();
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
     let mut ldat: Option<Option<Vec<u8>>> = None;
+    // Members that are neither position components nor frame or motion data: a structure's.
+    let mut others: Vec<(&[u8], crate::krl::RawMember<'f>)> = Vec::new();
     // A plain number member is handed out by value (not borrowed from the file).
     let mut eval = |v: &Cow<'f, Expr>| match v {
         Cow::Borrowed(e) => eval(e),
@@ -319,9 +331,32 @@ pub fn aggregate<'f>(
                     _ => None,
                 });
             }
-            // E1..E6 and other members are carried unchanged.
-            _ => {}
+            // E1..E6 of a position are carried unchanged; other members make a structure.
+            _ => others.push((name, raw)),
         }
+    }
+    if let Some(o) = &mut pos.origin {
+        // External axes other than zero: carried unchanged (the walker says so).
+        o.external = others.iter().any(|(name, raw)| {
+            matches!(name, [e, b'1'..=b'6'] if e.eq_ignore_ascii_case(&b'E'))
+                && match raw {
+                    crate::krl::RawMember::Plain { number, kept, .. } => {
+                        crate::krl::RawMember::plain_value_kept(src, *number, *kept)
+                            .is_some_and(|v| v != 0.0)
+                    }
+                    _ => literal(&file.member_of(*raw).value) != Some(0.0),
+                }
+        });
+    }
+    if !cartesian && !axis && !is_fdat && ldat.is_none() && !others.is_empty() {
+        let members = others
+            .into_iter()
+            .map(|(name, raw)| {
+                let m = file.member_of(raw);
+                (name.to_ascii_uppercase(), eval(&m.value))
+            })
+            .collect();
+        return Value::Struc(members);
     }
     if is_fdat {
         return Value::Fdat(fdat);

@@ -1,13 +1,16 @@
 //! The files a program run touches: the program (`.src`) and its data list (`.dat`), the
-//! sibling modules it calls (found beside it by routine name, as RoboDK's numbered files
-//! called from a main), and the robot's `$config.dat` with `BASE_DATA`/`TOOL_DATA`. Each file
-//! is parsed once; modules are loaded until every called routine is found or known missing.
+//! modules it calls (found beside it by file name, as RoboDK's numbered files called from a
+//! main, or anywhere in the robot's cell by the routines they define), and the data every
+//! program of the cell sees (`$config.dat` with `BASE_DATA`/`TOOL_DATA`, the `GLOBAL`
+//! declarations of public data lists; see [`Cell`]). Each file is parsed once; modules are
+//! loaded until every called routine is found or known missing.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
+use super::cell::Cell;
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::krl::{self, FileKind, SourceFile, StmtKind};
+use crate::krl::{self, FileKind, SourceFile};
 
 /// Index of a file in [`Workspace::files`].
 pub type FileId = u32;
@@ -31,7 +34,8 @@ pub enum Role {
     Main,
     /// A module it calls (and its `.dat`).
     Module,
-    /// The robot's `$config.dat`.
+    /// Data every program of the cell shares, never written: the robot's `$config.dat` and
+    /// the data lists whose `GLOBAL` declarations every program sees.
     Config,
 }
 
@@ -41,6 +45,11 @@ pub struct Workspace {
     pub files: Vec<Loaded>,
     /// The main `.src`.
     pub main: FileId,
+    /// The robot the walk assumes, as messages name it (`KR 16-2 (cal.json)`); empty when
+    /// not said.
+    pub robot: String,
+    /// What loading the cell had to say (several `$config.dat` in a tree…).
+    pub notes: Vec<String>,
 }
 
 /// A file that could not be read or parsed: the program is rejected.
@@ -106,16 +115,21 @@ impl Workspace {
         config: Option<&Path>,
     ) -> Result<Workspace, LoadError> {
         let (bytes, path, name) = src;
-        Workspace::load_streaming((bytes.to_vec(), path, name), dat, config, None)
+        let cell = config.map(|c| Cell {
+            config: Some(c.to_path_buf()),
+            ..Cell::default()
+        });
+        Workspace::load_streaming((bytes.to_vec(), path, name), dat, cell.as_ref(), None)
     }
 
-    /// [`Workspace::load`] taking the program's bytes; with `stream`, the plain stretches of
-    /// its main routine are left out of the tree as runs (`krl::parse_streaming`), to be walked
-    /// window by window with `motion::simulate_streaming`.
+    /// [`Workspace::load`] taking the program's bytes and the robot's cell; with `stream`,
+    /// the plain stretches of its main routine are left out of the tree as runs
+    /// (`krl::parse_streaming`), to be walked window by window with
+    /// `motion::simulate_streaming`.
     pub fn load_streaming(
         src: (Vec<u8>, Option<&Path>, &str),
         dat: Option<(&[u8], &Path, &str)>,
-        config: Option<&Path>,
+        cell: Option<&Cell>,
         stream: Option<krl::StreamOptions>,
     ) -> Result<Workspace, LoadError> {
         let mut ws = Workspace::default();
@@ -135,21 +149,53 @@ impl Workspace {
         if let Some((bytes, path, name)) = dat {
             ws.push_pair_dat(0, bytes, path, name, Role::Main)?;
         }
-        if let Some(path) = config {
-            let name = path.display().to_string();
-            let bytes = read(path, &name)?;
-            ws.files.push(Loaded {
-                path: Some(path.to_path_buf()),
-                name: name.clone(),
-                file: parse(&bytes, FileKind::Dat, &name)?,
-                partner: None,
-                role: Role::Config,
-            });
+        if let Some(cell) = cell {
+            ws.notes.extend(cell.notes.iter().cloned());
+            // `$config.dat` first: where a name is declared twice, its declaration wins.
+            for path in cell.config.iter().chain(&cell.data) {
+                if ws.find(path).is_some() {
+                    continue;
+                }
+                let name = path.display().to_string();
+                let bytes = read(path, &name)?;
+                // Shared data with a line the controller would not accept either: that
+                // declaration is missing, the others are used (said once).
+                let file = krl::parse_recovering(&bytes, FileKind::Dat);
+                if let Some(p) = file
+                    .problems()
+                    .iter()
+                    .find(|p| p.severity == krl::Severity::Error)
+                {
+                    let d = file.diagnostic(p, &name);
+                    ws.notes.push(format!(
+                        "{}:{}: {} — that declaration is left out, the rest of the data list is used",
+                        d.file, d.line, d.message
+                    ));
+                }
+                ws.files.push(Loaded {
+                    path: Some(path.to_path_buf()),
+                    name: name.clone(),
+                    file,
+                    partner: None,
+                    role: Role::Config,
+                });
+            }
         }
-        if let Some(dir) = path.and_then(Path::parent) {
-            ws.load_modules(dir)?;
-        }
+        // A program named without a directory (`main1.src`) is in the current one.
+        let dir = path.map(|p| match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        });
+        ws.load_modules(dir.as_deref(), cell)?;
         Ok(ws)
+    }
+
+    /// The loaded file read from `path`, if any.
+    fn find(&self, path: &Path) -> Option<FileId> {
+        self.files
+            .iter()
+            .position(|f| f.path.as_deref().is_some_and(|p| same_path(p, path)))
+            .map(|i| i as FileId)
     }
 
     fn push_pair_dat(
@@ -172,57 +218,68 @@ impl Workspace {
         Ok(())
     }
 
-    /// Loads sibling modules in `dir` named like routines that are called but not defined,
-    /// until nothing new is found.
-    fn load_modules(&mut self, dir: &Path) -> Result<(), LoadError> {
+    /// Loads the modules defining routines that are called (as statements or functions) but
+    /// not defined: from `dir` by file name, then from the cell by the routines its modules
+    /// define, until nothing new is found.
+    fn load_modules(&mut self, dir: Option<&Path>, cell: Option<&Cell>) -> Result<(), LoadError> {
         let mut tried: HashSet<Vec<u8>> = HashSet::new();
+        let entries: Vec<PathBuf> = dir
+            .and_then(|d| std::fs::read_dir(d).ok())
+            .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
+            .unwrap_or_default();
         loop {
             let defined = self.defined_routines();
             let mut wanted: Vec<Vec<u8>> = Vec::new();
             for f in &self.files {
-                for st in f.file.statements() {
-                    if let StmtKind::Call(c) = &st.kind {
-                        let name = f.file.text(c.name).to_ascii_uppercase();
-                        if !defined.contains(&name) && tried.insert(name.clone()) {
-                            wanted.push(name);
-                        }
+                if f.role == Role::Config {
+                    continue;
+                }
+                for name in f.file.called_names() {
+                    let name = f.file.text(name).to_ascii_uppercase();
+                    if !defined.contains(&name) && tried.insert(name.clone()) {
+                        wanted.push(name);
                     }
                 }
             }
             if wanted.is_empty() {
                 return Ok(());
             }
-            let entries: Vec<PathBuf> = std::fs::read_dir(dir)
-                .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
-                .unwrap_or_default();
             let mut any = false;
             for name in wanted {
-                let Some(path) = entries.iter().find(|p| {
+                let beside = entries.iter().find(|p| {
                     p.extension().is_some_and(|e| {
                         e.eq_ignore_ascii_case("src") || e.eq_ignore_ascii_case("sub")
                     }) && p
                         .file_stem()
                         .is_some_and(|s| s.to_string_lossy().as_bytes().eq_ignore_ascii_case(&name))
-                }) else {
+                });
+                let in_cell = || cell?.module_of(&name, dir.unwrap_or(Path::new(".")));
+                let Some(path) = beside.map(PathBuf::as_path).or_else(in_cell) else {
                     continue;
                 };
-                if self.files.iter().any(|f| f.path.as_deref() == Some(path)) {
+                if self.find(path).is_some() {
                     continue;
                 }
                 let shown = path.display().to_string();
                 let bytes = read(path, &shown)?;
                 let id = self.files.len() as FileId;
                 self.files.push(Loaded {
-                    path: Some(path.clone()),
-                    name: shown,
-                    file: parse(&bytes, FileKind::Src, &path.display().to_string())?,
+                    path: Some(path.to_path_buf()),
+                    name: shown.clone(),
+                    file: parse(&bytes, FileKind::Src, &shown)?,
                     partner: None,
                     role: Role::Module,
                 });
                 if let Some(dat) = krl::companion_dat(path) {
-                    let shown = dat.display().to_string();
-                    let bytes = read(&dat, &shown)?;
-                    self.push_pair_dat(id, &bytes, &dat, &shown, Role::Module)?;
+                    match self.find(&dat) {
+                        // A data list the cell shares: the module's, and never written.
+                        Some(shared) => self.files[id as usize].partner = Some(shared),
+                        None => {
+                            let shown = dat.display().to_string();
+                            let bytes = read(&dat, &shown)?;
+                            self.push_pair_dat(id, &bytes, &dat, &shown, Role::Module)?;
+                        }
+                    }
                 }
                 any = true;
             }
@@ -268,6 +325,8 @@ impl Workspace {
         Workspace {
             files,
             main: self.main,
+            robot: self.robot.clone(),
+            notes: self.notes.clone(),
         }
     }
 
@@ -283,6 +342,8 @@ impl Workspace {
                 role: Role::Main,
             }],
             main: 0,
+            robot: self.robot.clone(),
+            notes: Vec::new(),
         }
     }
 
@@ -291,7 +352,7 @@ impl Workspace {
         self.files[self.main as usize].partner
     }
 
-    /// The `$config.dat`, if any.
+    /// The first shared data list (`$config.dat` when given), if any.
     pub fn config(&self) -> Option<FileId> {
         self.files
             .iter()
@@ -310,4 +371,9 @@ impl Workspace {
         let f = self.get(id);
         f.file.diagnostic_at(severity, &f.name, span, message)
     }
+}
+
+/// Whether two paths name the same file (compared as given when either cannot be resolved).
+fn same_path(a: &Path, b: &Path) -> bool {
+    a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
 }

@@ -183,13 +183,28 @@ fn batch_mirrors_the_tree_and_survives_a_broken_file() {
         .unwrap();
     let err = String::from_utf8_lossy(&st.stderr);
     assert_eq!(st.status.code(), Some(1), "{err}");
+    let stdout = String::from_utf8_lossy(&st.stdout);
     assert!(
-        err.contains("broken.src") && err.contains("failed"),
+        err.contains("broken.src") && err.contains("rejected"),
         "{err}"
     );
     assert!(
-        err.contains("batch: 3 of 4 programs written, 1 failed"),
+        err.contains("batch: 3 of 4 programs written, 1 rejected"),
         "{err}"
+    );
+    // One line per program on standard output, the rejected one flagged.
+    assert_eq!(stdout.lines().count(), 4, "{stdout}");
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.contains("broken.src: rejected, copied unchanged")),
+        "{stdout}"
+    );
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.contains("paper_path1.src: 53 of 53 targets compensated, 0 rejected")),
+        "{stdout}"
     );
     for f in [
         "cell_a/paper_path1.src",
@@ -202,7 +217,14 @@ fn batch_mirrors_the_tree_and_survives_a_broken_file() {
     ] {
         assert!(out.join(f).is_file(), "{f} written");
     }
-    assert!(!out.join("cell_b/broken.src").exists());
+    // The rejected program is in the tree unchanged, with the note of why beside it.
+    assert_eq!(
+        std::fs::read(out.join("cell_b/broken.src")).unwrap(),
+        std::fs::read(lib.join("cell_b/broken.src")).unwrap()
+    );
+    let note =
+        std::fs::read_to_string(out.join("cell_b/broken.src.robopost-rejected.txt")).unwrap();
+    assert!(note.contains("expected a value for the member"), "{note}");
     // The module is compensated as part of its caller.
     let m = std::fs::read_to_string(out.join("cell_b/robodk/drill_cell1.src")).unwrap();
     assert!(m.starts_with("; robopost: compensated with"));
@@ -231,7 +253,11 @@ fn check_reports_without_writing() {
         .output()
         .unwrap();
     assert_eq!(ok.status.code(), Some(0));
-    assert!(String::from_utf8_lossy(&ok.stdout).contains("53 targets simulated"));
+    assert!(
+        String::from_utf8_lossy(&ok.stdout).contains("53 of 53 targets compensated, 0 rejected"),
+        "{}",
+        String::from_utf8_lossy(&ok.stdout)
+    );
     // A bad calibration: a usage error, reported before any summary.
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, "{ not json").unwrap();
@@ -315,4 +341,41 @@ fn a_streamed_program_on_one_thread_gives_the_same_file() {
         "one thread and the default pool write different files"
     );
     assert!(a != std::fs::read(&input).unwrap(), "compensated");
+}
+
+/// An axis target beyond the joint limits: the controller refuses it, so the main job and
+/// `simulate program` both reject it — exit 1, the target left as written, named with its line.
+#[test]
+fn an_axis_target_beyond_the_limits_is_rejected_by_the_main_job_and_the_virtual_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("limits.src");
+    // KR 30 HA: A2 −135…35°; the second target asks for −150°.
+    let text = "DEF limits( )\n$BASE = {X 0,Y 0,Z 0,A 0,B 0,C 0}\n$TOOL = {X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP {A1 0, A2 -90, A3 90, A4 0, A5 30, A6 0}\nPTP {A1 10, A2 -150, A3 100, A4 0, A5 30, A6 0}\nPTP {A1 0, A2 -80, A3 90, A4 0, A5 30, A6 0}\nEND\n";
+    std::fs::write(&prog, text).unwrap();
+    let out = dir.path().join("out.src");
+    let st = main_job(&prog, CAL, &out);
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("limits.src:5:1") && err.contains("beyond the joint limits (A2 = -150°"),
+        "{err}"
+    );
+    assert!(err.contains("2 of 3 targets compensated, 1 rejected"), "{err}");
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(written.contains("PTP {A1 10, A2 -150, A3 100, A4 0, A5 30, A6 0}"));
+    let csv = dir.path().join("m.csv");
+    let sim = robopost()
+        .args(["simulate", "program", "--truth", "fixtures/measurements/kr30ha-truth.json"])
+        .arg(&prog)
+        .arg("-o")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&sim.stderr);
+    assert_eq!(sim.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("limits.src:5:1") && err.contains("beyond the joint limits (A2 = -150°"),
+        "{err}"
+    );
+    assert!(!csv.exists());
 }

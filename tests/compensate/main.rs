@@ -1,5 +1,6 @@
 //! Compensation tests: the solver and sequence logic (`core`), and later the KRL pipeline.
 
+mod cell;
 mod circular_angle;
 mod cli;
 mod core;

@@ -476,7 +476,8 @@ fn every_language_construct() {
         -1.0
     );
     let st = f.stats();
-    assert_eq!((st.opaque, st.routines, st.motions), (3, 3, 17));
+    // `IMPORT` alone stays opaque (ANIN and ON_ERROR_PROCEED are understood).
+    assert_eq!((st.opaque, st.routines, st.motions), (1, 3, 17));
     // The string with a semicolon is code, not a comment.
     let lt = find(&|s| f.text(s.head).starts_with(b"label_text"));
     let StmtKind::Assign(a) = &lt.kind else {
@@ -676,4 +677,90 @@ fn rewriting_every_number_of_the_cam_program_changes_nothing_else() {
         e.apply(file.source()).unwrap()
     };
     assert_eq!(skeleton(&f), skeleton(&g));
+}
+
+/// What system files (bas.src, kuka_internals, $config.dat) write: protected externals, string
+/// results, sized array parameters, slices, `; FOLD` with a blank, `ON_ERROR_PROCEED`,
+/// `ANOUT`/`ANIN` — each understood (not opaque), the blocks closed.
+#[test]
+fn system_file_forms() {
+    let src = b"DEF sys( )\r\n\
+EXTP  IR_STOPM ( )\r\n\
+EXTFCTP CHAR[15] PLC_NAME (INT:IN )\r\n\
+; FOLD INI\r\n\
+  BAS (#INITMOV,0 )\r\n\
+; ENDFOLD (INI)\r\n\
+BASE_NAME[1,] = \"Table\"\r\n\
+MatrixToRpy (lrT[,], f.A)\r\n\
+ON_ERROR_PROCEED\r\n\
+ANOUT ON $ANOUT[2] = 0.5 * $VEL_ACT DELAY=-0.1\r\n\
+ANIN OFF rLevel\r\n\
+END\r\n\
+GLOBAL DEFFCT CHAR[15] K_ADDR(BASE_NO :IN)\r\n\
+  RETURN \" \"\r\n\
+ENDFCT\r\n\
+DEFFCT INT INTERIMENERGY(STRVAR[256] :IN)\r\n\
+ENDFCT\r\n";
+    let f = krl::parse(src, krl::FileKind::Src).unwrap();
+    assert!(f.problems().is_empty(), "{:?}", f.problems());
+    assert_eq!(f.stats().opaque, 0);
+    assert_eq!(f.stats().routines, 3);
+    let heads: Vec<(String, String)> = f
+        .routines()
+        .map(|(_, h)| {
+            (
+                text(&f, h.name),
+                h.params
+                    .iter()
+                    .map(|p| text(&f, p.span))
+                    .collect::<Vec<_>>()
+                    .join(","),
+            )
+        })
+        .collect();
+    assert_eq!(heads[1], ("K_ADDR".into(), "BASE_NO :IN".into()));
+    assert_eq!(heads[2], ("INTERIMENERGY".into(), "STRVAR[256] :IN".into()));
+    let exts: Vec<_> = f
+        .statements()
+        .filter_map(|s| match &s.kind {
+            StmtKind::Ext(e) => Some((e.function, e.protected, text(&f, e.name))),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        exts,
+        [
+            (false, true, "IR_STOPM".into()),
+            (true, true, "PLC_NAME".into())
+        ]
+    );
+    assert_eq!(f.folds().len(), 1);
+    assert_eq!(text(&f, f.folds()[0].title), "INI");
+    // Slices: a row (`[1,]`) and a whole array (`[,]`), kept apart from elements.
+    let slices: Vec<(usize, bool)> = f
+        .statements()
+        .flat_map(|s| {
+            let mut v = Vec::new();
+            f.visit_stmt_exprs(s, &mut |e| {
+                if let Expr::Path(p) = e {
+                    for a in &p.access {
+                        if let Access::Index { items, slice, .. } = a {
+                            v.push((items.len(), *slice));
+                        }
+                    }
+                }
+            });
+            v
+        })
+        .collect();
+    assert_eq!(slices, [(1, true), (0, true), (1, false)]);
+    let analog: Vec<(bool, bool)> = f
+        .statements()
+        .filter_map(|s| match &s.kind {
+            StmtKind::Anout(a) => Some((a.input, a.on)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(analog, [(false, true), (true, false)]);
+    assert_eq!(f.emit(), src);
 }

@@ -1,7 +1,7 @@
 //! Variables and frames: assignments to variables, `$BASE`/`$TOOL`, `BASE_DATA[n]`/`TOOL_DATA[n]`
 //! from the program, the `$config.dat` or the command line, and `FDAT` base numbers.
 
-use crate::krl::{Access, Expr, Stmt};
+use crate::krl::{Access, Expr, SourceFile, Stmt};
 
 use super::eval::reason;
 use super::*;
@@ -9,12 +9,239 @@ use crate::motion::frame::Frame;
 use crate::motion::value::{self, Declared, Value, VarRef};
 use crate::motion::workspace::FileId;
 
+/// An assignable place: a variable or array element, and the members under it
+/// (`P[3].X`: root `P`, index `[3]`, fields `X`).
+pub(super) struct Place {
+    pub root: Vec<u8>,
+    pub index: Option<Vec<i64>>,
+    pub fields: Vec<Vec<u8>>,
+}
+
+impl Place {
+    /// `P`, `P[i, j]`, `P.X`, `P[i].F.X` as written (for messages).
+    pub fn text(&self) -> String {
+        let mut t = String::from_utf8_lossy(&self.root).into_owned();
+        if let Some(ix) = &self.index {
+            t += &format!(
+                "[{}]",
+                ix.iter().map(i64::to_string).collect::<Vec<_>>().join(",")
+            );
+        }
+        for f in &self.fields {
+            t.push('.');
+            t += &String::from_utf8_lossy(f);
+        }
+        t
+    }
+}
+
+/// `value` with its member at `fields` replaced by `new`: a position's components (`X`,
+/// `A1`, `S`, `T`; a value it does not have yet starts a partial position) or a structure's
+/// members, nested. A member set from a value not known before run time makes the whole
+/// value unknown, saying which member and why.
+pub(super) fn with_member<'f>(
+    value: Value<'f>,
+    fields: &[Vec<u8>],
+    new: Value<'f>,
+    place: &str,
+) -> Value<'f> {
+    let Some((field, rest)) = fields.split_first() else {
+        return new;
+    };
+    if new.is_unknown() {
+        // The whole value is unknown now (the message says which member and why).
+        return new;
+    }
+    match value {
+        Value::Pos(mut pos) if rest.is_empty() => {
+            let component = value::component(field);
+            match (component, field.as_slice()) {
+                (Some((axis, k)), _) if axis == pos.axis || pos.v.iter().all(Option::is_none) => {
+                    let Some(x) = new.as_f64() else {
+                        return Value::Unknown(format!(
+                            "{place} was set from a value that is not a number"
+                        ));
+                    };
+                    pos.axis = axis;
+                    pos.v[k] = Some(x);
+                }
+                (_, b"S") | (_, b"T") => {
+                    let Some(x) = new.as_int() else {
+                        return Value::Unknown(format!(
+                            "{place} was set from a value that is not an integer"
+                        ));
+                    };
+                    if field == b"S" {
+                        pos.s = Some(x as u8);
+                    } else {
+                        pos.t = Some(x as u8);
+                    }
+                }
+                // External axes and other members do not change the position.
+                _ => return Value::Pos(pos),
+            }
+            // Computed now: its numbers are no longer those of the aggregate.
+            pos.origin = None;
+            Value::Pos(pos)
+        }
+        Value::Struc(mut members) => {
+            let at = members.iter().position(|(n, _)| n == field);
+            let old = at.map_or_else(
+                || Value::Unknown("a member not set".into()),
+                |i| members[i].1.clone(),
+            );
+            let v = with_member(old, rest, new, place);
+            match at {
+                Some(i) => members[i].1 = v,
+                None => members.push((field.clone(), v)),
+            }
+            Value::Struc(members)
+        }
+        // Nothing known yet: a structure (or a position, by its component names) begins.
+        Value::Unknown(_) => {
+            let start = if rest.is_empty() && value::component(field).is_some() {
+                Value::Pos(value::Pos {
+                    axis: false,
+                    v: [None; 6],
+                    s: None,
+                    t: None,
+                    origin: None,
+                })
+            } else {
+                Value::Struc(Vec::new())
+            };
+            with_member(start, fields, new, place)
+        }
+        _ => Value::Unknown(format!("{place}: a member of a value without members")),
+    }
+}
+
 impl<'f> Simulator<'f> {
-    pub(super) fn set_var(&mut self, name: &[u8], value: Value<'f>, scope: &mut Scope<'f>) {
-        if scope.vars.contains_key(name) || !self.globals.vars.contains_key(name) {
+    /// The key of variable `name` used in `file` in the walk's global store: a variable of a
+    /// module's own data (not shared by the cell) is that module's, so two modules' `i` are
+    /// two variables.
+    pub(super) fn global_key(&self, file: FileId, name: &[u8]) -> Vec<u8> {
+        let own = self
+            .module_of
+            .get(file as usize)
+            .copied()
+            .unwrap_or(usize::MAX);
+        match self.symbols.get(own).and_then(|s| s.get(name)) {
+            Some(sym) if self.module_of_file(sym.file) == Some(own) => {
+                let mut k = format!("{own}:").into_bytes();
+                k.extend_from_slice(name);
+                k
+            }
+            _ => name.to_vec(),
+        }
+    }
+
+    fn module_of_file(&self, f: &SourceFile) -> Option<usize> {
+        let id = self.id_of(f) as usize;
+        self.module_of.get(id).copied().filter(|&m| m != usize::MAX)
+    }
+
+    /// Sets variable `name`: the routine's own (declared in it, a parameter, a loop
+    /// variable it declares) or else the data the routine sees (its module's, the cell's),
+    /// which other routines read after it.
+    pub(super) fn set_var(
+        &mut self,
+        file: FileId,
+        name: &[u8],
+        value: Value<'f>,
+        scope: &mut Scope<'f>,
+    ) {
+        self.assignments += 1;
+        if scope.vars.contains_key(name) {
+            if scope.params.contains(name) {
+                scope.written.insert(name.to_vec());
+            }
             scope.vars.insert(name.to_vec(), value);
         } else {
-            self.globals.vars.insert(name.to_vec(), value);
+            let key = self.global_key(file, name);
+            self.globals.vars.insert(key, value);
+        }
+    }
+
+    /// Sets element `idx` of array `name` (see [`Simulator::set_var`] for whose it is).
+    pub(super) fn set_element(
+        &mut self,
+        file: FileId,
+        name: &[u8],
+        idx: Vec<i64>,
+        value: Value<'f>,
+        scope: &mut Scope<'f>,
+    ) {
+        self.assignments += 1;
+        if scope.vars.contains_key(name) || scope.arrays.contains_key(name) {
+            if scope.params.contains(name) {
+                scope.written.insert(name.to_vec());
+            }
+            scope.elements.insert((name.to_vec(), idx), value);
+        } else {
+            let key = self.global_key(file, name);
+            self.globals.elements.insert((key, idx), value);
+        }
+    }
+
+    /// The place a path names, its indices evaluated; `Err` says why it is not one.
+    pub(super) fn place(
+        &self,
+        file: FileId,
+        p: &'f crate::krl::Path,
+        scope: &Scope<'f>,
+    ) -> Result<Place, String> {
+        let src = self.src(file);
+        let mut place = Place {
+            root: upper(src.text(p.root)),
+            index: None,
+            fields: Vec::new(),
+        };
+        for (k, a) in p.access.iter().enumerate() {
+            match a {
+                Access::Index { items, slice, .. } if k == 0 && !slice => {
+                    let idx: Result<Vec<i64>, String> = items
+                        .iter()
+                        .map(|e| {
+                            let v = self.eval(file, e, scope);
+                            v.as_int().ok_or_else(|| reason(&v, "an index"))
+                        })
+                        .collect();
+                    place.index = Some(idx?);
+                }
+                Access::Field { name, .. } => place.fields.push(upper(src.text(*name))),
+                _ => return Err("an index that is not the first access".into()),
+            }
+        }
+        Ok(place)
+    }
+
+    /// The value at a place's root (the variable, or the element).
+    pub(super) fn root_value(&self, file: FileId, place: &Place, scope: &Scope<'f>) -> Value<'f> {
+        match &place.index {
+            Some(idx) => self.element(file, &place.root, idx, scope),
+            None => self.lookup(file, &place.root, scope),
+        }
+    }
+
+    /// Stores `value` at `place` (members replaced inside the root's value).
+    pub(super) fn store(
+        &mut self,
+        file: FileId,
+        place: Place,
+        value: Value<'f>,
+        scope: &mut Scope<'f>,
+    ) {
+        let value = if place.fields.is_empty() {
+            value
+        } else {
+            let text = place.text();
+            let current = self.root_value(file, &place, scope);
+            with_member(current, &place.fields, value, &text)
+        };
+        match place.index {
+            Some(idx) => self.set_element(file, &place.root, idx, value, scope),
+            None => self.set_var(file, &place.root, value, scope),
         }
     }
 
@@ -31,88 +258,119 @@ impl<'f> Simulator<'f> {
         };
         let src = self.src(file);
         let root = upper(src.text(p.root));
-        if p.access.is_empty() {
-            match root.as_slice() {
-                b"$BASE" => {
-                    self.state.base = self.frame_value(file, s, rhs, scope, "$BASE");
-                    return;
-                }
-                b"$TOOL" => {
-                    self.state.tool = self.frame_value(file, s, rhs, scope, "$TOOL");
-                    return;
-                }
-                b"$IPO_MODE" => {
-                    self.state.external_tcp =
-                        self.is_tcp(file, rhs, scope).then_some((file, s.head));
-                    return;
-                }
-                b"$ORI_TYPE" => {
-                    self.state.ori_type = self.ori_type_of(file, rhs, scope);
-                    return;
-                }
-                b"LDAT_ACT" => {
-                    self.state.ldat_ori = match self.eval(file, rhs, scope) {
-                        Value::Ldat(ori) => ori.filter(|o| o != b"VAR"),
-                        _ => None,
-                    };
-                    return;
-                }
-                b"FDAT_ACT" => {
-                    self.state.fdat = match self.eval(file, rhs, scope) {
-                        Value::Fdat(f) => Some(f),
-                        _ => None,
-                    };
-                    return;
-                }
-                _ => {}
-            }
-            if root.starts_with(b"$") {
-                return; // other system variables do not move the robot
-            }
-            let mut v = self.eval(file, rhs, scope);
-            if let Value::Pos(pos) = &mut v {
-                if let Some(o) = pos.origin.as_mut().filter(|o| o.var.is_none()) {
-                    o.var = self.assigned_point(file, s, p.root, &root);
-                }
-            }
-            self.set_var(&root, v, scope);
-            return;
-        }
         if root.starts_with(b"$") {
+            self.assign_system(file, s, p, &root, rhs, scope);
             return;
         }
-        // An element or member assignment: `P[3] = {…}`, `P1.X = 100`.
-        let v = self.eval(file, rhs, scope);
-        match p.access.as_slice() {
-            [Access::Index { items, .. }] => {
-                let idx: Option<Vec<i64>> = items
-                    .iter()
-                    .map(|e| self.eval(file, e, scope).as_int())
-                    .collect();
-                if let Some(idx) = idx {
-                    let key = (root, idx);
-                    if scope.elements.contains_key(&key)
-                        || !self.globals.elements.contains_key(&key)
-                            && scope.vars.contains_key(&key.0)
-                    {
-                        scope.elements.insert(key, v);
+        match (root.as_slice(), p.access.is_empty()) {
+            (b"LDAT_ACT", true) => {
+                self.state.ldat_ori = match self.eval(file, rhs, scope) {
+                    Value::Ldat(ori) => ori.filter(|o| o != b"VAR"),
+                    _ => None,
+                };
+                return;
+            }
+            (b"FDAT_ACT", true) => {
+                self.state.fdat = match self.eval(file, rhs, scope) {
+                    Value::Fdat(f) => Some(f),
+                    _ => None,
+                };
+                return;
+            }
+            _ => {}
+        }
+        if p.access
+            .iter()
+            .any(|a| matches!(a, Access::Index { slice: true, .. }))
+        {
+            // A slice (`NAME[1,] = "PICK"`): a string or a row of an array, nothing that moves.
+            return;
+        }
+        let mut v = self.eval(file, rhs, scope);
+        let place = match self.place(file, p, scope) {
+            Ok(place) => place,
+            Err(why) => {
+                // An element whose index is known only at run time: which one it sets is not
+                // known, so none of the array's elements is known after it (said once).
+                let indexed = matches!(p.access.first(), Some(Access::Index { .. }));
+                let shown = src.text_lossy(p.root).into_owned();
+                let first = !self.unknown_arrays.contains_key(&root);
+                let said = format!("{shown}[…] set at line {} with an index {why}", s.line);
+                if indexed {
+                    self.unknown_arrays.entry(root.clone()).or_insert(said);
+                } else {
+                    self.set_var(file, &root, Value::Unknown(said), scope);
+                }
+                if first || !indexed {
+                    let whole = if indexed {
+                        " (the whole array; said once)"
                     } else {
-                        self.globals.elements.insert(key, v);
+                        ""
+                    };
+                    self.warn(
+                        file,
+                        s.head,
+                        format!("this assignment is not followed ({why}): what it sets is unknown after it{whole}"),
+                    );
+                }
+                return;
+            }
+        };
+        if let Value::Unknown(why) = &v {
+            // Said where it happens: the next use says only that the value is unknown.
+            v = Value::Unknown(format!(
+                "{} set at line {} from {why}",
+                src.text_lossy(p.span),
+                s.line
+            ));
+        }
+        if let (Value::Pos(pos), None, true) = (&mut v, &place.index, place.fields.is_empty()) {
+            if let Some(o) = pos.origin.as_mut().filter(|o| o.var.is_none()) {
+                o.var = self.assigned_point(file, s, p.root, &root);
+            }
+        }
+        self.store(file, place, v, scope);
+    }
+
+    /// An assignment to a system variable: frames and interpolation settings the walk
+    /// follows (whole or a member: `$BASE.X = …`); others do not move the robot.
+    fn assign_system(
+        &mut self,
+        file: FileId,
+        s: &'f Stmt,
+        p: &'f crate::krl::Path,
+        root: &[u8],
+        rhs: &'f Expr,
+        scope: &mut Scope<'f>,
+    ) {
+        let whole = p.access.is_empty();
+        match root {
+            b"$BASE" | b"$TOOL" => {
+                let what = if root == b"$BASE" { "$BASE" } else { "$TOOL" };
+                let st = if whole {
+                    self.frame_value(file, s, rhs, scope, what)
+                } else {
+                    match self.place(file, p, scope) {
+                        Ok(place) => {
+                            let current = self.lookup(file, root, scope);
+                            let v = self.eval(file, rhs, scope);
+                            let v = with_member(current, &place.fields, v, &place.text());
+                            self.frame_of(file, s, v, what)
+                        }
+                        Err(why) => FrameState::Unknown(file, s.head, why, GIVE_FRAME),
                     }
+                };
+                if root == b"$BASE" {
+                    self.state.base = st;
+                } else {
+                    self.state.tool = st;
                 }
             }
-            [Access::Field { name, .. }] => {
-                let field = upper(src.text(*name));
-                let mut current = self.lookup(file, &root, scope);
-                if let (Value::Pos(pos), Some((axis, k))) = (&mut current, value::component(&field))
-                {
-                    if pos.axis == axis {
-                        pos.v[k] = v.as_f64();
-                        // Computed now: its numbers are no longer those of the aggregate.
-                        pos.origin = None;
-                    }
-                }
-                self.set_var(&root, current, scope);
+            b"$IPO_MODE" if whole => {
+                self.state.external_tcp = self.is_tcp(file, rhs, scope).then_some((file, s.head));
+            }
+            b"$ORI_TYPE" if whole => {
+                self.state.ori_type = self.ori_type_of(file, rhs, scope);
             }
             _ => {}
         }
@@ -155,18 +413,21 @@ impl<'f> Simulator<'f> {
         scope: &Scope<'f>,
         what: &str,
     ) -> FrameState {
-        match self.eval(file, rhs, scope) {
-            Value::Pos(p) if !p.axis && p.is_complete() => {
-                FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
-            }
+        let v = self.eval(file, rhs, scope);
+        self.frame_of(file, s, v, what)
+    }
+
+    /// A frame's state from a value (missing components of a frame aggregate are zero).
+    pub(super) fn frame_of(&self, file: FileId, s: &Stmt, v: Value<'f>, what: &str) -> FrameState {
+        match v {
             Value::Pos(p) if !p.axis => {
-                // Missing components of a frame aggregate are zero.
                 FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
             }
             v => FrameState::Unknown(
                 file,
                 s.head,
                 format!("{what} is set from {}", reason(&v, "an unknown value")),
+                GIVE_FRAME,
             ),
         }
     }
@@ -184,7 +445,7 @@ impl<'f> Simulator<'f> {
             Some(Value::Pos(p)) if !p.axis => {
                 FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
             }
-            _ => FrameState::Unknown(0, Span::default(), String::new()),
+            _ => FrameState::Unknown(0, Span::default(), String::new(), GIVE_FRAME),
         }
     }
 
@@ -224,14 +485,11 @@ impl<'f> Simulator<'f> {
 
     pub(super) fn frame_by_number(&self, file: FileId, s: &Stmt, base: bool, n: i64) -> FrameState {
         match self.config_frame(base, n) {
-            FrameState::Unknown(..) => FrameState::Unknown(
-                file,
-                s.head,
-                format!(
-                    "{}[{n}] is not known",
-                    if base { "BASE_DATA" } else { "TOOL_DATA" }
-                ),
-            ),
+            FrameState::Unknown(..) => {
+                let what = format!("{}[{n}]", if base { "BASE_DATA" } else { "TOOL_DATA" });
+                self.need(what.clone());
+                FrameState::Unknown(file, s.head, format!("{what} is not known"), GIVE_FRAME)
+            }
             k => k,
         }
     }

@@ -98,7 +98,7 @@ impl<'f> Simulator<'f> {
                 Some(v) => v,
                 None => Value::Unknown("SIPO_MODE without argument".into()),
             },
-            _ => Value::Unknown(format!("the function {}", src.text_lossy(c.name))),
+            _ => self.user_function(file, c, scope),
         }
     }
 
@@ -136,8 +136,13 @@ impl<'f> Simulator<'f> {
     }
 
     pub(super) fn lookup(&self, file: FileId, name: &[u8], scope: &Scope<'f>) -> Value<'f> {
-        if let Some(v) = scope.vars.get(name).or_else(|| self.globals.vars.get(name)) {
+        if let Some(v) = scope.vars.get(name) {
             return v.clone();
+        }
+        if !self.globals.vars.is_empty() {
+            if let Some(v) = self.globals.vars.get(&self.global_key(file, name)) {
+                return v.clone();
+            }
         }
         match name {
             b"$NULLFRAME" => {
@@ -148,6 +153,16 @@ impl<'f> Simulator<'f> {
                     t: None,
                     origin: None,
                 })
+            }
+            // The operating mode: compensated programs are for the production run,
+            // automatic external (said once, see `Simulator::mode_assumed`).
+            b"$T1" | b"$T2" | b"$AUT" | b"$EXT" => {
+                self.mode_assumed.set(true);
+                return Value::Bool(name == b"$EXT");
+            }
+            b"$MODE_OP" => {
+                self.mode_assumed.set(true);
+                return Value::Enum(b"EX".to_vec());
             }
             b"$POS_ACT" | b"$POS_INT" | b"$POS_RET" => return self.current_pos(false),
             b"$AXIS_ACT" | b"$AXIS_INT" | b"$AXIS_RET" => return self.current_pos(true),
@@ -206,7 +221,13 @@ impl<'f> Simulator<'f> {
                     )),
                 }
             }
-            None => Value::Unknown(format!("{}, not declared", String::from_utf8_lossy(name))),
+            None => {
+                self.need(format!(
+                    "{} (declared nowhere)",
+                    String::from_utf8_lossy(name)
+                ));
+                Value::Unknown(format!("{}, not declared", String::from_utf8_lossy(name)))
+            }
         }
     }
 
@@ -232,13 +253,21 @@ impl<'f> Simulator<'f> {
         idx: &[i64],
         scope: &Scope<'f>,
     ) -> Value<'f> {
-        let key = (name.to_vec(), idx.to_vec());
-        if let Some(v) = scope
-            .elements
-            .get(&key)
-            .or_else(|| self.globals.elements.get(&key))
-        {
+        if let Some(v) = scope.elements.get(&(name.to_vec(), idx.to_vec())) {
             return v.clone();
+        }
+        if let Some(why) = self.unknown_arrays.get(name) {
+            return Value::Unknown(why.clone());
+        }
+        if let Some((caller, array)) = scope.arrays.get(name) {
+            // An array passed whole: the caller's elements.
+            return self.element(*caller, array, idx, &Scope::default());
+        }
+        if !self.globals.elements.is_empty() {
+            let key = (self.global_key(file, name), idx.to_vec());
+            if let Some(v) = self.globals.elements.get(&key) {
+                return v.clone();
+            }
         }
         if idx.len() == 1 && (name == b"BASE_DATA" || name == b"TOOL_DATA") {
             let base = name == b"BASE_DATA";
@@ -293,6 +322,9 @@ impl<'f> Simulator<'f> {
         let name = upper(src.text(p.root));
         let mut access = p.access.iter();
         let mut v = match p.access.first() {
+            Some(Access::Index { slice: true, .. }) => {
+                return Value::Unknown(format!("the array slice {}", src.text_lossy(p.span)))
+            }
             Some(Access::Index { items, .. }) => {
                 access.next();
                 let idx: Result<Vec<i64>, String> = items
@@ -349,6 +381,14 @@ impl<'f> Simulator<'f> {
                         b"BASE".to_vec()
                     }),
                     _ => Value::Unknown(format!("the member {}", String::from_utf8_lossy(&field))),
+                },
+                Value::Struc(members) => match members.into_iter().find(|(n, _)| *n == field) {
+                    Some((_, v)) => v,
+                    None => Value::Unknown(format!(
+                        "the member {} of {}, not set",
+                        String::from_utf8_lossy(&field),
+                        src.text_lossy(p.root)
+                    )),
                 },
                 u @ Value::Unknown(_) => u,
                 _ => Value::Unknown("a member of a value without members".into()),

@@ -1,7 +1,10 @@
 //! The program walker: runs a KRL program as the controller would before run time — routines
-//! and calls (same file or sibling modules), `FOR` loops with known bounds, `IF`/`SWITCH`/
-//! `WHILE` with known conditions, variable and frame assignments (`$BASE`, `$TOOL`,
-//! `BASE_DATA[n]`, `FDAT_ACT` + `BAS(...)` of inline forms, `WITH` clauses) — and records every
+//! and calls with their `:IN`/`:OUT` parameters (same file, sibling modules, the cell's),
+//! functions (`DEFFCT`) whose bodies can be evaluated, `FOR` loops with known bounds,
+//! `IF`/`SWITCH`/`WHILE` with known conditions (a loop that ends on a run-time condition is
+//! followed twice, as a cycle), variable, array element and structure member assignments,
+//! frames (`$BASE`, `$TOOL`, `BASE_DATA[n]`, `FDAT_ACT` + `BAS(...)` of inline forms, `WITH`
+//! clauses) — and records every
 //! motion's target as a [`Stop`]: goal TCP pose in the robot base frame, the controller's
 //! nominal axes (IK with S/T, or by nearness and the start's S for path motions), and the
 //! arrival motion of every axis from the sampled interpolation (along the curve for the `SPL`
@@ -25,6 +28,7 @@ mod assign;
 mod call;
 mod eval;
 mod flow;
+mod function;
 mod spline;
 mod stream;
 mod target;
@@ -159,6 +163,23 @@ pub struct Simulation<'f> {
     pub needs_whole_tree: bool,
     /// The circular motions with `CA` compensated by construction, by end stop.
     pub arcs: Vec<CircularAngle>,
+    /// Executions of motions whose target the walk could not resolve before run time (left
+    /// unchanged): a run-time branch, an unknown value, a computed position it cannot know.
+    pub lost: usize,
+    /// What the program needs that was found nowhere (`routine SetFrames`, `BASE_DATA[3]`,
+    /// `XHOME (declared nowhere)`): what the user must add.
+    pub needs: std::collections::BTreeSet<String>,
+    /// Declared points used as the offset of a geometric operator (`P1 : P2`: P2), which
+    /// must keep their written numbers there.
+    pub pinned: Vec<Pinned<'f>>,
+}
+
+/// A declared point used, unchanged, as the offset of a geometric operator in a target.
+#[derive(Clone, Copy, Debug)]
+pub struct Pinned<'f> {
+    pub origin: Origin<'f>,
+    /// The place naming it (file, name).
+    pub site: (FileId, Span),
 }
 
 impl Simulation<'_> {
@@ -191,9 +212,13 @@ enum FrameState {
     /// `$NULLFRAME` and say so.
     Unset,
     Known(Frame),
-    /// Set from something unknown: (file, span, why).
-    Unknown(FileId, Span, String),
+    /// Set from something unknown: (file, span, why, what the user can give).
+    Unknown(FileId, Span, String, &'static str),
 }
+
+/// The hint of a frame from `$config.dat` or the command line.
+const GIVE_FRAME: &str =
+    "give the robot's $config.dat (--cell DIR, --config FILE), or the frame with --base N=X,Y,Z,A,B,C / --tool N=X,Y,Z,A,B,C";
 
 #[derive(Clone, Copy, Debug)]
 struct Current {
@@ -222,6 +247,13 @@ struct State {
 struct Scope<'f> {
     vars: HashMap<Vec<u8>, Value<'f>>,
     elements: HashMap<(Vec<u8>, Vec<i64>), Value<'f>>,
+    /// Parameters bound by the call: their declarations in the body keep the value.
+    params: HashSet<Vec<u8>>,
+    /// Arrays passed whole (`P[]`, `P[,]`): parameter → the caller's array, whose declared
+    /// elements are read where the routine has no value of its own.
+    arrays: HashMap<Vec<u8>, (FileId, Vec<u8>)>,
+    /// Parameters the routine assigned (only those go back to the caller).
+    written: HashSet<Vec<u8>>,
 }
 
 enum Flow {
@@ -242,9 +274,7 @@ pub fn simulate<'f>(
     sim.out.stops.reserve(motions);
     sim.run(None);
     sim.finish_segment();
-    let mut out = sim.out;
-    out.prefixes = sim.prefixes.into_inner();
-    out
+    sim.into_simulation()
 }
 
 /// The deferred arrival rates of short LIN segments, in parallel: each needs only its own end
@@ -324,20 +354,61 @@ struct Simulator<'f> {
     globals: Scope<'f>,
     state: State,
     out: Simulation<'f>,
-    seen: HashSet<(FileId, u32, String)>,
+    /// Messages already given, by place and wording (numbers aside): (diagnostic, repeats).
+    seen: HashMap<(FileId, u32, Severity, String), (usize, usize)>,
     depth: usize,
     steps: u64,
     warned_frames: bool,
+    /// The note on external axes was given.
+    noted_external: bool,
     /// Prefix frames of geometric operators (see `Origin::prefix`), filled while evaluating.
     prefixes: std::cell::RefCell<Vec<Frame>>,
     /// The `SPL` segments of CP spline blocks, whose arrivals are taken along the curve.
     splines: Vec<spline::SplineSegment>,
     /// Stops already handed to a [`RunSink`].
     handed: usize,
+    /// What the program needs that was found nowhere, noted while evaluating.
+    needs: std::cell::RefCell<std::collections::BTreeSet<String>>,
+    /// A loop exit (`EXIT`, `RETURN`) under a condition known only at run time was passed:
+    /// where (the loop around it ends on a run-time condition).
+    exit_unknown: Option<(FileId, u32)>,
+    /// Assignments executed (a loop whose iteration changes nothing never ends).
+    assignments: u64,
+    /// Arrays an element of which was set with an index known only at run time: none of
+    /// their elements is known after it (why).
+    unknown_arrays: HashMap<Vec<u8>, String>,
+    /// The operating mode (`$T1`, `$EXT`, `$MODE_OP`) was read: automatic external assumed.
+    mode_assumed: std::cell::Cell<bool>,
+    /// Functions being evaluated, and the statements they ran (see `function`).
+    fn_depth: std::cell::Cell<usize>,
+    fn_steps: std::cell::Cell<u64>,
 }
 
 fn upper(b: &[u8]) -> Vec<u8> {
     b.to_ascii_uppercase()
+}
+
+/// A message with its numbers left out: the same message of every execution of a line.
+fn numbers_aside(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut in_number = false;
+    for c in message.chars() {
+        let digit = c.is_ascii_digit() || (in_number && c == '.');
+        if digit {
+            if !in_number {
+                out.push('#');
+            }
+        } else {
+            out.push(c);
+        }
+        in_number = digit;
+    }
+    out
+}
+
+/// How often a line said a message, as appended to it.
+pub(crate) fn repeats(n: usize) -> String {
+    format!(" (this line, {n} times: the first is shown)")
 }
 
 impl<'f> Simulator<'f> {
@@ -348,10 +419,15 @@ impl<'f> Simulator<'f> {
     ) -> Simulator<'f> {
         let mut module_of = vec![usize::MAX; ws.files.len()];
         let mut symbols = Vec::new();
-        let mut config = None;
+        let shared: Vec<&SourceFile> = ws
+            .files
+            .iter()
+            .filter(|f| f.role == super::workspace::Role::Config)
+            .map(|f| &f.file)
+            .collect();
+        let config = (!shared.is_empty()).then(|| Symbols::shared(&shared));
         for (i, f) in ws.files.iter().enumerate() {
-            if f.role == super::workspace::Role::Config {
-                config = Some(Symbols::new(&[&f.file]));
+            if f.role == super::workspace::Role::Config && module_of[i] == usize::MAX {
                 continue;
             }
             if module_of[i] != usize::MAX {
@@ -395,14 +471,38 @@ impl<'f> Simulator<'f> {
                 last_abc: [0.0; 3],
             },
             out: Simulation::default(),
-            seen: HashSet::new(),
+            seen: HashMap::new(),
             depth: 0,
             steps: 0,
             warned_frames: false,
+            noted_external: false,
             prefixes: Default::default(),
             splines: Vec::new(),
             handed: 0,
+            needs: Default::default(),
+            exit_unknown: None,
+            assignments: 0,
+            unknown_arrays: HashMap::new(),
+            mode_assumed: Default::default(),
+            fn_depth: Default::default(),
+            fn_steps: Default::default(),
         }
+    }
+
+    /// The walk's result, its messages counted and its notes gathered.
+    pub(super) fn into_simulation(mut self) -> Simulation<'f> {
+        self.count_repeats();
+        if self.mode_assumed.get() {
+            self.out.diagnostics.push(Diagnostic::new(
+                Severity::Warning,
+                &self.ws.get(self.ws.main).name,
+                "the program reads the operating mode ($T1, $T2, $AUT, $EXT or $MODE_OP): walked as it runs in production, automatic external ($EXT)",
+            ));
+        }
+        let mut out = self.out;
+        out.prefixes = self.prefixes.into_inner();
+        out.needs.append(&mut self.needs.into_inner());
+        out
     }
 
     pub(super) fn src(&self, file: FileId) -> &'f SourceFile {
@@ -417,11 +517,35 @@ impl<'f> Simulator<'f> {
             .unwrap_or(0) as FileId
     }
 
+    /// Reports a message once per place and wording: a line executed many times (a loop)
+    /// says it once, with the count (see [`Simulator::count_repeats`]).
     pub(super) fn report(&mut self, severity: Severity, file: FileId, span: Span, message: String) {
-        if self.seen.insert((file, span.start, message.clone())) {
-            let d = self.ws.diagnostic(severity, file, span, message);
-            self.out.diagnostics.push(d);
+        let key = (file, span.start, severity, numbers_aside(&message));
+        match self.seen.get_mut(&key) {
+            Some((_, n)) => *n += 1,
+            None => {
+                let d = self.ws.diagnostic(severity, file, span, message);
+                self.seen.insert(key, (self.out.diagnostics.len(), 0));
+                self.out.diagnostics.push(d);
+            }
         }
+    }
+
+    /// Appends to every message given more than once how often its line said it.
+    pub(super) fn count_repeats(&mut self) {
+        for (i, n) in self.seen.values() {
+            if *n > 0 {
+                if let Some(d) = self.out.diagnostics.get_mut(*i) {
+                    d.message += &repeats(n + 1);
+                }
+            }
+        }
+        self.seen.clear();
+    }
+
+    /// Notes something the program needs that was found nowhere.
+    pub(super) fn need(&self, what: String) {
+        self.needs.borrow_mut().insert(what);
     }
 
     pub(super) fn warn(&mut self, file: FileId, span: Span, message: impl Into<String>) {
@@ -434,15 +558,19 @@ impl<'f> Simulator<'f> {
     }
 
     /// A target the robot cannot reach: an error of that target, the program goes on (its
-    /// position after it unknown).
+    /// position after it unknown). The message names the robot assumed.
     pub(super) fn unreachable(&mut self, file: FileId, s: &Stmt, why: String) {
         self.out.unreachable += 1;
+        let robot = match self.ws.robot.as_str() {
+            "" => String::new(),
+            r => format!(" (robot: {r})"),
+        };
         self.report(
             Severity::Error,
             file,
             s.head,
             format!(
-                "{why}: this motion is left unchanged and the robot's position after it is unknown"
+                "{why}{robot}: this motion is left unchanged and the robot's position after it is unknown"
             ),
         );
         self.state.current = None;

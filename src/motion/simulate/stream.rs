@@ -63,9 +63,7 @@ pub fn simulate_streaming<'f>(
     let mut sim = Simulator::new(ws, robot, given);
     sim.run(Some(sink));
     sim.finish_segment();
-    let mut out = sim.out;
-    out.prefixes = sim.prefixes.into_inner();
-    out
+    sim.into_simulation()
 }
 
 /// A stop as a placeholder for the segment after a cut.
@@ -116,6 +114,7 @@ impl<'f> Simulator<'f> {
         let mut walker = Simulator::new(ws, &self.robot, &self.given);
         walker.state = self.state.clone();
         walker.warned_frames = self.warned_frames;
+        walker.noted_external = self.noted_external;
         walker.steps = self.steps;
         walker.out.frames = self.out.frames.clone();
         walker.out.stops.extend(history.iter().copied());
@@ -125,11 +124,17 @@ impl<'f> Simulator<'f> {
         }
         walker.block(0, ws.get(0).file.body(), &mut Scope::default());
         walker.finish_segment();
+        walker.count_repeats();
         self.state = walker.state.clone();
         self.warned_frames = walker.warned_frames;
+        self.noted_external = walker.noted_external;
         self.steps = walker.steps;
+        self.needs
+            .borrow_mut()
+            .append(&mut walker.needs.borrow_mut());
         let mut out = walker.out;
         self.out.unreachable += out.unreachable;
+        self.out.lost += out.lost;
         self.out.fatal |= out.fatal;
         self.out.diagnostics.append(&mut out.diagnostics);
         self.out.frames.clone_from(&out.frames);

@@ -118,7 +118,7 @@ impl<'f> Simulator<'f> {
                         );
                     }
                 }
-                FrameState::Unknown(f, span, why) => {
+                FrameState::Unknown(f, span, why, hint) => {
                     let msg = if why.is_empty() {
                         "unknown frame".to_string()
                     } else {
@@ -129,11 +129,7 @@ impl<'f> Simulator<'f> {
                     } else {
                         (*f, *span)
                     };
-                    self.error(
-                        f,
-                        span,
-                        format!("{msg}: give the robot's $config.dat with --config, or the frame with --base N=X,Y,Z,A,B,C / --tool N=X,Y,Z,A,B,C"),
-                    );
+                    self.error(f, span, format!("{msg}: {hint}"));
                     return None;
                 }
             }
@@ -142,6 +138,7 @@ impl<'f> Simulator<'f> {
     }
 
     pub(super) fn lost(&mut self, file: FileId, s: &Stmt, why: String) {
+        self.out.lost += 1;
         self.warn(
             file,
             s.head,
@@ -182,10 +179,32 @@ impl<'f> Simulator<'f> {
             self.state.current = None;
             return;
         }
-        let Some(pos) = self.position(file, s, &m.target, scope, "the target") else {
-            return;
+        let (pos, reference) = match self.offset_point(file, &m.target, scope) {
+            Some(found) => found,
+            None => {
+                let Some(pos) = self.position(file, s, &m.target, scope, "the target") else {
+                    return;
+                };
+                (pos, geometric_operand(&m.target))
+            }
         };
-        let reference = m.target.as_path().filter(|p| p.is_simple()).map(|p| p.root);
+        if pos.s.is_some_and(|st| st & ABSOLUTELY_ACCURATE != 0) {
+            self.error(
+                file,
+                s.head,
+                "this point's Status S has bit 4 set: it was taught on an absolutely accurate robot, whose positionally accurate model corrects it already; compensating it again would apply a correction twice, so the program is refused (give the points as taught with the nominal model)",
+            );
+            self.state.current = None;
+            return;
+        }
+        if pos.origin.is_some_and(|o| o.external) && !self.noted_external {
+            self.noted_external = true;
+            self.warn(
+                file,
+                s.head,
+                "the target moves external axes (E1…E6 not all zero): they are passed through unchanged, and the robot's six axes are compensated for the TCP pose in $BASE as the program sets it (an external axis that carries the robot or the base is not simulated)",
+            );
+        }
         let rel = m.kind.is_relative().then(|| {
             if pos.axis {
                 Rel::Axis
@@ -362,11 +381,25 @@ impl<'f> Simulator<'f> {
             }
         };
         if pos.axis && !robot.within_limits(&q) {
-            self.warn(
+            // The controller refuses it: an error of this target, as an unreachable one.
+            let beyond = (0..6)
+                .find(|&i| q[i] < robot.limits_deg[i][0] || q[i] > robot.limits_deg[i][1])
+                .map(|i| {
+                    format!(
+                        "A{} = {}° is outside its limits [{}, {}]°",
+                        i + 1,
+                        q[i],
+                        robot.limits_deg[i][0],
+                        robot.limits_deg[i][1]
+                    )
+                })
+                .unwrap_or_default();
+            self.unreachable(
                 file,
-                s.head,
-                "the axis target is outside the joint limits: left unchanged",
+                s,
+                format!("the axis target is beyond the joint limits ({beyond}), which the controller refuses"),
             );
+            return;
         }
         let goal = if pos.axis {
             Nominal(&robot).tcp(&q, &tool)
@@ -459,7 +492,8 @@ impl<'f> Simulator<'f> {
                     let in_config = pos.origin.is_some_and(|o| {
                         self.ws.get(o.file).role == crate::motion::workspace::Role::Config
                     });
-                    self.warn_unwritable(file, s, pos.origin.is_none(), in_config);
+                    let shared = pos.origin.filter(|_| in_config).map(|o| o.file);
+                    self.warn_unwritable(file, s, pos.origin.is_none(), shared);
                     // The written circle needs its auxiliary point moved onto it.
                     let aux_written = self.out.stops[aux_i as usize].compensable;
                     if !aux_written {
@@ -558,13 +592,19 @@ impl<'f> Simulator<'f> {
         // copy goes into this module's data list under a new name (see `compensate::rewrite`),
         // which needs a data list and a point named here.
         let localizable = in_config
-            && self.ws.get(file).partner.is_some()
+            && self
+                .ws
+                .get(file)
+                .partner
+                .is_some_and(|d| self.ws.get(d).role != crate::motion::workspace::Role::Config)
             && reference.is_some()
             && pos.origin.and_then(|o| o.var).is_some_and(|v| !v.element);
-        let compensable = pos.origin.is_some()
-            && (!in_config || localizable)
-            && (!pos.axis || robot.within_limits(&q));
-        self.warn_unwritable(file, s, pos.origin.is_none(), in_config && !localizable);
+        let compensable = pos.origin.is_some() && (!in_config || localizable);
+        let shared = pos
+            .origin
+            .filter(|_| in_config && !localizable)
+            .map(|o| o.file);
+        self.warn_unwritable(file, s, pos.origin.is_none(), shared);
         let stop = Stop {
             goal,
             nominal_axes: q,
@@ -604,8 +644,8 @@ impl<'f> Simulator<'f> {
     }
 
     /// Warns that a target is left as written because its numbers are not literal or are in
-    /// `$config.dat`.
-    fn warn_unwritable(&mut self, file: FileId, s: &Stmt, computed: bool, in_config: bool) {
+    /// data every program of the cell shares (`$config.dat`, a public data list).
+    fn warn_unwritable(&mut self, file: FileId, s: &Stmt, computed: bool, shared: Option<FileId>) {
         if computed {
             self.warn(
                 file,
@@ -613,11 +653,17 @@ impl<'f> Simulator<'f> {
                 "the target is computed in the program (not a literal position): left unchanged",
             );
         }
-        if in_config {
+        if let Some(f) = shared {
+            let name = std::path::Path::new(&self.ws.get(f).name)
+                .file_name()
+                .map_or_else(
+                    || self.ws.get(f).name.clone(),
+                    |n| n.to_string_lossy().into_owned(),
+                );
             self.warn(
                 file,
                 s.head,
-                "the target is declared in $config.dat, which robopost does not rewrite (every program shares it), and this program cannot hold a copy of it (that needs a .dat and the point named in the motion): left unchanged",
+                format!("the target is declared in {name}, data every program of the cell shares, which robopost does not rewrite, and this program cannot hold a copy of it (that needs a .dat of its own and the point named in the motion): left unchanged"),
             );
         }
     }
@@ -684,15 +730,96 @@ impl<'f> Simulator<'f> {
                     std::array::from_fn(|i| pos.v[i].unwrap_or(here[i]))
                 };
                 let p = Frame::from_kuka(&v);
-                let goal = match pos.origin.and_then(|o| o.prefix) {
-                    Some(i) => base
-                        .compose(&self.prefixes.borrow()[i as usize])
-                        .compose(&p),
+                let table = self.prefixes.borrow();
+                let mut goal = match pos.origin.and_then(|o| o.prefix) {
+                    Some(i) => base.compose(&table[i as usize]).compose(&p),
                     None => base.compose(&p),
                 };
+                if let Some(i) = pos.origin.and_then(|o| o.suffix) {
+                    goal = goal.compose(&table[i as usize]);
+                }
                 Some((v, goal, st))
             }
         }
+    }
+}
+
+/// Status bit 4: the point was taught on an absolutely accurate robot (KSS 8 operating and
+/// programming instructions for system integrators, the bits of Status `S`).
+const ABSOLUTELY_ACCURATE: u8 = 0b1_0000;
+
+impl<'f> Simulator<'f> {
+    /// A target `P : offset` whose left operand is a declared point: the point is what is
+    /// compensated for this use (the offset applied after it, `Origin::suffix`), named at
+    /// its place in the expression — so a point also used alone, and compensated
+    /// differently there, is split into a copy for each use like a point reached with
+    /// different rotation directions. `None`: not such a target.
+    fn offset_point(
+        &mut self,
+        file: FileId,
+        e: &'f Expr,
+        scope: &Scope<'f>,
+    ) -> Option<(Pos<'f>, Option<Span>)> {
+        let Expr::Binary(b) = strip_parens(e) else {
+            return None;
+        };
+        let left = b.lhs.as_path().filter(|p| p.is_simple())?;
+        if b.op != crate::krl::BinOp::Geo {
+            return None;
+        }
+        let Value::Pos(mut point) = self.eval(file, &b.lhs, scope) else {
+            return None;
+        };
+        let named = point
+            .origin
+            .is_some_and(|o| o.var.is_some() && o.prefix.is_none());
+        if point.axis || !point.is_complete() || !named {
+            return None;
+        }
+        let Value::Pos(offset) = self.eval(file, &b.rhs, scope) else {
+            return None;
+        };
+        if offset.axis {
+            return None;
+        }
+        // A declared point as the offset keeps its numbers here (see `Simulation::pinned`).
+        if let (Some(o), Some(p)) = (
+            offset.origin.filter(|o| o.var.is_some()),
+            b.rhs.as_path().filter(|p| p.is_simple()),
+        ) {
+            self.out.pinned.push(super::Pinned {
+                origin: o,
+                site: (file, p.root),
+            });
+        }
+        // Components the offset does not give are zero (a frame).
+        let frame = Frame::from_kuka(&offset.v.map(|x| x.unwrap_or(0.0)));
+        let mut table = self.prefixes.borrow_mut();
+        table.push(frame);
+        let at = (table.len() - 1) as u32;
+        if let Some(o) = point.origin.as_mut() {
+            o.suffix = Some(at);
+        }
+        Some((point, Some(left.root)))
+    }
+}
+
+fn strip_parens(e: &Expr) -> &Expr {
+    match e {
+        Expr::Paren(p) => strip_parens(&p.inner),
+        e => e,
+    }
+}
+
+/// The name a target is written through: a plain variable (`XP1`), or the right operand of a
+/// geometric operator (`BASE_DATA[2] : XP1`), whose number the rewrite may rename.
+fn geometric_operand(e: &Expr) -> Option<Span> {
+    match strip_parens(e) {
+        Expr::Path(p) if p.is_simple() => Some(p.root),
+        Expr::Binary(b) if b.op == crate::krl::BinOp::Geo => {
+            b.rhs.as_path().filter(|p| p.is_simple()).map(|p| p.root)
+        }
+        _ => None,
     }
 }
 
