@@ -635,7 +635,10 @@ fn scattered_poses_in_a_tracker_frame_need_no_target() {
         },
     )
     .unwrap();
-    assert!(matches!(r.target, TargetSource::LeastSquares { hint: None }));
+    assert!(matches!(
+        r.target,
+        TargetSource::LeastSquares { hint: None }
+    ));
     assert!(!r.verdict.failed(), "{:?}", r.verdict.failure);
     let found = effective_target_a6(r.calibration.model_ref());
     let truth_target = effective_target_a6(&truth());

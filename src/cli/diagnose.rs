@@ -96,6 +96,7 @@ pub fn run(args: Args) -> Exit {
                 model: cals[0].model_ref(),
                 rows: &rows,
             }],
+            gross_errors: Vec::new(),
             sources: args
                 .measurements
                 .iter()

@@ -31,7 +31,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use super::circle::{fit_circle, Circle3};
 use super::screen::oriented_by_motion;
 use crate::measure::Stop;
-use crate::model::{Direction, Model};
+use crate::model::{AxisState, Direction, Model};
 
 /// Fewest measured angles for a test to count as an indexing test.
 const MIN_ANGLES: usize = 5;

@@ -18,4 +18,3 @@ pub mod verdict;
 pub use refine::{
     refine, Fit, Free, IdentifyError, Progress, ProgressFn, RefineOptions, Status, Warning,
 };
-

@@ -146,7 +146,7 @@ fn local_coordinates(
             Some(Local {
                 row: i,
                 command_deg: command,
-                direction: data[i].state.directions[k],
+                direction: data[i].state.directions()[k],
                 radial: in_plane - circle.radius,
                 axial,
                 along: deviation * in_plane,
@@ -325,7 +325,7 @@ mod tests {
                 p += d;
             }
             let mut state = AxisState::new([a, 0.0, 0.0, 0.0, 0.0, 0.0]);
-            state.directions[0] = direction;
+            state.history[0] = crate::model::AxisHistory::engaged(direction);
             stops.push(Stop {
                 test: "A1".into(),
                 state,

@@ -13,7 +13,7 @@ use robopost::calibration;
 use robopost::compensate::{self, files, program, Calibrated, ProgramResult};
 use robopost::diagnostic::Severity;
 use robopost::kinematics::RobotDescription;
-use robopost::model::{AxisState, Model};
+use robopost::model::Model;
 use robopost::motion::{self, Cell, Simulation, Workspace};
 
 pub const CELL: &str = "fixtures/cells/kr16_line";
@@ -375,27 +375,18 @@ fn reached(
     result: &ProgramResult,
 ) -> (f64, f64) {
     assert_eq!(again.stops.len(), original.stops.len());
+    // The compensated motion's own axis histories (turning points included).
+    let states = robopost::motion::program_states(again);
     let (mut dp, mut dr) = (0.0f64, 0.0f64);
     for (k, (a, o)) in again.stops.iter().zip(&original.stops).enumerate() {
         let point = &result.report.points[k];
         if robopost::kinematics::singularity(&model.robot, &a.nominal_axes).is_some()
             || point.resolution.starts_with("held")
+            || point.residual_um > 1.0
         {
             continue;
         }
-        let dirs = point.directions.chars().map(|c| match c {
-            '+' => robopost::model::Direction::Positive,
-            '-' => robopost::model::Direction::Negative,
-            _ => robopost::model::Direction::Unknown,
-        });
-        let state = AxisState {
-            axes_deg: a.nominal_axes,
-            directions: std::array::from_fn({
-                let d: Vec<_> = dirs.collect();
-                move |i| d[i]
-            }),
-            time_s: 0.0,
-        };
+        let state = states[k];
         let tool = again.frames[a.tool as usize].to_isometry();
         let predicted = model.flange_pose(&state) * tool;
         let goal = o.goal.to_isometry();

@@ -360,12 +360,20 @@ fn an_axis_target_beyond_the_limits_is_rejected_by_the_main_job_and_the_virtual_
         err.contains("limits.src:5:1") && err.contains("beyond the joint limits (A2 = -150°"),
         "{err}"
     );
-    assert!(err.contains("2 of 3 targets compensated, 1 rejected"), "{err}");
+    assert!(
+        err.contains("2 of 3 targets compensated, 1 rejected"),
+        "{err}"
+    );
     let written = std::fs::read_to_string(&out).unwrap();
     assert!(written.contains("PTP {A1 10, A2 -150, A3 100, A4 0, A5 30, A6 0}"));
     let csv = dir.path().join("m.csv");
     let sim = robopost()
-        .args(["simulate", "program", "--truth", "fixtures/measurements/kr30ha-truth.json"])
+        .args([
+            "simulate",
+            "program",
+            "--truth",
+            "fixtures/measurements/kr30ha-truth.json",
+        ])
         .arg(&prog)
         .arg("-o")
         .arg(&csv)

@@ -744,7 +744,7 @@ mod tests {
         let payload = Payload::default();
         let mut state = AxisState::new([0.0, -90.0, 90.0, 0.0, 0.0, 0.0]);
         state.time_s = 5400.0;
-        state.directions[1] = Direction::Negative;
+        state.history[1] = crate::model::AxisHistory::engaged(Direction::Negative);
         let v = DriverValues::at(&state, &ctx_of(&robot, &payload), true, false);
         assert!((v.reach_mm - 1340.0).abs() < 1e-9 && (v.height_mm - 1810.0).abs() < 1e-9);
         assert!((v.gravity[2] + 1.0).abs() < 1e-12 && v.gravity[0].abs() < 1e-12);
@@ -796,7 +796,7 @@ mod tests {
         let mut l = Learned::zeros("rotation@arm(dir:A1)", &robot).unwrap();
         l.values = vec![0.0, 0.01, 0.0];
         let mut state = AxisState::new([30.0, -60.0, 100.0, 20.0, 40.0, -50.0]);
-        state.directions[0] = Direction::Positive;
+        state.history[0] = crate::model::AxisHistory::engaged(Direction::Positive);
         let mut e = ChainErrors::default();
         l.add_to(&state, &ctx, &mut e);
         let moved = ChainFrames::new(&robot, &state.axes_deg, &e).flange_position();
