@@ -303,8 +303,10 @@ fn report_renders_in_headless_chromium() {
     let page = report.join("index.html");
     let html = std::fs::read_to_string(&page).unwrap();
     // 2 histograms + 6 drivers (A1–A3 angles, A2/A3 torques, time; A4–A6 never move here)
-    // + per test (4 tests): Fig. 9, Fig. 10 and the two angle plots.
-    let expected = 2 + 6 + 4 * 4;
+    // + per test (4 tests): Fig. 9, Fig. 10 and the two angle plots + the drivers learned
+    // from the residual.
+    let expected = 2 + 6 + 4 * 4 + 1;
+    assert!(html.contains("Learned from the residual"));
     assert_eq!(html.matches("<svg").count(), expected);
     assert!(!html.contains("plot failed"));
     assert!(html.contains("did not vary in these measurements (nothing can be learnt about them here): the A4 angle, the A5 angle, the A6 angle."));

@@ -114,7 +114,6 @@ fn example_calibration_regenerates() {
     robopost(&[
         "identify",
         "fixtures/measurements/campaign.csv",
-        "--target=-120,-80,180",
         "--robot-name",
         "KR 30 HA (virtual)",
         "-o",

@@ -533,20 +533,40 @@ fn cli_refuses_a_failed_fit() {
         "{err}"
     );
 
-    // Asked for explicitly: written, and the file says it failed.
+    // Asked for explicitly: written, and the file says it failed (l2 1 mm long: the maps
+    // stay within their physical range) …
+    json["robot"]["description"]["links"]["l2"] = serde_json::json!(851.0);
+    json["target_mm"] = serde_json::json!(TARGET_MM);
+    let slightly = dir.path().join("wrong-l2-by-1.json");
+    std::fs::write(&slightly, serde_json::to_string_pretty(&json).unwrap()).unwrap();
     let o = identify_cli(
-        &["--frame", "base", "--accept-poor-fit"],
-        &[&tracker_csv],
+        &[
+            "-c",
+            slightly.to_str().unwrap(),
+            "--effects",
+            "map:A1..A6,backlash:A1..A6",
+            "--accept-poor-fit",
+        ],
+        &[&base_csv],
         &out,
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     let cal = robopost::calibration::load(&out).unwrap();
     let failed = cal.provenance.failed.unwrap_or_default();
     assert!(failed.contains("the fit failed"), "{failed}");
+    std::fs::remove_file(&out).unwrap();
+    // … unless its values left every physical range (a file no command could read back).
+    let o = identify_cli(
+        &["--frame", "base", "--accept-poor-fit"],
+        &[&tracker_csv],
+        &out,
+    );
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("not physical") && !out.exists(), "{err}");
 
     // The same tracker data in the right frame: accepted, and the provenance says what the
     // identified base frame is.
-    std::fs::remove_file(&out).unwrap();
     let o = identify_cli(&["--frame", "tracker"], &[&tracker_csv], &out);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     let cal = robopost::calibration::load(&out).unwrap();

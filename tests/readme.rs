@@ -11,7 +11,9 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 27] = [
+const CLAIMS: [(&str, &str); 29] = [
+    ("gross-thresholds", "tests/readme.rs"),
+    ("gross-share", "tests/readme.rs"),
     ("quick-start", "tests/readme.rs"),
     ("tracker-default", "tests/readme.rs"),
     ("validation-prediction", "tests/identify.rs"),
@@ -165,10 +167,11 @@ fn quick_start_summary() {
         .lines()
         .find(|l| l.contains("targets compensated"))
         .unwrap_or_else(|| panic!("{stderr}"));
-    // "paper_path1.src: 53 of 53 targets compensated (correction max 392.1 µm / … mdeg, mean
-    // 286.0 µm), …"
+    // "paper_path1.src: 53 of 53 targets compensated, 0 rejected (correction max 483.7 µm /
+    // … mdeg, mean 248.3 µm), …"
     let n = readme::numbers(summary.split_once(':').unwrap().1);
-    let computed = [n[0], n[1], n[2], n[4]];
+    assert_eq!(n[2], 0.0, "nothing rejected: {summary}");
+    let computed = [n[0], n[1], n[3], n[5]];
     let written = readme::numbers(&readme::block("quick-start").text);
     assert_eq!(written.len(), 4, "{written:?}");
     assert_eq!(written[..2], computed[..2], "{summary}");
@@ -274,4 +277,16 @@ fn benchmark_figures_are_benchs() {
             "README quotes {v} from BENCH.md, which does not contain it"
         );
     }
+}
+
+/// The gross-error rule the README states is the one `identify` applies.
+#[test]
+fn gross_error_thresholds() {
+    use robopost::identify::robust::{MAX_SHARE, SIGMA_UM, SIGMA_UM_PER_M, THRESHOLD};
+    readme::assert_prose(
+        "gross-thresholds",
+        &[THRESHOLD, SIGMA_UM, SIGMA_UM_PER_M],
+        0.0,
+    );
+    readme::assert_prose("gross-share", &[MAX_SHARE * 100.0], 1e-9);
 }

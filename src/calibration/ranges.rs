@@ -11,8 +11,11 @@ use std::path::Path;
 use super::{CalError, CalibrationFile, MeasurementFrame};
 use crate::model::{EffectName, EffectRecord};
 
-/// Link lengths, mm: none negative, none longer than any arm built.
+/// Link lengths, mm: none longer than any arm built, none negative …
 pub const LINK_MM: (f64, f64) = (0.0, 5000.0);
+/// … but the two offsets, which point either way on real arms (the KR 16's A3 sits 35 mm
+/// below its forearm: `l3z` = −35).
+pub const OFFSET_LINK_MM: (f64, f64) = (-5000.0, 5000.0);
 /// The upper arm (`l2`) and the forearm (`l4x`) exist: at least 1 mm.
 pub const ARM_LINK_MIN_MM: f64 = 1.0;
 /// Joint limits, degrees (an axis turning two full turns either way at most).
@@ -90,6 +93,7 @@ pub fn check(file: &CalibrationFile, path: &Path) -> Result<(), CalError> {
     ] {
         let range = match name {
             "l2" | "l4x" => (ARM_LINK_MIN_MM, LINK_MM.1),
+            "l1x" | "l3z" => OFFSET_LINK_MM,
             _ => LINK_MM,
         };
         within(v, range, "mm", || format!("{key}.links.{name}"), path)?;
@@ -229,8 +233,10 @@ mod tests {
         let defs = &schema["definitions"];
         let num = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
         let links = &defs["Links"]["properties"];
-        assert_eq!(num(&links["l1x"], "minimum"), LINK_MM.0);
-        assert_eq!(num(&links["l1x"], "maximum"), LINK_MM.1);
+        assert_eq!(num(&links["l1z"], "minimum"), LINK_MM.0);
+        assert_eq!(num(&links["l1z"], "maximum"), LINK_MM.1);
+        assert_eq!(num(&links["l1x"], "minimum"), OFFSET_LINK_MM.0);
+        assert_eq!(num(&links["l3z"], "minimum"), OFFSET_LINK_MM.0);
         assert_eq!(num(&links["l2"], "minimum"), ARM_LINK_MIN_MM);
         assert_eq!(num(&links["l4x"], "minimum"), ARM_LINK_MIN_MM);
         let robot = &defs["RobotDescription"]["properties"];

@@ -257,8 +257,18 @@ pub fn run(args: Args) -> Exit {
             "warning: written anyway (--accept-poor-fit); the provenance records the failure"
         );
     }
-    if let Err(e) = identified.calibration.save_atomic(&args.out) {
-        return usage(&e.to_string());
+    match identified.calibration.save_atomic(&args.out) {
+        Ok(()) => {}
+        // A value outside its physical range: the fit went astray (a failed fit written
+        // with --accept-poor-fit); no command could read the file back.
+        Err(e @ crate::calibration::CalError::Invalid { .. }) => {
+            eprintln!(
+                "robopost identify: the identified calibration is not physical ({e}); nothing \
+                 was written"
+            );
+            return Exit::Rejected;
+        }
+        Err(e) => return usage(&e.to_string()),
     }
     println!("wrote {}", args.out.display());
     if let (Some(old), false) = (&old, added.is_empty()) {

@@ -124,6 +124,10 @@ fn min_decimals(axis: bool, k: usize) -> usize {
     }
 }
 
+/// The most orientation an Euler triple kept continuous near B = ±90° may leave out: what the
+/// written decimals (1e-4° in A, B and C) leave anyway.
+const CONTINUITY_LEFT_RAD: f64 = 3.0 * 0.5e-4 * std::f64::consts::PI / 180.0;
+
 /// The new component values of `stop` commanded at `axes` (`None`: nothing can be written);
 /// `euler_left`: the orientation left out near B = ±90° (see `abc_continuous`), if any.
 #[allow(clippy::too_many_arguments)]
@@ -184,10 +188,13 @@ fn new_values(
                 (None, None, Some(u)) => kuka_near(u, &near_abc),
                 _ => written().to_kuka_near(&near_abc),
             };
-            // Near B = ±90° the angles stay continuous with the program's (`abc_continuous`).
+            // Near B = ±90° the angles stay continuous with the program's (`abc_continuous`)
+            // where that costs no more than the written decimals; beyond, the exact triple is
+            // written (A and C turn together there, A ∓ C stays continuous): an orientation
+            // correction left out would leave the TCP off by it times the tool's lever.
             if let Some((abc, left)) =
                 abc_continuous(&written().rotation, [v[3], v[4], v[5]], &near_abc)
-                    .filter(|_| stop.role == Role::Target)
+                    .filter(|(_, left)| stop.role == Role::Target && *left <= CONTINUITY_LEFT_RAD)
             {
                 v[3..].copy_from_slice(&abc);
                 *euler_left = Some(left);

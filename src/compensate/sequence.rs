@@ -746,7 +746,14 @@ fn solve_target(
             if (t0 ^ t1) >> i & 1 == 1 {
                 turn_held[i] = true;
                 hold[i] = true;
-                start[i] = if t0 >> i & 1 == 1 { -1e-9 } else { 0.0 };
+                // Held just inside its side of zero, by more than the written decimals can
+                // move it back: held at zero, the rounded target lands on the other side,
+                // where the programmed T has no solution within the limits.
+                start[i] = if t0 >> i & 1 == 1 {
+                    -TURN_MARGIN_DEG
+                } else {
+                    TURN_MARGIN_DEG
+                };
             }
         }
         let retry = Problem {
@@ -779,6 +786,10 @@ fn solve_target(
     }
     Ok((sol, turn_held))
 }
+
+/// How far inside its programmed side of zero an axis is held to keep the target's T: ten
+/// times what the written decimals (1e-4° of an orientation, 1e-3 mm) move a wrist axis.
+const TURN_MARGIN_DEG: f64 = 1e-3;
 
 fn first_pass(
     model: &Model,

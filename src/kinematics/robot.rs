@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Links {
-    /// A1 axis to A2 axis, horizontal.
-    #[schemars(range(min = 0, max = 5000))]
+    /// A1 axis to A2 axis, horizontal (negative: behind the A1 axis).
+    #[schemars(range(min = -5000, max = 5000))]
     pub l1x: f64,
     /// Base ($ROBROOT) to A2 axis, vertical.
     #[schemars(range(min = 0, max = 5000))]
@@ -19,8 +19,9 @@ pub struct Links {
     /// A2 axis to A3 axis.
     #[schemars(range(min = 1, max = 5000))]
     pub l2: f64,
-    /// A3 axis to the A4 axis (offset, wrist above A3 at HOME).
-    #[schemars(range(min = 0, max = 5000))]
+    /// A3 axis to the A4 axis (offset, wrist above A3 at HOME; negative below, as on the
+    /// KR 16's A3).
+    #[schemars(range(min = -5000, max = 5000))]
     pub l3z: f64,
     /// A3 to the wrist point along A4.
     #[schemars(range(min = 1, max = 5000))]

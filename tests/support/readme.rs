@@ -26,6 +26,146 @@ pub struct Block {
 const OPEN: &str = "<!-- asserted: ";
 const CLOSE: &str = "<!-- /asserted -->";
 
+/// Set `ROBOPOST_README_UPDATE=1` to have the asserting functions write the computed figures
+/// into the README instead of failing (as `INSTA_UPDATE` does for snapshots; run with
+/// `--test-threads=1` and review the diff).
+fn updating() -> bool {
+    std::env::var_os("ROBOPOST_README_UPDATE").is_some_and(|v| v == "1")
+}
+
+/// The numbers of `text` as [`numbers`] finds them: (byte start incl. sign, byte end, decimals,
+/// sign character or none, thousands separators used).
+fn number_spans(text: &str) -> Vec<(usize, usize, usize, Option<char>, bool)> {
+    let chars: Vec<(usize, char)> = text.char_indices().collect();
+    let byte = |k: usize| chars.get(k).map_or(text.len(), |c| c.0);
+    let mut out = Vec::new();
+    let mut in_code = false;
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i].1;
+        if c == '`' {
+            in_code = !in_code;
+            i += 1;
+            continue;
+        }
+        let glued = i > 0 && (chars[i - 1].1.is_alphanumeric() || chars[i - 1].1 == '_');
+        if in_code || !c.is_ascii_digit() || glued {
+            i += 1;
+            continue;
+        }
+        let sign =
+            (i > 0 && (chars[i - 1].1 == '−' || chars[i - 1].1 == '-')).then(|| chars[i - 1].1);
+        let (mut j, mut decimals, mut grouped, mut after_point) = (i, 0, false, false);
+        while j < chars.len() {
+            let d = chars[j].1;
+            if d.is_ascii_digit() {
+                if after_point {
+                    decimals += 1;
+                }
+                j += 1;
+            } else if d == ','
+                && chars[j + 1..]
+                    .iter()
+                    .take(3)
+                    .filter(|x| x.1.is_ascii_digit())
+                    .count()
+                    == 3
+                && !chars.get(j + 4).is_some_and(|x| x.1.is_ascii_digit())
+            {
+                grouped = true;
+                j += 1;
+            } else if d == '.' && chars.get(j + 1).is_some_and(|x| x.1.is_ascii_digit()) {
+                after_point = true;
+                j += 1;
+            } else {
+                break;
+            }
+        }
+        let start = if sign.is_some() { byte(i - 1) } else { byte(i) };
+        out.push((start, byte(j), decimals, sign, grouped));
+        i = j;
+    }
+    out
+}
+
+/// `text` with its numbers (from the `skip`-th on) replaced by `values`, each written with the
+/// decimals, sign style and thousands separators of the number it replaces.
+fn rewrite_numbers(text: &str, skip: usize, values: &[f64]) -> String {
+    let spans = number_spans(text);
+    let mut out = text.to_string();
+    for (k, &(start, end, decimals, sign, grouped)) in spans.iter().enumerate().skip(skip).rev() {
+        let Some(&v) = values.get(k - skip) else {
+            continue;
+        };
+        let mut digits = format!("{:.decimals$}", v.abs());
+        if grouped {
+            let (int, frac) = digits
+                .split_once('.')
+                .map_or((digits.as_str(), ""), |(a, b)| (a, b));
+            let mut g = String::new();
+            for (n, ch) in int.chars().enumerate() {
+                if n > 0 && (int.len() - n) % 3 == 0 {
+                    g.push(',');
+                }
+                g.push(ch);
+            }
+            digits = if frac.is_empty() {
+                g
+            } else {
+                format!("{g}.{frac}")
+            };
+        }
+        let negative = v < 0.0 && digits.chars().any(|c| c.is_ascii_digit() && c != '0');
+        let minus = sign.unwrap_or('−');
+        let new = if negative {
+            format!("{minus}{digits}")
+        } else {
+            digits
+        };
+        out.replace_range(start..end, &new);
+    }
+    out
+}
+
+/// Rewrites block `name` of the README through `edit`.
+fn update_block(name: &str, edit: impl Fn(&str) -> String) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md");
+    let text = std::fs::read_to_string(&path).expect("README.md");
+    let open = format!("{OPEN}{name} -->");
+    let start = text.find(&open).expect("block") + open.len();
+    let end = start + text[start..].find(CLOSE).expect("block end");
+    let new = format!(
+        "{}{}{}",
+        &text[..start],
+        edit(&text[start..end]),
+        &text[end..]
+    );
+    std::fs::write(&path, new).expect("README.md written");
+}
+
+/// Writes `computed` into the row `label` of table block `name`.
+fn update_row(name: &str, label: &str, computed: &[f64]) {
+    update_block(name, |block| {
+        block
+            .split_inclusive('\n')
+            .map(|line| {
+                let cells: Vec<&str> = line.trim().trim_matches('|').split('|').collect();
+                if line.trim_start().starts_with('|') && cells[0].trim().starts_with(label) {
+                    let first = line.find('|').unwrap() + 1;
+                    let first = first + line[first..].find('|').unwrap();
+                    format!(
+                        "{}{}",
+                        &line[..first],
+                        rewrite_numbers(&line[first..], 0, computed)
+                    )
+                } else {
+                    line.to_string()
+                }
+            })
+            .collect()
+    });
+}
+
 pub fn readme_text() -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md");
     std::fs::read_to_string(path).expect("README.md")
@@ -181,6 +321,18 @@ pub fn row(name: &str, label: &str) -> Vec<String> {
 /// `tolerance`.
 pub fn assert_row(name: &str, label: &str, computed: &[f64], tolerance: f64) {
     let cells = row(name, label);
+    if updating() {
+        let written: Vec<f64> = cells.iter().flat_map(|c| numbers(c)).collect();
+        if written.len() != computed.len()
+            || written
+                .iter()
+                .zip(computed)
+                .any(|(w, c)| (w - c).abs() > tolerance)
+        {
+            update_row(name, label, computed);
+        }
+        return;
+    }
     let written: Vec<f64> = cells.iter().flat_map(|c| numbers(c)).collect();
     assert_eq!(
         written.len(),
@@ -210,7 +362,9 @@ pub fn assert_rows(name: &str, rows: &[(&str, Vec<f64>)], tolerance: f64, decima
                 .iter()
                 .zip(computed)
                 .all(|(w, c)| (w - c).abs() <= tolerance);
-        if !fits {
+        if !fits && updating() {
+            update_row(name, label, computed);
+        } else if !fits {
             stale.push(format!(
                 "  `{label}`: README {written:?}, computed | {} |",
                 computed
@@ -233,6 +387,17 @@ pub fn assert_rows(name: &str, rows: &[(&str, Vec<f64>)], tolerance: f64, decima
 pub fn assert_prose(name: &str, computed: &[f64], tolerance: f64) {
     let b = block(name);
     let written = numbers(&b.text);
+    if updating() {
+        if written.len() == computed.len()
+            && written
+                .iter()
+                .zip(computed)
+                .any(|(w, c)| (w - c).abs() > tolerance)
+        {
+            update_block(name, |t| rewrite_numbers(t, 0, computed));
+        }
+        return;
+    }
     assert_eq!(
         written.len(),
         computed.len(),
@@ -332,6 +497,19 @@ pub fn assert_output(name: &str, actual: &str, tolerance: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbers_are_rewritten_in_their_own_style() {
+        assert_eq!(
+            rewrite_numbers(
+                "| A1 | 1.5 | −3 | 3,376 | `x 9` |",
+                0,
+                &[2.26, -4.0, 13400.0]
+            ),
+            "| A1 | 2.3 | −4 | 13,400 | `x 9` |"
+        );
+        assert_eq!(rewrite_numbers("a -1 b 2", 1, &[-0.04]), "a -1 b 0");
+    }
 
     #[test]
     fn numbers_are_figures_not_names() {
