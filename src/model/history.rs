@@ -245,11 +245,17 @@ impl AxisHistory {
                 };
                 return;
             }
+            // A centred start's band is the width's, unknown here: whether a loop left it
+            // (the output engaged) decides which loops a later run wipes out, so after such a
+            // start nothing is wiped until a long run engages the play; the evaluation runs
+            // through every point (and a full memory forgets its smallest loop).
+            if self.start == Start::Centred {
+                return;
+            }
             // Wiping out: the run passed the turning point before its start.
             if n >= 3 {
                 let before = self.points[n - 3];
-                let is_centred_start = n == 3 && self.start == Start::Centred;
-                if !is_centred_start && run.sign() * (to - before) >= 0.0 {
+                if run.sign() * (to - before) >= 0.0 {
                     self.points[n - 3] = to;
                     self.len -= 2;
                     continue;
@@ -456,11 +462,16 @@ mod tests {
             let h = history_of(start, &path);
             let expected = brute_force(start, &path, width);
             let got = h.play(c, width).lag_deg;
-            // Only memory overflow (more than three nested loops) may differ, by less than the
-            // innermost loop it forgot (moves of the smallest size here); the dense stepping
-            // itself is exact to the step.
-            let nested = h.len as usize == MEMORY;
-            prop_assert!((got - expected).abs() < 1e-9 || nested && (got - expected).abs() < 0.005,
+            // Exact while the turning points fit the memory; beyond, a forgotten loop may
+            // leave the output anywhere inside the play (its width, 0.022° here at most).
+            let turns = path
+                .windows(3)
+                .filter(|w| (w[1] - w[0]) * (w[2] - w[1]) < 0.0)
+                .count();
+            // The start, the end of every run but the last, and the current command.
+            let fits = turns + 3 <= MEMORY;
+            let bound = if fits { 1e-9 } else { 0.0221 };
+            prop_assert!((got - expected).abs() < bound,
                 "got {got}, expected {expected}, history {h:?}");
         }
     }
