@@ -245,17 +245,14 @@ impl AxisHistory {
                 };
                 return;
             }
-            // A centred start's band is the width's, unknown here: whether a loop left it
-            // (the output engaged) decides which loops a later run wipes out, so after such a
-            // start nothing is wiped until a long run engages the play; the evaluation runs
-            // through every point (and a full memory forgets its smallest loop).
-            if self.start == Start::Centred {
-                return;
-            }
             // Wiping out: the run passed the turning point before its start.
             if n >= 3 {
                 let before = self.points[n - 3];
-                if run.sign() * (to - before) >= 0.0 {
+                // A centred start is kept: it carries the unknown starting output. (Its band
+                // is the width's, unknown here, so a first loop that left the band on both
+                // sides and is then wiped out is only approximate: see the property test.)
+                let is_centred_start = n == 3 && self.start == Start::Centred;
+                if !is_centred_start && run.sign() * (to - before) >= 0.0 {
                     self.points[n - 3] = to;
                     self.len -= 2;
                     continue;
@@ -470,7 +467,14 @@ mod tests {
                 .count();
             // The start, the end of every run but the last, and the current command.
             let fits = turns + 3 <= MEMORY;
-            let bound = if fits { 1e-9 } else { 0.0221 };
+            // A known approximation: while the start is still centred (no run has engaged
+            // the play for sure), the memory cannot know without the width whether a loop
+            // left the start's band; once the path has left it, the output may come out
+            // anywhere inside the play.
+            let half_max = 0.011;
+            let left_band = path.iter().any(|x| (x - start).abs() > half_max);
+            let centred = h.start == Start::Centred;
+            let bound = if fits && !(centred && left_band) { 1e-9 } else { 0.0221 };
             prop_assert!((got - expected).abs() < bound,
                 "got {got}, expected {expected}, history {h:?}");
         }
