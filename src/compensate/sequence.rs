@@ -1048,6 +1048,9 @@ fn arrival_histories(
 /// A motion that moves an axis by less than this many of its play's widths (degrees, plus
 /// 0.001°) may turn it round by an amount that matters to the play.
 const SENSITIVE_PLAYS: f64 = 4.0;
+/// A correction changing along a motion by more than this share of the nominal move may turn
+/// the axis round inside it (the nominal rate along a short motion varies far less).
+const CORRECTION_SHARE: f64 = 10.0;
 
 /// The turning points of the compensated motion into target `k` (from `previous`, commanded
 /// at `c`). The compensated motion is the nominal one moved by the corrections; where an axis
@@ -1065,9 +1068,20 @@ fn compensated_turns(
     let target = ctx.target(k);
     let prev = previous.axes_deg;
     let model = ctx.model;
+    // An axis can turn round inside the compensated motion where the nominal one does, or
+    // where the correction changes along the motion by a fair part of the nominal move (a
+    // resting axis, a slow one): only there does the walk decide anything.
+    let nominal_prev = (k > 0).then(|| ctx.target(k - 1).nominal_axes);
     let sensitive = (0..6).any(|n| {
         let b = model.play_width_deg(n, c[n]);
-        b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3
+        if !(b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3) {
+            return false;
+        }
+        let Some(np) = nominal_prev else { return true };
+        let nominal_move = target.nominal_axes[n] - np[n];
+        let correction_change = (c[n] - target.nominal_axes[n]) - (prev[n] - np[n]);
+        target.turns.angle_deg[n].is_finite()
+            || correction_change.abs() * CORRECTION_SHARE > nominal_move.abs()
     });
     if sensitive && k > 0 {
         if let Some(turns) = walk_compensated(ctx, k, c, outcomes) {
@@ -1243,9 +1257,11 @@ impl Segment {
                 return (near, Reach::Stuck);
             }
         }
+        // Down to the spacing of the doubles there (the bracket is a few plays wide).
+        let resolution = 4.0 * f64::EPSILON * (1.0 + near.abs());
         let edge = |below: bool| {
             let (mut a, mut b) = (lo, hi);
-            for _ in 0..100 {
+            while b - a > resolution {
                 let m = 0.5 * (a + b);
                 let o = self.output(m);
                 if (below && o < wanted - tol) || (!below && o <= wanted + tol) {
