@@ -155,12 +155,27 @@ impl Diagnostic {
         };
         // A tab is shown as one blank: annotate-snippets would misplace the caret after a tab,
         // and one column per character keeps `--> file:line:col` equal to `self.col`.
+        // A span inside the line's leading blanks (a located error at column 1 of an indented
+        // line) makes annotate-snippets 0.11 underflow on long lines: there the blanks are
+        // shown as `·`. Other control characters are shown as U+FFFD (sources the caller did
+        // not pass through `display_text`).
+        let c0 = self.col.saturating_sub(1);
+        let leading = self
+            .source_line
+            .chars()
+            .take_while(|c| c.is_whitespace())
+            .count();
+        let dots = self.line > 0 && c0 < leading;
         let mut shown = String::with_capacity(self.source_line.len());
         let mut byte_at = Vec::with_capacity(self.source_line.len() + 1);
-        for c in self.source_line.chars() {
+        for (k, c) in self.source_line.chars().enumerate() {
             byte_at.push(shown.len());
-            if c == '\t' {
+            if dots && k < leading {
+                shown.push('·');
+            } else if c == '\t' || (c.is_whitespace() && c.is_control()) {
                 shown.push(' ');
+            } else if c.is_control() {
+                shown.push('\u{FFFD}');
             } else {
                 shown.push(c);
             }
@@ -168,7 +183,6 @@ impl Diagnostic {
         byte_at.push(shown.len());
         if self.line > 0 {
             let at = |c: usize| byte_at[c.min(byte_at.len() - 1)];
-            let c0 = self.col.saturating_sub(1);
             let start = at(c0);
             // A long span (a statement on a 10 MB line) is underlined for its first
             // characters only: annotate-snippets clips the line around the annotation, and
@@ -229,6 +243,30 @@ pub fn display_text(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Found by fuzzing the CSV reader: a long line whose located column lies in its leading
+    /// blanks (here vertical tabs, a control character) panicked inside annotate-snippets.
+    #[test]
+    fn a_span_in_a_long_lines_leading_blanks_renders() {
+        let mut line = "\u{b}".repeat(27);
+        line += &"\u{ff}".repeat(46);
+        line += "\u{b}\u{b}1";
+        let d = Diagnostic {
+            line: 1,
+            col: 1,
+            source_line: line,
+            ..Diagnostic::new(Severity::Error, "m.csv", "bad")
+        };
+        let out = d.render();
+        assert!(out.contains("m.csv:1:1") && out.contains("·"), "{out}");
+        let d = Diagnostic {
+            line: 3,
+            col: 2,
+            source_line: format!("{}{}", " ".repeat(40), "x".repeat(300)),
+            ..Diagnostic::new(Severity::Error, "a.src", "bad")
+        };
+        assert!(d.render().contains("a.src:3:2"));
+    }
 
     #[test]
     fn located_message_shows_line_and_caret() {

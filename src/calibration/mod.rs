@@ -217,14 +217,7 @@ fn finite(value: f64, key: impl FnOnce() -> String, path: &Path) -> Result<(), C
 fn validate_robot(robot: &RobotDescription, path: &Path) -> Result<(), CalError> {
     let key = "robot.description";
     let l = &robot.links;
-    for (name, v) in [
-        ("l1x", l.l1x),
-        ("l1z", l.l1z),
-        ("l2", l.l2),
-        ("l3z", l.l3z),
-        ("l4x", l.l4x),
-        ("l5x", l.l5x),
-    ] {
+    for (name, v) in l.named() {
         finite(v, || format!("{key}.links.{name}"), path)?;
     }
     for (n, [lo, hi]) in robot.limits_deg.iter().enumerate() {

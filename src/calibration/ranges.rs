@@ -83,14 +83,7 @@ pub fn check(file: &CalibrationFile, path: &Path) -> Result<(), CalError> {
     let d = &file.robot.description;
     let key = "robot.description";
     let l = &d.links;
-    for (name, v) in [
-        ("l1x", l.l1x),
-        ("l1z", l.l1z),
-        ("l2", l.l2),
-        ("l3z", l.l3z),
-        ("l4x", l.l4x),
-        ("l5x", l.l5x),
-    ] {
+    for (name, v) in l.named() {
         let range = match name {
             "l2" | "l4x" => (ARM_LINK_MIN_MM, LINK_MM.1),
             "l1x" | "l3z" => OFFSET_LINK_MM,

@@ -11,9 +11,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
 
-use super::compensate::{
-    calibrated, fit_robot, load_calibration, robot_label, stated_robots, ProgramArgs,
-};
+use super::compensate::{calibrated, cell_fitted, load_calibration, robot_label, ProgramArgs};
 use super::Exit;
 use crate::compensate::batch::{self, Done};
 use crate::compensate::files;
@@ -53,17 +51,10 @@ pub fn run(args: Args) -> Exit {
     if let Some(cell) = &args.program.cell {
         guard.read_tree(cell);
     }
-    let cell = match args.program.cell() {
+    let cell = match cell_fitted(&args.program, &mut cal, &args.cal) {
         Ok(c) => c,
         Err(exit) => return exit,
     };
-    let stated = match stated_robots(args.program.robot.as_deref(), cell.as_ref()) {
-        Ok(s) => s,
-        Err(exit) => return exit,
-    };
-    if let Err(exit) = fit_robot(&mut cal, &args.cal, &stated) {
-        return exit;
-    }
     for input in &args.inputs {
         if std::fs::symlink_metadata(input).is_err() {
             return super::usage(format!("{}: no such file or directory", input.display()));

@@ -173,6 +173,19 @@ fn links_text(r: &RobotDescription) -> String {
     )
 }
 
+/// The cell given (`--cell`, `--config`), with the calibration checked against the robots it
+/// and `--robot` state (see [`fit_robot`]).
+pub fn cell_fitted(
+    program: &ProgramArgs,
+    cal: &mut calibration::Calibration,
+    cal_path: &Path,
+) -> Result<Option<Cell>, Exit> {
+    let cell = program.cell()?;
+    let stated = stated_robots(program.robot.as_deref(), cell.as_ref())?;
+    fit_robot(cal, cal_path, &stated)?;
+    Ok(cell)
+}
+
 /// Checks that the robots stated are the calibration's (links within 0.5 mm: a calibration
 /// of one robot compensates no other) and takes the software limits of the machine data,
 /// which the controller enforces. A mismatch is a usage error, said here.
@@ -300,17 +313,10 @@ pub fn run(args: Args) -> Exit {
         Ok(c) => c,
         Err(exit) => return exit,
     };
-    let cell = match args.program.cell() {
+    let cell = match cell_fitted(&args.program, &mut cal, &args.cal) {
         Ok(c) => c,
         Err(exit) => return exit,
     };
-    let stated = match stated_robots(args.program.robot.as_deref(), cell.as_ref()) {
-        Ok(s) => s,
-        Err(exit) => return exit,
-    };
-    if let Err(exit) = fit_robot(&mut cal, &args.cal, &stated) {
-        return exit;
-    }
     let stdin = is_dash(&args.input);
     let bytes = if stdin {
         let mut b = Vec::new();

@@ -31,6 +31,20 @@ pub struct Links {
     pub l5x: f64,
 }
 
+impl Links {
+    /// Every link with its name in calibration files, in order.
+    pub fn named(&self) -> [(&'static str, f64); 6] {
+        [
+            ("l1x", self.l1x),
+            ("l1z", self.l1z),
+            ("l2", self.l2),
+            ("l3z", self.l3z),
+            ("l4x", self.l4x),
+            ("l5x", self.l5x),
+        ]
+    }
+}
+
 /// Mass data of the moving links, for gravity torques (compliance effect).
 ///
 /// Link `n` (index n-1) is the body moved by axis n; its centre of gravity is given in the

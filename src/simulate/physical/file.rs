@@ -187,14 +187,7 @@ impl PhysicalTruthFile {
         }
         let d = &self.robot.description;
         let l = &d.links;
-        for (name, v) in [
-            ("l1x", l.l1x),
-            ("l1z", l.l1z),
-            ("l2", l.l2),
-            ("l3z", l.l3z),
-            ("l4x", l.l4x),
-            ("l5x", l.l5x),
-        ] {
+        for (name, v) in l.named() {
             if !v.is_finite() {
                 return bad(
                     format!("robot.description.links.{name}"),
