@@ -1245,8 +1245,8 @@ impl Segment {
     /// The command whose arrival puts the play's output at `wanted`, nearest `near` where a
     /// range of commands does (inside the play), and how it does it.
     fn command_for(&self, wanted: f64, near: f64) -> (f64, Reach) {
-        // The output is monotone in the command with slopes 0, `at` or 1: bracket, then bisect
-        // for the first and last command that reach it.
+        // The output is monotone and piecewise linear in the command (slopes 0, `at` or 1):
+        // bracket, then find the first and last command that reach it.
         let tol = 1e-12;
         let mut span = 4.0 * self.half + 1e-3;
         let (mut lo, mut hi) = (near - span, near + span);
@@ -1257,26 +1257,63 @@ impl Segment {
                 return (near, Reach::Stuck);
             }
         }
-        // Down to the spacing of the doubles there (the bracket is a few plays wide).
-        let resolution = 4.0 * f64::EPSILON * (1.0 + near.abs());
-        let edge = |below: bool| {
-            let (mut a, mut b) = (lo, hi);
-            while b - a > resolution {
-                let m = 0.5 * (a + b);
-                let o = self.output(m);
-                if (below && o < wanted - tol) || (!below && o <= wanted + tol) {
-                    a = m;
-                } else {
-                    b = m;
-                }
-            }
-            if below {
-                b
-            } else {
-                a
+        // The output is linear between its breakpoints (where the turn's clamp or the
+        // arrival's clamp starts or stops acting): evaluate it there and interpolate.
+        let (s, h, t0, a) = (self.start_output, self.half, self.turn, self.at);
+        let mut xs = [0.0; 12];
+        let mut n = 0;
+        let mut add = |x: f64| {
+            if x.is_finite() && x > lo && x < hi {
+                xs[n] = x;
+                n += 1;
             }
         };
-        let (first, last) = (edge(true), edge(false));
+        add(s - h);
+        add(s + h);
+        if t0.is_finite() {
+            if a > 0.0 {
+                add((s + h - t0) / a);
+                add((s - h - t0) / a);
+            }
+            if a < 1.0 {
+                for k in [-h, h] {
+                    for m in [-h, h] {
+                        add((t0 + k - m) / (1.0 - a));
+                    }
+                }
+            }
+        }
+        let mut points = [(0.0, 0.0); 14];
+        points[0] = (lo, self.output(lo));
+        for (i, &x) in xs[..n].iter().enumerate() {
+            points[i + 1] = (x, 0.0);
+        }
+        points[n + 1] = (hi, 0.0);
+        let points = &mut points[..n + 2];
+        points.sort_by(|p, q| p.0.total_cmp(&q.0));
+        for p in points.iter_mut() {
+            p.1 = self.output(p.0);
+        }
+        let cross = |(x0, y0): (f64, f64), (x1, y1): (f64, f64), y: f64| {
+            if y1 > y0 {
+                (x0 + (y - y0) * (x1 - x0) / (y1 - y0)).clamp(x0, x1)
+            } else {
+                x1
+            }
+        };
+        // The first command whose output reaches `wanted` and the last that does not pass it.
+        let i = points
+            .iter()
+            .position(|p| p.1 >= wanted - tol)
+            .unwrap_or(points.len() - 1)
+            .max(1);
+        let first = cross(points[i - 1], points[i], wanted - tol);
+        let j = points
+            .iter()
+            .rposition(|p| p.1 <= wanted + tol)
+            .unwrap_or(0)
+            .min(points.len() - 2);
+        let last = cross(points[j], points[j + 1], wanted + tol);
         let c = near.clamp(first, last);
         let o = self.output(c);
         let reach = if (o - (c - self.half)).abs() <= 1e-9 && self.half > 0.0 {
@@ -1325,15 +1362,15 @@ fn settle_target(
     let mut differs = false;
     let mut turns: Option<interpolate::Turns> = None;
     for n in 0..6 {
+        let b = model.play_width_deg(n, c[n]);
         // Without a play every command's output is the command: nothing to settle.
-        if model.play_width_deg(n, c[n]) == 0.0 {
+        if b == 0.0 {
             continue;
         }
         let moved = c[n] - p.axes_deg[n];
         let jitter = rest[n] && moved != 0.0 && moved.abs() <= HOLD_DEG;
         // The common case needs nothing more: a long motion that the command continues by
         // more than the compensated path could turn it round by.
-        let b = model.play_width_deg(n, c[n]);
         let engaged = p.history[n].engaged_at(p.axes_deg[n]) == Some(assumed[n])
             && assumed[n].sign() * moved >= SENSITIVE_PLAYS * b + 1e-3
             && !ctx.target(k).turns.angle_deg[n].is_finite();
@@ -1342,7 +1379,7 @@ fn settle_target(
         }
         let turns = turns.get_or_insert_with(|| compensated_turns(ctx, k, p, &c, outcomes));
         let segment = Segment::of(ctx, k, p, n, (turns, &c));
-        let wanted = c[n] - assumed[n].sign() * 0.5 * model.play_width_deg(n, c[n]);
+        let wanted = c[n] - assumed[n].sign() * 0.5 * b;
         // The output moves back by less than the play: the command travels it.
         let driven = p.history[n].direction(p.axes_deg[n]);
         let way = wanted - segment.start_output;
