@@ -17,7 +17,6 @@ use std::path::Path;
 use std::process::Command;
 
 use nalgebra::Vector3;
-use rand::{Rng, SeedableRng};
 use robopost::calibration::{self, Calibration, MeasurementFrame, Provenance};
 use robopost::compare::{self, Summary};
 use robopost::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
@@ -27,7 +26,7 @@ use robopost::kinematics::Payload;
 use robopost::measure::{self, Measurements, Stop};
 use robopost::model::effects::crosstalk::Crosstalk;
 use robopost::model::{expand_list, EffectName, GridOptions, Model};
-use robopost::simulate::campaign::{paced, Campaign, PlannedStop};
+use robopost::simulate::campaign::{Campaign, PlannedStop};
 use robopost::simulate::paper;
 use robopost::simulate::virtual_robot::VirtualRobot;
 
@@ -62,26 +61,7 @@ fn without(truth: &Model, name: &str) -> Model {
 
 /// `count` random poses inside the campaign's ranges, visited in order from `t0_s`.
 fn poses(seed: u64, count: usize, t0_s: f64, label: &str) -> Vec<PlannedStop> {
-    let ranges = [
-        [-60.0, 60.0],
-        [-112.0, -19.0],
-        [20.0, 150.0],
-        [-90.0, 90.0],
-        [-90.0, 90.0],
-        [-180.0, 180.0],
-    ];
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let visits: Vec<_> = (0..count)
-        .map(|_| {
-            let axes = std::array::from_fn(|k| rng.gen_range(ranges[k][0]..ranges[k][1]));
-            (label.to_string(), axes, true)
-        })
-        .collect();
-    let mut stops = paced(visits, 3.2, 30.0);
-    for s in &mut stops {
-        s.time_s += t0_s;
-    }
-    stops
+    robopost::simulate::poses::random_poses(seed, count, t0_s, label)
 }
 
 /// (identification data, validation data) measured on `truth`.

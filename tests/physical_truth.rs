@@ -473,36 +473,15 @@ fn the_floor_taken_apart() {
 /// What adding the finding does on 200 other poses that no fit saw is measured and stated.
 #[test]
 fn diagnose_names_what_the_physical_truth_has() {
-    use rand::{Rng, SeedableRng};
     use robopost::compare::{self, Summary};
     use robopost::diagnose::{diagnose, DiagnoseOptions};
     use robopost::measure::Measurements;
-    use robopost::simulate::paced;
 
     let mut file = truth().file().clone();
     file.tracker.noise.gross_probability = 0.0;
     let robot = PhysicalRobot::new(file, Path::new("no gross errors")).unwrap();
     let poses = |seed: u64, t0: f64, label: &str| {
-        let ranges = [
-            [-60.0, 60.0],
-            [-112.0, -19.0],
-            [20.0, 150.0],
-            [-90.0, 90.0],
-            [-90.0, 90.0],
-            [-180.0, 180.0],
-        ];
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let visits: Vec<_> = (0..200)
-            .map(|_| {
-                let axes = std::array::from_fn(|k| rng.gen_range(ranges[k][0]..ranges[k][1]));
-                (label.to_string(), axes, true)
-            })
-            .collect();
-        let mut stops = paced(visits, 3.2, 30.0);
-        for s in &mut stops {
-            s.time_s += t0;
-        }
-        stops
+        robopost::simulate::poses::random_poses(seed, 200, t0, label)
     };
     let mut plan = Campaign::paper().plan().unwrap();
     let end = plan.last().unwrap().time_s;

@@ -6,8 +6,41 @@
 
 use std::path::Path;
 
+use rand::{Rng, SeedableRng};
+
 use super::campaign::{paced, PlannedStop};
 use crate::measure::MeasureError;
+
+/// The axis ranges the paper's campaign covers (degrees): A1 ±60, A2 and A3 between the
+/// indexing tests' extremes, the wrist ±90/±90/±180.
+pub const CAMPAIGN_RANGES_DEG: [[f64; 2]; 6] = [
+    [-60.0, 60.0],
+    [-112.0, -19.0],
+    [20.0, 150.0],
+    [-90.0, 90.0],
+    [-90.0, 90.0],
+    [-180.0, 180.0],
+];
+
+/// `count` poses drawn uniformly inside [`CAMPAIGN_RANGES_DEG`] (seeded), all measured, labelled
+/// `label` and visited in order from `t0_s` (3.2 s dwell, 30°/s): the workspace poses with every
+/// axis moving that tell effects apart which one indexing pose cannot.
+pub fn random_poses(seed: u64, count: usize, t0_s: f64, label: &str) -> Vec<PlannedStop> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let visits: Vec<_> = (0..count)
+        .map(|_| {
+            let axes = std::array::from_fn(|k| {
+                rng.gen_range(CAMPAIGN_RANGES_DEG[k][0]..CAMPAIGN_RANGES_DEG[k][1])
+            });
+            (label.to_string(), axes, true)
+        })
+        .collect();
+    let mut stops = paced(visits, 3.2, 30.0);
+    for s in &mut stops {
+        s.time_s += t0_s;
+    }
+    stops
+}
 
 /// The visits of a poses file, time-stamped at `dwell_s` per stop and `axis_speed_deg_s`.
 pub fn read_poses(
