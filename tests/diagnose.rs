@@ -10,22 +10,21 @@
 //! show), KR 30 HA with a 30 kg payload, tracker noise of the virtual robot; validation: 200
 //! other random poses measured afterwards. Tables at 2° pitch, the campaign's.
 
+#[path = "support/calibrate.rs"]
+mod calibrate;
 #[path = "support/readme.rs"]
 mod readme;
 
 use std::path::Path;
 use std::process::Command;
 
-use nalgebra::Vector3;
 use robopost::calibration::{self, Calibration, MeasurementFrame, Provenance};
 use robopost::compare::{self, Summary};
 use robopost::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use robopost::identify::pipeline::{identify, Effects, Request};
-use robopost::identify::setup::GridChoice;
 use robopost::kinematics::Payload;
 use robopost::measure::{self, Measurements, Stop};
 use robopost::model::effects::crosstalk::Crosstalk;
-use robopost::model::{expand_list, EffectName, GridOptions, Model};
+use robopost::model::{EffectName, GridOptions, Model};
 use robopost::simulate::campaign::{Campaign, PlannedStop};
 use robopost::simulate::paper;
 use robopost::simulate::virtual_robot::VirtualRobot;
@@ -86,22 +85,7 @@ fn measure(truth: &Model) -> (Vec<Stop>, Vec<Stop>) {
 
 /// A calibration with exactly `effects`, identified on `data` (robot, payload and target known).
 fn calibrate(truth: &Model, effects: &str, data: &[Stop]) -> Calibration {
-    let start = Calibration::from_model(
-        "KR 30 HA (virtual)",
-        Model::new(truth.robot, truth.payload, Vector3::from(paper::TARGET_MM)),
-        MeasurementFrame::Base,
-        Provenance::default(),
-    );
-    let request = Request {
-        effects: Some(Effects::Exactly(expand_list(effects).unwrap())),
-        base: Some(start),
-        grid: GridChoice {
-            map_pitch_deg: PITCH,
-            ..GridChoice::default()
-        },
-        ..Request::default()
-    };
-    identify(data, &request).unwrap().calibration
+    calibrate::calibrate(truth, effects, data, PITCH)
 }
 
 fn validation_rms(cal: &Calibration, validation: &[Stop]) -> f64 {

@@ -14,18 +14,19 @@
 //! workspace poses, KR 30 HA carrying 30 kg, the virtual robot's tracker noise; validation:
 //! 200 other random poses measured after the campaign.
 
+#[path = "support/calibrate.rs"]
+mod calibrate;
+
 use std::path::Path;
 use std::process::Command;
 
 use nalgebra::Vector3;
-use robopost::calibration::{self, Calibration, MeasurementFrame, Provenance};
+use robopost::calibration::{self, Calibration};
 use robopost::compare::{self, Summary};
 use robopost::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use robopost::identify::pipeline::{identify, Effects, Request};
-use robopost::identify::setup::GridChoice;
 use robopost::kinematics::{flange_frame, Payload};
 use robopost::measure::{self, Measurements, Stop};
-use robopost::model::{expand_list, Model};
+use robopost::model::Model;
 use robopost::simulate::campaign::{Campaign, PlannedStop};
 use robopost::simulate::paper;
 use robopost::simulate::virtual_robot::VirtualRobot;
@@ -148,23 +149,7 @@ fn measure_paper() -> (Vec<Stop>, Vec<Stop>) {
 }
 
 fn calibrate(effects: &str, data: &[Stop]) -> Calibration {
-    let truth = paper_truth();
-    let start = Calibration::from_model(
-        "KR 30 HA (virtual)",
-        Model::new(truth.robot, truth.payload, Vector3::from(paper::TARGET_MM)),
-        MeasurementFrame::Base,
-        Provenance::default(),
-    );
-    let request = Request {
-        effects: Some(Effects::Exactly(expand_list(effects).unwrap())),
-        base: Some(start),
-        grid: GridChoice {
-            map_pitch_deg: PITCH,
-            ..GridChoice::default()
-        },
-        ..Request::default()
-    };
-    identify(data, &request).unwrap().calibration
+    calibrate::calibrate(&paper_truth(), effects, data, PITCH)
 }
 
 fn measurements(source: &str, stops: &[Stop]) -> Measurements {
