@@ -1,26 +1,76 @@
 //! robopost: an offline-programming post-processor that compensates KUKA KRL programs with an
-//! extended kinematic error model (axis average lines, bidirectional angular positioning
-//! deviation, axis-to-axis crosstalk and further physical effects).
+//! extended kinematic error model (axis average lines, angular positioning deviation over the
+//! command angle with the gear play, axis-to-axis crosstalk and further physical effects),
+//! identified from laser-tracker measurements.
 //!
-//! Data flows one way:
-//! `bytes → krl (lossless syntax) → motion (targets, joints, directions) → model (error effects)
-//! → compensate → krl edits → bytes`, and `csv → identify → model`, `model + csv → report`.
-//! `krl` knows nothing of kinematics; `kinematics` knows nothing of KRL.
+//! The library's API is the crate root: [`load_calibration`], [`compensate_source`] /
+//! [`compensate_file`], [`simulate_source`], [`read_measurements`], [`identify`], [`compare`]
+//! and [`diagnose`], with one [`Error`]. Compensating a program held in memory:
+//!
+//! ```
+//! let calibration = robopost::load_calibration(std::path::Path::new(concat!(
+//!     env!("CARGO_MANIFEST_DIR"),
+//!     "/calibrations/kr30ha-example.json"
+//! )))?;
+//! let program = "DEF square( )\r\n\
+//!     $BASE = {X 1100, Y -300, Z 600, A 0, B 0, C 0}\r\n\
+//!     $TOOL = {X 0, Y 0, Z 200, A 0, B 0, C 0}\r\n\
+//!     PTP {A1 10, A2 -80, A3 95, A4 0, A5 30, A6 0}\r\n\
+//!     LIN {X 0, Y 0, Z 100, A 0, B 0, C 180} ; the corner\r\n\
+//!     LIN {X 100, Y -50, Z 120, A 0, B 0, C 180}\r\n\
+//!     END\r\n";
+//! let done = robopost::compensate_source("square.src", program.as_bytes(), &calibration)?;
+//! let text = String::from_utf8(done.source).unwrap();
+//! // Every target is rewritten (the PTP's axes too); comments and CR LF stay as they were.
+//! assert_eq!((done.report.compensated, done.report.rejected), (3, 0));
+//! assert!(text.contains("} ; the corner\r\nLIN {X "));
+//! assert!(!text.contains("LIN {X 100, Y -50, Z 120, A 0, B 0, C 180}"));
+//! # Ok::<(), robopost::Error>(())
+//! ```
+//!
+//! Data flows one way inside:
+//! `bytes → krl (lossless syntax) → motion (targets, joints, axis histories) → model (error
+//! effects) → compensate → krl edits → bytes`, and `csv → identify → model`,
+//! `model + csv → report`. `krl` knows nothing of kinematics; `kinematics` knows nothing of
+//! KRL. Those modules are public for the command line and the tests only (hidden from these
+//! docs, no stability promised); the API above is what other programs should call.
 
+#![warn(missing_docs)]
+
+mod api;
+pub use api::*;
+
+#[doc(hidden)]
 pub mod atomic_file;
+#[doc(hidden)]
 pub mod calibration;
+#[doc(hidden)]
 pub mod cli;
+#[doc(hidden)]
 pub mod compare;
+#[doc(hidden)]
 pub mod compensate;
+#[doc(hidden)]
 pub mod diagnose;
+#[doc(hidden)]
 pub mod diagnostic;
+#[doc(hidden)]
 pub mod identify;
+#[doc(hidden)]
 pub mod kinematics;
+#[doc(hidden)]
 pub mod krl;
+#[doc(hidden)]
 pub mod measure;
+#[doc(hidden)]
 pub mod model;
+#[doc(hidden)]
 pub mod motion;
+#[doc(hidden)]
 pub mod paths;
+#[doc(hidden)]
 pub mod report;
+#[doc(hidden)]
 pub mod simulate;
+#[doc(hidden)]
 pub mod stats;
