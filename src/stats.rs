@@ -8,13 +8,21 @@ use serde::Serialize;
 /// Error statistics of a set of points, in µm (keys per CONTRACTS.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct ErrorStats {
+    /// Points the statistics are over.
     pub points: usize,
+    /// Mean of the distance error in the XY plane.
     pub xy_mean_um: f64,
+    /// Twice the standard deviation of the XY distance error.
     pub xy_2sigma_um: f64,
+    /// Mean of the signed Z error.
     pub z_mean_um: f64,
+    /// Twice the standard deviation of the signed Z error.
     pub z_2sigma_um: f64,
+    /// Mean of the 3-D distance error.
     pub d3_mean_um: f64,
+    /// Largest 3-D distance error.
     pub d3_max_um: f64,
+    /// Root mean square of the 3-D distance error.
     pub rms_um: f64,
 }
 

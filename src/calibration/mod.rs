@@ -69,13 +69,17 @@ use crate::model::{EffectName, Model};
 /// A validated calibration: the model plus what the file says about it.
 #[derive(Clone, Debug)]
 pub struct Calibration {
+    /// The robot's name as the file gives it (written in compensated programs' headers).
     pub robot_name: String,
+    /// The frame the identification's measurements were in (base or a tracker frame).
     pub frame: MeasurementFrame,
+    /// How the calibration was made: data, effects, fit, gross errors left out.
     pub provenance: Provenance,
     model: Model,
 }
 
 impl Calibration {
+    /// A calibration of `model`, named and described.
     pub fn from_model(
         robot_name: &str,
         model: Model,

@@ -34,6 +34,7 @@ pub struct Stop {
 pub struct Measurements {
     /// Where the rows came from (file name, or `-` for stdin).
     pub source: String,
+    /// Every row, measured or not (approach rows carry the axes' history only).
     pub stops: Vec<Stop>,
     /// Columns that were present but are not part of the contract (ignored).
     pub ignored_columns: Vec<String>,
