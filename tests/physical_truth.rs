@@ -15,6 +15,9 @@
 
 #[path = "support/readme.rs"]
 mod readme;
+#[path = "support/tooled.rs"]
+mod tooled;
+use tooled::with_identified_tool;
 
 use std::path::Path;
 
@@ -27,7 +30,7 @@ use robopost::motion::{self, Workspace};
 use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::physical::{self, PhysicalRobot, PTP_STEP_DEG};
 use robopost::simulate::program::program_visits;
-use robopost::simulate::{paper, Campaign};
+use robopost::simulate::Campaign;
 use robopost::stats::{error_stats, ErrorStats};
 
 const PATHS: [(&str, f64); 3] = [
@@ -98,6 +101,9 @@ fn rectangle(ws: &Workspace, robot: &PhysicalRobot, level_z: f64) -> Vec<(usize,
 /// then runs the target with the `T` of the nearest available solution (the same pose); the
 /// count is asserted, so a new case does not go unnoticed.
 fn compensated(src: &Path, model: &Model, dir: &Path) -> (Workspace, usize) {
+    let tooled = dir.join("tooled");
+    std::fs::create_dir_all(&tooled).unwrap();
+    let src = &with_identified_tool(src, model, &tooled);
     let ws = load(src);
     let cal = Calibrated::new(model, "identified", b"");
     let result = compensate::compensate_program(
@@ -152,7 +158,6 @@ fn paper_table_one_on_the_physical_truth() {
     let end = data.last().unwrap().state.time_s;
     let request = |list: &str| Request {
         effects: Some(Effects::Exactly(expand_list(list).unwrap())),
-        target_mm: Some(paper::TARGET_MM),
         ..Request::default()
     };
     let full = identify(&data, &request(PAPER_EFFECTS)).unwrap();
@@ -334,7 +339,6 @@ fn joint_frame_errors_alone_are_what_the_paper_model_describes() {
     // A1's zero (joint 1's rotation about its axis) is the mean of the A1 map.
     let request = Request {
         effects: Some(Effects::Exactly(expand_list("geometric,map:A1").unwrap())),
-        target_mm: Some(paper::TARGET_MM),
         ..Request::default()
     };
     let identified = identify(&data, &request).unwrap();
@@ -432,7 +436,6 @@ fn the_floor_taken_apart() {
         let end = data.last().unwrap().state.time_s;
         let request = Request {
             effects: Some(Effects::Exactly(expand_list(PAPER_EFFECTS).unwrap())),
-            target_mm: Some(paper::TARGET_MM),
             ..Request::default()
         };
         let full = identify(&data, &request).unwrap();
@@ -500,7 +503,6 @@ fn diagnose_names_what_the_physical_truth_has() {
     let request = |base: Option<robopost::calibration::Calibration>, effects: Effects| Request {
         effects: Some(effects),
         base,
-        target_mm: Some(paper::TARGET_MM),
         ..Request::default()
     };
     let old = identify(

@@ -11,7 +11,8 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 29] = [
+const CLAIMS: [(&str, &str); 30] = [
+    ("paper-table-1-floor", "tests/paper_experiment.rs"),
     ("gross-thresholds", "tests/readme.rs"),
     ("gross-share", "tests/readme.rs"),
     ("quick-start", "tests/readme.rs"),
