@@ -445,9 +445,9 @@ fn identified_model_predicts_the_validation_paths_to_the_noise_floor() {
     let campaign = read_csv(&fixture("campaign.csv")).unwrap().stops;
     let validation = read_csv(&fixture("validation.csv")).unwrap().stops;
     let truth = VirtualRobot::load(&fixture("kr30ha-truth.json")).unwrap();
+    // Unaided: the target from the data.
     let request = |list: &str| Request {
         effects: Some(Effects::Exactly(expand_list(list).unwrap())),
-        target_mm: Some(paper::TARGET_MM),
         ..Request::default()
     };
     let full = identify(&campaign, &request(PAPER)).unwrap();
