@@ -1,16 +1,18 @@
 //! A new physical effect is one file plus one registry entry: this file defines an effect the
-//! crate has never heard of — the radial error motion (run-out) of axis 1's bearing — and
+//! crate has never heard of — the axial error motion of axis 1's bearing — and
 //! registers it at run time ([`registry::register`]). Nothing else changes, and:
 //!
 //! - identification (`identify::pipeline::identify` with it in the effect list) recovers its
-//!   eccentricity from virtual-robot data whose run-out is added by an independent formula;
+//!   amplitude from virtual-robot data whose error motion is added by an independent formula;
 //! - compensation (`compensate::compensate_program`) moves a program's targets by the
 //!   displacement the formula gives, with the orientation untouched;
 //! - diagnosis tries it among its candidates and names it when the calibration lacks it.
 //!
-//! The physics: the rotating ring of the A1 bearing is eccentric by `e = (ex, ey)` (mm), so
-//! the axis line moves on a small circle as the axis turns: everything beyond A1 is displaced
-//! by `Rz(θ1)·e` in the base frame, θ1 = sense1·A1 the physical rotation about the base Z.
+//! The physics: the raceway of the A1 bearing is wavy, so the turning part rises and falls
+//! along the axis twice per turn (ISO 230-7's axial error motion, second harmonic; a
+//! once-per-turn part would be a tilt of the axis line, a `geometric` parameter): everything
+//! beyond A1 is displaced along the base Z by `a·cos 2θ1 + b·sin 2θ1` (mm), θ1 = sense1·A1 the
+//! physical rotation. No effect of the contract table moves the arm along Z with A1 alone.
 
 #[path = "support/calibrate.rs"]
 mod calibrate;
@@ -34,29 +36,29 @@ use robopost::simulate::virtual_robot::VirtualRobot;
 
 // ---- The effect: everything the crate learns about it is in this section. ----
 
-/// `base_runout` — radial error motion of A1: `(ex, ey)` in mm, turning with the axis.
+/// `wavy_bearing` — axial error motion of A1 twice per turn: `(a, b)` in mm.
 #[derive(Clone, Debug, Default, PartialEq)]
-struct BaseRunout {
+struct WavyBearing {
     values: [f64; 2],
 }
 
-const NAMES: [&str; 2] = ["ex", "ey"];
+const NAMES: [&str; 2] = ["a", "b"];
 
 fn names() -> Vec<String> {
     NAMES.iter().map(|n| n.to_string()).collect()
 }
 
-impl BaseRunout {
-    /// (cos θ1, sin θ1) of the physical rotation.
+impl WavyBearing {
+    /// (cos 2θ1, sin 2θ1) of the physical rotation θ1.
     fn turn(state: &AxisState, ctx: &Context) -> (f64, f64) {
-        let theta = (ctx.robot.senses[0] * state.axes_deg[0]).to_radians();
+        let theta = 2.0 * (ctx.robot.senses[0] * state.axes_deg[0]).to_radians();
         (theta.cos(), theta.sin())
     }
 }
 
-impl Effect for BaseRunout {
+impl Effect for WavyBearing {
     fn name(&self) -> String {
-        "base_runout".into()
+        "wavy_bearing".into()
     }
     fn parameters(&self) -> Vec<Parameter> {
         names()
@@ -72,17 +74,13 @@ impl Effect for BaseRunout {
     }
     fn add_to(&self, state: &AxisState, ctx: &Context, errors: &mut ChainErrors) {
         let (c, s) = Self::turn(state, ctx);
-        let [ex, ey] = self.values;
-        errors.add(Slot::Offset { axis: 1, coord: 0 }, ex * c - ey * s);
-        errors.add(Slot::Offset { axis: 1, coord: 1 }, ex * s + ey * c);
+        let [a, b] = self.values;
+        errors.add(Slot::Offset { axis: 1, coord: 2 }, a * c + b * s);
     }
     fn jacobian(&self, state: &AxisState, ctx: &Context, out: &mut Vec<Partial>) {
         let (c, s) = Self::turn(state, ctx);
-        let (x, y) = (
-            Slot::Offset { axis: 1, coord: 0 },
-            Slot::Offset { axis: 1, coord: 1 },
-        );
-        for (param, slot, value) in [(0, x, c), (0, y, s), (1, x, -s), (1, y, c)] {
+        let slot = Slot::Offset { axis: 1, coord: 2 };
+        for (param, value) in [(0, c), (1, s)] {
             out.push(Partial { param, slot, value });
         }
     }
@@ -91,7 +89,7 @@ impl Effect for BaseRunout {
     }
 }
 
-impl ToRecord for BaseRunout {
+impl ToRecord for WavyBearing {
     fn record(&self) -> EffectRecord {
         EffectRecord {
             name: self.name(),
@@ -102,14 +100,14 @@ impl ToRecord for BaseRunout {
 }
 
 /// The one registry entry.
-static BASE_RUNOUT: Kind = Kind {
-    prefix: "base_runout",
+static WAVY_BEARING: Kind = Kind {
+    prefix: "wavy_bearing",
     arity: Arity::Robot,
-    meaning: "radial error motion of A1's bearing: the axis line turns on a small circle",
-    create: |_, _, _| Ok(Box::new(BaseRunout::default())),
+    meaning: "axial error motion of A1's bearing: the arm rises and falls twice per turn",
+    create: |_, _, _| Ok(Box::new(WavyBearing::default())),
     decode: |_, rec, _| {
         let v = rec.named_values(&names())?;
-        Ok(Box::new(BaseRunout {
+        Ok(Box::new(WavyBearing {
             values: [v[0], v[1]],
         }))
     },
@@ -119,24 +117,23 @@ static BASE_RUNOUT: Kind = Kind {
 };
 
 fn register() {
-    registry::register(&BASE_RUNOUT).unwrap();
+    registry::register(&WAVY_BEARING).unwrap();
 }
 
 // ---- The test's own physics and data. ----
 
-/// The eccentricity of the virtual robot's A1 bearing, mm.
+/// The axial error motion of the virtual robot's A1 bearing, mm.
 const E_MM: [f64; 2] = [0.060, -0.040];
 
 /// The displacement of everything beyond A1 at command angle `a1_deg`, by hand.
-fn runout_mm(robot: &RobotDescription, a1_deg: f64, e: [f64; 2]) -> Vector3<f64> {
-    let theta = (robot.senses[0] * a1_deg).to_radians();
-    let (c, s) = (theta.cos(), theta.sin());
-    Vector3::new(e[0] * c - e[1] * s, e[0] * s + e[1] * c, 0.0)
+fn bearing_motion_mm(robot: &RobotDescription, a1_deg: f64, e: [f64; 2]) -> Vector3<f64> {
+    let theta = 2.0 * robot.senses[0] * a1_deg.to_radians();
+    Vector3::new(0.0, 0.0, e[0] * theta.cos() + e[1] * theta.sin())
 }
 
 /// The paper's campaign at 2° pitch plus 200 random poses, measured on the virtual KR 30 HA of
-/// the fixtures (the paper's effects, tracker noise), with the run-out added to every
-/// measured position by [`runout_mm`].
+/// the fixtures (the paper's effects, tracker noise), with the error motion added to every
+/// measured position by [`bearing_motion_mm`].
 fn measured() -> (Model, Vec<Stop>) {
     let mut truth = paper::truth_model(false);
     truth.payload = Payload {
@@ -161,7 +158,7 @@ fn measured() -> (Model, Vec<Stop>) {
         .unwrap();
     for s in &mut data {
         if let Some(m) = &mut s.measured_mm {
-            *m += runout_mm(&truth.robot, s.state.axes_deg[0], E_MM);
+            *m += bearing_motion_mm(&truth.robot, s.state.axes_deg[0], E_MM);
         }
     }
     (truth, data)
@@ -177,12 +174,12 @@ fn values_of(cal: &Calibration, name: &str) -> Vec<f64> {
 fn the_registry_takes_a_new_kind_once_and_refuses_a_taken_prefix() {
     register();
     register(); // the same kind again: a no-op
-    let name = EffectName::parse("BASE_RUNOUT").unwrap();
-    assert_eq!(name.to_string(), "base_runout");
+    let name = EffectName::parse("WAVY_BEARING").unwrap();
+    assert_eq!(name.to_string(), "wavy_bearing");
     assert_eq!(
         registry::kinds()
             .iter()
-            .filter(|k| k.prefix == "base_runout")
+            .filter(|k| k.prefix == "wavy_bearing")
             .count(),
         1
     );
@@ -203,26 +200,26 @@ fn the_registry_takes_a_new_kind_once_and_refuses_a_taken_prefix() {
         Payload::default(),
         Vector3::zeros(),
     );
-    model.push(Box::new(BaseRunout { values: E_MM }));
+    model.push(Box::new(WavyBearing { values: E_MM }));
     let cal = Calibration::from_model(
         "KR 30 HA",
         model,
         MeasurementFrame::Base,
         Provenance::default(),
     );
-    let path = std::path::Path::new("runout.json");
+    let path = std::path::Path::new("wavy.json");
     let back = robopost::calibration::parse(&cal.to_json(path).unwrap(), path).unwrap();
-    assert_eq!(values_of(&back, "base_runout"), E_MM);
+    assert_eq!(values_of(&back, "wavy_bearing"), E_MM);
 }
 
 #[test]
-fn identification_recovers_the_eccentricity_and_diagnosis_names_the_run_out() {
+fn identification_recovers_the_motion_and_diagnosis_names_the_new_effect() {
     register();
     let (truth, data) = measured();
 
-    // Identified with the paper's effects and the run-out: the eccentricity comes back.
-    let with = calibrate::calibrate(&truth, &format!("{PAPER_EFFECTS},base_runout"), &data, 2.0);
-    let e = values_of(&with, "base_runout");
+    // Identified with the paper's effects and the new one: the amplitude comes back.
+    let with = calibrate::calibrate(&truth, &format!("{PAPER_EFFECTS},wavy_bearing"), &data, 2.0);
+    let e = values_of(&with, "wavy_bearing");
     eprintln!("identified e = {e:?} mm, truth {E_MM:?}");
     for (got, want) in e.iter().zip(E_MM) {
         assert!((got - want).abs() < 0.005, "{e:?} against {E_MM:?}");
@@ -237,16 +234,22 @@ fn identification_recovers_the_eccentricity_and_diagnosis_names_the_run_out() {
     };
     let d = diagnose(&without, &[m], &DiagnoseOptions::default()).unwrap();
     assert!(
-        d.considered.iter().any(|f| f.effect == "base_runout"),
+        d.considered.iter().any(|f| f.effect == "wavy_bearing"),
         "{:#?}",
         d.considered
     );
     let named: Vec<&str> = d.candidates.iter().map(|f| f.effect.as_str()).collect();
     eprintln!("candidates {named:?}; verdict: {}", d.verdict);
-    assert_eq!(named.first(), Some(&"base_runout"), "{:#?}", d.candidates);
+    for f in d.considered.iter().take(5) {
+        eprintln!(
+            "{} {:.3} {:.2}: {}",
+            f.effect, f.explained, f.rms_after_um, f.evidence
+        );
+    }
+    assert_eq!(named.first(), Some(&"wavy_bearing"), "{:#?}", d.candidates);
 }
 
-const PROGRAM: &str = "DEF runout( )
+const PROGRAM: &str = "DEF wavy( )
 $BASE={X 0.0,Y 0.0,Z 0.0,A 0.0,B 0.0,C 0.0}
 $TOOL={X 0.0,Y 0.0,Z 200.0,A 0.0,B 0.0,C 0.0}
 PTP {A1 20.0,A2 -80.0,A3 100.0,A4 0.0,A5 70.0,A6 0.0}
@@ -267,18 +270,18 @@ fn lin_values(line: &str) -> [f64; 6] {
 }
 
 #[test]
-fn compensation_moves_each_target_against_the_run_out() {
+fn compensation_moves_each_target_against_the_bearing_motion() {
     register();
     let robot = RobotDescription::kr30ha();
     let mut model = Model::new(robot, Payload::default(), Vector3::zeros());
-    let name = EffectName::parse("base_runout").unwrap();
+    let name = EffectName::parse("wavy_bearing").unwrap();
     let mut effect = name.create(&Default::default(), &robot).unwrap();
     effect.values_mut().copy_from_slice(&E_MM);
     model.push(effect);
 
     let ws = files::load_program(None, PROGRAM.as_bytes(), None).unwrap();
     let sim = motion::simulate(&ws, &robot, &[]);
-    let c = robopost::compensate::Calibrated::new(&model, "runout.json", b"runout");
+    let c = robopost::compensate::Calibrated::new(&model, "wavy.json", b"wavy");
     let options = program::Options {
         method: Method::Iterate,
         parallel: false,
@@ -300,18 +303,19 @@ fn compensation_moves_each_target_against_the_run_out() {
         .map(|s| s.nominal_axes[0])
         .collect();
     assert_eq!(a1_of.len(), 3);
-    // Half the last written decimal (3 in mm) plus the run-out's change over the small
-    // turn of A1 the compensation makes (e · |d|/reach, far below a nanometre).
+    // Half the last written decimal (3 in mm) plus the motion's change over the small turn
+    // of A1 the compensation makes (2·e · |d|/reach, far below a nanometre).
     const HALF_MM: f64 = 0.5e-3;
     for ((b, a), a1) in before.iter().zip(&after).zip(&a1_of) {
         let (b, a) = (lin_values(b), lin_values(a));
-        let d = runout_mm(&robot, *a1, E_MM);
-        assert!(d.norm() > 0.05, "a check that can fail: {d}");
+        let d = bearing_motion_mm(&robot, *a1, E_MM);
+        assert!(d.norm() > 0.01, "a check that can fail: {d}");
+        assert!(d.x == 0.0 && d.y == 0.0);
         for k in 0..3 {
             let want = b[k] - d[k];
             assert!(
                 (a[k] - want).abs() <= HALF_MM + 1e-9,
-                "{k}: written {} want {want} (moved {}, run-out {})",
+                "{k}: written {} want {want} (moved {}, motion {})",
                 a[k],
                 a[k] - b[k],
                 d[k]
