@@ -582,26 +582,28 @@ fn fill_tables(model: &mut Model, samples: &[DeviationSample]) {
                 .collect()
         };
         // An own-angle table takes the mean deviation of every test of the axis at each grid
-        // angle, a direction table the difference between the directions (positive minus
-        // negative is `2 · per_direction · value`).
-        let one_d: Option<(u8, Box<dyn Fn((f64, Option<f64>)) -> Option<f64>>)> =
-            match effect.role() {
-                Role::OwnAngle { axis } => Some((axis, Box::new(|a| Some(a.0)))),
-                Role::DirectionDifference {
-                    axis,
-                    per_direction,
-                } => Some((
-                    axis,
-                    Box::new(move |a| a.1.map(|d| d / (2.0 * per_direction))),
-                )),
-                _ => None,
-            };
+        // angle (`None`), a direction table the difference between the directions (`Some(k)`:
+        // positive minus negative is `2k · value`).
+        let one_d = match effect.role() {
+            Role::OwnAngle { axis } => Some((axis, None)),
+            Role::DirectionDifference {
+                axis,
+                per_direction,
+            } => Some((axis, Some(per_direction))),
+            _ => None,
+        };
         if let Some((n, pick)) = one_d {
             let curves = curves_of(n);
             for (j, &g) in table.grid_deg.iter().enumerate() {
                 let v: Vec<f64> = curves
                     .iter()
-                    .filter_map(|c| c.at(g).and_then(&pick))
+                    .filter_map(|c| {
+                        let (mean, difference) = c.at(g)?;
+                        match pick {
+                            None => Some(mean),
+                            Some(k) => difference.map(|d| d / (2.0 * k)),
+                        }
+                    })
                     .collect();
                 if let Some(m) = mean(&v) {
                     values[start + j] = m;

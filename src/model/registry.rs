@@ -290,6 +290,16 @@ fn name_error(expected: impl Into<String>, found: &str) -> NameError {
 
 const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, tilt:An, drift, learned:<action>(<drivers>))";
 
+/// [`KNOWN`] and the kinds registered at run time.
+fn known() -> String {
+    let registered = REGISTERED.read().unwrap_or_else(|e| e.into_inner());
+    if registered.is_empty() {
+        return KNOWN.to_string();
+    }
+    let extra: Vec<&str> = registered.iter().map(|k| k.prefix).collect();
+    format!("{KNOWN} or a registered one ({})", extra.join(", "))
+}
+
 /// `a3` / `A3` → 3, checking the range 1..=6.
 fn parse_axis(text: &str, whole: &str) -> Result<u8, NameError> {
     let digits = text
@@ -317,7 +327,7 @@ impl EffectName {
         let kind = kinds()
             .into_iter()
             .find(|k| k.prefix.eq_ignore_ascii_case(prefix))
-            .ok_or_else(|| name_error(KNOWN, trimmed))?;
+            .ok_or_else(|| name_error(known(), trimmed))?;
         let axes = match (kind.arity, rest) {
             (Arity::Robot, None) => Axes::None,
             (Arity::Robot, Some(_)) => {
