@@ -1,14 +1,16 @@
-//! Which effects a diagnosis tries: every effect of the contract table the calibration lacks —
-//! `geometric` if absent, `map`, `backlash`, `compliance` and `tilt` of every axis, every
-//! ordered axis pair of `crosstalk`, and `drift` — in the table's order.
+//! Which effects a diagnosis tries: every effect of every kind the registry knows that the
+//! calibration lacks — a robot-wide kind once, an axis kind on every axis, a pair kind on
+//! every ordered axis pair — in the registry's order (the contract table's, then the kinds
+//! registered at run time). Kinds defined by the data (learned functions) are proposed by
+//! `diagnose::learn` instead.
 
-use crate::model::registry::{Arity, EffectName, KINDS};
+use crate::model::registry::{kinds, Arity, EffectName};
 use crate::model::Model;
 
-/// Every effect name of the contract table (56 for six axes).
+/// Every effect name of every enumerable kind (56 for the contract table on six axes).
 pub fn all_effects() -> Vec<EffectName> {
     let mut names = Vec::new();
-    for kind in KINDS {
+    for kind in kinds() {
         let p = kind.prefix;
         let spelled: Vec<String> = match kind.arity {
             Arity::Robot => vec![p.to_string()],

@@ -25,8 +25,7 @@ use super::crossval::Score;
 use crate::compare::Row;
 use crate::model::chain::slot_of_index;
 use crate::model::effects::learned::{Action, Driver, DriverValues, Spec, MAX_TERMS};
-use crate::model::registry::Axes;
-use crate::model::{AxisState, Model, Slot, N_SLOTS};
+use crate::model::{AxisState, Model, Role, Slot, N_SLOTS};
 
 /// Ridge on the column-scaled normal equations (unit diagonal): a numerical guard only, so
 /// that the screening scores what `identify` (no ridge) will fit.
@@ -208,15 +207,13 @@ fn model_columns(
     let (_, exact) = model.target_jacobian(state);
     let mut out = Vec::new();
     for (i, e) in model.effects().iter().enumerate() {
-        let name = e.name();
         let (start, end) = (model.effect_start(i), model.effect_start(i + 1));
         let table = e.record().table;
         let angle = |n: u8| jacobian[Slot::Angle { axis: n }.index()];
-        let parsed = crate::model::EffectName::parse(&name).ok();
-        match (parsed.map(|p| (p.kind.prefix, p.axes)), table) {
-            (Some(("map", Axes::One(n))), Some(t))
-            | (Some(("backlash", Axes::One(n))), Some(t)) => {
-                let sign = if name.starts_with("backlash") {
+        match (e.role(), table) {
+            (Role::OwnAngle { axis: n }, Some(t))
+            | (Role::DirectionDifference { axis: n, .. }, Some(t)) => {
+                let sign = if let Role::DirectionDifference { .. } = e.role() {
                     state.directions()[n as usize - 1].sign()
                 } else {
                     1.0
@@ -226,7 +223,7 @@ fn model_columns(
                     out.push(angle(n) * (sign * p));
                 }
             }
-            (Some(("crosstalk", Axes::Pair { from, to })), Some(t)) => {
+            (Role::CrossAngle { from, to }, Some(t)) => {
                 let own = legendre(unit_in(&t.grid_deg, state.axes_deg[to as usize - 1]), 3);
                 let other_grid = t.other_grid_deg.unwrap_or_default();
                 let other = legendre(unit_in(&other_grid, state.axes_deg[from as usize - 1]), 2);

@@ -192,7 +192,7 @@ pub fn extrapolates_in_time(name: &EffectName) -> bool {
         crate::model::registry::Axes::Spec(s) => {
             learn_spec(s).is_some_and(|s| learn::uses_time(&s))
         }
-        _ => name.kind.prefix == "drift",
+        _ => name.kind.in_time,
     }
 }
 
@@ -586,15 +586,18 @@ fn shares(rows: &[Row]) -> Vec<TestShare> {
     out
 }
 
-/// Grids of candidate tables: the pitch of the calibration's own map and backlash tables
-/// (the pitch its campaign was measured at), else the defaults.
+/// Grids of candidate tables: the pitch of the calibration's own tables over one axis angle
+/// (map and backlash: the pitch its campaign was measured at), else the defaults.
 pub fn grid_choice(model: &Model) -> GridChoice {
     let pitch = model
         .effects()
         .iter()
         .filter(|e| {
-            let name = e.name();
-            name.starts_with("map:") || name.starts_with("backlash:")
+            matches!(
+                e.role(),
+                crate::model::Role::OwnAngle { .. }
+                    | crate::model::Role::DirectionDifference { .. }
+            )
         })
         .find_map(|e| {
             let points = e.record().table?.grid_deg;

@@ -13,27 +13,16 @@ use rayon::prelude::*;
 use crate::identify::setup::{add_effects, GridChoice};
 use crate::identify::{refine, RefineOptions};
 use crate::measure::Stop;
-use crate::model::registry::Axes;
 use crate::model::{EffectName, Model};
 
 /// Share of the best candidate's gain a twin must reach.
 pub const TWIN_SHARE: f64 = 0.8;
 
-/// Effects that gravity makes look like `best`: the compliance of the axes a crosstalk joins,
-/// or the crosstalks from the arm axes (A2, A3) onto a compliant axis.
+/// Effects that physics makes look like `best` (its kind's
+/// [`look_alikes`](crate::model::registry::Kind::look_alikes): for gravity, the compliance
+/// of the axes a crosstalk joins, or the crosstalks from the arm axes onto a compliant axis).
 pub fn gravity_partners(best: &EffectName) -> Vec<EffectName> {
-    let names: Vec<String> = match (best.kind.prefix, best.axes) {
-        ("crosstalk", Axes::Pair { from, to }) => {
-            vec![format!("compliance:A{to}"), format!("compliance:A{from}")]
-        }
-        ("compliance", Axes::One(n)) => [2, 3]
-            .into_iter()
-            .filter(|&m| m != n)
-            .map(|m| format!("crosstalk:A{m}->A{n}"))
-            .collect(),
-        _ => Vec::new(),
-    };
-    names
+    (best.kind.look_alikes)(best.axes)
         .iter()
         .filter_map(|n| EffectName::parse(n).ok())
         .collect()

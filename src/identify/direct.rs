@@ -31,7 +31,7 @@ use nalgebra::{DMatrix, DVector, Vector3};
 use super::circle::{fit_circle, Circle3};
 use super::screen::oriented_by_motion;
 use crate::measure::Stop;
-use crate::model::{AxisState, Direction, Model};
+use crate::model::{AxisState, Direction, Effect, Model, Role, Slot};
 
 /// Fewest measured angles for a test to count as an indexing test.
 const MIN_ANGLES: usize = 5;
@@ -138,10 +138,7 @@ pub fn indexing_tests_grouped(data: &[Stop], group_of: &[usize]) -> Vec<Indexing
 
 /// The model without its angular tables: only the `geometric` effect (when present).
 fn geometric_only(model: &Model) -> Option<(Model, usize)> {
-    let g = model
-        .effects()
-        .iter()
-        .position(|e| e.name() == "geometric")?;
+    let g = axis_lines(model)?;
     let mut m = Model::new(model.robot, model.payload, model.target_mm);
     m.push(model.effects()[g].clone());
     Some((m, model.effect_start(g)))
@@ -301,10 +298,7 @@ pub fn direct_method_grouped(
         set_target_a6(model, &p);
     }
     let geometry = fit_geometry(model, data, &kept, &lines);
-    if let (Some(geo), Some(g)) = (
-        &geometry,
-        model.effects().iter().position(|e| e.name() == "geometric"),
-    ) {
+    if let (Some(geo), Some(g)) = (&geometry, axis_lines(model)) {
         let mut values = model.values();
         let start = model.effect_start(g);
         values[start..start + geo.n_parameters()].copy_from_slice(&geo.values());
@@ -334,12 +328,11 @@ pub const TARGET_HINT_TOLERANCE_MM: f64 = 1.0;
 /// The effective target of `model` in the A6 frame: `target_mm` plus the correction `p6`.
 pub fn effective_target_a6(model: &Model) -> Vector3<f64> {
     let mut p = model.target_a6();
-    if let Some(g) = model.effects().iter().position(|e| e.name() == "geometric") {
-        let names = crate::model::effects::geometric::parameter_names();
-        let values = model.effects()[g].values();
-        for (c, key) in ["p6x", "p6y", "p6z"].iter().enumerate() {
-            if let Some(j) = names.iter().position(|n| n == key) {
-                p[c] += values[j];
+    if let Some(g) = axis_lines(model) {
+        let effect = &model.effects()[g];
+        for (c, j) in target_correction(effect.as_effect()).iter().enumerate() {
+            if let Some(j) = j {
+                p[c] += effect.values()[*j];
             }
         }
     }
@@ -351,7 +344,7 @@ pub fn effective_target_a6(model: &Model) -> Vector3<f64> {
 /// correction `p6` of the `geometric` effect (when the model has it) takes the rest.
 pub fn set_target_a6(model: &mut Model, p: &Vector3<f64>) {
     let to_flange = crate::model::chain::a6_to_flange().transpose();
-    let g = model.effects().iter().position(|e| e.name() == "geometric");
+    let g = axis_lines(model);
     if g.is_none() || (model.target_a6() - p).norm() > TARGET_HINT_TOLERANCE_MM {
         let flange = to_flange * p;
         model.target_mm = if g.is_some() {
@@ -364,15 +357,30 @@ pub fn set_target_a6(model: &mut Model, p: &Vector3<f64>) {
         return;
     };
     let rest = p - model.target_a6();
-    let names = crate::model::effects::geometric::parameter_names();
     let start = model.effect_start(g);
     let mut values = model.values();
-    for (c, key) in ["p6x", "p6y", "p6z"].iter().enumerate() {
-        if let Some(j) = names.iter().position(|n| n == key) {
+    for (c, j) in target_correction(model.effects()[g].as_effect())
+        .iter()
+        .enumerate()
+    {
+        if let Some(j) = j {
             values[start + j] = rest[c];
         }
     }
     model.set_values(&values);
+}
+
+/// The effect that carries the axis lines' geometry ([`Role::AxisLines`]), if the model has it.
+pub fn axis_lines(model: &Model) -> Option<usize> {
+    model
+        .effects()
+        .iter()
+        .position(|e| e.role() == Role::AxisLines)
+}
+
+/// The parameters of `effect` that add a constant to the target vector, per A6-frame axis.
+fn target_correction(effect: &dyn Effect) -> [Option<usize>; 3] {
+    [0, 1, 2].map(|coord| effect.constant_in(Slot::Target { coord }))
 }
 
 /// The target vector in the A6 frame (mm) from an A5 and an A6 indexing test measured in one
@@ -469,15 +477,12 @@ fn deviation_samples(
     samples
 }
 
-/// `model` without the tables that write axis `axis`'s angle (its map, backlash and
-/// crosstalk onto it).
+/// `model` without the tables that write axis `axis`'s angle (its own-angle and direction
+/// tables and the cross tables onto it).
 fn without_axis_tables(model: &Model, axis: u8) -> Model {
-    let own = [format!("map:A{axis}"), format!("backlash:A{axis}")];
-    let onto = format!("->A{axis}");
     let mut m = Model::new(model.robot, model.payload, model.target_mm);
     for e in model.effects() {
-        let name = e.name();
-        if !own.contains(&name) && !name.ends_with(&onto) {
+        if e.role().angle_of() != Some(axis) {
             m.push(e.clone());
         }
     }
@@ -510,11 +515,11 @@ struct Curves {
 }
 
 impl Curves {
-    /// (mean of the branches, and when both exist their bidirectional difference: the
-    /// negative branch minus the positive one, a gear play's width) at `x`.
+    /// (mean of the branches, and when both exist the positive branch minus the negative
+    /// one) at `x`.
     fn at(&self, x: f64) -> Option<(f64, Option<f64>)> {
         match (interpolate(&self.plus, x), interpolate(&self.minus, x)) {
-            (Some(p), Some(m)) => Some(((p + m) / 2.0, Some(m - p))),
+            (Some(p), Some(m)) => Some(((p + m) / 2.0, Some(p - m))),
             (Some(v), None) | (None, Some(v)) => Some((v, None)),
             (None, None) => None,
         }
@@ -565,12 +570,10 @@ fn fill_tables(model: &mut Model, samples: &[DeviationSample]) {
     let mut values = model.values();
     for (e, effect) in model.effects().iter().enumerate() {
         let start = model.effect_start(e);
-        let name = effect.name();
         let record = effect.record();
         let Some(table) = record.table else {
             continue;
         };
-        let parse_axis = |s: &str| s.parse::<u8>().ok();
         let curves_of = |n: u8| -> Vec<&Curves> {
             by_test
                 .iter()
@@ -578,33 +581,35 @@ fn fill_tables(model: &mut Model, samples: &[DeviationSample]) {
                 .map(|(_, c)| c)
                 .collect()
         };
-        // The mean deviation (map) or the difference between the directions (the backlash's
-        // play width) of every test of the axis, at each grid angle.
-        let one_d = [
-            (
-                "map:A",
-                (|a| Some(a.0)) as fn((f64, Option<f64>)) -> Option<f64>,
-            ),
-            ("backlash:A", |a| a.1),
-        ];
-        if let Some((n, pick)) = one_d.iter().find_map(|&(prefix, pick)| {
-            Some((name.strip_prefix(prefix).and_then(parse_axis)?, pick))
-        }) {
+        // An own-angle table takes the mean deviation of every test of the axis at each grid
+        // angle (`None`), a direction table the difference between the directions (`Some(k)`:
+        // positive minus negative is `2k · value`).
+        let one_d = match effect.role() {
+            Role::OwnAngle { axis } => Some((axis, None)),
+            Role::DirectionDifference {
+                axis,
+                per_direction,
+            } => Some((axis, Some(per_direction))),
+            _ => None,
+        };
+        if let Some((n, pick)) = one_d {
             let curves = curves_of(n);
             for (j, &g) in table.grid_deg.iter().enumerate() {
                 let v: Vec<f64> = curves
                     .iter()
-                    .filter_map(|c| c.at(g).and_then(pick))
+                    .filter_map(|c| {
+                        let (mean, difference) = c.at(g)?;
+                        match pick {
+                            None => Some(mean),
+                            Some(k) => difference.map(|d| d / (2.0 * k)),
+                        }
+                    })
                     .collect();
                 if let Some(m) = mean(&v) {
                     values[start + j] = m;
                 }
             }
-        } else if let Some((m, n)) = name
-            .strip_prefix("crosstalk:A")
-            .and_then(|r| r.split_once("->A"))
-            .and_then(|(a, b)| Some((parse_axis(a)?, parse_axis(b)?)))
-        {
+        } else if let Role::CrossAngle { from: m, to: n } = effect.role() {
             let Some(columns) = &table.other_grid_deg else {
                 continue;
             };

@@ -33,7 +33,7 @@ use crate::model::{EffectName, Model};
 use crate::stats::{error_stats, ErrorStats};
 
 /// The paper's full model, the default effect list.
-pub const PAPER_EFFECTS: &str = "geometric,map:A1..A6,backlash:A1..A6,crosstalk:A3->A2";
+pub use crate::model::registry::PAPER_EFFECTS;
 
 /// Most fit-and-screen rounds (a round leaves out the points the last fit showed to be gross
 /// errors and takes back those it cleared; on the campaigns tried the set settles in two).
@@ -821,7 +821,7 @@ fn clues(
         })
     };
     let mut held: Vec<String> = Vec::new();
-    if !model.effects().iter().any(|e| e.name() == "geometric") {
+    if super::direct::axis_lines(model).is_none() {
         held.push("the geometric errors (not in the effect list)".into());
     }
     for (e, effect) in model.effects().iter().enumerate() {

@@ -90,7 +90,7 @@ fn held_out_rms(
                 }
                 _ => {
                     fold_model.push(e.clone());
-                    if free.contains(&name) || name == "geometric" {
+                    if free.contains(&name) || e.role() == crate::model::Role::AxisLines {
                         fold_free.push(name);
                     }
                 }

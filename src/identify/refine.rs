@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use super::lsq::{LsqError, SparseLsq};
 use super::register::rigid_fit;
 use crate::measure::Stop;
-use crate::model::{AxisState, EffectName, JacobianScratch, Model};
+use crate::model::{AxisState, EffectName, JacobianScratch, Model, Role, Slot};
 use crate::stats::{error_stats, ErrorStats};
 
 /// Which parameters the refinement moves; the others are held at their current values.
@@ -333,18 +333,20 @@ fn effect_of(model: &Model, flat: usize) -> usize {
         .unwrap_or(0)
 }
 
-/// Index of an effect by canonical name.
-fn effect_index(model: &Model, name: &str) -> Option<usize> {
-    model.effects().iter().position(|e| e.name() == name)
+/// Flat index of the axis-lines parameter that adds a constant to `slot`, when the model
+/// has one.
+fn constant_param(model: &Model, slot: Slot) -> Option<usize> {
+    let g = super::direct::axis_lines(model)?;
+    Some(model.effect_start(g) + model.effects()[g].constant_in(slot)?)
 }
 
-/// Flat index of a named geometric parameter, when the model has the geometric effect.
-fn geometric_param(model: &Model, name: &str) -> Option<usize> {
-    let g = effect_index(model, "geometric")?;
-    let local = crate::model::effects::geometric::parameter_names()
-        .iter()
-        .position(|n| n == name)?;
-    Some(model.effect_start(g) + local)
+/// Whether the model has an own-angle table of axis `axis` ([`Role::OwnAngle`]) with a free
+/// cell.
+fn free_own_angle(model: &Model, free: &[bool], axis: u8) -> bool {
+    model.effects().iter().enumerate().any(|(m, e)| {
+        let start = model.effect_start(m);
+        e.role() == Role::OwnAngle { axis } && free[start..start + e.values().len()].contains(&true)
+    })
 }
 
 /// Refines `model` in place against the measured stops of `data` (stops in visiting order,
@@ -409,7 +411,7 @@ pub fn refine(
 
     // Observation strength of every parameter: its column norm over the data rows.
     let mut norms = column_norms(model, &points);
-    one_sided_backlash(model, &points, &free, &mut norms);
+    one_sided_direction_cells(model, &points, &free, &mut norms);
     let mut smoothed = vec![false; n_flat];
     let mut constraints: Vec<Constraint> = Vec::new();
     let mut scale = norms.clone();
@@ -812,27 +814,18 @@ fn column_norms(model: &Model, points: &[Point]) -> Vec<f64> {
     sq.into_iter().map(f64::sqrt).collect()
 }
 
-/// A backlash cell is told apart from its map cell only by data on both branches: where the
-/// measured stops approached a cell from one direction only, `map ± backlash` is all the data
-/// say, so the backlash cell counts as unobserved (and is smoothed) when `map:An` is free.
-fn one_sided_backlash(model: &Model, points: &[Point], free: &[bool], norms: &mut [f64]) {
+/// A direction table's cell is told apart from the own-angle table's cell only by data on
+/// both branches: where the measured stops approached a cell from one direction only, `map ±
+/// backlash` is all the data say, so the direction cell counts as unobserved (and is
+/// smoothed) when the own-angle table of its axis is free.
+fn one_sided_direction_cells(model: &Model, points: &[Point], free: &[bool], norms: &mut [f64]) {
     let ctx = model.context();
     let mut partials = Vec::new();
     for (e, effect) in model.effects().iter().enumerate() {
-        let Some(n) = effect
-            .name()
-            .strip_prefix("backlash:A")
-            .and_then(|a| a.parse::<u8>().ok())
-        else {
+        let Role::DirectionDifference { axis: n, .. } = effect.role() else {
             continue;
         };
-        let map_free = effect_index(model, &format!("map:A{n}")).is_some_and(|m| {
-            let start = model.effect_start(m);
-            free[start..start + model.effects()[m].values().len()]
-                .iter()
-                .any(|&f| f)
-        });
-        if !map_free {
+        if !free_own_angle(model, free, n) {
             continue;
         }
         let start = model.effect_start(e);
@@ -889,8 +882,13 @@ fn pins(
     // Whether a constant angle offset of axis n is already carried by another free parameter.
     let offset_carried = |n: u8| match n {
         1 => tracker,
-        2..=5 => is_free(geometric_param(model, &format!("dth{n}0"))),
-        _ => is_free(geometric_param(model, "p6y")) && is_free(geometric_param(model, "p6z")),
+        2..=5 => is_free(constant_param(model, Slot::Angle { axis: n })),
+        // A6 turns the target about its axis: the target correction across it carries the
+        // offset.
+        _ => {
+            is_free(constant_param(model, Slot::Target { coord: 1 }))
+                && is_free(constant_param(model, Slot::Target { coord: 2 }))
+        }
     };
     let weights = data_weights(model, points);
     let mut out = Vec::new();
@@ -907,23 +905,14 @@ fn pins(
         })
     };
     for (e, effect) in model.effects().iter().enumerate() {
-        let Ok(name) = EffectName::parse(&effect.name()) else {
-            continue;
-        };
         let start = model.effect_start(e);
         let len = effect.values().len();
-        match (name.kind.prefix, name.axes) {
-            ("map", crate::model::registry::Axes::One(n)) if offset_carried(n) => {
+        match effect.role() {
+            Role::OwnAngle { axis: n } if offset_carried(n) => {
                 out.extend(mean_row(&(start..start + len).collect::<Vec<_>>()));
             }
-            ("crosstalk", crate::model::registry::Axes::Pair { to, .. }) => {
-                let map = effect_index(model, &format!("map:A{to}"));
-                let map_free = map.is_some_and(|m| {
-                    free[model.effect_start(m)
-                        ..model.effect_start(m) + model.effects()[m].values().len()]
-                        .iter()
-                        .any(|&f| f)
-                });
+            Role::CrossAngle { to, .. } => {
+                let map_free = free_own_angle(model, free, to);
                 let Some((rows, cols)) = table_shape(model, e) else {
                     continue;
                 };

@@ -119,6 +119,45 @@ pub struct Context<'a> {
     pub payload: &'a crate::kinematics::Payload,
 }
 
+/// The part an effect's values play for the steps that treat some effects specially:
+/// identification's starting values from indexing tests (`identify::direct`), its gauge
+/// constraints (`identify::refine`: a table's constant part that another effect also carries
+/// is pinned), and the shapes a diagnosis knows the model can absorb (`diagnose::learn`). An
+/// effect says what it is here; callers never match its name. Any other effect is `Other`:
+/// identified from the data alone, through its Jacobian.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Role {
+    /// The axis lines' geometry and the target vector, constant over the state (`geometric`):
+    /// fitted first, from the circles of indexing tests; its [`Effect::constant_in`]
+    /// parameters carry the axes' angle offsets and the target correction.
+    AxisLines,
+    /// A table `f(A_n)` added to axis n's angle in both rotation directions (`map:An`). Its
+    /// mean over the data is an angle offset of the axis: pinned when the offset is free.
+    OwnAngle { axis: u8 },
+    /// A table over A_n of the difference between axis n's rotation directions
+    /// (`backlash:An`): after a motion longer than the effect's reach the deviation is
+    /// `mean + direction · per_direction · value`. Told from the own-angle table only by data
+    /// on both directions.
+    DirectionDifference { axis: u8, per_direction: f64 },
+    /// A table `g(A_to, A_from)` added to axis `to`'s angle, rows over A_to and columns over
+    /// A_from (`crosstalk:Am->An`). Each row's mean is what the own-angle table of `to`
+    /// carries: pinned per row when that table is free, as a whole when only the offset is.
+    CrossAngle { from: u8, to: u8 },
+    /// Anything else.
+    Other,
+}
+
+impl Role {
+    /// The axis whose angle slot this role's table writes, if any.
+    pub fn angle_of(self) -> Option<u8> {
+        match self {
+            Role::OwnAngle { axis } | Role::DirectionDifference { axis, .. } => Some(axis),
+            Role::CrossAngle { to, .. } => Some(to),
+            Role::AxisLines | Role::Other => None,
+        }
+    }
+}
+
 /// A physical error effect of the contract table (`geometric`, `map:An`, `backlash:An`,
 /// `crosstalk:Am->An`, `compliance:An`, `tilt:An`, `drift`).
 pub trait Effect: Send + Sync + std::fmt::Debug {
@@ -203,6 +242,16 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// A fit is unconstrained; most effects have no physical bound and keep every value.
     fn make_physical(&mut self, _standard_errors: &[Option<f64>]) -> Vec<String> {
         Vec::new()
+    }
+    /// What the effect's values are for identification and diagnosis (see [`Role`]).
+    fn role(&self) -> Role {
+        Role::Other
+    }
+    /// The parameter (index into [`Self::values`]) that adds a constant to `slot` whatever
+    /// the state, if the effect has one: the geometry's angle offsets and target correction,
+    /// which direct identification sets and gauge fixing asks about.
+    fn constant_in(&self, _slot: Slot) -> Option<usize> {
+        None
     }
     fn clone_box(&self) -> Box<dyn Effect>;
 }

@@ -1,13 +1,24 @@
 //! The one place that knows every effect by name: parsing a contract name (`geometric`,
 //! `map:A2`, `crosstalk:A3->A2`, case-insensitive) into its kind and axes, expanding
 //! `A1..A6` in lists, and building an effect either at zero for identification or from its
-//! calibration record. Adding an effect is one file in `effects/` plus one line in [`KINDS`].
+//! calibration record. Adding an effect is one file in `effects/` plus one entry in [`KINDS`]
+//! (or, for an effect defined outside the crate, one call of [`register`]); identification,
+//! compensation and diagnosis ask the effect ([`Effect::role`](super::Effect::role)) or its
+//! [`Kind`] what they need and never match a name.
 
 use std::fmt;
+use std::sync::RwLock;
 
 use super::effects::{
-    compliance::Compliance, crosstalk::Crosstalk, drift::Drift, geometric::Geometric,
-    learned::Learned, map::AngleMap, play::GearPlay, tilt::Tilt, GridOptions, ModelEffect,
+    compliance::{self, Compliance},
+    crosstalk::{self, Crosstalk},
+    drift::Drift,
+    geometric::Geometric,
+    learned::Learned,
+    map::AngleMap,
+    play::GearPlay,
+    tilt::Tilt,
+    GridOptions, ModelEffect,
 };
 use super::record::{EffectRecord, RecordError};
 use crate::kinematics::RobotDescription;
@@ -51,6 +62,12 @@ pub struct Kind {
     /// Rewrites a record of format `robopost-calibration/1` into this format's meaning, for
     /// the kinds whose meaning changed.
     pub upgrade_v1: Option<UpgradeFn>,
+    /// The effects that physics makes look like this one on a campaign (names), which a
+    /// diagnosis re-identifies beside it before it names one.
+    pub look_alikes: fn(Axes) -> Vec<String>,
+    /// Whether the effect is driven by the clock (column `t`): a diagnosis validates it on
+    /// the latest data, as it must extrapolate in time.
+    pub in_time: bool,
 }
 
 pub type CreateFn =
@@ -81,7 +98,16 @@ fn boxed<E: ModelEffect + 'static, Er>(r: Result<E, Er>) -> Result<Box<dyn Model
     r.map(|e| Box::new(e) as Box<dyn ModelEffect>)
 }
 
-/// Every effect kind, in the contract table's order.
+fn none(_: Axes) -> Vec<String> {
+    Vec::new()
+}
+
+/// The paper's full model (section 2): the axis lines' geometry, each axis's angle map and
+/// its direction dependence, and the crosstalk of A3 onto A2.
+pub const PAPER_EFFECTS: &str = "geometric,map:A1..A6,backlash:A1..A6,crosstalk:A3->A2";
+
+/// Every built-in effect kind, in the contract table's order (a diagnosis tries them in this
+/// order; see [`kinds`] for the registered ones too).
 pub static KINDS: &[Kind] = &[
     Kind {
         prefix: "geometric",
@@ -90,6 +116,8 @@ pub static KINDS: &[Kind] = &[
         create: |_, _, _| boxed(Ok::<_, String>(Geometric::default())),
         decode: |_, r, _| boxed(Geometric::from_record(r)),
         upgrade_v1: None,
+        look_alikes: none,
+        in_time: false,
     },
     Kind {
         prefix: "map",
@@ -98,6 +126,8 @@ pub static KINDS: &[Kind] = &[
         create: |a, o, r| boxed(AngleMap::zeros(one(a), o, r)),
         decode: |a, rec, _| boxed(AngleMap::from_record(one(a), rec)),
         upgrade_v1: None,
+        look_alikes: none,
+        in_time: false,
     },
     Kind {
         prefix: "backlash",
@@ -106,6 +136,8 @@ pub static KINDS: &[Kind] = &[
         create: |a, o, r| boxed(GearPlay::zeros(one(a), o, r)),
         decode: |a, rec, _| boxed(GearPlay::from_record(one(a), rec)),
         upgrade_v1: Some(GearPlay::upgrade_v1),
+        look_alikes: none,
+        in_time: false,
     },
     Kind {
         prefix: "crosstalk",
@@ -120,6 +152,11 @@ pub static KINDS: &[Kind] = &[
             boxed(Crosstalk::from_record(m, n, rec))
         },
         upgrade_v1: None,
+        look_alikes: |a| {
+            let (m, n) = pair(a);
+            crosstalk::gravity_look_alikes(m, n)
+        },
+        in_time: false,
     },
     Kind {
         prefix: "compliance",
@@ -128,6 +165,8 @@ pub static KINDS: &[Kind] = &[
         create: |a, _, r| boxed(Compliance::zeros(one(a), r)),
         decode: |a, rec, r| boxed(Compliance::from_record(one(a), rec, r)),
         upgrade_v1: None,
+        look_alikes: |a| compliance::gravity_look_alikes(one(a)),
+        in_time: false,
     },
     Kind {
         prefix: "tilt",
@@ -136,6 +175,8 @@ pub static KINDS: &[Kind] = &[
         create: |a, _, _| boxed(Ok::<_, String>(Tilt::zeros(one(a)))),
         decode: |a, rec, _| boxed(Tilt::from_record(one(a), rec)),
         upgrade_v1: None,
+        look_alikes: none,
+        in_time: false,
     },
     Kind {
         prefix: "drift",
@@ -144,6 +185,8 @@ pub static KINDS: &[Kind] = &[
         create: |_, _, _| boxed(Ok::<_, String>(Drift::default())),
         decode: |_, r, _| boxed(Drift::from_record(r)),
         upgrade_v1: None,
+        look_alikes: none,
+        in_time: true,
     },
     Kind {
         prefix: "learned",
@@ -152,8 +195,52 @@ pub static KINDS: &[Kind] = &[
         create: |a, _, r| boxed(Learned::zeros(spec(a), r)),
         decode: |a, rec, r| boxed(Learned::from_record(spec(a), rec, r)),
         upgrade_v1: None,
+        look_alikes: none,
+        in_time: false,
     },
 ];
+
+/// Kinds added at run time by [`register`], after the built-in ones.
+static REGISTERED: RwLock<Vec<&'static Kind>> = RwLock::new(Vec::new());
+
+/// Adds a kind of effect defined outside this crate (a plug-in, a test's own physics): its
+/// names parse, calibration files carry it, identification and compensation use it, and a
+/// diagnosis tries it after the built-in kinds. Registering the same kind again is a no-op;
+/// a different kind with a prefix already taken is refused.
+pub fn register(kind: &'static Kind) -> Result<(), String> {
+    let valid = !kind.prefix.is_empty()
+        && kind
+            .prefix
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+    if !valid {
+        return Err(format!(
+            "an effect prefix of lowercase letters, digits and `_`, found `{}`",
+            kind.prefix
+        ));
+    }
+    let mut registered = REGISTERED.write().unwrap_or_else(|e| e.into_inner());
+    let taken = kinds_in(&registered).find(|k| k.prefix.eq_ignore_ascii_case(kind.prefix));
+    match taken {
+        Some(k) if std::ptr::eq(k, kind) => Ok(()),
+        Some(_) => Err(format!("the effect prefix `{}` is taken", kind.prefix)),
+        None => {
+            registered.push(kind);
+            Ok(())
+        }
+    }
+}
+
+fn kinds_in<'a>(registered: &'a [&'static Kind]) -> impl Iterator<Item = &'static Kind> + 'a {
+    KINDS.iter().chain(registered.iter().copied())
+}
+
+/// Every kind of effect: the built-in ones in the contract table's order, then the
+/// registered ones in their order of registration.
+pub fn kinds() -> Vec<&'static Kind> {
+    let registered = REGISTERED.read().unwrap_or_else(|e| e.into_inner());
+    kinds_in(&registered).collect()
+}
 
 /// A parsed effect name.
 #[derive(Clone, Copy)]
@@ -203,6 +290,16 @@ fn name_error(expected: impl Into<String>, found: &str) -> NameError {
 
 const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, tilt:An, drift, learned:<action>(<drivers>))";
 
+/// [`KNOWN`] and the kinds registered at run time.
+fn known() -> String {
+    let registered = REGISTERED.read().unwrap_or_else(|e| e.into_inner());
+    if registered.is_empty() {
+        return KNOWN.to_string();
+    }
+    let extra: Vec<&str> = registered.iter().map(|k| k.prefix).collect();
+    format!("{KNOWN} or a registered one ({})", extra.join(", "))
+}
+
 /// `a3` / `A3` → 3, checking the range 1..=6.
 fn parse_axis(text: &str, whole: &str) -> Result<u8, NameError> {
     let digits = text
@@ -227,10 +324,10 @@ impl EffectName {
             Some((p, r)) => (p.trim(), Some(r.trim())),
             None => (trimmed, None),
         };
-        let kind = KINDS
-            .iter()
+        let kind = kinds()
+            .into_iter()
             .find(|k| k.prefix.eq_ignore_ascii_case(prefix))
-            .ok_or_else(|| name_error(KNOWN, trimmed))?;
+            .ok_or_else(|| name_error(known(), trimmed))?;
         let axes = match (kind.arity, rest) {
             (Arity::Robot, None) => Axes::None,
             (Arity::Robot, Some(_)) => {

@@ -59,6 +59,16 @@ pub struct Compliance {
     pub compliance: [f64; 1],
 }
 
+/// The crosstalks from the arm axes (A2, A3) onto a compliant axis n: the gravity torque
+/// they change makes the same residual (see `crosstalk::gravity_look_alikes`).
+pub fn gravity_look_alikes(n: u8) -> Vec<String> {
+    [2, 3]
+        .into_iter()
+        .filter(|&m| m != n)
+        .map(|m| format!("crosstalk:A{m}->A{n}"))
+        .collect()
+}
+
 impl Compliance {
     /// A zero compliance; an error when the robot has no mass data to compute torques from.
     pub fn zeros(axis: u8, robot: &RobotDescription) -> Result<Self, String> {

@@ -8,10 +8,19 @@ use std::f64::consts::PI;
 
 use super::{grid_label, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
-use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{
+    AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role, Slot,
+};
 use crate::model::record::{self, EffectRecord, RecordError, TableRecord};
 use crate::model::table::{Grid, Table2};
 use crate::model::AxisState;
+
+/// The gravity torque on A2 and A3 is a function of A2 and A3, so on a campaign at one
+/// payload the compliance of either axis a crosstalk joins explains the same residual (the
+/// paper, section 3.2, suspects gravity behind its crosstalk).
+pub fn gravity_look_alikes(from: u8, to: u8) -> Vec<String> {
+    vec![format!("compliance:A{to}"), format!("compliance:A{from}")]
+}
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Crosstalk {
@@ -157,6 +166,12 @@ impl Effect for Crosstalk {
     }
     fn clamped(&self, state: &AxisState) -> bool {
         self.lookup(state).2
+    }
+    fn role(&self) -> Role {
+        Role::CrossAngle {
+            from: self.from,
+            to: self.to,
+        }
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())

@@ -8,7 +8,7 @@
 use std::f64::consts::PI;
 
 use super::ToRecord;
-use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Role, Slot};
 use crate::model::record::{self, EffectRecord, RecordError};
 use crate::model::AxisState;
 
@@ -121,6 +121,13 @@ impl Effect for Geometric {
                 value: Self::gain(i, ctx),
             });
         }
+    }
+    fn role(&self) -> Role {
+        Role::AxisLines
+    }
+    /// The zero offsets Δθ20..Δθ50 and the target correction p6x, p6y, p6z.
+    fn constant_in(&self, slot: Slot) -> Option<usize> {
+        PARAMETERS.iter().position(|&(_, s, _)| s == slot)
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())

@@ -5,7 +5,7 @@
 use super::axis_table::AxisTable;
 use super::{GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
-use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial};
+use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role};
 use crate::model::merged::AxisFactor;
 use crate::model::record::{EffectRecord, RecordError};
 use crate::model::table::Table1;
@@ -63,6 +63,9 @@ impl Effect for AngleMap {
     }
     fn clamped(&self, state: &AxisState) -> bool {
         self.0.clamped(state)
+    }
+    fn role(&self) -> Role {
+        Role::OwnAngle { axis: self.0.axis }
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())

@@ -16,7 +16,9 @@ use std::f64::consts::PI;
 use super::axis_table::AxisTable;
 use super::{GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
-use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{
+    AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role, Slot,
+};
 use crate::model::history::{PlayAt, MAX_PLAY_DEG};
 use crate::model::merged::AxisFactor;
 use crate::model::record::{EffectRecord, RecordError};
@@ -174,6 +176,13 @@ impl Effect for GearPlay {
             )]
         } else {
             Vec::new()
+        }
+    }
+    /// Engaged, the output lags by half the width against the direction of motion.
+    fn role(&self) -> Role {
+        Role::DirectionDifference {
+            axis: self.0.axis,
+            per_direction: -0.5,
         }
     }
     fn clone_box(&self) -> Box<dyn Effect> {
