@@ -176,6 +176,9 @@ impl Effect for GearPlay {
             Vec::new()
         }
     }
+    fn direction_axes(&self) -> Vec<u8> {
+        vec![self.0.axis]
+    }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())
     }
