@@ -26,6 +26,9 @@
 //!
 //! Tables at 2° pitch (a small campaign, so the suite stays quick).
 
+#[path = "support/readme.rs"]
+mod readme;
+
 use std::path::Path;
 
 use robopost::calibration::Calibration;
@@ -194,6 +197,20 @@ fn other_reversals() -> Campaign {
     c
 }
 
+fn report_of(cal: &Calibration, data: &[Stop]) -> String {
+    let rows = compare::compare(cal, &[file(data, "data")]);
+    robopost::report::html(&robopost::report::ReportInput {
+        models: vec![robopost::report::ReportModel {
+            label: "old.json",
+            model: cal.model_ref(),
+            rows: &rows,
+        }],
+        sources: vec!["data".into()],
+        gross_errors: Vec::new(),
+        learned: None,
+    })
+}
+
 fn rms(cal: &Calibration, data: &[Stop]) -> f64 {
     Summary::residuals(&compare::compare(cal, &[file(data, "validation")]))
         .all
@@ -251,6 +268,32 @@ fn the_play_is_named_where_reversal_tests_show_it() {
     let (before, after) = (rms(&old, &validation), rms(&new, &validation));
     println!("validation reversal tests: {before:.1} → {after:.1} µm RMS");
     assert!(after < 0.8 * before, "{before} → {after}");
+    let width = width_in(&best.evidence).unwrap();
+    let truth = robot.file().gears[1].play_deg;
+    assert_eq!(best.effect, "backlash:A2");
+    readme::assert_prose(
+        "diagnose-play",
+        &[
+            100.0 * best.explained,
+            d.rms_um,
+            best.rms_after_um,
+            before,
+            after,
+        ],
+        0.6,
+    );
+    readme::assert_prose("diagnose-play-width", &[width, truth], 0.0006);
+    // The report shows where the switch fails: the residual against the travel since the
+    // last reversal of every axis that reversed by little.
+    let page = report_of(&old, &data);
+    for n in 1..=6 {
+        assert!(
+            page.contains(&format!(
+                "A{n}: residual against travel since the last reversal"
+            )),
+            "no reversal figure of A{n}"
+        );
+    }
 }
 
 #[test]
@@ -268,6 +311,7 @@ fn without_short_reversals_the_play_is_not_named() {
             "backlash:A{n} was not tried"
         );
     }
+    assert!(!report_of(&cal, &data).contains("travel since the last reversal"));
     assert!(
         d.verdict.contains("gear play or an instant switch") && d.verdict.contains("cannot tell"),
         "{}",

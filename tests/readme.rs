@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 29] = [
+const CLAIMS: [(&str, &str); 31] = [
     ("gross-thresholds", "tests/readme.rs"),
     ("gross-share", "tests/readme.rs"),
     ("quick-start", "tests/readme.rs"),
@@ -41,6 +41,8 @@ const CLAIMS: [(&str, &str); 29] = [
     ("diagnose-t", "tests/diagnose.rs"),
     ("diagnose-table", "tests/diagnose.rs"),
     ("paper-figures", "tests/readme.rs"),
+    ("diagnose-play", "tests/diagnose_play.rs"),
+    ("diagnose-play-width", "tests/diagnose_play.rs"),
 ];
 
 fn root() -> &'static Path {
