@@ -294,7 +294,7 @@ pub fn reversal_travel(models: &[ReportModel]) -> Vec<Figure> {
                 points: play::points(m.model, m.rows, axis)
                     .into_iter()
                     .map(|p| {
-                        let travel = p.travel_deg.min(LONG_TRAVEL_AT_DEG).max(1e-4);
+                        let travel = p.travel_deg.clamp(1e-4, LONG_TRAVEL_AT_DEG);
                         (travel.log10(), p.signed_um)
                     })
                     .collect(),
