@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 30] = [
+const CLAIMS: [(&str, &str); 32] = [
     ("paper-table-1-floor", "tests/paper_experiment.rs"),
     ("gross-thresholds", "tests/readme.rs"),
     ("gross-share", "tests/readme.rs"),
@@ -42,6 +42,8 @@ const CLAIMS: [(&str, &str); 30] = [
     ("diagnose-t", "tests/diagnose.rs"),
     ("diagnose-table", "tests/diagnose.rs"),
     ("paper-figures", "tests/readme.rs"),
+    ("diagnose-play", "tests/diagnose_play.rs"),
+    ("diagnose-play-width", "tests/diagnose_play.rs"),
 ];
 
 fn root() -> &'static Path {

@@ -51,3 +51,24 @@ pub fn off_motion_residual_um(model: &Model, row: &Row, axis: u8) -> f64 {
     };
     (r - along).norm() * 1000.0
 }
+
+/// The residual along the motion of `axis` signed by its rotation direction on arrival, as
+/// (µm, degrees of the axis): positive where the output is ahead of the model in the
+/// direction of travel (a gear play's output that stayed put after a short reversal is
+/// ahead). `None` when the direction is unknown or the axis barely moves the target.
+pub fn signed_by_direction(model: &Model, row: &Row, axis: u8) -> Option<(f64, f64)> {
+    let sign = row.state.directions()[axis as usize - 1].sign();
+    if sign == 0.0 {
+        return None;
+    }
+    let (frames, _) = model.frames(&row.state);
+    let j = frames.point_partial(Slot::Angle { axis }, &row.predicted);
+    let j2 = j.norm_squared();
+    (j2 > 1.0).then(|| {
+        let along = row.residual().dot(&j);
+        (
+            sign * along / j2.sqrt() * 1000.0,
+            (sign * along / j2).to_degrees(),
+        )
+    })
+}

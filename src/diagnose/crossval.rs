@@ -1,5 +1,6 @@
 //! Cross-validated worth of one candidate effect under a blocked plan ([`super::blocks`]): for
-//! each fold the candidate is added at zero to a copy of the current model and fitted with only
+//! each fold the candidate is added at zero to a copy of the current model (in place of the
+//! effects it [`replaced`]) and fitted with only
 //! its own parameters free (`identify::refine`) on the points the fold may learn from, then
 //! predicts the points it holds out. Each held-out point is predicted by a fit that saw neither
 //! it nor its neighbours in time, so a table with many parameters that only follows the noise,
@@ -18,7 +19,7 @@ use super::blocks::{Plan, Scheme};
 use crate::identify::setup::{add_effects, GridChoice};
 use crate::identify::{refine, Free, RefineOptions, Warning};
 use crate::measure::Stop;
-use crate::model::{EffectName, Model};
+use crate::model::{EffectName, GridOptions, Model};
 
 /// Iterations of each fit: the candidate enters linearly to first order, so a few suffice.
 const MAX_ITERATIONS: usize = 3;
@@ -144,17 +145,45 @@ impl Evaluation {
     }
 }
 
-/// `base` with `name` added at zero, and the number of parameters it adds.
+/// The effects of `base` that the candidate `name` takes the place of: those that describe
+/// only the rotation direction of axes whose direction the candidate describes
+/// ([`Effect::direction_axes`](crate::model::Effect)). A gear play tried on a model with an
+/// instant switch of sign must replace the switch: added to it at zero, the play's first
+/// linearisation is the switch itself and the fit cannot leave it.
+pub fn replaced(base: &Model, name: &EffectName) -> Vec<String> {
+    let axes = name
+        .create(&GridOptions::default(), &base.robot)
+        .map(|e| e.direction_axes())
+        .unwrap_or_default();
+    if axes.is_empty() {
+        return Vec::new();
+    }
+    base.effects()
+        .iter()
+        .filter(|e| {
+            let own = e.direction_axes();
+            !own.is_empty() && own.iter().all(|a| axes.contains(a))
+        })
+        .map(|e| e.name())
+        .collect()
+}
+
+/// `base` with `name` added at zero in place of the effects it [`replaced`], and the number
+/// of parameters that adds.
 fn with_candidate(
     base: &Model,
     stops: &[Stop],
     name: &EffectName,
     grid: &GridChoice,
 ) -> Result<(Model, usize), String> {
-    let mut with = base.clone();
+    let gone = replaced(base, name);
+    let mut with = Model::new(base.robot, base.payload, base.target_mm);
+    for e in base.effects().iter().filter(|e| !gone.contains(&e.name())) {
+        with.push(e.clone());
+    }
     add_effects(&mut with, &[*name], stops, grid)?;
-    let added = with.n_parameters() - base.n_parameters();
-    Ok((with, added))
+    let added = with.n_parameters() as isize - base.n_parameters() as isize;
+    Ok((with, added.max(0) as usize))
 }
 
 /// Held-out predictions of `with` (fitting only `free`) under `plan`: the residual of every
@@ -167,6 +196,20 @@ pub fn held_out(
     plan: &Plan,
     max_iterations: usize,
     unobserved_is_zero: bool,
+) -> Result<Vec<Option<Vector3<f64>>>, String> {
+    let fallback = unobserved_is_zero.then_some(with);
+    held_out_or(with, free, stops, plan, max_iterations, fallback)
+}
+
+/// [`held_out`], a fold whose training points do not observe the effect predicted by
+/// `fallback` (the current model) when given, else an error.
+fn held_out_or(
+    with: &Model,
+    free: &[String],
+    stops: &[Stop],
+    plan: &Plan,
+    max_iterations: usize,
+    fallback: Option<&Model>,
 ) -> Result<Vec<Option<Vector3<f64>>>, String> {
     let options = RefineOptions {
         free: Free::Effects(free.to_vec()),
@@ -191,10 +234,10 @@ pub fn held_out(
             .iter()
             .find(|w| matches!(w, Warning::Unobserved { .. }))
         {
-            if !unobserved_is_zero {
-                return Err(w.to_string());
+            match fallback {
+                Some(current) => model = current.clone(),
+                None => return Err(w.to_string()),
             }
-            model = with.clone();
         }
         for &i in held {
             if let Some(measured) = stops[i].measured_mm {
@@ -278,13 +321,13 @@ pub fn check(
     grid: &GridChoice,
 ) -> Result<Score, String> {
     let (with, _) = with_candidate(base, stops, name, grid)?;
-    let after = held_out(
+    let after = held_out_or(
         &with,
         &[name.to_string()],
         stops,
         plan,
         MAX_ITERATIONS,
-        true,
+        Some(base),
     )?;
     Ok(Score::new(plan, before, &after))
 }

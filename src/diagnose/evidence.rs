@@ -1,6 +1,7 @@
 //! The evidence for a candidate in plain words, read off the residuals of the current model:
 //! for an angular effect of axis n the residual along the target's motion about n (µm) —
-//! against n's own angle (map), between the rotation directions (backlash), against another
+//! against n's own angle (map), between the rotation directions or, where the data hold short
+//! reversals, against the travel since the last reversal (backlash, [`super::play`]), against another
 //! axis's angle over the tests that sweep n (crosstalk), against n's gravity torque
 //! (compliance); the residual across that motion against n's angle (tilt); each residual
 //! component against time (drift).
@@ -166,7 +167,12 @@ fn map(model: &Model, rows: &[Row], n: u8) -> String {
     )
 }
 
+/// The play's dead band when the data hold stops after short reversals of n (the only data
+/// that tell a play from an instant switch of sign), else the gap between the directions.
 fn backlash(model: &Model, rows: &[Row], n: u8) -> String {
+    if let Some(e) = super::play::evidence(model, rows, n) {
+        return super::play::describe(&e, n);
+    }
     let rows = sweeping(rows, n);
     let a = |r: &Row| r.state.axes_deg[n as usize - 1];
     let [plus, minus] = by_direction(model, &rows, n, a);

@@ -17,6 +17,7 @@ pub mod crossval;
 pub mod evidence;
 pub mod learn;
 pub mod noise;
+pub mod play;
 pub mod sample;
 pub mod twins;
 
@@ -184,6 +185,19 @@ pub enum DiagnoseError {
 /// The `--effects` value that adds `name` (quoted: `>` is a shell redirection).
 pub fn add_option(name: &str) -> String {
     format!("--effects '+{name}'")
+}
+
+/// The `--effects` value that identifies the model's effects with `name` in place of
+/// `replaced` (with `-c`, the kept effects start from their values).
+pub fn replace_option(model: &Model, replaced: &[String], name: &str) -> String {
+    let mut list: Vec<String> = model
+        .effects()
+        .iter()
+        .map(|e| e.name())
+        .filter(|n| !replaced.contains(n))
+        .collect();
+    list.push(name.to_string());
+    format!("--effects '{}'", list.join(","))
 }
 
 /// Whether the effect extrapolates in time (validated on the latest data).
@@ -473,13 +487,21 @@ pub fn diagnose(
     } else {
         None
     };
-    let verdict = verdict(
+    let direction_tries: Vec<(Vec<u8>, bool)> = (0..evaluations.len())
+        .filter(|&i| evaluations[i].not_evaluated.is_none())
+        .map(|i| {
+            let axes = play::candidate_direction_axes(&evaluations[i].name, model);
+            (axes, significant(i))
+        })
+        .collect();
+    let mut verdict = verdict(
         rms,
         &floor,
         &candidates,
         learned.as_ref(),
         &residual_by_test,
     );
+    verdict += &play::undecided_sentence(&play::undecided(model, &direction_tries, &rows));
     Ok(Diagnosis {
         rms_um: rms,
         noise_um: floor.rms_um,
@@ -620,10 +642,17 @@ fn finding(
     rms: f64,
 ) -> Finding {
     let name = e.name.to_string();
+    let replaced = crossval::replaced(model, &e.name);
     let evidence = match &e.not_evaluated {
         Some(why) => format!("not evaluated: {why}"),
         None => {
             let mut s = evidence::describe(&e.name, model, rows);
+            if !replaced.is_empty() {
+                s += &format!(
+                    "; tried in place of {}, which describe the same rotation direction",
+                    replaced.join(", ")
+                );
+            }
             s += &format!(
                 "; fitted without the stretches of the tests it is scored on, it explains {:.0}% \
                  of their residual ({rms:.1} → {:.1} µm RMS)",
@@ -641,7 +670,11 @@ fn finding(
     };
     let within = e.within.as_ref();
     Finding {
-        add: add_option(&name),
+        add: if replaced.is_empty() {
+            add_option(&name)
+        } else {
+            replace_option(model, &replaced, &name)
+        },
         effect: name,
         explained: e.explained,
         rms_after_um: e.rms_after_um,

@@ -253,6 +253,14 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn constant_in(&self, _slot: Slot) -> Option<usize> {
         None
     }
+    /// The axes (1..=6) whose rotation direction — the history of the command: the direction
+    /// of the last motion, the play — the contribution depends on. A diagnosis that tries an
+    /// effect of one axis's direction fits it together with the model's other effects of that
+    /// axis's direction, so that a better description of the direction dependence (a gear play
+    /// for an instant switch of sign) can take their place rather than add to them.
+    fn direction_axes(&self) -> Vec<u8> {
+        Vec::new()
+    }
     fn clone_box(&self) -> Box<dyn Effect>;
 }
 

@@ -2,8 +2,9 @@
 //! path in a plane, magnified, measured beside predicted and the residual), Fig. 10 (Z error
 //! along a path, measured versus each model), Fig. 11 (histograms of XY and Z errors, the
 //! robot's own error and each model's residual), per indexing test the residual as an angle
-//! of the swept axis against its angle with one curve per rotation direction, and the
-//! residual against every candidate driver.
+//! of the swept axis against its angle with one curve per rotation direction, the residual
+//! against every candidate driver, and per axis the residual against the travel since its last
+//! reversal (where a gear play shows).
 
 use nalgebra::Vector3;
 
@@ -11,6 +12,7 @@ use super::plot::{self, Distribution, Series, Style, Trajectory};
 use super::ReportModel;
 use crate::compare::axis_residual::{angular_residual, indexed_axis, off_motion_residual_um};
 use crate::compare::{Driver, Row, DRIVERS};
+use crate::diagnose::play;
 use crate::model::Direction;
 
 /// One figure of the page.
@@ -264,6 +266,60 @@ pub fn indexing(test: &str, models: &[ReportModel], idx: &[usize]) -> Vec<Figure
             (520, 300),
         ),
     ));
+    figures
+}
+
+/// Where a stop reached after a long travel since the reversal (or an unknown one) is drawn
+/// on the travel axis, degrees: past every finite travel a play cares about.
+const LONG_TRAVEL_AT_DEG: f64 = 5.0;
+
+/// Per axis whose data hold stops after short reversals (reversal tests, programs that turn
+/// an axis round by little): each model's residual along the axis's motion, signed by its
+/// rotation direction, against the command's travel since the last reversal (log scale;
+/// long travel at the right edge). A model with a gear play is flat here; an instant switch
+/// of sign (or none) leaves a residual that falls with the travel to zero at the play's width.
+pub fn reversal_travel(models: &[ReportModel]) -> Vec<Figure> {
+    let mut figures = Vec::new();
+    for axis in 1..=6u8 {
+        if !play::has_short_reversals(models[0].rows, axis) {
+            continue;
+        }
+        let series: Vec<Series> = models
+            .iter()
+            .enumerate()
+            .map(|(k, m)| Series {
+                label: Some(m.label.to_string()),
+                color: plot::PALETTE[k % plot::PALETTE.len()],
+                style: Style::Dots { radius: 2 },
+                points: play::points(m.model, m.rows, axis)
+                    .into_iter()
+                    .map(|p| {
+                        let travel = p.travel_deg.clamp(1e-4, LONG_TRAVEL_AT_DEG);
+                        (travel.log10(), p.signed_um)
+                    })
+                    .collect(),
+            })
+            .collect();
+        let title = format!("A{axis}: residual against travel since the last reversal");
+        figures.push(figure(
+            title.clone(),
+            format!(
+                "The residual along the A{axis} motion, signed by its rotation direction (µm), \
+                 against how far the command has travelled since A{axis} last reversed (°, log \
+                 scale; {LONG_TRAVEL_AT_DEG}°: long travel). A gear play leaves the output where \
+                 it was while the command reverses by less than the play: a model that switches \
+                 with the direction (or has none) fails there, the residual falling with the \
+                 travel to zero at the play's width. Flat: the model describes the play."
+            ),
+            plot::log_x_chart(
+                &title,
+                &format!("A{axis} travel since the last reversal (°)"),
+                "signed residual along the motion (µm)",
+                &series,
+                (520, 300),
+            ),
+        ));
+    }
     figures
 }
 

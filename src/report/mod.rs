@@ -2,7 +2,9 @@
 //! (`DIR/index.html`, inline SVG, no script, no external file) that shows a user where the
 //! model fails — the paper's Table 1 per test, the tests and points the model explains worst,
 //! its Figs. 9–11, per indexing test the residual over the swept angle by rotation direction,
-//! the residual against every candidate driver, and the drivers learned from the residual
+//! the residual against every candidate driver, per axis that reversed by little the residual
+//! against the travel since its last reversal (where a gear play shows), and the drivers
+//! learned from the residual
 //! (what a `learned:` effect would add, with its plot) when a diagnosis found them. Written
 //! atomically.
 

@@ -101,6 +101,18 @@ pub fn render(input: &ReportInput) -> String {
         figure_html(&mut out, f);
     }
     out.push_str("</div>\n");
+    let reversals = figures::reversal_travel(models);
+    if !reversals.is_empty() {
+        out.push_str(
+            "<h2 id=\"reversals\">Residual against the travel since the last reversal</h2>\n\
+             <p>Where an axis reversed by less than a gear play could be wide (reversal tests), \
+             the play shows: an instant switch of direction fails there.</p>\n<div class=\"grid\">",
+        );
+        for f in &reversals {
+            figure_html(&mut out, f);
+        }
+        out.push_str("</div>\n");
+    }
     if let Some(l) = input.learned {
         learned(&mut out, l);
     }

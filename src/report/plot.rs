@@ -102,8 +102,39 @@ pub fn xy_chart(
     size: (u32, u32),
 ) -> std::result::Result<String, String> {
     let x = padded(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    let fx = ticks(&x);
+    chart(title, x_desc, y_desc, series, size, x, &fx)
+}
+
+/// [`xy_chart`] over a logarithmic x axis: the series' x are decimal logarithms, the ticks
+/// show the values themselves.
+pub fn log_x_chart(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series],
+    size: (u32, u32),
+) -> std::result::Result<String, String> {
+    let x = padded(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    let fx = |v: &f64| {
+        let value = 10f64.powf(*v);
+        let decimals = (-v.floor()).max(0.0) as usize;
+        format!("{value:.decimals$}")
+    };
+    chart(title, x_desc, y_desc, series, size, x, &fx)
+}
+
+fn chart(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series],
+    size: (u32, u32),
+    x: Range<f64>,
+    fx: &dyn Fn(&f64) -> String,
+) -> std::result::Result<String, String> {
     let y = padded(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
-    let (fx, fy) = (ticks(&x), ticks(&y));
+    let fy = ticks(&y);
     render(size, |root| {
         let mut chart = ChartBuilder::on(root)
             .caption(title, (FONT, 15))
@@ -115,7 +146,7 @@ pub fn xy_chart(
             .configure_mesh()
             .x_desc(x_desc)
             .y_desc(y_desc)
-            .x_label_formatter(&fx)
+            .x_label_formatter(fx)
             .y_label_formatter(&fy)
             .max_light_lines(2)
             .label_style((FONT, 11))

@@ -152,12 +152,17 @@ impl Campaign {
         }
     }
 
-    /// The paper's campaign followed by a reversal test of every axis at three angles of its
-    /// sweep, with moves of 0.002° to 0.05° (gear plays are hundredths of a degree): what a
-    /// real campaign needs to measure the plays' dead band, not only their two branches.
+    /// The paper's campaign followed by a reversal test of every axis at five angles of its
+    /// sweep, with moves of 0.001° to 0.05° (gear plays are hundredths of a degree): what a
+    /// real campaign needs to measure the plays' dead band, not only their two branches. A
+    /// play's dead band shows only at the stops inside it, so they must be many: a diagnosis
+    /// weighs a gain carried by k stops with a t statistic of at most about √k, and asks for 5
+    /// (`diagnose::MIN_T`); a play of 0.016° holds 50 of these stops per axis.
     pub fn paper_with_reversals() -> Campaign {
         let mut campaign = Campaign::paper();
-        let steps = vec![0.002, 0.005, 0.01, 0.02, 0.05];
+        let steps = vec![
+            0.001, 0.002, 0.003, 0.004, 0.005, 0.006, 0.008, 0.01, 0.012, 0.015, 0.02, 0.03, 0.05,
+        ];
         campaign.reversals = campaign
             .tests
             .iter()
@@ -165,7 +170,7 @@ impl Campaign {
                 let span = t.to_deg - t.from_deg;
                 ReversalTest {
                     axis: t.axis,
-                    at_deg: [0.2, 0.5, 0.8]
+                    at_deg: [0.1, 0.3, 0.5, 0.7, 0.9]
                         .map(|f| (t.from_deg + f * span).round())
                         .to_vec(),
                     steps_deg: steps.clone(),

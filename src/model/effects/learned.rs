@@ -641,6 +641,16 @@ impl Effect for Learned {
             _ => false,
         })
     }
+    fn direction_axes(&self) -> Vec<u8> {
+        self.spec
+            .drivers
+            .iter()
+            .filter_map(|d| match *d {
+                Driver::Direction(n) => Some(n),
+                _ => None,
+            })
+            .collect()
+    }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())
     }

@@ -185,6 +185,9 @@ impl Effect for GearPlay {
             per_direction: -0.5,
         }
     }
+    fn direction_axes(&self) -> Vec<u8> {
+        vec![self.0.axis]
+    }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())
     }
