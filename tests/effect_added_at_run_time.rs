@@ -26,7 +26,7 @@ use robopost::kinematics::{Payload, RobotDescription};
 use robopost::measure::{Measurements, Stop};
 use robopost::model::effects::ToRecord;
 use robopost::model::record::{self, EffectRecord, RecordError};
-use robopost::model::registry::{self, Arity, Kind};
+use robopost::model::registry::{self, Arity, Evidence, Kind};
 use robopost::model::{AxisState, ChainErrors, Context, Effect, EffectName, Parameter, Partial};
 use robopost::model::{Model, Slot};
 use robopost::motion;
@@ -114,6 +114,7 @@ static WAVY_BEARING: Kind = Kind {
     upgrade_v1: None,
     look_alikes: |_| Vec::new(),
     in_time: false,
+    evidence: Evidence::Meaning,
 };
 
 fn register() {
@@ -192,6 +193,7 @@ fn the_registry_takes_a_new_kind_once_and_refuses_a_taken_prefix() {
         upgrade_v1: None,
         look_alikes: |_| Vec::new(),
         in_time: false,
+        evidence: Evidence::Meaning,
     };
     assert!(registry::register(&IMPOSTOR).is_err());
     // The calibration file carries it.
@@ -247,6 +249,12 @@ fn identification_recovers_the_motion_and_diagnosis_names_the_new_effect() {
         );
     }
     assert_eq!(named.first(), Some(&"wavy_bearing"), "{:#?}", d.candidates);
+    // Its evidence sentence is the one its registry entry chose: what the kind means.
+    assert!(
+        d.candidates[0].evidence.contains(WAVY_BEARING.meaning),
+        "{}",
+        d.candidates[0].evidence
+    );
 }
 
 const PROGRAM: &str = "DEF wavy( )

@@ -6,11 +6,10 @@
 //! Together with `tests/effect_added_at_run_time.rs` (a new effect as one file, used by all
 //! three without edits) it is the check of issue 22's "effects as one file each".
 //!
-//! Two exceptions, each for a reason:
-//! - `learned` effects are what `diagnose::learn` writes: their definition language is the
-//!   diagnosis's own product, so diagnosis and the promise check of `identify` read it;
-//! - `diagnose/evidence.rs` still writes each built-in effect's evidence sentence by name
-//!   (its owner reworks it in the same round; it moves into the effect when that lands).
+//! One exception: `learned` effects are what `diagnose::learn` writes: their definition
+//! language is the diagnosis's own product, so diagnosis and the promise check of `identify`
+//! read it. The evidence sentence of a kind is chosen by its registry entry
+//! (`Kind::evidence`), not by its name.
 //!
 //! [`Effect::role`]: robopost::model::Effect::role
 //! [`Kind`]: robopost::model::registry::Kind
@@ -20,7 +19,7 @@ use std::path::{Path, PathBuf};
 use robopost::model::registry::KINDS;
 
 const SCANNED: [&str; 3] = ["src/identify", "src/diagnose", "src/compensate"];
-const EXCEPT_FILES: [&str; 1] = ["src/diagnose/evidence.rs"];
+const EXCEPT_FILES: [&str; 0] = [];
 const EXCEPT_KINDS: [&str; 1] = ["learned"];
 /// Files of `src/model/effects/` that are shared machinery, not an effect.
 const SHARED: [&str; 2] = ["mod.rs", "axis_table.rs"];

@@ -12,7 +12,7 @@ use nalgebra::Vector3;
 
 use crate::compare::axis_residual::indexed_axis;
 use crate::compare::{Driver, Row};
-use crate::model::registry::Axes;
+use crate::model::registry::{Axes, Evidence};
 use crate::model::{Direction, EffectName, Model, Slot};
 
 /// The unit vector of the target's motion when axis n turns, or `None` when the turn barely
@@ -107,18 +107,21 @@ fn sweeping(rows: &[Row], axis: u8) -> Vec<&Row> {
     }
 }
 
-/// One sentence of evidence for `name`, from the current model's residuals.
+/// One sentence of evidence for `name`, from the current model's residuals: the reader its
+/// kind names ([`Evidence`]).
 pub fn describe(name: &EffectName, model: &Model, rows: &[Row]) -> String {
-    match (name.kind.prefix, name.axes) {
-        ("map", Axes::One(n)) => map(model, rows, n),
-        ("backlash", Axes::One(n)) => backlash(model, rows, n),
-        ("crosstalk", Axes::Pair { from, to }) => crosstalk(model, rows, from, to),
-        ("compliance", Axes::One(n)) => compliance(model, rows, n),
-        ("tilt", Axes::One(n)) => tilt(model, rows, n),
-        ("drift", _) => drift(rows),
-        _ => "the residual is consistent with errors of the axis average lines or the target \
-              vector, constant over the campaign"
+    match (name.kind.evidence, name.axes) {
+        (Evidence::OwnAngle, Axes::One(n)) => map(model, rows, n),
+        (Evidence::DirectionDifference, Axes::One(n)) => backlash(model, rows, n),
+        (Evidence::CrossAngle, Axes::Pair { from, to }) => crosstalk(model, rows, from, to),
+        (Evidence::GravityTorque, Axes::One(n)) => compliance(model, rows, n),
+        (Evidence::TiltMotion, Axes::One(n)) => tilt(model, rows, n),
+        (Evidence::Time, _) => drift(rows),
+        (Evidence::AxisLines, _) => "the residual is consistent with errors of the axis \
+                                     average lines or the target vector, constant over the \
+                                     campaign"
             .into(),
+        _ => format!("the residual is consistent with {}", name.kind.meaning),
     }
 }
 

@@ -68,6 +68,32 @@ pub struct Kind {
     /// Whether the effect is driven by the clock (column `t`): a diagnosis validates it on
     /// the latest data, as it must extrapolate in time.
     pub in_time: bool,
+    /// What in the residual shows this effect: the reader a diagnosis uses for its evidence
+    /// sentence.
+    pub evidence: Evidence,
+}
+
+/// The signature of an effect in the residual, which a diagnosis reads for its evidence
+/// sentence (each reader lives in `diagnose::evidence`). A new kind picks the reader that
+/// fits its physics, or [`Evidence::Meaning`] to state what it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Evidence {
+    /// Constant over the data: the axis lines' geometry or the target vector.
+    AxisLines,
+    /// The residual along an axis's motion varies with its own angle.
+    OwnAngle,
+    /// It differs between the rotation directions, and with the travel since a reversal.
+    DirectionDifference,
+    /// It varies with another axis's angle.
+    CrossAngle,
+    /// It grows with the axis's gravity torque.
+    GravityTorque,
+    /// The axis's rotation axis tilts with its angle.
+    TiltMotion,
+    /// It grows with time.
+    Time,
+    /// None of these: the sentence states the kind's meaning.
+    Meaning,
 }
 
 pub type CreateFn =
@@ -118,6 +144,7 @@ pub static KINDS: &[Kind] = &[
         upgrade_v1: None,
         look_alikes: none,
         in_time: false,
+        evidence: Evidence::AxisLines,
     },
     Kind {
         prefix: "map",
@@ -128,6 +155,7 @@ pub static KINDS: &[Kind] = &[
         upgrade_v1: None,
         look_alikes: none,
         in_time: false,
+        evidence: Evidence::OwnAngle,
     },
     Kind {
         prefix: "backlash",
@@ -138,6 +166,7 @@ pub static KINDS: &[Kind] = &[
         upgrade_v1: Some(GearPlay::upgrade_v1),
         look_alikes: none,
         in_time: false,
+        evidence: Evidence::DirectionDifference,
     },
     Kind {
         prefix: "crosstalk",
@@ -157,6 +186,7 @@ pub static KINDS: &[Kind] = &[
             crosstalk::gravity_look_alikes(m, n)
         },
         in_time: false,
+        evidence: Evidence::CrossAngle,
     },
     Kind {
         prefix: "compliance",
@@ -167,6 +197,7 @@ pub static KINDS: &[Kind] = &[
         upgrade_v1: None,
         look_alikes: |a| compliance::gravity_look_alikes(one(a)),
         in_time: false,
+        evidence: Evidence::GravityTorque,
     },
     Kind {
         prefix: "tilt",
@@ -177,6 +208,7 @@ pub static KINDS: &[Kind] = &[
         upgrade_v1: None,
         look_alikes: none,
         in_time: false,
+        evidence: Evidence::TiltMotion,
     },
     Kind {
         prefix: "drift",
@@ -187,6 +219,7 @@ pub static KINDS: &[Kind] = &[
         upgrade_v1: None,
         look_alikes: none,
         in_time: true,
+        evidence: Evidence::Time,
     },
     Kind {
         prefix: "learned",
@@ -197,6 +230,7 @@ pub static KINDS: &[Kind] = &[
         upgrade_v1: None,
         look_alikes: none,
         in_time: false,
+        evidence: Evidence::Meaning,
     },
 ];
 
