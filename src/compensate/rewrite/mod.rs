@@ -12,6 +12,11 @@
 //! written for its last execution, with a warning. A point of `$config.dat`, which every
 //! program of the cell shares, is never written there: the program's data list gets a copy
 //! under a new name and the place is renamed the same way.
+//!
+//! The steps are [`rewrite_placed`]'s. The rooms: `target` works out what a target's numbers
+//! become, `aggregate` writes them into its aggregate's text (the digits by
+//! [`krl::number`](crate::krl::number)), `shared` decides how an aggregate that several
+//! executions write is written.
 
 mod aggregate;
 mod shared;
@@ -148,12 +153,12 @@ const EDITS_RESERVED: usize = 2048;
 
 /// [`rewrite`] with the commands the compensation placed (their TCPs are not computed again).
 ///
-/// The steps: find the aggregates to write ([`Writer::written_keys`]); write those that one
-/// execution alone writes straight into the file's edit list, in parallel (the fast path,
-/// every target of a CAM program: [`Writer::write_single`]); gather the executions of the
-/// others per aggregate ([`Writer::shared_uses`]), then say why some targets could not be
-/// written, and write each shared aggregate once, split into copies or localized
-/// ([`write_shared`]); last, keep the offsets of geometric operators ([`keep_pinned`]).
+/// The steps: find the targets to write (`Writer::written_keys`); write the aggregates that
+/// one execution alone writes straight into their file's edit list, in parallel (the fast
+/// path, every target of a CAM program: `Writer::write_single`); gather the executions of
+/// the others per aggregate (`Writer::shared_uses`); say why some targets could not be
+/// written; write each shared aggregate once, split into copies or localized
+/// (`write_shared`); last, keep the offsets of geometric operators (`keep_pinned`).
 pub fn rewrite_placed(
     ws: &Workspace,
     sim: &Simulation,

@@ -24,7 +24,7 @@ const POW10: [f64; 23] = [
     1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 ];
 
-/// `10f64.powi(decimals)`, from the table where that is exact ([`POW10`]).
+/// `10f64.powi(decimals)`, from the table where that is exact (`POW10`).
 pub fn ten_to(decimals: usize) -> f64 {
     match POW10.get(decimals) {
         Some(&p) => p,

@@ -118,6 +118,14 @@ fn split_exp(v: f64, decimals: usize) -> (String, i64) {
 /// Appends to `out` the new text of literal `original` (value `old`) for `value`, in its style
 /// (see [`format_like`]); false, and nothing appended, when the written number would not
 /// change (its bytes are then kept).
+///
+/// ```
+/// use robopost::krl::number::write_like;
+/// let mut out = Vec::new();
+/// assert!(!write_like(b"1.000", 1.0, 1.0002, 3, &mut out)); // still 1.000: kept
+/// assert!(write_like(b"1.000", 1.0, 1.0016, 3, &mut out));
+/// assert_eq!(out, b"1.002");
+/// ```
 pub fn write_like(
     original: &[u8],
     old: f64,
