@@ -75,18 +75,8 @@ fn round_to(v: f64, decimals: u8) -> f64 {
     (v * scale).round() / scale
 }
 
-/// `10f64.powi(decimals)`, from a table where that is exact (10^22 = 2^22·5^22 and 5^22 <
-/// 2^53: every power up to it is a double, and so is every product `powi` forms on the way).
-pub(super) fn ten_to(decimals: usize) -> f64 {
-    const TABLE: [f64; 23] = [
-        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
-        1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
-    ];
-    match TABLE.get(decimals) {
-        Some(&p) => p,
-        None => 10f64.powi(decimals as i32),
-    }
-}
+// Powers of ten as the written literals round by (`krl::number`).
+use crate::krl::number::ten_to;
 
 /// How the controller interpolates the motion reaching a target (from the previous one).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -46,7 +46,15 @@ pub(crate) struct Nodes {
     /// boxed extra): when none does, dropping the pool need not visit its million motions.
     motions_own_heap: bool,
     /// Pages mapped ahead of the three big pools (see `memory`).
-    ahead: [Ahead; 3],
+    ahead: PoolsAhead,
+}
+
+/// Where each big pool has pages mapped ahead of its end ([`Ahead`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct PoolsAhead {
+    members: Ahead,
+    motions: Ahead,
+    aggregates: Ahead,
 }
 
 impl Drop for Nodes {
@@ -221,7 +229,7 @@ impl Nodes {
     /// `member_values`).
     #[inline]
     pub fn push_member(&mut self, m: Packed, value: f64) {
-        self.ahead[0].before_push(&self.members);
+        self.ahead.members.before_push(&self.members);
         self.members.push(m);
         if self.keep_values {
             self.member_values.push(value);
@@ -231,13 +239,13 @@ impl Nodes {
     #[inline]
     pub fn push_motion(&mut self, m: Motion) {
         self.motions_own_heap |= m.owns_heap();
-        self.ahead[1].before_push(&self.motions);
+        self.ahead.motions.before_push(&self.motions);
         self.motions.push(m);
     }
 
     #[inline]
     pub fn push_aggregate(&mut self, a: Aggregate) {
-        self.ahead[2].before_push(&self.aggregates);
+        self.ahead.aggregates.before_push(&self.aggregates);
         self.aggregates.push(a);
     }
 

@@ -29,8 +29,8 @@ impl Default for StreamOptions {
     fn default() -> StreamOptions {
         // A run of a few thousand lines is already worth not holding as a tree. Windows of
         // 512 motions (~130 kB of tree, a few hundred of stops and results) stay in the
-        // caches and keep the pipeline's start and end short: the 1M-point program ran
-        // 1.93–2.00 s with them against 2.12–2.28 s with 4,096 (768: alike; 256: slower).
+        // caches and keep the pipeline's start and end short (the sweep of window sizes is
+        // in BENCH.md).
         StreamOptions {
             min_run: 2_048,
             window: 512,

@@ -15,9 +15,10 @@ use super::nodes::{AggregateId, Members, MotionId, Nodes};
 use super::span::{LineIndex, Span};
 use super::stmt::{self, Arm, ArmKind, Block, BlockKind, Clause, Line, Stmt, StmtKind};
 use super::stream::{
-    is_plain, is_plain_kind, looks_plain, plain_lines, Held, StreamOptions, StreamedRun, Stretch,
+    is_plain, is_plain_kind, looks_plain, plain_lines, Held, LookedLine, StreamOptions,
+    StreamedRun, Stretch,
 };
-use super::trivia::split_line;
+use super::trivia::{split_line, RawLine};
 use crate::diagnostic::Diagnostic;
 use std::borrow::Cow;
 use std::cell::RefCell;
@@ -135,7 +136,11 @@ pub fn parse_streaming(
     let file = if src.len() > u32::MAX as usize {
         parse_recovering_owned(src, kind)
     } else {
-        let mut file = build_in(&src, kind, 0..src.len(), 1, Some(opts));
+        let opts = BuildOptions {
+            stream: Some(opts),
+            ..BuildOptions::default()
+        };
+        let mut file = build_in(&src, kind, 0..src.len(), 1, opts);
         file.src = Arc::new(src);
         file
     };
@@ -153,166 +158,261 @@ const PARALLEL_LOOK: usize = 4 << 20;
 
 /// Parses `src` into a file whose `src` field is left empty (the caller moves the bytes in).
 fn build(src: &[u8], kind: FileKind) -> SourceFile {
-    build_in(src, kind, 0..src.len(), 1, None)
+    build_in(src, kind, 0..src.len(), 1, BuildOptions::default())
 }
 
-/// Parses the whole lines `range` of `src` (line `first_line` first); with `stream`, the
-/// plain stretches of the main routine are left out as runs (see `stream`).
+/// What a parse does beyond reading the lines into a tree.
+#[derive(Clone, Copy)]
+struct BuildOptions {
+    /// Leave the plain stretches of the main routine out of the tree as runs (see `stream`).
+    stream: Option<StreamOptions>,
+    /// Bytes from which a streamed parse looks at the lines in parallel first
+    /// ([`plain_lines`]).
+    parallel_look: usize,
+    /// Keep each plain member's value as it is read (`Nodes::member_values`): a streamed
+    /// window, walked as soon as it is parsed, then reads none of its numbers again.
+    keep_values: bool,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            stream: None,
+            parallel_look: PARALLEL_LOOK,
+            keep_values: false,
+        }
+    }
+}
+
+/// Parses the whole lines `range` of `src` (line `first_line` first) as `opts` asks.
 fn build_in(
     src: &[u8],
     kind: FileKind,
     range: std::ops::Range<usize>,
     first_line: u32,
-    stream: Option<StreamOptions>,
-) -> SourceFile {
-    build_looking(src, kind, range, first_line, stream, PARALLEL_LOOK, false)
-}
-
-/// [`build_in`], the lines looked at in parallel first from `parallel_look` bytes on.
-fn build_looking(
-    src: &[u8],
-    kind: FileKind,
-    range: std::ops::Range<usize>,
-    first_line: u32,
-    stream: Option<StreamOptions>,
-    parallel_look: usize,
-    keep_values: bool,
+    opts: BuildOptions,
 ) -> SourceFile {
     let mut nodes = Nodes::for_input(range.len());
-    nodes.keep_values = keep_values;
+    nodes.keep_values = opts.keep_values;
     let nodes = RefCell::new(nodes);
-    let cx = Cx::new(src, &nodes);
-    let mut b = Builder::default();
-    let mut folds = FoldTracker::default();
-    let mut starts = Vec::with_capacity(range.len() / 32 + 1);
-    starts.push(range.start as u32);
-    let mut pos = range.start;
-    let mut line = first_line;
-    let mut pending = range.start;
-    let mut stretch: Option<Stretch> = None;
-    let mut runs = Vec::new();
-    // A big file's lines are looked at in parallel first (see `plain_lines`).
-    let hints = stream
-        .filter(|_| range.len() >= parallel_look)
+    let mut parse = LineParse::new(src, kind, &nodes, range.clone(), first_line, opts.stream);
+    // A big file's lines are looked at in parallel first (see `plain_lines`), then taken in
+    // step with the loop below.
+    let looked = opts
+        .stream
+        .filter(|_| range.len() >= opts.parallel_look)
         .map(|_| plain_lines(src, range.clone(), 1 << 20));
-    // The parallel pass's lines, taken in step with the loop below.
-    let mut hinted = hints.iter().flatten().flatten();
-    // A line of code into the tree (parsed; an unreadable line recorded as a problem).
-    let feed = |b: &mut Builder, code: Span, leading: Span, line: u32, fold| {
-        let parsed = match stmt::line(cx, kind, &src[code.range()]) {
-            Ok(parsed) => parsed,
-            Err(e) => {
-                let kind = match e {
-                    Some(e) => {
-                        let at = cx.off(e.at).min(code.end as usize);
-                        let mut p = Problem::error(
-                            Span::new(at, (at + 1).min(code.end as usize).max(at)),
-                            e.label(),
-                            e.help(),
-                        );
-                        if p.message.is_empty() {
-                            p.message = "malformed statement".into();
-                        }
-                        b.problems.push(p);
-                        StmtKind::Invalid
-                    }
-                    None => StmtKind::Opaque,
-                };
-                Line::Simple(kind)
-            }
-        };
-        b.feed(parsed, leading, code, line, fold);
-    };
-    // Ends the stretch being collected: a run, or lines parsed into the tree after all.
-    let close = |b: &mut Builder,
-                 stretch: &mut Option<Stretch>,
-                 pending: &mut usize,
-                 runs: &mut Vec<StreamedRun>| {
-        let Some(st) = stretch.take() else { return };
-        match st.run {
-            Some(run) => runs.push(run),
-            None => {
-                for h in st.held {
-                    feed(
-                        b,
-                        h.code,
-                        Span::new(*pending, h.code.start as usize),
-                        h.line,
-                        None,
-                    );
-                    *pending = h.code.end as usize;
-                }
-            }
-        }
-    };
+    let mut looked = looked.iter().flatten().flatten();
+    let mut pos = range.start;
     while pos < range.end {
-        let hint = hinted.next();
+        let hint = looked.next();
         let l = match hint {
             Some(h) => h.raw(src.len()),
             None => split_line(src, pos),
         };
-        if l.code_start == l.code_end {
-            if let Some((c0, c1)) = l.comment {
-                if stretch.is_some() && fold_marker(&src[c0..c1]) {
-                    close(&mut b, &mut stretch, &mut pending, &mut runs);
-                }
-                folds.comment_line(cx, &src[c0..c1], line);
-            }
-        } else {
-            let code = Span::new(l.code_start, l.code_end);
-            let mut plain = false;
-            if let Some(opts) = &stream {
-                if b.in_main_body() && folds.current().is_none() {
-                    plain = hint.map_or_else(|| looks_plain(&src[code.range()]), |h| h.plain) || {
-                        let mark = nodes.borrow().mark();
-                        let parsed = stmt::line(cx, kind, &src[code.range()]);
-                        let plain =
-                            parsed.is_ok_and(|parsed| is_plain(&parsed, &nodes.borrow(), src));
-                        nodes.borrow_mut().reset(mark);
-                        plain
-                    };
-                    if plain {
-                        let st = stretch.get_or_insert_with(|| Stretch::new(pos, line));
-                        st.push(
-                            opts,
-                            pos,
-                            l.next.min(range.end),
-                            Held { code, line },
-                            || b.main_body_len(),
-                        );
-                    }
-                }
-            }
-            if !plain {
-                close(&mut b, &mut stretch, &mut pending, &mut runs);
-                let leading = Span::new(pending, l.code_start);
-                pending = l.code_end;
-                feed(&mut b, code, leading, line, folds.current());
-            }
-        }
-        if l.newline < range.end {
-            starts.push(l.next as u32);
-            line += 1;
-        }
+        parse.line(pos, &l, hint);
         pos = l.next.max(pos + 1);
     }
-    close(&mut b, &mut stretch, &mut pending, &mut runs);
-    let (body, mut problems) = b.finish();
-    let (folds, fold_problems) = folds.finish();
-    problems.extend(fold_problems);
-    problems.sort_by_key(|p| (p.span.start, p.severity));
+    let parsed = parse.finish();
     let mut nodes = nodes.into_inner();
     nodes.finish();
     SourceFile {
         src: Arc::default(),
         kind,
-        body,
-        trailing: Span::new(pending, range.end),
-        folds,
-        problems,
-        lines: LineIndex::from_starts(starts, range.end, first_line),
+        body: parsed.body,
+        trailing: Span::new(parsed.pending, range.end),
+        folds: parsed.folds,
+        problems: parsed.problems,
+        lines: LineIndex::from_starts(parsed.starts, range.end, first_line),
         nodes,
-        runs,
+        runs: parsed.runs,
+    }
+}
+
+/// A parse under way, fed one line at a time ([`LineParse::line`]): the blocks open, the
+/// folds, the lines seen, and with streaming the stretch of plain lines being collected.
+struct LineParse<'s> {
+    src: &'s [u8],
+    kind: FileKind,
+    cx: Cx<'s>,
+    stream: Option<StreamOptions>,
+    /// The end of the lines parsed.
+    end: usize,
+    blocks: Builder,
+    folds: FoldTracker,
+    /// Where each line starts (the line index).
+    starts: Vec<u32>,
+    /// The number of the line being read.
+    line: u32,
+    /// Where the trivia before the next statement begins.
+    pending: usize,
+    /// Plain lines of the main routine collected for a run (see `stream`).
+    stretch: Option<Stretch>,
+    runs: Vec<StreamedRun>,
+}
+
+/// What a finished [`LineParse`] gives the file.
+struct Parsed {
+    body: Vec<Stmt>,
+    problems: Vec<Problem>,
+    folds: Vec<Fold>,
+    starts: Vec<u32>,
+    pending: usize,
+    runs: Vec<StreamedRun>,
+}
+
+impl<'s> LineParse<'s> {
+    fn new(
+        src: &'s [u8],
+        kind: FileKind,
+        nodes: &'s RefCell<Nodes>,
+        range: std::ops::Range<usize>,
+        first_line: u32,
+        stream: Option<StreamOptions>,
+    ) -> Self {
+        let mut starts = Vec::with_capacity(range.len() / 32 + 1);
+        starts.push(range.start as u32);
+        LineParse {
+            src,
+            kind,
+            cx: Cx::new(src, nodes),
+            stream,
+            end: range.end,
+            blocks: Builder::default(),
+            folds: FoldTracker::default(),
+            starts,
+            line: first_line,
+            pending: range.start,
+            stretch: None,
+            runs: Vec::new(),
+        }
+    }
+
+    /// Takes the line starting at `pos` (cut as `l`; `hint`: the parallel look at it).
+    fn line(&mut self, pos: usize, l: &RawLine, hint: Option<&LookedLine>) {
+        if l.code_start == l.code_end {
+            if let Some((c0, c1)) = l.comment {
+                let src = self.src;
+                let comment = &src[c0..c1];
+                if self.stretch.is_some() && fold_marker(comment) {
+                    self.close_stretch();
+                }
+                self.folds.comment_line(self.cx, comment, self.line);
+            }
+        } else {
+            let code = Span::new(l.code_start, l.code_end);
+            if !self.streamed(pos, l, code, hint) {
+                self.close_stretch();
+                let leading = Span::new(self.pending, l.code_start);
+                self.pending = l.code_end;
+                self.feed(code, leading, self.line, self.folds.current());
+            }
+        }
+        if l.newline < self.end {
+            self.starts.push(l.next as u32);
+            self.line += 1;
+        }
+    }
+
+    /// Whether the line of `code` is left to a run (added to the stretch): with streaming, a
+    /// plain line directly in the main routine, outside folds.
+    fn streamed(&mut self, pos: usize, l: &RawLine, code: Span, hint: Option<&LookedLine>) -> bool {
+        let Some(opts) = &self.stream else {
+            return false;
+        };
+        if !self.blocks.in_main_body() || self.folds.current().is_some() {
+            return false;
+        }
+        let src = self.src;
+        let text = &src[code.range()];
+        let plain = hint.map_or_else(|| looks_plain(text), |h| h.plain) || self.parses_plain(text);
+        if plain {
+            let held = Held {
+                code,
+                line: self.line,
+            };
+            let blocks = &self.blocks;
+            let stretch = self
+                .stretch
+                .get_or_insert_with(|| Stretch::new(pos, self.line));
+            stretch.push(opts, pos, l.next.min(self.end), held, || {
+                blocks.main_body_len()
+            });
+        }
+        plain
+    }
+
+    /// Whether a line the quick look declined is plain after all, parsed (its nodes dropped).
+    fn parses_plain(&self, text: &[u8]) -> bool {
+        let nodes = self.cx.nodes;
+        let mark = nodes.borrow().mark();
+        let parsed = stmt::line(self.cx, self.kind, text);
+        let plain = parsed.is_ok_and(|parsed| is_plain(&parsed, &nodes.borrow(), self.src));
+        nodes.borrow_mut().reset(mark);
+        plain
+    }
+
+    /// A line of code into the tree (parsed; an unreadable line recorded as a problem).
+    fn feed(&mut self, code: Span, leading: Span, line: u32, fold: Option<FoldId>) {
+        let src = self.src;
+        let parsed = match stmt::line(self.cx, self.kind, &src[code.range()]) {
+            Ok(parsed) => parsed,
+            Err(Some(e)) => {
+                let at = self.cx.off(e.at).min(code.end as usize);
+                let mut p = Problem::error(
+                    Span::new(at, (at + 1).min(code.end as usize).max(at)),
+                    e.label(),
+                    e.help(),
+                );
+                if p.message.is_empty() {
+                    p.message = "malformed statement".into();
+                }
+                self.blocks.problems.push(p);
+                Line::Simple(StmtKind::Invalid)
+            }
+            Err(None) => Line::Simple(StmtKind::Opaque),
+        };
+        let at = LineAt {
+            leading,
+            head: code,
+            line,
+            fold,
+        };
+        self.blocks.feed(parsed, at);
+    }
+
+    /// Ends the stretch being collected: a run, or (too short for one) its lines parsed into
+    /// the tree after all.
+    fn close_stretch(&mut self) {
+        let Some(st) = self.stretch.take() else {
+            return;
+        };
+        match st.run {
+            Some(run) => self.runs.push(run),
+            None => {
+                for h in st.held {
+                    let leading = Span::new(self.pending, h.code.start as usize);
+                    self.feed(h.code, leading, h.line, None);
+                    self.pending = h.code.end as usize;
+                }
+            }
+        }
+    }
+
+    fn finish(mut self) -> Parsed {
+        self.close_stretch();
+        let (body, mut problems) = self.blocks.finish();
+        let (folds, fold_problems) = self.folds.finish();
+        problems.extend(fold_problems);
+        problems.sort_by_key(|p| (p.span.start, p.severity));
+        Parsed {
+            body,
+            problems,
+            folds,
+            starts: self.starts,
+            pending: self.pending,
+            runs: self.runs,
+        }
     }
 }
 
@@ -346,15 +446,36 @@ struct Builder {
     deep: Vec<BlockKind>,
 }
 
-fn simple(kind: StmtKind, leading: Span, head: Span, line: u32, fold: Option<FoldId>) -> Stmt {
-    Stmt {
-        leading,
-        head,
-        end: head.end,
-        line,
-        fold,
-        kind,
-        block: None,
+/// Where a line of code is: its code (`head`), the trivia before it, its number and fold.
+#[derive(Clone, Copy)]
+struct LineAt {
+    leading: Span,
+    head: Span,
+    line: u32,
+    fold: Option<FoldId>,
+}
+
+impl LineAt {
+    /// The line as a statement of `kind`.
+    fn stmt(self, kind: StmtKind) -> Stmt {
+        Stmt {
+            leading: self.leading,
+            head: self.head,
+            end: self.head.end,
+            line: self.line,
+            fold: self.fold,
+            kind,
+            block: None,
+        }
+    }
+
+    /// The line as a block's clause (an arm's head, a closer).
+    fn clause(self) -> Clause {
+        Clause {
+            leading: self.leading,
+            span: self.head,
+            line: self.line,
+        }
     }
 }
 
@@ -391,108 +512,108 @@ impl Builder {
         }
     }
 
-    fn feed(&mut self, l: Line, leading: Span, head: Span, line: u32, fold: Option<FoldId>) {
+    /// Adds a parsed line: a statement to the innermost open block, a block opened, an arm
+    /// begun, or a block closed.
+    fn feed(&mut self, l: Line, at: LineAt) {
         match l {
             Line::Simple(kind) => {
-                let s = simple(kind, leading, head, line, fold);
+                let s = at.stmt(kind);
                 let mut ahead = self.ahead;
                 let body = self.body();
                 ahead.before_push(body);
                 body.push(s);
                 self.ahead = ahead;
             }
-            Line::Open(kind, bk) => {
-                if matches!(bk, BlockKind::Routine | BlockKind::DefDat) {
-                    self.close_all();
-                }
-                if self.stack.len() >= MAX_BLOCK_DEPTH || !self.deep.is_empty() {
-                    let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                    if self.deep.is_empty() {
-                        self.stray(
-                            format!("blocks nested more than {MAX_BLOCK_DEPTH} deep: this block is kept as written but not followed"),
-                            "split the routine",
-                            s,
-                        );
-                    } else {
-                        self.body().push(s);
-                    }
-                    self.deep.push(bk);
-                    return;
-                }
-                let mut s = simple(kind, leading, head, line, fold);
-                s.block = Some(Box::default());
-                let main = bk == BlockKind::Routine && self.stack.is_empty() && self.routines == 0;
-                if bk == BlockKind::Routine {
-                    self.routines += 1;
-                }
-                self.stack.push(Frame {
-                    stmt: s,
-                    kind: bk,
-                    main,
-                });
-            }
+            Line::Open(kind, bk) => self.open(kind, bk, at),
             Line::Arm(..) if !self.deep.is_empty() => {
-                let s = simple(StmtKind::Opaque, leading, head, line, fold);
-                self.body().push(s);
+                self.body().push(at.stmt(StmtKind::Opaque));
             }
-            Line::Arm(bk, arm) => {
-                let clause = Clause {
-                    leading,
-                    span: head,
-                    line,
-                };
-                match self.stack.last_mut() {
-                    Some(f) if f.kind == bk && arm_fits(f, &arm) => {
-                        let b = f.stmt.block.as_mut().expect("frames hold blocks");
-                        b.arms.push(Arm {
-                            clause,
-                            kind: arm,
-                            body: Vec::new(),
-                        });
-                    }
-                    _ => self.stray(
-                        format!("this line belongs inside {} … {}", bk.opener(), bk.closer()),
-                        "check the block structure around this line",
-                        simple(StmtKind::Opaque, leading, head, line, fold),
-                    ),
-                }
-            }
+            Line::Arm(bk, arm) => self.arm(bk, arm, at),
             // Searched from the innermost: the cost is the blocks closed, linear overall.
             Line::Close(bk, _) if self.deep.iter().rev().any(|k| *k == bk) => {
-                let at = self.deep.iter().rposition(|k| *k == bk).unwrap_or(0);
-                self.deep.truncate(at);
-                let s = simple(StmtKind::Opaque, leading, head, line, fold);
+                let open = self.deep.iter().rposition(|k| *k == bk).unwrap_or(0);
+                self.deep.truncate(open);
+                self.body().push(at.stmt(StmtKind::Opaque));
+            }
+            Line::Close(bk, until) => self.close(bk, until, at),
+        }
+    }
+
+    /// Opens a block with statement `at(kind)` (beyond [`MAX_BLOCK_DEPTH`]: kept opaque).
+    fn open(&mut self, kind: StmtKind, bk: BlockKind, at: LineAt) {
+        if matches!(bk, BlockKind::Routine | BlockKind::DefDat) {
+            self.close_all();
+        }
+        if self.stack.len() >= MAX_BLOCK_DEPTH || !self.deep.is_empty() {
+            let s = at.stmt(StmtKind::Opaque);
+            if self.deep.is_empty() {
+                self.stray(
+                    format!("blocks nested more than {MAX_BLOCK_DEPTH} deep: this block is kept as written but not followed"),
+                    "split the routine",
+                    s,
+                );
+            } else {
                 self.body().push(s);
             }
-            Line::Close(bk, until) => {
-                // Blocks left open beyond the depth limit end with the followed one closed here.
-                self.deep.clear();
-                let Some(at) = self.stack.iter().rposition(|f| f.kind == bk) else {
-                    self.stray(
-                        format!("`{}` without an open `{}`", bk.closer(), bk.opener()),
-                        "remove it or add the line that opens the block",
-                        simple(StmtKind::Opaque, leading, head, line, fold),
-                    );
-                    return;
-                };
-                while self.stack.len() > at + 1 {
-                    self.pop_unclosed();
-                }
-                let mut f = self.stack.pop().expect("found above");
-                if let (StmtKind::Repeat(cond), Some(e)) = (&mut f.stmt.kind, until) {
-                    *cond = Some(Box::new(e));
-                }
-                let block = f.stmt.block.as_mut().expect("frames hold blocks");
-                block.end = Some(Clause {
-                    leading,
-                    span: head,
-                    line,
-                });
-                f.stmt.end = head.end;
-                trim(block);
-                self.body().push(f.stmt);
-            }
+            self.deep.push(bk);
+            return;
         }
+        let mut s = at.stmt(kind);
+        s.block = Some(Box::default());
+        let main = bk == BlockKind::Routine && self.stack.is_empty() && self.routines == 0;
+        if bk == BlockKind::Routine {
+            self.routines += 1;
+        }
+        self.stack.push(Frame {
+            stmt: s,
+            kind: bk,
+            main,
+        });
+    }
+
+    /// Begins an arm (`ELSE`, `CASE`, `DEFAULT`) of the innermost block, if it fits there.
+    fn arm(&mut self, bk: BlockKind, arm: ArmKind, at: LineAt) {
+        match self.stack.last_mut() {
+            Some(f) if f.kind == bk && arm_fits(f, &arm) => {
+                let b = f.stmt.block.as_mut().expect("frames hold blocks");
+                b.arms.push(Arm {
+                    clause: at.clause(),
+                    kind: arm,
+                    body: Vec::new(),
+                });
+            }
+            _ => self.stray(
+                format!("this line belongs inside {} … {}", bk.opener(), bk.closer()),
+                "check the block structure around this line",
+                at.stmt(StmtKind::Opaque),
+            ),
+        }
+    }
+
+    /// Closes the innermost open block of kind `bk` (those inside it unclosed, with warnings).
+    fn close(&mut self, bk: BlockKind, until: Option<Expr>, at: LineAt) {
+        // Blocks left open beyond the depth limit end with the followed one closed here.
+        self.deep.clear();
+        let Some(open) = self.stack.iter().rposition(|f| f.kind == bk) else {
+            self.stray(
+                format!("`{}` without an open `{}`", bk.closer(), bk.opener()),
+                "remove it or add the line that opens the block",
+                at.stmt(StmtKind::Opaque),
+            );
+            return;
+        };
+        while self.stack.len() > open + 1 {
+            self.pop_unclosed();
+        }
+        let mut f = self.stack.pop().expect("found above");
+        if let (StmtKind::Repeat(cond), Some(e)) = (&mut f.stmt.kind, until) {
+            *cond = Some(Box::new(e));
+        }
+        let block = f.stmt.block.as_mut().expect("frames hold blocks");
+        block.end = Some(at.clause());
+        f.stmt.end = at.head.end;
+        trim(block);
+        self.body().push(f.stmt);
     }
 
     /// A line kept as opaque with a warning about the block structure.
@@ -646,15 +767,11 @@ impl SourceFile {
     /// the quick look that chose the run's lines: the caller must not use the window).
     pub fn window(&self, (bytes, first_line): (Span, u32)) -> SourceFile {
         // Walked at once: the plain members' values are kept (`Nodes::member_values`).
-        let mut w = build_looking(
-            &self.src,
-            self.kind,
-            bytes.range(),
-            first_line,
-            None,
-            PARALLEL_LOOK,
-            true,
-        );
+        let opts = BuildOptions {
+            keep_values: true,
+            ..BuildOptions::default()
+        };
+        let mut w = build_in(&self.src, self.kind, bytes.range(), first_line, opts);
         w.src = Arc::clone(&self.src);
         let strange: Vec<Span> = w
             .body
@@ -1115,9 +1232,13 @@ mod tests {
             min_run: 3,
             window: 7,
         };
-        let parse = |look| {
-            let mut file =
-                build_looking(src, FileKind::Src, 0..src.len(), 1, Some(opts), look, false);
+        let parse = |parallel_look| {
+            let opts = BuildOptions {
+                stream: Some(opts),
+                parallel_look,
+                keep_values: false,
+            };
+            let mut file = build_in(src, FileKind::Src, 0..src.len(), 1, opts);
             file.src = Arc::new(src.to_vec());
             file
         };

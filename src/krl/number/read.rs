@@ -1,13 +1,7 @@
-//! KRL numeric literals: reading their value exactly as written (correctly rounded to f64) and
-//! writing a new value in the style of the literal it replaces, so a rewritten program keeps the
-//! look of the original (`1.0` stays one decimal unless more are needed, `.25` keeps its
-//! leading dot, `-2.5E+01` keeps its exponent form).
+//! Reading a literal: its shape ([`scan`]) and its value ([`value`]), exact as written; and
+//! the one pass that reads the plain literals of CAM programs ([`read_plain`]).
 
-/// Exact powers of ten representable in f64 (Clinger's fast path works up to 10^22).
-const POW10: [f64; 23] = [
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
-    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
-];
+use super::POW10;
 
 /// The shape of a numeric literal: `[+-] digits [. digits] [(e|E) [+-] digits]`, and what
 /// is needed for its value, gathered in the same pass.
@@ -244,115 +238,6 @@ pub(crate) fn plain_len(i: &[u8]) -> Option<usize> {
     (p.m == 0 || (p.m <= (1u64 << 53) && p.frac_digits <= 22)).then_some(p.len)
 }
 
-/// Writes `value` in the style of the literal `original`: the same number of decimals (never
-/// fewer than `min_decimals`), the same exponent form, a leading `.` kept for values below 1,
-/// an explicit `+` kept for non-negative values. Negative zero is written without a sign.
-///
-/// `original` should be a numeric literal; if it is not, the value is written plainly with
-/// `min_decimals` decimals. A non-finite value is written as Rust spells it (`NaN`, `inf`),
-/// which a controller rejects at load time: callers must not produce one.
-///
-/// ```
-/// use robopost::krl::number::format_like;
-/// assert_eq!(format_like(b"1.0", 1.23456, 3), "1.235");
-/// assert_eq!(format_like(b"-2.5E+01", 25.37, 2), "2.537E+01");
-/// assert_eq!(format_like(b".25", 0.5, 0), ".50");
-/// ```
-pub fn format_like(original: &[u8], value: f64, min_decimals: usize) -> String {
-    let lit = scan(original).filter(|l| l.len == original.len());
-    let Some(lit) = lit else {
-        return plain(value, min_decimals, 0, false, false);
-    };
-    if !value.is_finite() {
-        return format!("{value}");
-    }
-    match lit.exponent {
-        None => plain(
-            value,
-            lit.frac_digits.max(min_decimals),
-            lit.sign,
-            lit.int_digits == 0,
-            lit.has_dot,
-        ),
-        Some((letter, esign, edigits)) => {
-            scientific(value, &lit, min_decimals, letter, esign, edigits)
-        }
-    }
-}
-
-/// Fixed-point form: `decimals` decimals, optional leading-dot and trailing-dot styles.
-fn plain(value: f64, decimals: usize, sign: u8, leading_dot: bool, dot: bool) -> String {
-    let mut body = format!("{:.*}", decimals, value.abs());
-    let zero = body.bytes().all(|b| b == b'0' || b == b'.');
-    if leading_dot && body.starts_with("0.") {
-        body.remove(0);
-    }
-    if decimals == 0 && dot {
-        body.push('.');
-    }
-    let prefix = if value < 0.0 && !zero {
-        "-"
-    } else if sign == b'+' {
-        "+"
-    } else {
-        ""
-    };
-    format!("{prefix}{body}")
-}
-
-/// Exponent form with a one-digit mantissa; enough mantissa decimals that the absolute
-/// resolution is at least `10^-min_decimals`, never fewer than the original's.
-fn scientific(
-    value: f64,
-    lit: &Literal,
-    min_decimals: usize,
-    letter: u8,
-    esign: u8,
-    edigits: usize,
-) -> String {
-    let mut decimals = lit.frac_digits;
-    let (mut mantissa, mut exp) = split_exp(value.abs(), decimals);
-    for _ in 0..4 {
-        let need = (min_decimals as i64 + exp).max(0) as usize;
-        if decimals >= need {
-            break;
-        }
-        decimals = need;
-        (mantissa, exp) = split_exp(value.abs(), decimals);
-    }
-    let zero = mantissa.bytes().all(|b| b == b'0' || b == b'.');
-    if lit.int_digits == 0 && mantissa.starts_with("0.") {
-        mantissa.remove(0);
-    }
-    let prefix = if value < 0.0 && !zero {
-        "-"
-    } else if lit.sign == b'+' {
-        "+"
-    } else {
-        ""
-    };
-    let exp_sign = if exp < 0 {
-        "-"
-    } else if esign == b'+' {
-        "+"
-    } else {
-        ""
-    };
-    format!(
-        "{prefix}{mantissa}{}{exp_sign}{:0w$}",
-        letter as char,
-        exp.unsigned_abs(),
-        w = edigits
-    )
-}
-
-/// `v` as (mantissa text with `decimals` decimals, exponent), mantissa in [1, 10).
-fn split_exp(v: f64, decimals: usize) -> (String, i64) {
-    let s = format!("{:.*e}", decimals, v);
-    let (m, e) = s.split_once('e').unwrap_or((&s, "0"));
-    (m.to_string(), e.parse().unwrap_or(0))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -487,43 +372,5 @@ mod tests {
         assert!(scan(b"-x").is_none());
         assert!(scan(b"1").unwrap().is_integer());
         assert!(!scan(b"1.").unwrap().is_integer());
-    }
-
-    #[test]
-    fn format_like_by_hand() {
-        // Same decimals as the original unless more are asked for.
-        assert_eq!(format_like(b"1.0", 1.23456, 0), "1.2");
-        assert_eq!(format_like(b"1.0", 1.23456, 3), "1.235");
-        assert_eq!(format_like(b"100.000", 100.0004, 3), "100.000");
-        assert_eq!(format_like(b"100.000", -0.5, 3), "-0.500");
-        assert_eq!(format_like(b"100", 100.5, 0), "100"); // ties to even on the exact binary value
-        assert_eq!(format_like(b"100", 100.6, 0), "101");
-        assert_eq!(format_like(b"100", 100.25, 2), "100.25");
-        // Leading dot stays for values below 1, not above.
-        assert_eq!(format_like(b".25", 0.3, 0), ".30");
-        assert_eq!(format_like(b"-.25", -0.3, 0), "-.30");
-        assert_eq!(format_like(b".25", 1.3, 0), "1.30");
-        // Trailing dot.
-        assert_eq!(format_like(b"1.", 2.4, 0), "2.");
-        assert_eq!(format_like(b"1.", 2.4, 2), "2.40");
-        // Explicit plus for non-negative values only.
-        assert_eq!(format_like(b"+5.0", 6.25, 2), "+6.25");
-        assert_eq!(format_like(b"+5.0", -6.25, 2), "-6.25");
-        // No negative zero.
-        assert_eq!(format_like(b"0.000", -0.0001, 3), "0.000");
-        assert_eq!(format_like(b"1.5", -0.0, 1), "0.0");
-        // Exponent form: letter case, explicit exponent sign, exponent width.
-        assert_eq!(format_like(b"-2.5E+01", -25.0, 0), "-2.5E+01");
-        assert_eq!(format_like(b"-2.5E+01", 25.37, 2), "2.537E+01");
-        // The resolution of the value written is kept at 10^-min_decimals: 1500 with 0 decimals
-        // needs three mantissa decimals in exponent form.
-        assert_eq!(format_like(b"1e3", 1500.0, 0), "1.500e3");
-        assert_eq!(format_like(b"1e3", 1500.0, 1), "1.5000e3");
-        assert_eq!(format_like(b"1.0E-02", 0.0123, 4), "1.23E-02");
-        assert_eq!(format_like(b"9.9E+00", 9.99, 1), "9.99E+00");
-        assert_eq!(format_like(b"9.9E+00", 9.96, 0), "1.0E+01"); // carry into the exponent
-        assert_eq!(format_like(b"1.5E+00", 0.0, 2), "0.00E+00");
-        // Not a literal: plain with the minimum decimals.
-        assert_eq!(format_like(b"X", 1.5, 2), "1.50");
     }
 }
