@@ -1090,9 +1090,23 @@ fn compensated_turns(
     }
     let mut turns = target.turns;
     for n in 0..6 {
-        turns.angle_deg[n] = Segment::nominal_turn(ctx, k, previous, n).turn(c[n]);
+        turns.angle_deg[n] = nominal_turn_moved(ctx, k, prev[n], n, c[n]);
     }
     turns
+}
+
+/// Axis n's last nominal turning point inside the motion into target `k` (NaN: none), moved by
+/// the corrections interpolated to it: the command before at `c0`, target k's at `c`.
+fn nominal_turn_moved(ctx: &Ctx, k: usize, c0: f64, n: usize, c: f64) -> f64 {
+    let target = ctx.target(k);
+    let (t, u) = (target.turns.angle_deg[n], target.turns.at[n]);
+    let (turn, at) = if t.is_finite() && k > 0 {
+        let before = c0 - ctx.target(k - 1).nominal_axes[n];
+        (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
+    } else {
+        (f64::NAN, 0.0)
+    };
+    turn + at * c
 }
 
 /// The compensated motion into target `k` walked as the controller interpolates it (the
@@ -1193,35 +1207,20 @@ impl Segment {
         n: usize,
         (turns, c): (&interpolate::Turns, &[f64; 6]),
     ) -> Segment {
-        let mut segment = Segment::nominal_turn(ctx, k, previous, n);
+        let model = ctx.model;
+        let c0 = previous.axes_deg[n];
         let (t, u) = (turns.angle_deg[n], turns.at[n]);
         // The turn moves with the command by the share of the correction interpolated to it.
-        (segment.turn, segment.at) = if t.is_finite() {
+        let (turn, at) = if t.is_finite() {
             (t - u * c[n], u)
         } else {
             (f64::NAN, 0.0)
         };
-        segment
-    }
-
-    /// [`Self::of`] with the nominal turn moved by the corrections interpolated to it.
-    fn nominal_turn(ctx: &Ctx, k: usize, previous: &AxisState, n: usize) -> Segment {
-        let target = ctx.target(k);
-        let model = ctx.model;
-        let c0 = previous.axes_deg[n];
-        let start_output = c0 + model.play(previous, n).map_or(0.0, |p| p.lag_deg);
-        let (t, u) = (target.turns.angle_deg[n], target.turns.at[n]);
-        let (turn, at) = if t.is_finite() && k > 0 {
-            let before = c0 - ctx.target(k - 1).nominal_axes[n];
-            (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
-        } else {
-            (f64::NAN, 0.0)
-        };
         Segment {
-            start_output,
+            start_output: c0 + model.play(previous, n).map_or(0.0, |p| p.lag_deg),
             turn,
             at,
-            half: 0.5 * model.play_width_deg(n, target.nominal_axes[n]),
+            half: 0.5 * model.play_width_deg(n, ctx.target(k).nominal_axes[n]),
         }
     }
 
