@@ -18,6 +18,7 @@
 
 use super::solve::{self, Method, Problem, SolveError};
 use crate::kinematics::status_turn;
+use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
 use crate::motion::interpolate;
@@ -575,13 +576,6 @@ pub fn first_passes(
     chains.ordinal += n as u64;
     let solved = &outcomes[LOOK_BACK..];
     // Where the nominal robot places every first-pass command (the rewrite's numbers).
-    let ctx = Ctx {
-        model,
-        tools,
-        history: &[],
-        targets,
-        method: options.method,
-    };
     let blank = Command {
         tcp: Frame::identity(),
         correction: (0.0, 0.0),
@@ -593,6 +587,7 @@ pub fn first_passes(
         &mut commands,
         PLACE_CHUNK,
         |c, placings| {
+            let ctx = Ctx::new(model, tools, &[], targets, options.method);
             for (j, placing) in placings.iter_mut().enumerate() {
                 let k = c * PLACE_CHUNK + j;
                 let axes = &solved[k].axes_deg;
@@ -630,13 +625,7 @@ pub fn settle(
         *slot = c.outcome;
     }
     let outcomes = &mut all[pad..];
-    let ctx = Ctx {
-        model,
-        tools,
-        history,
-        targets,
-        method: options.method,
-    };
+    let ctx = Ctx::new(model, tools, history, targets, options.method);
     let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
     resolved.resize(h + targets.len(), false);
     // Without a target before, the first arrives after long motions in its nominal
@@ -864,9 +853,82 @@ struct Ctx<'a> {
     history: &'a [Carried],
     targets: &'a [Target],
     method: Method,
+    /// Each axis's play width table, and the widths looked up last.
+    plays: [Option<&'a Table1>; 6],
+    widths: std::cell::RefCell<WidthMemo>,
 }
 
-impl Ctx<'_> {
+/// Lookups of each axis's play width kept per axis: a command the re-check looks the width up
+/// at comes back as the next target's command before and the one after's run start, so the
+/// last few angles of an axis answer most lookups (the same angle's bits, the same width).
+struct WidthMemo {
+    /// Per axis, `(angle bits, width)` of the last lookups, filled round robin.
+    last: [[(u64, f64); WIDTH_MEMO]; 6],
+    next: [usize; 6],
+}
+
+/// Angles remembered per axis by [`WidthMemo`].
+const WIDTH_MEMO: usize = 8;
+
+/// The width of a play whose table is `play` (0 without one) at command `angle`, as
+/// [`Model::play_width_deg`] gives it.
+fn width_in(play: Option<&Table1>, angle: f64) -> f64 {
+    play.map_or(0.0, |w| w.eval(angle).0)
+}
+
+impl WidthMemo {
+    fn new(plays: &[Option<&Table1>; 6]) -> WidthMemo {
+        // Every slot starts as a true lookup (at 0°), so a slot never answers wrongly.
+        WidthMemo {
+            last: std::array::from_fn(|n| [(0f64.to_bits(), width_in(plays[n], 0.0)); WIDTH_MEMO]),
+            next: [0; 6],
+        }
+    }
+}
+
+impl<'a> Ctx<'a> {
+    fn new(
+        model: &'a Model,
+        tools: &'a [Frame],
+        history: &'a [Carried],
+        targets: &'a [Target],
+        method: Method,
+    ) -> Ctx<'a> {
+        let plays = std::array::from_fn(|n| model.play_width_table(n));
+        Ctx {
+            model,
+            tools,
+            history,
+            targets,
+            method,
+            plays,
+            widths: std::cell::RefCell::new(WidthMemo::new(&plays)),
+        }
+    }
+
+    /// The width (degrees) of axis n's play at command `angle` ([`Model::play_width_deg`]).
+    fn play_width(&self, n: usize, angle: f64) -> f64 {
+        let bits = angle.to_bits();
+        let mut memo = self.widths.borrow_mut();
+        if let Some(&(_, w)) = memo.last[n].iter().find(|e| e.0 == bits) {
+            return w;
+        }
+        let w = width_in(self.plays[n], angle);
+        let i = memo.next[n];
+        memo.last[n][i] = (bits, w);
+        memo.next[n] = (i + 1) % WIDTH_MEMO;
+        w
+    }
+
+    /// Where axis n's play output stands against the command at `state` (0 without a play).
+    fn play_lag(&self, state: &AxisState, n: usize) -> f64 {
+        if self.plays[n].is_none() {
+            return 0.0;
+        }
+        state.history[n]
+            .play(state.axes_deg[n], |a| self.play_width(n, a))
+            .lag_deg
+    }
     /// Target `k` of the history and segment together.
     fn target(&self, k: usize) -> &Target {
         match self.history.get(k) {
@@ -1001,10 +1063,12 @@ fn settle_one(
 ) -> AxisState {
     let mut o = outcomes[k];
     let mut best: Option<Outcome> = None;
-    let mut settled = false;
+    let mut settled = None;
     for _ in 0..SETTLE_ROUNDS {
-        if !settle_target(ctx, k, rest, previous.as_ref(), (&mut o, outcomes)) {
-            settled = true;
+        if let Settling::Settled(turns) =
+            settle_target(ctx, k, rest, previous.as_ref(), (&mut o, outcomes))
+        {
+            settled = Some(turns);
             break;
         }
         *resolved = true;
@@ -1013,13 +1077,18 @@ fn settle_one(
             best = Some(o);
         }
     }
-    if let (false, Some(b)) = (settled, best) {
+    if let (None, Some(b)) = (settled, best) {
         o = b;
     }
     outcomes[k] = o;
+    let history = match (settled.flatten(), &previous) {
+        // The turns the settling worked out for this very command.
+        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg).history,
+        _ => arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
+    };
     AxisState {
         axes_deg: o.axes_deg,
-        history: arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
+        history,
         time_s: 0.0,
     }
 }
@@ -1041,7 +1110,8 @@ fn arrival_histories(
     let Some(p) = previous else {
         return out.nominal_directions.map(AxisHistory::engaged);
     };
-    let turns = compensated_turns(ctx, k, p, &out.axes_deg, outcomes);
+    let widths = std::array::from_fn(|n| ctx.play_width(n, out.axes_deg[n]));
+    let turns = compensated_turns(ctx, k, p, (&out.axes_deg, &widths), outcomes);
     p.then_through(&turns.angle_deg, out.axes_deg).history
 }
 
@@ -1053,7 +1123,7 @@ const SENSITIVE_PLAYS: f64 = 4.0;
 const CORRECTION_SHARE: f64 = 10.0;
 
 /// The turning points of the compensated motion into target `k` (from `previous`, commanded
-/// at `c`). The compensated motion is the nominal one moved by the corrections; where an axis
+/// at `c`, where the plays' widths are `widths`). The compensated motion is the nominal one moved by the corrections; where an axis
 /// moves little, the way the correction bends along the motion decides whether and where it
 /// turns round, so the motion is walked as the controller interpolates it between the
 /// compensated commands (samples, exact rates at the ends). Elsewhere — and where the path
@@ -1062,18 +1132,17 @@ fn compensated_turns(
     ctx: &Ctx,
     k: usize,
     previous: &AxisState,
-    c: &[f64; 6],
+    (c, widths): (&[f64; 6], &[f64; 6]),
     outcomes: &[Outcome],
 ) -> interpolate::Turns {
     let target = ctx.target(k);
     let prev = previous.axes_deg;
-    let model = ctx.model;
     // An axis can turn round inside the compensated motion where the nominal one does, or
     // where the correction changes along the motion by a fair part of the nominal move (a
     // resting axis, a slow one): only there does the walk decide anything.
     let nominal_prev = (k > 0).then(|| ctx.target(k - 1).nominal_axes);
     let sensitive = (0..6).any(|n| {
-        let b = model.play_width_deg(n, c[n]);
+        let b = widths[n];
         if !(b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3) {
             return false;
         }
@@ -1207,7 +1276,6 @@ impl Segment {
         n: usize,
         (turns, c): (&interpolate::Turns, &[f64; 6]),
     ) -> Segment {
-        let model = ctx.model;
         let c0 = previous.axes_deg[n];
         let (t, u) = (turns.angle_deg[n], turns.at[n]);
         // The turn moves with the command by the share of the correction interpolated to it.
@@ -1217,10 +1285,10 @@ impl Segment {
             (f64::NAN, 0.0)
         };
         Segment {
-            start_output: c0 + model.play(previous, n).map_or(0.0, |p| p.lag_deg),
+            start_output: c0 + ctx.play_lag(previous, n),
             turn,
             at,
-            half: 0.5 * model.play_width_deg(n, ctx.target(k).nominal_axes[n]),
+            half: 0.5 * ctx.play_width(n, ctx.target(k).nominal_axes[n]),
         }
     }
 
@@ -1326,6 +1394,15 @@ impl Segment {
     }
 }
 
+/// What [`settle_target`] did.
+enum Settling {
+    /// The plays stand where the solve assumed; the turning points of the compensated motion
+    /// into the target when they were worked out (the target's history needs them again).
+    Settled(Option<interpolate::Turns>),
+    /// Solved again.
+    Resolved,
+}
+
 /// How a command puts the play's output where it must be.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Reach {
@@ -1341,17 +1418,18 @@ enum Reach {
 /// is not the first pass's flank — on the flank it drives, or, where the output stays inside
 /// the play, with that axis held at its command (the program's held axes at their command
 /// before) — and the axes whose output moves back by less than their play are marked.
-/// Returns whether it was solved again. `rest[n]`: the nominal motion holds axis n still.
+/// Returns whether it was solved again, and if not the turns of its compensated motion where
+/// they were worked out. `rest[n]`: the nominal motion holds axis n still.
 fn settle_target(
     ctx: &Ctx,
     k: usize,
     rest: &[bool; 6],
     previous: Option<&AxisState>,
     (out, outcomes): (&mut Outcome, &[Outcome]),
-) -> bool {
+) -> Settling {
     let model = ctx.model;
     let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
-        return false;
+        return Settling::Settled(None);
     };
     let c = out.axes_deg;
     let assumed = out.directions;
@@ -1360,8 +1438,9 @@ fn settle_target(
     let mut start = c;
     let mut differs = false;
     let mut turns: Option<interpolate::Turns> = None;
+    let widths: [f64; 6] = std::array::from_fn(|n| ctx.play_width(n, c[n]));
     for n in 0..6 {
-        let b = model.play_width_deg(n, c[n]);
+        let b = widths[n];
         // Without a play every command's output is the command: nothing to settle.
         if b == 0.0 {
             continue;
@@ -1376,7 +1455,8 @@ fn settle_target(
         if engaged && !jitter {
             continue;
         }
-        let turns = turns.get_or_insert_with(|| compensated_turns(ctx, k, p, &c, outcomes));
+        let turns =
+            turns.get_or_insert_with(|| compensated_turns(ctx, k, p, (&c, &widths), outcomes));
         let segment = Segment::of(ctx, k, p, n, (turns, &c));
         let wanted = c[n] - assumed[n].sign() * 0.5 * b;
         // The output moves back by less than the play: the command travels it.
@@ -1409,7 +1489,7 @@ fn settle_target(
         differs = true;
     }
     if !differs {
-        return false;
+        return Settling::Settled(turns);
     }
     let target = ctx.target(k);
     let tool = ctx.tool(k);
@@ -1430,7 +1510,7 @@ fn settle_target(
         let nominal = arrival_histories(ctx, k, previous, out, outcomes);
         out.before = tcp_error(model, tool, &target.nominal_axes, &nominal, &target.goal);
         out.residual = out.before;
-        return true;
+        return Settling::Resolved;
     }
     match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
@@ -1453,7 +1533,7 @@ fn settle_target(
     // The prediction with every play evaluated exactly where the command leaves it.
     let histories = arrival_histories(ctx, k, previous, out, outcomes);
     out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
-    true
+    Settling::Resolved
 }
 
 #[cfg(test)]
