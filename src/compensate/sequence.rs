@@ -860,15 +860,14 @@ struct Ctx<'a> {
 
 /// Lookups of each axis's play width kept per axis: a command the re-check looks the width up
 /// at comes back as the next target's command before and the one after's run start, so the
-/// last few angles of an axis answer most lookups (the same angle's bits, the same width).
+/// recent angles of an axis answer most lookups (the same angle's bits, the same width).
 struct WidthMemo {
-    /// Per axis, `(angle bits, width)` of the last lookups, filled round robin.
-    last: [[(u64, f64); WIDTH_MEMO]; 6],
-    next: [usize; 6],
+    /// Per axis, `(angle bits, width)` of recent lookups, each in the slot its bits hash to.
+    slots: [[(u64, f64); WIDTH_MEMO]; 6],
 }
 
-/// Angles remembered per axis by [`WidthMemo`].
-const WIDTH_MEMO: usize = 8;
+/// Slots per axis of [`WidthMemo`] (a power of two).
+const WIDTH_MEMO: usize = 16;
 
 /// The width of a play whose table is `play` (0 without one) at command `angle`, as
 /// [`Model::play_width_deg`] gives it.
@@ -880,9 +879,13 @@ impl WidthMemo {
     fn new(plays: &[Option<&Table1>; 6]) -> WidthMemo {
         // Every slot starts as a true lookup (at 0°), so a slot never answers wrongly.
         WidthMemo {
-            last: std::array::from_fn(|n| [(0f64.to_bits(), width_in(plays[n], 0.0)); WIDTH_MEMO]),
-            next: [0; 6],
+            slots: std::array::from_fn(|n| [(0f64.to_bits(), width_in(plays[n], 0.0)); WIDTH_MEMO]),
         }
+    }
+
+    /// The slot of an angle's bits (Fibonacci hashing: neighbouring angles spread out).
+    fn slot(bits: u64) -> usize {
+        (bits.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - WIDTH_MEMO.trailing_zeros())) as usize
     }
 }
 
@@ -910,14 +913,11 @@ impl<'a> Ctx<'a> {
     fn play_width(&self, n: usize, angle: f64) -> f64 {
         let bits = angle.to_bits();
         let mut memo = self.widths.borrow_mut();
-        if let Some(&(_, w)) = memo.last[n].iter().find(|e| e.0 == bits) {
-            return w;
+        let slot = &mut memo.slots[n][WidthMemo::slot(bits)];
+        if slot.0 != bits {
+            *slot = (bits, width_in(self.plays[n], angle));
         }
-        let w = width_in(self.plays[n], angle);
-        let i = memo.next[n];
-        memo.last[n][i] = (bits, w);
-        memo.next[n] = (i + 1) % WIDTH_MEMO;
-        w
+        slot.1
     }
 
     /// Where axis n's play output stands against the command at `state` (0 without a play).
@@ -1241,12 +1241,14 @@ fn walk_compensated(
             let arc = Cartesian::new(&start, &end, &Path::Circ { aux }).ok()?;
             let u_aux = arc.fraction_at(&aux);
             let (arrival, _) =
-                interpolate::arrival_and_end(robot, tool, &arc, u_aux, &cmd(k - 1), c).ok()?;
+                interpolate::arrival_and_end(robot, tool, &arc, u_aux, (&cmd(k - 1), None), c)
+                    .ok()?;
             return Some(arrival.turns);
         }
         _ => return None,
     };
-    let (arrival, _) = interpolate::arrival_and_end(robot, tool, &path, 1.0, &cmd(from), c).ok()?;
+    let (arrival, _) =
+        interpolate::arrival_and_end(robot, tool, &path, 1.0, (&cmd(from), None), c).ok()?;
     // Only the turns after the stop before count (the ones before it are in its history).
     Some(arrival.turns.after(before))
 }
