@@ -1150,7 +1150,7 @@ fn settle_one(
         }
         *resolved = true;
         let error = |o: &Outcome| solve::weighted_norm(&o.residual);
-        if best.is_none_or(|b| error(&o) < error(&b)) {
+        if best.map_or(true, |b| error(&o) < error(&b)) {
             best = Some(o);
         }
     }
