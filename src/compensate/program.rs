@@ -139,8 +139,9 @@ fn already_compensated(file: &krl::SourceFile) -> Option<usize> {
     header_mark(file.source())
 }
 
-/// Bytes searched as one piece by [`header_mark`]: a 70 MB program's search took 7 ms on one
-/// core while the other waited.
+/// Bytes searched as one piece by [`header_mark`]: the pieces are searched in parallel, so
+/// that a long program's search does not keep one core busy while the other waits (measured
+/// in BENCH.md, seventh pass).
 const PIECE: usize = 8 << 20;
 
 /// Where robopost's header mark first starts in `src` (any case).

@@ -18,6 +18,7 @@
 
 use super::solve::{self, Method, Problem, SolveError};
 use crate::kinematics::status_turn;
+use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
 use crate::motion::interpolate;
@@ -450,8 +451,8 @@ pub fn compensate_after(
 /// directions they leave (`nominal_start`), so it may run while the segment before is still
 /// being settled ([`settle`]).
 pub struct FirstPasses {
-    /// `LOOK_BACK` slots for the history's outcomes (filled by [`settle`]), then the targets'.
-    outcomes: Vec<Outcome>,
+    /// The targets' outcomes, with room in front for the history's.
+    outcomes: Timeline,
     nominal_signs: Vec<Signs>,
     /// The unrounded TCP of every first-pass command, and its pose in the base frame before
     /// the choice of Euler triple (see [`Command::unchosen`]); [`settle`] completes them in
@@ -462,9 +463,96 @@ pub struct FirstPasses {
 impl FirstPasses {
     /// The nominal directions after the segment (the next segment's `nominal_start`).
     pub fn nominal_end(&self) -> Option<[Direction; 6]> {
-        self.outcomes[LOOK_BACK..]
-            .last()
-            .map(|o| o.nominal_directions)
+        self.outcomes.targets().last().map(|o| o.nominal_directions)
+    }
+}
+
+/// A segment's outcomes with [`LOOK_BACK`] slots in front of the targets' for the history's:
+/// the re-check reads the history and the targets as one slice, and the targets' outcomes
+/// (200-byte records, a million in a CAM program) are written once, in place, by the first
+/// passes, never copied behind the history's.
+struct Timeline {
+    slots: Vec<Outcome>,
+    /// Where the history's outcomes begin (`LOOK_BACK` until [`Self::behind`] puts them in).
+    first: usize,
+}
+
+impl Timeline {
+    fn for_targets(n: usize) -> Timeline {
+        Timeline {
+            slots: vec![Outcome::placeholder(); LOOK_BACK + n],
+            first: LOOK_BACK,
+        }
+    }
+
+    fn targets(&self) -> &[Outcome] {
+        &self.slots[LOOK_BACK..]
+    }
+
+    fn targets_mut(&mut self) -> &mut [Outcome] {
+        &mut self.slots[LOOK_BACK..]
+    }
+
+    /// Puts the outcomes of `history` (at most [`LOOK_BACK`]) just before the targets': the
+    /// slice returned is the history's followed by the targets'.
+    fn behind(&mut self, history: &[Carried]) -> &mut [Outcome] {
+        self.first = LOOK_BACK - history.len();
+        for (slot, c) in self.slots[self.first..LOOK_BACK].iter_mut().zip(history) {
+            *slot = c.outcome;
+        }
+        &mut self.slots[self.first..]
+    }
+}
+
+/// Where a pass runs its independent pieces: on rayon's pool or in order on the calling
+/// thread ([`Options::parallel`]), chosen once per pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Executor {
+    Pool,
+    Inline,
+}
+
+impl Executor {
+    fn of(options: &Options) -> Executor {
+        if options.parallel {
+            Executor::Pool
+        } else {
+            Executor::Inline
+        }
+    }
+
+    /// Runs `a` and `b`, beside each other on the pool.
+    fn join<A: Send, B: Send>(
+        self,
+        a: impl FnOnce() -> A + Send,
+        b: impl FnOnce() -> B + Send,
+    ) -> (A, B) {
+        match self {
+            Executor::Pool => rayon::join(a, b),
+            Executor::Inline => (a(), b()),
+        }
+    }
+
+    /// `work` of every chunk of `items` (with the chunk's index), in order.
+    fn map_chunks<T: Send, R: Send>(
+        self,
+        items: &mut [T],
+        chunk: usize,
+        work: impl Fn(usize, &mut [T]) -> R + Sync + Send,
+    ) -> Vec<R> {
+        use rayon::prelude::*;
+        match self {
+            Executor::Pool => items
+                .par_chunks_mut(chunk)
+                .enumerate()
+                .map(|(c, a)| work(c, a))
+                .collect(),
+            Executor::Inline => items
+                .chunks_mut(chunk)
+                .enumerate()
+                .map(|(c, a)| work(c, a))
+                .collect(),
+        }
     }
 }
 
@@ -482,28 +570,6 @@ pub struct Chains {
     open: solve::Chain,
 }
 
-/// Runs `work` over `items` in chunks (with each chunk's index), on rayon's pool when
-/// `parallel`, else in order on this thread.
-fn each_chunk<T: Send>(
-    parallel: bool,
-    items: &mut [T],
-    chunk: usize,
-    work: impl Fn(usize, &mut [T]) + Sync,
-) {
-    use rayon::prelude::*;
-    if parallel {
-        items
-            .par_chunks_mut(chunk)
-            .enumerate()
-            .for_each(|(c, a)| work(c, a));
-    } else {
-        items
-            .chunks_mut(chunk)
-            .enumerate()
-            .for_each(|(c, a)| work(c, a));
-    }
-}
-
 /// Passes 1 and 2 of `targets`, the nominal directions before the first given, `chains`
 /// where the targets before them left the warm starts (moved on past them).
 pub fn first_passes(
@@ -514,89 +580,80 @@ pub fn first_passes(
     chains: &mut Chains,
     options: &Options,
 ) -> FirstPasses {
+    let run = Executor::of(options);
     // Pass 1: the nominal motions' signs (the re-check needs them again), their directions.
     let nominal_signs: Vec<Signs> = targets.iter().map(|t| signs(t.arrival)).collect();
     let nominal = directions_after(&nominal_signs, nominal_start);
-    // Pass 2: the chains of these targets, each worked in order, the first continuing the
-    // open one; each writes its outcomes in place, after `LOOK_BACK` slots left for the
-    // history (`settle`).
-    let n = targets.len();
-    let head = ((CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN).min(n);
-    let mut outcomes = vec![Outcome::placeholder(); LOOK_BACK + n];
-    let (head_slots, rest) = outcomes[LOOK_BACK..].split_at_mut(head);
-    let work = |from: usize, slots: &mut [Outcome], mut chain: solve::Chain| -> solve::Chain {
-        for (k, slot) in slots.iter_mut().enumerate() {
-            let i = from + k;
-            let engaged = nominal[i].map(AxisHistory::engaged);
-            first_pass(
-                model,
-                tools,
-                &targets[i],
-                &engaged,
-                options.method,
-                Some(&mut chain),
-                slot,
-            );
-        }
-        chain
-    };
-    let fresh = |(p, slots): (usize, &mut [Outcome])| {
-        work(head + p * CHAIN, slots, solve::Chain::default())
-    };
-    let continued = chains.open;
-    // The chain continued from the segment before runs beside the fresh ones.
-    let (open, last): (solve::Chain, Option<solve::Chain>) = if options.parallel {
-        use rayon::prelude::*;
-        rayon::join(
-            || work(0, head_slots, continued),
-            || {
-                let ends: Vec<solve::Chain> =
-                    rest.par_chunks_mut(CHAIN).enumerate().map(fresh).collect();
-                ends.last().copied()
-            },
-        )
-    } else {
-        (
-            work(0, head_slots, continued),
-            rest.chunks_mut(CHAIN).enumerate().map(fresh).last(),
-        )
-    };
-    chains.open = last.unwrap_or(open);
-    chains.ordinal += n as u64;
-    let solved = &outcomes[LOOK_BACK..];
-    // Where the nominal robot places every first-pass command (the rewrite's numbers).
-    let ctx = Ctx {
-        model,
-        tools,
-        history: &[],
-        targets,
-        method: options.method,
-    };
-    let blank = Command {
-        tcp: Frame::identity(),
-        correction: (0.0, 0.0),
-        unchosen: None,
-    };
-    let mut commands: Vec<Command> = vec![blank; n];
-    each_chunk(
-        options.parallel,
-        &mut commands,
-        PLACE_CHUNK,
-        |c, placings| {
-            for (j, placing) in placings.iter_mut().enumerate() {
-                let k = c * PLACE_CHUNK + j;
-                let axes = &solved[k].axes_deg;
-                let raw = Nominal(&model.robot).tcp(axes, ctx.tool(k));
-                placing.tcp = raw;
-                placing.unchosen = ctx.written_keeping(k, axes, || raw).1;
-            }
-        },
-    );
+    // Pass 2: every target solved with the plays engaged on the nominal flanks.
+    let mut outcomes = Timeline::for_targets(targets.len());
+    let ctx = Ctx::new(model, tools, &[], targets, options.method);
+    solve_chains(&ctx, &nominal, chains, run, outcomes.targets_mut());
+    let commands = place_commands(&ctx, outcomes.targets(), run);
     FirstPasses {
         outcomes,
         nominal_signs,
         commands,
     }
+}
+
+/// Solves `targets` (outcomes into `slots`) in their chains of warm starts, each worked in
+/// order, the first continuing the open one of `chains`, which then moves on past them.
+fn solve_chains(
+    ctx: &Ctx,
+    nominal: &[[Direction; 6]],
+    chains: &mut Chains,
+    run: Executor,
+    slots: &mut [Outcome],
+) {
+    let n = slots.len();
+    let head = ((CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN).min(n);
+    let (head_slots, rest) = slots.split_at_mut(head);
+    let work = |from: usize, slots: &mut [Outcome], mut chain: solve::Chain| -> solve::Chain {
+        for (k, slot) in slots.iter_mut().enumerate() {
+            let i = from + k;
+            let engaged = nominal[i].map(AxisHistory::engaged);
+            let target = &ctx.targets[i];
+            let chain = Some(&mut chain);
+            first_pass(
+                ctx.model, ctx.tools, target, &engaged, ctx.method, chain, slot,
+            );
+        }
+        chain
+    };
+    // The chain continued from the segment before runs beside the fresh ones.
+    let continued = chains.open;
+    let (open, ends) = run.join(
+        || work(0, head_slots, continued),
+        || {
+            run.map_chunks(rest, CHAIN, |p, slots| {
+                work(head + p * CHAIN, slots, solve::Chain::default())
+            })
+        },
+    );
+    chains.open = ends.last().copied().unwrap_or(open);
+    chains.ordinal += n as u64;
+}
+
+/// Where the nominal robot places every first-pass command (the rewrite's numbers): its TCP,
+/// and for a Cartesian target its pose before the choice of Euler triple.
+fn place_commands(ctx: &Ctx, solved: &[Outcome], run: Executor) -> Vec<Command> {
+    let blank = Command {
+        tcp: Frame::identity(),
+        correction: (0.0, 0.0),
+        unchosen: None,
+    };
+    let mut commands: Vec<Command> = vec![blank; solved.len()];
+    let arm = Nominal(&ctx.model.robot);
+    run.map_chunks(&mut commands, PLACE_CHUNK, |c, placings| {
+        for (j, placing) in placings.iter_mut().enumerate() {
+            let k = c * PLACE_CHUNK + j;
+            let axes = &solved[k].axes_deg;
+            let raw = arm.tcp(axes, ctx.tool(k));
+            placing.tcp = raw;
+            placing.unchosen = ctx.written_keeping(k, axes, || raw).1;
+        }
+    });
+    commands
 }
 
 /// Pass 3 of `targets` after the carried `history` (see [`compensate_after`]), from their
@@ -612,58 +669,46 @@ pub fn settle(
     // The re-check looks back `LOOK_BACK` targets: older history is not needed.
     let history = &history[history.len().saturating_sub(LOOK_BACK)..];
     let h = history.len();
-    // The history's outcomes go into the slots left before the targets' (no copy of these),
-    // the unused slots first: `all[pad..]` is the history followed by the targets.
-    let mut all = first.outcomes;
-    let pad = LOOK_BACK - h;
-    for (slot, c) in all[pad..pad + h].iter_mut().zip(history) {
-        *slot = c.outcome;
-    }
-    let outcomes = &mut all[pad..];
-    let ctx = Ctx {
-        model,
-        tools,
-        history,
-        targets,
-        method: options.method,
-    };
+    let FirstPasses {
+        mut outcomes,
+        nominal_signs,
+        mut commands,
+    } = first;
+    let all = outcomes.behind(history);
+    let ctx = Recheck::new(Ctx::new(model, tools, history, targets, options.method));
     let mut resolved: Vec<bool> = history.iter().map(|c| c.resolved).collect();
     resolved.resize(h + targets.len(), false);
     // Without a target before, the first arrives after long motions in its nominal
     // directions (those `start` leads to), as the first pass assumed.
     let previous = history.last().map(|c| c.state);
-    let (counts, states) = recheck(
-        &ctx,
-        previous,
-        h,
-        outcomes,
-        &first.nominal_signs,
-        &mut resolved,
-    );
-    // The commands' changes at the TCP, the command of a target the re-check re-solved anew.
-    // The nominal command's TCP is the goal: the walk solved the command for it (an axis
-    // target's goal is its nominal TCP).
-    let arm = Nominal(&model.robot);
-    let mut commands = first.commands;
-    for (i, c) in commands.iter_mut().enumerate() {
-        let (k, t) = (h + i, &targets[i]);
-        let o = &outcomes[k];
-        if resolved[k] {
-            c.tcp = arm.tcp(&o.axes_deg, ctx.tool(k));
-            c.unchosen = None;
-        }
-        if o.changed {
-            c.correction = correction(&c.tcp, &t.goal);
-        }
-    }
+    let (counts, states) = recheck(&ctx, previous, h, all, &nominal_signs, &mut resolved);
+    complete_commands(&ctx, &all[h..], &resolved[h..], &mut commands);
     resolved.drain(..h);
     Compensated {
-        outcomes: all,
-        history: pad + h,
+        history: outcomes.first + h,
+        outcomes: outcomes.slots,
         resolved,
         commands,
         last_states: states,
         counts,
+    }
+}
+
+/// The commands' changes at the TCP, and the TCP of a command the re-check solved again.
+/// The nominal command's TCP is the goal: the walk solved the command for it (an axis
+/// target's goal is its nominal TCP).
+fn complete_commands(ctx: &Ctx, outcomes: &[Outcome], resolved: &[bool], commands: &mut [Command]) {
+    let h = ctx.history.len();
+    let arm = Nominal(&ctx.model.robot);
+    for (i, c) in commands.iter_mut().enumerate() {
+        let o = &outcomes[i];
+        if resolved[i] {
+            c.tcp = arm.tcp(&o.axes_deg, ctx.tool(h + i));
+            c.unchosen = None;
+        }
+        if o.changed {
+            c.correction = correction(&c.tcp, &ctx.targets[i].goal);
+        }
     }
 }
 
@@ -846,8 +891,8 @@ fn first_pass(
     }
 }
 
-/// What the re-check needs besides the outcomes: the targets are the history's followed by
-/// the segment's (indexed as the outcomes are).
+/// What the passes need besides the outcomes: the targets are the history's followed by the
+/// segment's (indexed as the outcomes are).
 struct Ctx<'a> {
     model: &'a Model,
     tools: &'a [Frame],
@@ -856,7 +901,101 @@ struct Ctx<'a> {
     method: Method,
 }
 
-impl Ctx<'_> {
+/// The re-check's [`Ctx`], with each axis's play width table and the widths looked up last
+/// (the re-check runs on one thread).
+struct Recheck<'a> {
+    ctx: Ctx<'a>,
+    plays: [Option<&'a Table1>; 6],
+    widths: std::cell::RefCell<WidthMemo>,
+}
+
+impl<'a> std::ops::Deref for Recheck<'a> {
+    type Target = Ctx<'a>;
+    fn deref(&self) -> &Ctx<'a> {
+        &self.ctx
+    }
+}
+
+/// Lookups of each axis's play width kept per axis: a command the re-check looks the width up
+/// at comes back as the next target's command before and the one after's run start, so the
+/// recent angles of an axis answer most lookups (the same angle's bits, the same width).
+struct WidthMemo {
+    /// Per axis, `(angle bits, width)` of recent lookups, each in the slot its bits hash to.
+    slots: [[(u64, f64); WIDTH_MEMO]; 6],
+}
+
+/// Slots per axis of [`WidthMemo`] (a power of two).
+const WIDTH_MEMO: usize = 16;
+
+/// The width of a play whose table is `play` (0 without one) at command `angle`, as
+/// [`Model::play_width_deg`] gives it.
+fn width_in(play: Option<&Table1>, angle: f64) -> f64 {
+    play.map_or(0.0, |w| w.eval(angle).0)
+}
+
+impl WidthMemo {
+    fn new(plays: &[Option<&Table1>; 6]) -> WidthMemo {
+        // Every slot starts as a true lookup (at 0°), so a slot never answers wrongly.
+        WidthMemo {
+            slots: std::array::from_fn(|n| [(0f64.to_bits(), width_in(plays[n], 0.0)); WIDTH_MEMO]),
+        }
+    }
+
+    /// The slot of an angle's bits (Fibonacci hashing: neighbouring angles spread out).
+    fn slot(bits: u64) -> usize {
+        (bits.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - WIDTH_MEMO.trailing_zeros())) as usize
+    }
+}
+
+impl<'a> Recheck<'a> {
+    fn new(ctx: Ctx<'a>) -> Recheck<'a> {
+        let plays = std::array::from_fn(|n| ctx.model.play_width_table(n));
+        Recheck {
+            ctx,
+            plays,
+            widths: std::cell::RefCell::new(WidthMemo::new(&plays)),
+        }
+    }
+
+    /// The width (degrees) of axis n's play at command `angle` ([`Model::play_width_deg`]).
+    fn play_width(&self, n: usize, angle: f64) -> f64 {
+        let bits = angle.to_bits();
+        let mut memo = self.widths.borrow_mut();
+        let slot = &mut memo.slots[n][WidthMemo::slot(bits)];
+        if slot.0 != bits {
+            *slot = (bits, width_in(self.plays[n], angle));
+        }
+        slot.1
+    }
+
+    /// Where axis n's play output stands against the command at `state` (0 without a play).
+    fn play_lag(&self, state: &AxisState, n: usize) -> f64 {
+        if self.plays[n].is_none() {
+            return 0.0;
+        }
+        state.history[n]
+            .play(state.axes_deg[n], |a| self.play_width(n, a))
+            .lag_deg
+    }
+}
+
+impl<'a> Ctx<'a> {
+    fn new(
+        model: &'a Model,
+        tools: &'a [Frame],
+        history: &'a [Carried],
+        targets: &'a [Target],
+        method: Method,
+    ) -> Ctx<'a> {
+        Ctx {
+            model,
+            tools,
+            history,
+            targets,
+            method,
+        }
+    }
+
     /// Target `k` of the history and segment together.
     fn target(&self, k: usize) -> &Target {
         match self.history.get(k) {
@@ -918,7 +1057,7 @@ pub const HOLD_DEG: f64 = 1e-5;
 /// documentation). Targets before `from` are settled (history). Returns the counts and the
 /// states of the last (up to [`LOOK_BACK`]) targets.
 fn recheck(
-    ctx: &Ctx,
+    ctx: &Recheck,
     mut previous: Option<AxisState>,
     from: usize,
     outcomes: &mut [Outcome],
@@ -982,7 +1121,7 @@ fn recheck(
 /// predicts the smallest error is kept. Returns the state it leaves; `resolved` is set when it
 /// was solved again.
 fn settle_one(
-    ctx: &Ctx,
+    ctx: &Recheck,
     k: usize,
     rest: &[bool; 6],
     previous: Option<AxisState>,
@@ -991,25 +1130,32 @@ fn settle_one(
 ) -> AxisState {
     let mut o = outcomes[k];
     let mut best: Option<Outcome> = None;
-    let mut settled = false;
+    let mut settled = None;
     for _ in 0..SETTLE_ROUNDS {
-        if !settle_target(ctx, k, rest, previous.as_ref(), (&mut o, outcomes)) {
-            settled = true;
+        if let Settling::Settled(turns) =
+            settle_target(ctx, k, rest, previous.as_ref(), (&mut o, outcomes))
+        {
+            settled = Some(turns);
             break;
         }
         *resolved = true;
         let error = |o: &Outcome| solve::weighted_norm(&o.residual);
-        if best.is_none_or(|b| error(&o) < error(&b)) {
+        if best.map_or(true, |b| error(&o) < error(&b)) {
             best = Some(o);
         }
     }
-    if let (false, Some(b)) = (settled, best) {
+    if let (None, Some(b)) = (settled, best) {
         o = b;
     }
     outcomes[k] = o;
+    let history = match (settled.flatten(), &previous) {
+        // The turns the settling worked out for this very command.
+        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg).history,
+        _ => arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
+    };
     AxisState {
         axes_deg: o.axes_deg,
-        history: arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
+        history,
         time_s: 0.0,
     }
 }
@@ -1018,7 +1164,7 @@ fn settle_one(
 /// command before, then the turning points of the motion, moved with the compensated path (the
 /// nominal one plus the corrections interpolated along it).
 fn arrival_histories(
-    ctx: &Ctx,
+    ctx: &Recheck,
     k: usize,
     previous: Option<&AxisState>,
     out: &Outcome,
@@ -1031,7 +1177,8 @@ fn arrival_histories(
     let Some(p) = previous else {
         return out.nominal_directions.map(AxisHistory::engaged);
     };
-    let turns = compensated_turns(ctx, k, p, &out.axes_deg, outcomes);
+    let widths = std::array::from_fn(|n| ctx.play_width(n, out.axes_deg[n]));
+    let turns = compensated_turns(ctx, k, p, (&out.axes_deg, &widths), outcomes);
     p.then_through(&turns.angle_deg, out.axes_deg).history
 }
 
@@ -1043,27 +1190,26 @@ const SENSITIVE_PLAYS: f64 = 4.0;
 const CORRECTION_SHARE: f64 = 10.0;
 
 /// The turning points of the compensated motion into target `k` (from `previous`, commanded
-/// at `c`). The compensated motion is the nominal one moved by the corrections; where an axis
+/// at `c`, where the plays' widths are `widths`). The compensated motion is the nominal one moved by the corrections; where an axis
 /// moves little, the way the correction bends along the motion decides whether and where it
 /// turns round, so the motion is walked as the controller interpolates it between the
 /// compensated commands (samples, exact rates at the ends). Elsewhere — and where the path
 /// cannot be built — the nominal turns, moved by the corrections interpolated to them.
 fn compensated_turns(
-    ctx: &Ctx,
+    ctx: &Recheck,
     k: usize,
     previous: &AxisState,
-    c: &[f64; 6],
+    (c, widths): (&[f64; 6], &[f64; 6]),
     outcomes: &[Outcome],
 ) -> interpolate::Turns {
     let target = ctx.target(k);
     let prev = previous.axes_deg;
-    let model = ctx.model;
     // An axis can turn round inside the compensated motion where the nominal one does, or
     // where the correction changes along the motion by a fair part of the nominal move (a
     // resting axis, a slow one): only there does the walk decide anything.
     let nominal_prev = (k > 0).then(|| ctx.target(k - 1).nominal_axes);
     let sensitive = (0..6).any(|n| {
-        let b = model.play_width_deg(n, c[n]);
+        let b = widths[n];
         if !(b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3) {
             return false;
         }
@@ -1080,9 +1226,23 @@ fn compensated_turns(
     }
     let mut turns = target.turns;
     for n in 0..6 {
-        turns.angle_deg[n] = Segment::nominal_turn(ctx, k, previous, n).turn(c[n]);
+        turns.angle_deg[n] = nominal_turn_moved(ctx, k, prev[n], n, c[n]);
     }
     turns
+}
+
+/// Axis n's last nominal turning point inside the motion into target `k` (NaN: none), moved by
+/// the corrections interpolated to it: the command before at `c0`, target k's at `c`.
+fn nominal_turn_moved(ctx: &Ctx, k: usize, c0: f64, n: usize, c: f64) -> f64 {
+    let target = ctx.target(k);
+    let (t, u) = (target.turns.angle_deg[n], target.turns.at[n]);
+    let (turn, at) = if t.is_finite() && k > 0 {
+        let before = c0 - ctx.target(k - 1).nominal_axes[n];
+        (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
+    } else {
+        (f64::NAN, 0.0)
+    };
+    turn + at * c
 }
 
 /// The compensated motion into target `k` walked as the controller interpolates it (the
@@ -1148,12 +1308,14 @@ fn walk_compensated(
             let arc = Cartesian::new(&start, &end, &Path::Circ { aux }).ok()?;
             let u_aux = arc.fraction_at(&aux);
             let (arrival, _) =
-                interpolate::arrival_and_end(robot, tool, &arc, u_aux, &cmd(k - 1), c).ok()?;
+                interpolate::arrival_and_end(robot, tool, &arc, u_aux, (&cmd(k - 1), None), c)
+                    .ok()?;
             return Some(arrival.turns);
         }
         _ => return None,
     };
-    let (arrival, _) = interpolate::arrival_and_end(robot, tool, &path, 1.0, &cmd(from), c).ok()?;
+    let (arrival, _) =
+        interpolate::arrival_and_end(robot, tool, &path, 1.0, (&cmd(from), None), c).ok()?;
     // Only the turns after the stop before count (the ones before it are in its history).
     Some(arrival.turns.after(before))
 }
@@ -1177,41 +1339,25 @@ impl Segment {
     /// Axis n's motion into target `k` from `previous`, with `turns` those of the compensated
     /// motion commanded at `c` ([`compensated_turns`]).
     fn of(
-        ctx: &Ctx,
+        ctx: &Recheck,
         k: usize,
         previous: &AxisState,
         n: usize,
         (turns, c): (&interpolate::Turns, &[f64; 6]),
     ) -> Segment {
-        let mut segment = Segment::nominal_turn(ctx, k, previous, n);
+        let c0 = previous.axes_deg[n];
         let (t, u) = (turns.angle_deg[n], turns.at[n]);
         // The turn moves with the command by the share of the correction interpolated to it.
-        (segment.turn, segment.at) = if t.is_finite() {
+        let (turn, at) = if t.is_finite() {
             (t - u * c[n], u)
         } else {
             (f64::NAN, 0.0)
         };
-        segment
-    }
-
-    /// [`Self::of`] with the nominal turn moved by the corrections interpolated to it.
-    fn nominal_turn(ctx: &Ctx, k: usize, previous: &AxisState, n: usize) -> Segment {
-        let target = ctx.target(k);
-        let model = ctx.model;
-        let c0 = previous.axes_deg[n];
-        let start_output = c0 + model.play(previous, n).map_or(0.0, |p| p.lag_deg);
-        let (t, u) = (target.turns.angle_deg[n], target.turns.at[n]);
-        let (turn, at) = if t.is_finite() && k > 0 {
-            let before = c0 - ctx.target(k - 1).nominal_axes[n];
-            (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
-        } else {
-            (f64::NAN, 0.0)
-        };
         Segment {
-            start_output,
+            start_output: c0 + ctx.play_lag(previous, n),
             turn,
             at,
-            half: 0.5 * model.play_width_deg(n, target.nominal_axes[n]),
+            half: 0.5 * ctx.play_width(n, ctx.target(k).nominal_axes[n]),
         }
     }
 
@@ -1232,23 +1378,11 @@ impl Segment {
         clamp(o, c)
     }
 
-    /// The command whose arrival puts the play's output at `wanted`, nearest `near` where a
-    /// range of commands does (inside the play), and how it does it.
-    fn command_for(&self, wanted: f64, near: f64) -> (f64, Reach) {
-        // The output is monotone and piecewise linear in the command (slopes 0, `at` or 1):
-        // bracket, then find the first and last command that reach it.
-        let tol = 1e-12;
-        let mut span = 4.0 * self.half + 1e-3;
-        let (mut lo, mut hi) = (near - span, near + span);
-        while self.output(lo) > wanted - tol || self.output(hi) < wanted + tol {
-            span *= 2.0;
-            (lo, hi) = (near - span, near + span);
-            if span > 360.0 {
-                return (near, Reach::Stuck);
-            }
-        }
-        // The output is linear between its breakpoints (where the turn's clamp or the
-        // arrival's clamp starts or stops acting): evaluate it there and interpolate.
+    /// The output `(command, output)` at `lo`, `hi` and its breakpoints between them (where
+    /// the turn's clamp or the arrival's clamp starts or stops acting), in order of the
+    /// command, into `points`; returns how many there are. The output is linear between them.
+    #[inline]
+    fn breakpoints(&self, lo: f64, hi: f64, points: &mut [(f64, f64); 14]) -> usize {
         let (s, h, t0, a) = (self.start_output, self.half, self.turn, self.at);
         let mut xs = [0.0; 12];
         let mut n = 0;
@@ -1273,17 +1407,37 @@ impl Segment {
                 }
             }
         }
-        let mut points = [(0.0, 0.0); 14];
         points[0] = (lo, self.output(lo));
         for (i, &x) in xs[..n].iter().enumerate() {
             points[i + 1] = (x, 0.0);
         }
         points[n + 1] = (hi, 0.0);
-        let points = &mut points[..n + 2];
-        points.sort_by(|p, q| p.0.total_cmp(&q.0));
-        for p in points.iter_mut() {
+        points[..n + 2].sort_by(|p, q| p.0.total_cmp(&q.0));
+        for p in points[..n + 2].iter_mut() {
             p.1 = self.output(p.0);
         }
+        n + 2
+    }
+
+    /// The command whose arrival puts the play's output at `wanted`, nearest `near` where a
+    /// range of commands does (inside the play), and how it does it.
+    fn command_for(&self, wanted: f64, near: f64) -> (f64, Reach) {
+        // The output is monotone and piecewise linear in the command (slopes 0, `at` or 1):
+        // bracket, then find the first and last command that reach it by interpolating
+        // between its breakpoints (no bisection).
+        let tol = 1e-12;
+        let mut span = 4.0 * self.half + 1e-3;
+        let (mut lo, mut hi) = (near - span, near + span);
+        while self.output(lo) > wanted - tol || self.output(hi) < wanted + tol {
+            span *= 2.0;
+            (lo, hi) = (near - span, near + span);
+            if span > 360.0 {
+                return (near, Reach::Stuck);
+            }
+        }
+        let mut points = [(0.0, 0.0); 14];
+        let n = self.breakpoints(lo, hi, &mut points);
+        let points = &points[..n];
         let cross = |(x0, y0): (f64, f64), (x1, y1): (f64, f64), y: f64| {
             if y1 > y0 {
                 (x0 + (y - y0) * (x1 - x0) / (y1 - y0)).clamp(x0, x1)
@@ -1317,6 +1471,15 @@ impl Segment {
     }
 }
 
+/// What [`settle_target`] did.
+enum Settling {
+    /// The plays stand where the solve assumed; the turning points of the compensated motion
+    /// into the target when they were worked out (the target's history needs them again).
+    Settled(Option<interpolate::Turns>),
+    /// Solved again.
+    Resolved,
+}
+
 /// How a command puts the play's output where it must be.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Reach {
@@ -1332,17 +1495,18 @@ enum Reach {
 /// is not the first pass's flank — on the flank it drives, or, where the output stays inside
 /// the play, with that axis held at its command (the program's held axes at their command
 /// before) — and the axes whose output moves back by less than their play are marked.
-/// Returns whether it was solved again. `rest[n]`: the nominal motion holds axis n still.
+/// Returns whether it was solved again, and if not the turns of its compensated motion where
+/// they were worked out. `rest[n]`: the nominal motion holds axis n still.
 fn settle_target(
-    ctx: &Ctx,
+    ctx: &Recheck,
     k: usize,
     rest: &[bool; 6],
     previous: Option<&AxisState>,
     (out, outcomes): (&mut Outcome, &[Outcome]),
-) -> bool {
+) -> Settling {
     let model = ctx.model;
     let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
-        return false;
+        return Settling::Settled(None);
     };
     let c = out.axes_deg;
     let assumed = out.directions;
@@ -1351,8 +1515,9 @@ fn settle_target(
     let mut start = c;
     let mut differs = false;
     let mut turns: Option<interpolate::Turns> = None;
+    let widths: [f64; 6] = std::array::from_fn(|n| ctx.play_width(n, c[n]));
     for n in 0..6 {
-        let b = model.play_width_deg(n, c[n]);
+        let b = widths[n];
         // Without a play every command's output is the command: nothing to settle.
         if b == 0.0 {
             continue;
@@ -1367,7 +1532,8 @@ fn settle_target(
         if engaged && !jitter {
             continue;
         }
-        let turns = turns.get_or_insert_with(|| compensated_turns(ctx, k, p, &c, outcomes));
+        let turns =
+            turns.get_or_insert_with(|| compensated_turns(ctx, k, p, (&c, &widths), outcomes));
         let segment = Segment::of(ctx, k, p, n, (turns, &c));
         let wanted = c[n] - assumed[n].sign() * 0.5 * b;
         // The output moves back by less than the play: the command travels it.
@@ -1400,7 +1566,7 @@ fn settle_target(
         differs = true;
     }
     if !differs {
-        return false;
+        return Settling::Settled(turns);
     }
     let target = ctx.target(k);
     let tool = ctx.tool(k);
@@ -1421,7 +1587,7 @@ fn settle_target(
         let nominal = arrival_histories(ctx, k, previous, out, outcomes);
         out.before = tcp_error(model, tool, &target.nominal_axes, &nominal, &target.goal);
         out.residual = out.before;
-        return true;
+        return Settling::Resolved;
     }
     match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
@@ -1444,7 +1610,7 @@ fn settle_target(
     // The prediction with every play evaluated exactly where the command leaves it.
     let histories = arrival_histories(ctx, k, previous, out, outcomes);
     out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
-    true
+    Settling::Resolved
 }
 
 #[cfg(test)]

@@ -218,6 +218,12 @@ impl Model {
         Some(state.history[n].play(state.axes_deg[n], |a| width.eval(a).0))
     }
 
+    /// The width table (degrees over the command angle) of axis n+1's gear play, if the model
+    /// has one: for callers that look many widths up.
+    pub fn play_width_table(&self, n: usize) -> Option<&super::table::Table1> {
+        self.merged().play_width(n)
+    }
+
     /// The width (degrees) of axis n+1's gear play at command `angle_deg` (0 without one).
     pub fn play_width_deg(&self, n: usize, angle_deg: f64) -> f64 {
         self.merged()

@@ -512,20 +512,46 @@ pub fn arrival_along(
     q0: &[f64; 6],
     q1: &[f64; 6],
 ) -> Result<Arrival, PathError> {
-    arrival_and_end(robot, tool, cart, u_end, q0, q1).map(|(a, _)| a)
+    arrival_and_end(robot, tool, cart, u_end, (q0, None), q1).map(|(a, _)| a)
 }
 
-/// [`arrival_along`], with the nominal TCP at the arrival's end axes ([`end_tcp`] of
-/// `Arrival::end`, bit for bit: it comes from the same evaluation as the rates), which the
-/// next segment's start may reuse.
+/// The arm at axes where a segment ends: its closed-form state and nominal TCP ([`end_tcp`]
+/// bit for bit). The next segment, when it starts at the same axes with the same tool, takes
+/// it for its start instead of evaluating the arm there again.
+#[derive(Clone, Copy, Debug)]
+pub struct ArmAt {
+    pub arm: crate::kinematics::ArmState,
+    pub tcp: Frame,
+}
+
+impl ArmAt {
+    pub fn new(robot: &RobotDescription, tool: &Frame, q: &[f64; 6]) -> ArmAt {
+        let arm = crate::kinematics::ArmState::new(robot, q);
+        ArmAt {
+            tcp: tcp_of_arm(&arm, tool),
+            arm,
+        }
+    }
+
+    /// The axis rates `J(q)⁻¹·twist` (`None` where the Jacobian is singular).
+    fn rates(&self, twist: &Vector6<f64>) -> Option<[f64; 6]> {
+        let v = Vector3::new(twist[0], twist[1], twist[2]);
+        let w = Vector3::new(twist[3], twist[4], twist[5]);
+        self.arm.rates(&self.tcp.position, &v, &w)
+    }
+}
+
+/// [`arrival_along`], with the arm at the arrival's end axes (`Arrival::end`; its TCP bit for
+/// bit [`end_tcp`]'s: it comes from the same evaluation as the rates), which the next
+/// segment's start may reuse; `start` is the arm at `q0` where the segment before left it.
 pub fn arrival_and_end(
     robot: &RobotDescription,
     tool: &Frame,
     cart: &Cartesian,
     u_end: f64,
-    q0: &[f64; 6],
+    (q0, start): (&[f64; 6], Option<&ArmAt>),
     q1: &[f64; 6],
-) -> Result<(Arrival, Frame), PathError> {
+) -> Result<(Arrival, ArmAt), PathError> {
     let mut q1 = *q1;
     let (length, turn) = cart.extent();
     let n = ((length * u_end / PITCH_MM)
@@ -575,7 +601,8 @@ pub fn arrival_and_end(
         }
     }
     // The exact rate at the end, where the Jacobian is regular.
-    let (end, rate) = end_rate(robot, tool, q1, &(cart.twist(u_end) * u_end));
+    let end = ArmAt::new(robot, tool, q1);
+    let rate = end.rates(&(cart.twist(u_end) * u_end));
     let rate: [f64; 6] = std::array::from_fn(|i| {
         let r = rate.map_or(0.0, |r| r[i]);
         if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
@@ -587,7 +614,11 @@ pub fn arrival_and_end(
         }
     });
     // The rate at the start too: an axis leaving against its arrival turned round inside.
-    let (_, start_rate) = end_rate(robot, tool, q0, &(cart.twist(0.0) * u_end));
+    let start_twist = cart.twist(0.0) * u_end;
+    let start_rate = match start {
+        Some(at) => at.rates(&start_twist),
+        None => ArmAt::new(robot, tool, q0).rates(&start_twist),
+    };
     let n = samples.len() + 2;
     let mut turns = NO_TURNS;
     for i in 0..6 {
@@ -746,17 +777,15 @@ pub fn tcp_of_arm(arm: &crate::kinematics::ArmState, tool: &Frame) -> Frame {
 
 /// The nominal TCP at `q` ([`end_tcp`], bit for bit) and the axis rates `J(q)⁻¹·twist`
 /// (`None` where the Jacobian is singular).
+#[cfg(test)]
 fn end_rate(
     robot: &RobotDescription,
     tool: &Frame,
     q: &[f64; 6],
     twist: &Vector6<f64>,
 ) -> (Frame, Option<[f64; 6]>) {
-    let arm = crate::kinematics::ArmState::new(robot, q);
-    let tcp = tcp_of_arm(&arm, tool);
-    let v = Vector3::new(twist[0], twist[1], twist[2]);
-    let w = Vector3::new(twist[3], twist[4], twist[5]);
-    (tcp, arm.rates(&tcp.position, &v, &w))
+    let at = ArmAt::new(robot, tool, q);
+    (at.tcp, at.rates(twist))
 }
 
 fn rest(d: f64) -> f64 {

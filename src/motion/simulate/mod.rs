@@ -289,10 +289,10 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
         .par_chunks_mut(CHUNK)
         .enumerate()
         .for_each(|(c, out)| {
-            // The nominal TCP at the end of the stop just done, with its index and tool: the
-            // next stop's start when it starts there (a CAM path), bit for bit what
+            // The arm at the end of the stop just done, with its index and tool: the next
+            // stop's start when it starts there (a CAM path), its TCP bit for bit what
             // `interpolate::end_tcp` of the previous axes gives.
-            let mut carry: Option<(u32, u32, Frame)> = None;
+            let mut carry: Option<(u32, u32, interpolate::ArmAt)> = None;
             for (j, slot) in out.iter_mut().enumerate() {
                 let k = c * CHUNK + j;
                 let stop = &sim.stops[k];
@@ -302,11 +302,14 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                 let Some(p) = stop.prev else { continue };
                 let prev = &sim.stops[p as usize];
                 let tool = &sim.frames[stop.tool as usize];
-                let start = match carry {
-                    Some((i, t, tcp)) if i == p && t == stop.tool => tcp,
-                    _ => interpolate::end_tcp(robot, &prev.nominal_axes, tool),
+                let carried = match carry.take() {
+                    Some((i, t, at)) if i == p && t == stop.tool => Some(at),
+                    _ => None,
                 };
-                carry = None;
+                let start = match &carried {
+                    Some(at) => at.tcp,
+                    None => interpolate::end_tcp(robot, &prev.nominal_axes, tool),
+                };
                 let Ok(cart) = Cartesian::new(&start, &stop.goal, &Path::Lin) else {
                     continue;
                 };
@@ -315,7 +318,7 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                     tool,
                     &cart,
                     1.0,
-                    &prev.nominal_axes,
+                    (&prev.nominal_axes, carried.as_ref()),
                     &stop.nominal_axes,
                 );
                 *slot = Some(match a {
