@@ -103,7 +103,7 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
             turns: s.turns,
             interp: match (s.kind.is_joint(), s.kind.is_circular(), s.role) {
                 (true, _, _) => Interp::Joint,
-                // A `CA` circle written by construction (see `rewrite::circular_angle`).
+                // A `CA` circle written by construction (see `Writer::circular_angle` in `rewrite/target.rs`).
                 (false, true, Role::Aux) if sim.arc_ending_at(from + i + 1).is_some() => {
                     Interp::CircAngleAux
                 }
