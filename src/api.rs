@@ -214,7 +214,7 @@ pub fn identify(files: &[Measurements], effects: &str) -> Result<Identified, Err
     let mut stops = Vec::new();
     let mut file_of = Vec::new();
     for (k, f) in files.iter().enumerate() {
-        file_of.extend(std::iter::repeat_n(k, f.stops.len()));
+        file_of.extend(std::iter::repeat(k).take(f.stops.len()));
         stops.extend(f.stops.iter().cloned());
     }
     let request = pipeline::Request {

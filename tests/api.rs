@@ -78,12 +78,8 @@ fn simulate_source_gives_the_programmed_stops() {
     assert_eq!(ptp.axes_deg, [10.0, -80.0, 95.0, 0.0, 30.0, 0.0]);
     for (line, xyz) in [(5, [1100.0, -300.0, 700.0]), (6, [1200.0, -350.0, 720.0])] {
         let stop = stops.iter().find(|s| s.line == line).unwrap();
-        for k in 0..3 {
-            assert!(
-                (stop.tcp_mm[k] - xyz[k]).abs() < 1e-9,
-                "line {line}: {:?}",
-                stop.tcp_mm
-            );
+        for (got, want) in stop.tcp_mm.iter().zip(xyz) {
+            assert!((got - want).abs() < 1e-9, "line {line}: {:?}", stop.tcp_mm);
         }
     }
 }

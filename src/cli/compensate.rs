@@ -335,9 +335,10 @@ pub fn run(args: Args) -> Exit {
         }
     };
     let input = (!stdin).then_some(args.input.as_path());
-    program::lap_start();
     let stream = Some(crate::krl::StreamOptions::default());
-    let mut ws = match files::load_program_in(input, bytes, cell.as_ref(), stream) {
+    let loaded = tracing::info_span!("load")
+        .in_scope(|| files::load_program_in(input, bytes, cell.as_ref(), stream));
+    let mut ws = match loaded {
         Ok(ws) => ws,
         Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
             eprintln!("error: {e}");
@@ -353,11 +354,10 @@ pub fn run(args: Args) -> Exit {
         }
     };
     ws.robot = robot_label(&cal, &args.cal);
-    program::lap("load");
-    if std::env::var_os("ROBOPOST_TIMING").is_some() {
+    if tracing::enabled!(tracing::Level::DEBUG) {
         let runs = ws.get(ws.main).file.streamed_runs();
         let windows: usize = runs.iter().map(|r| r.windows().len()).sum();
-        eprintln!("  streamed: {} runs in {windows} windows", runs.len());
+        tracing::debug!(runs = runs.len(), windows, "streamed");
     }
     let to_stdout = is_dash(&args.out);
     let mut guard = crate::paths::Guard::new();
@@ -415,14 +415,14 @@ pub fn run(args: Args) -> Exit {
             return Exit::Usage;
         }
     } else {
-        program::lap("compensated");
         let outputs = files::outputs(&ws, &result.files, &args.out);
-        if let Err(e) = files::write_atomic_pieces(&outputs) {
+        let written =
+            tracing::info_span!("write").in_scope(|| files::write_atomic_pieces(&outputs));
+        if let Err(e) = written {
             eprintln!("error: writing {}: {e}", args.out.display());
             return Exit::Usage;
         }
     }
-    program::lap("written");
     if let Some(path) = &args.report {
         let json = serde_json::to_string_pretty(&result.report).unwrap_or_default() + "\n";
         if let Err(e) = files::write_atomic(&[(path.clone(), json.as_bytes())]) {

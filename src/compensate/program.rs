@@ -217,31 +217,6 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
     (at, bytes)
 }
 
-/// Where the phase laps count from: the first [`lap_start`] or [`lap`].
-static LAP_ORIGIN: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
-
-/// Starts the clock of the phase laps (the CLI, before loading the program).
-pub fn lap_start() {
-    LAP_ORIGIN.get_or_init(std::time::Instant::now);
-}
-
-/// With `ROBOPOST_TIMING` set: prints the time since [`lap_start`] and the peak memory so far
-/// (Linux) after a phase of the main job.
-pub fn lap(what: &str) {
-    if std::env::var_os("ROBOPOST_TIMING").is_none() {
-        return;
-    }
-    let t0 = *LAP_ORIGIN.get_or_init(std::time::Instant::now);
-    let peak = std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-            line.split_whitespace().nth(1)?.parse::<f64>().ok()
-        })
-        .map_or(String::new(), |kb| format!(", peak {:.0} MB", kb / 1024.0));
-    eprintln!("{what}: {:.3} s{peak}", t0.elapsed().as_secs_f64());
-}
-
 /// Compensates the main program of `ws` (its streamed runs, if it was loaded with
 /// `Workspace::load_streaming`, window by window).
 pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -> ProgramResult {
@@ -306,7 +281,9 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
     }
     let model = cal.model;
     let mut seg = Segments::new(ws, model, options);
-    let sim = motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg));
+    let sim = tracing::info_span!("simulate and compensate").in_scope(|| {
+        motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg))
+    });
     if sim.needs_whole_tree {
         drop((sim, seg));
         return compensate_program(&ws.whole(), cal, options);
@@ -322,19 +299,6 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         return rejected(report, diagnostics, 0);
     }
     seg.skeleton_from(ws, &sim, seg.skeleton.len());
-    lap("simulate and compensate");
-    if std::env::var_os("ROBOPOST_TIMING").is_some() {
-        let ms = |a: &std::sync::atomic::AtomicU64| {
-            a.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6
-        };
-        use crate::motion::simulate::stream_timing as st;
-        eprintln!(
-            "  windows: parse {:.0} ms, walk {:.0} ms, compensate+rewrite {:.0} ms",
-            ms(&st::PARSE_NS),
-            ms(&st::WALK_NS),
-            ms(&st::SINK_NS)
-        );
-    }
     seg.count_target_errors();
     diagnostics.append(&mut seg.singular);
     diagnostics.append(&mut seg.target_errors);
@@ -342,8 +306,8 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         from: 0,
         commands: &seg.skeleton_commands,
     };
-    let mut rw = rewrite::rewrite_placed(ws, &sim, &seg.skeleton, placed, &model.robot, None);
-    lap("rewrite");
+    let mut rw = tracing::info_span!("rewrite")
+        .in_scope(|| rewrite::rewrite_placed(ws, &sim, &seg.skeleton, placed, &model.robot, None));
     diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());
     diagnostics.append(&mut seg.tally.large_corrections());
@@ -365,20 +329,22 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         return rejected(unfilled, diagnostics, target_errors);
     }
     let windows = std::mem::take(&mut seg.windows);
-    let files = match apply(
-        ws,
-        std::mem::take(&mut rw.edits),
-        windows,
-        cal,
-        options.method,
-    ) {
+    let applied = tracing::info_span!("apply").in_scope(|| {
+        apply(
+            ws,
+            std::mem::take(&mut rw.edits),
+            windows,
+            cal,
+            options.method,
+        )
+    });
+    let files = match applied {
         Ok(files) => files,
         Err(d) => {
             diagnostics.push(*d);
             return rejected(unfilled, diagnostics, target_errors);
         }
     };
-    lap("apply");
     ProgramResult {
         files,
         report,

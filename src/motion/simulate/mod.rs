@@ -35,10 +35,6 @@ mod target;
 
 pub use spline::SplineEnds;
 pub use stream::{simulate_streaming, RunSink, Walked};
-/// Time per part of the streamed walk (`ROBOPOST_TIMING`).
-pub mod stream_timing {
-    pub use super::stream::{PARSE_NS, SINK_NS, WALK_NS};
-}
 
 /// Stops executed before a cut that the segment after it needs: a circle's end looks back to
 /// its start through its auxiliary point (see `stream`); the compensation carries as many.

@@ -16,11 +16,6 @@
 use super::*;
 use crate::krl::StreamedRun;
 
-/// Time spent walking windows and handing them to the sink (what `ROBOPOST_TIMING` prints).
-pub static WALK_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-pub static PARSE_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-pub static SINK_NS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-
 /// Windows walked ahead of the compensation (the walker goes on while the compensation is in
 /// its sequential parts; each waiting window holds its tree and stops, ~0.3 MB at 512 lines;
 /// 8 or 16 ahead measured alike).
@@ -183,7 +178,6 @@ impl<'f> Simulator<'f> {
     /// nature, overlaps the compensation, and only the windows in flight are held.
     fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut (dyn RunSink<'f> + Send)) {
         use rayon::prelude::*;
-        use std::sync::atomic::Ordering::Relaxed;
         self.finish_segment();
         sink.skeleton(&self.out, self.handed);
         self.handed = self.out.stops.len();
@@ -198,16 +192,18 @@ impl<'f> Simulator<'f> {
             let (this, history, moved, windows) = (&mut *self, &mut history, &mut moved, &windows);
             let walker = scope.spawn(move || {
                 for batch in windows.chunks(PARSED_AHEAD) {
-                    let t = std::time::Instant::now();
-                    let parsed: Vec<Workspace> = batch
-                        .par_iter()
-                        .map(|&w| all.window_of(file, file_tree.window(w)))
-                        .collect();
-                    PARSE_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
+                    let parsed: Vec<Workspace> = {
+                        let _span = tracing::trace_span!("parse windows").entered();
+                        batch
+                            .par_iter()
+                            .map(|&w| all.window_of(file, file_tree.window(w)))
+                            .collect()
+                    };
                     for ws in parsed {
-                        let t = std::time::Instant::now();
-                        let walked = Walked::new(ws, |ws| this.walk_window(ws, history));
-                        WALK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
+                        let walked = {
+                            let _span = tracing::trace_span!("walk window").entered();
+                            Walked::new(ws, |ws| this.walk_window(ws, history))
+                        };
                         *moved |= walked.borrow_dependent().stops.iter().any(|s| !s.ghost);
                         let stop = this.steps >= MAX_STEPS || this.out.fatal;
                         if tx.send(walked).is_err() || stop {
@@ -219,13 +215,11 @@ impl<'f> Simulator<'f> {
             });
             let take_windows = move || {
                 for walked in rx {
-                    let t = std::time::Instant::now();
+                    let _span = tracing::trace_span!("compensate window").entered();
                     sink.window(walked);
-                    SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
                 }
-                let t = std::time::Instant::now();
+                let _span = tracing::trace_span!("compensate run end").entered();
                 sink.run_end();
-                SINK_NS.fetch_add(t.elapsed().as_nanos() as u64, Relaxed);
             };
             // Taken on a thread of the pool, each window's `rayon::join` starts where it is
             // called instead of being handed over and waited for from outside: 1.62 → 1.55 s
