@@ -93,9 +93,29 @@ pub fn compensate_source(
     source: &[u8],
     calibration: &Calibration,
 ) -> Result<Compensated, Error> {
-    let mut ws = Workspace::load_streaming((source.to_vec(), None, name), None, None, None)?;
+    let ws = Workspace::load_streaming((source.to_vec(), None, name), None, None, None)?;
+    let (ws, result) = compensated(ws, calibration, name, source)?;
+    let main = result
+        .files
+        .iter()
+        .find(|f| f.file == ws.main)
+        .expect("the main file is an output");
+    Ok(Compensated {
+        source: main.bytes.pieces().concat(),
+        messages: result.diagnostics.iter().map(Diagnostic::render).collect(),
+        report: result.report,
+    })
+}
+
+/// The main job on a loaded program: its result, or the rejection of the whole program.
+fn compensated(
+    mut ws: Workspace,
+    calibration: &Calibration,
+    label: &str,
+    bytes: &[u8],
+) -> Result<(Workspace, program::ProgramResult), Error> {
     ws.robot = calibration.robot_name.clone();
-    let calibrated = program::Calibrated::new(calibration.model_ref(), name, source);
+    let calibrated = program::Calibrated::new(calibration.model_ref(), label, bytes);
     let result = compensate::compensate_program(
         &ws,
         &calibrated,
@@ -107,16 +127,7 @@ pub fn compensate_source(
     if result.rejected {
         return Err(Error::Rejected(result.diagnostics));
     }
-    let main = result
-        .files
-        .iter()
-        .find(|f| f.file == ws.main)
-        .expect("the main file is an output");
-    Ok(Compensated {
-        source: main.bytes.pieces().concat(),
-        messages: result.diagnostics.iter().map(Diagnostic::render).collect(),
-        report: result.report,
-    })
+    Ok((ws, result))
 }
 
 /// Compensates the program at `input` (with the `.dat` beside it) and writes it to `output`
@@ -130,21 +141,8 @@ pub fn compensate_file(
         name: input.display().to_string(),
         source,
     })?;
-    let mut ws = files::load_program(Some(input), &bytes, None)?;
-    ws.robot = calibration.robot_name.clone();
-    let label = input.display().to_string();
-    let calibrated = program::Calibrated::new(calibration.model_ref(), &label, &bytes);
-    let result = compensate::compensate_program(
-        &ws,
-        &calibrated,
-        &program::Options {
-            parallel: true,
-            ..program::Options::default()
-        },
-    );
-    if result.rejected {
-        return Err(Error::Rejected(result.diagnostics));
-    }
+    let ws = files::load_program(Some(input), &bytes, None)?;
+    let (ws, result) = compensated(ws, calibration, &input.display().to_string(), &bytes)?;
     let outputs = files::outputs(&ws, &result.files, output);
     files::write_atomic_pieces(&outputs).map_err(|source| Error::Write {
         path: output.display().to_string(),

@@ -98,6 +98,15 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> Workspace {
     load(&out)
 }
 
+/// [`compensated`] of the program at `src` with the measurement target as `model` identified
+/// it for its tool ([`with_identified_tool`]), both files under `dir`.
+fn compensated_as_tooled(src: &Path, model: &Model, dir: &Path) -> Workspace {
+    let (tooled, out) = (dir.join("tooled"), dir.join("out"));
+    std::fs::create_dir_all(&tooled).unwrap();
+    std::fs::create_dir_all(&out).unwrap();
+    compensated(&with_identified_tool(src, model, &tooled), model, &out)
+}
+
 fn row(label: &str, s: &ErrorStats) -> String {
     format!(
         "| {label} | {:.0} | {:.0} | {:.0} | {:.0} |",
@@ -176,13 +185,8 @@ fn paper_table_one_in_simulation() {
             assert!(matches, "{name}: {axes:?} is not a validation pose");
         }
 
-        let compensate_with = |model: &Model, tag: &str| {
-            let tooled = dir.path().join(tag);
-            std::fs::create_dir_all(&tooled).unwrap();
-            let out = dir.path().join(format!("{tag}-out"));
-            std::fs::create_dir_all(&out).unwrap();
-            compensated(&with_identified_tool(&src, model, &tooled), model, &out)
-        };
+        let compensate_with =
+            |model: &Model, tag: &str| compensated_as_tooled(&src, model, &dir.path().join(tag));
         let runs = [
             run(&original, &truth),
             run(
@@ -279,13 +283,8 @@ fn table_one_floor_taken_apart() {
         let src = root().join(format!("fixtures/programs/{name}.src"));
         let noisy_robot = truth.clone().with_seed(truth.seed + 100 + k as u64);
         let points = rectangle(&load(&src), &truth.truth.robot, *level_z);
-        let compensate_with = |model: &Model, tag: &str| {
-            let tooled = dir.path().join(tag);
-            std::fs::create_dir_all(&tooled).unwrap();
-            let out = dir.path().join(format!("{tag}-out"));
-            std::fs::create_dir_all(&out).unwrap();
-            compensated(&with_identified_tool(&src, model, &tooled), model, &out)
-        };
+        let compensate_with =
+            |model: &Model, tag: &str| compensated_as_tooled(&src, model, &dir.path().join(tag));
         let from_noisy = compensate_with(noisy_fit.calibration.model_ref(), "noisy");
         let from_clean = compensate_with(clean_fit.calibration.model_ref(), "clean");
         let runs = [

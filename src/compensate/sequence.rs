@@ -1612,17 +1612,3 @@ fn settle_target(
     out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
     Settling::Resolved
 }
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn powers_of_ten_from_the_table_are_powi() {
-        for d in 0..40 {
-            assert_eq!(
-                super::ten_to(d).to_bits(),
-                10f64.powi(d as i32).to_bits(),
-                "10^{d}"
-            );
-        }
-    }
-}
