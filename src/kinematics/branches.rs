@@ -19,7 +19,6 @@ use nalgebra::{Matrix3, RowVector3, Vector3};
 
 use super::fk::{Geometry, Singularity, SingularityKind};
 use super::robot::RobotDescription;
-use super::trig::atan2;
 
 /// |sin A5| below which A4 and A6 are treated as undetermined (1e-9: the flange moves by
 /// less than l5x·1e-9 ≈ 2e-7 mm when the wrist is resolved by keeping A4).
@@ -93,7 +92,7 @@ impl<'h> Target<'h> {
             (s, c, a1)
         } else {
             let (s, c) = (wrist.y / radius, wrist.x / radius);
-            (s, c, wrap_deg(g.kuka(0, atan2(s, c))))
+            (s, c, wrap_deg(g.kuka(0, s.atan2(c))))
         };
         Target {
             g,
@@ -175,7 +174,7 @@ pub(crate) fn shoulder(t: &Target, back: bool) -> Result<Shoulder, OutOfReach> {
     let ch = (inner.max(0.0) * (dn + diff)).sqrt();
     let h = norm2(sh, ch);
     let (sh, ch) = (sh / h, ch / h);
-    let e_abs = 2.0 * atan2(sh, ch);
+    let e_abs = 2.0 * sh.atan2(ch);
     Ok(Shoulder {
         back,
         c1,
@@ -222,7 +221,7 @@ pub(crate) fn arm(t: &Target, sh: &Shoulder, up: bool) -> Arm {
     let (dx, dz) = (sh.dx, sh.dz);
     // θ2 = arg(D·conj(l2 + K·e^{ie})), D = dz + i·dx.
     let (qr, qi) = (l2 + k * cos_e, k * sin_e);
-    let t2 = atan2(dx * qr - dz * qi, dz * qr + dx * qi);
+    let t2 = (dx * qr - dz * qi).atan2(dz * qr + dx * qi);
     // e^{i(θ2+θ3)} = D·(l2·e^{ie} + K)·(l3z − i·l4x) / (K·|D|²).
     let (ar, ai) = (l2 * cos_e + k, l2 * sin_e);
     let (br, bi) = (dz * ar - dx * ai, dz * ai + dx * ar);
@@ -296,7 +295,7 @@ pub(crate) fn wrist(t: &Target, arm: &Arm) -> Wrist {
             }),
         };
     }
-    let (t4, t5, t6) = (atan2(m1[0], -m2[0]), atan2(sb, m0[0]), atan2(m0[1], m0[2]));
+    let (t4, t5, t6) = (m1[0].atan2(-m2[0]), sb.atan2(m0[0]), m0[1].atan2(m0[2]));
     let plain = [
         wrap_deg(g.kuka(3, t4)),
         wrap_deg(g.kuka(4, t5)),

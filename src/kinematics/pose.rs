@@ -7,7 +7,7 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use super::trig::{atan2, sin_cos};
+use super::trig::sin_cos;
 
 /// Below this `cos B` the orientation is taken as B = ±90° exactly, where only A − C (B = +90°)
 /// or A + C (B = −90°) is defined; MODEL.md's convention then puts everything in A (C = 0).
@@ -132,7 +132,7 @@ pub fn abc_to_matrix(a: f64, b: f64, c: f64) -> Matrix3<f64> {
 pub fn matrix_to_abc(r: &Matrix3<f64>) -> [f64; 3] {
     // Direction cosines: no overflow or underflow for `hypot`'s care to guard against.
     let cb = (r[(0, 0)] * r[(0, 0)] + r[(1, 0)] * r[(1, 0)]).sqrt();
-    let b = atan2(-r[(2, 0)], cb);
+    let b = (-r[(2, 0)]).atan2(cb);
     if cb < GIMBAL_COS_B {
         // B = +90°: R = Rz(A − C)·Ry(90°), r01 = −sin(A − C), r11 = cos(A − C);
         // B = −90°: R = Rz(A + C)·Ry(−90°), same entries. With C = 0 both give A.
@@ -140,8 +140,8 @@ pub fn matrix_to_abc(r: &Matrix3<f64>) -> [f64; 3] {
         let a = (-r[(0, 1)]).atan2(r[(1, 1)]).to_degrees();
         return [tidy(a), b, 0.0];
     }
-    let a = atan2(r[(1, 0)], r[(0, 0)]).to_degrees();
-    let c = atan2(r[(2, 1)], r[(2, 2)]).to_degrees();
+    let a = r[(1, 0)].atan2(r[(0, 0)]).to_degrees();
+    let c = r[(2, 1)].atan2(r[(2, 2)]).to_degrees();
     [tidy(a), tidy(b.to_degrees()), tidy(c)]
 }
 

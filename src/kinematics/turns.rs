@@ -3,7 +3,6 @@
 //! with a given sign.
 
 use super::robot::RobotDescription;
-use super::trig::round;
 
 /// Angles this far (deg) outside a joint limit are taken as on it (rounding).
 pub const LIMIT_TOLERANCE_DEG: f64 = 1e-9;
@@ -182,7 +181,7 @@ pub(crate) fn first_outside(robot: &RobotDescription, axes: &[f64; 6]) -> Option
         let mid = 0.5 * (lo + hi);
         Some((
             i as u8 + 1,
-            axes[i] + 360.0 * round((mid - axes[i]) / 360.0),
+            axes[i] + 360.0 * ((mid - axes[i]) / 360.0).round(),
         ))
     })
 }

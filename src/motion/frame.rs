@@ -6,7 +6,6 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
-use crate::kinematics::trig::{atan2, round};
 use crate::kinematics::{abc_to_matrix, matrix_to_abc};
 
 /// A rigid frame: `x ↦ rotation · x + position`.
@@ -133,7 +132,7 @@ fn wrap(x: f64, to: f64) -> f64 {
     if d.abs() < 180.0 {
         return x - 0.0f64.copysign(d);
     }
-    x - 360.0 * round(d / 360.0)
+    x - 360.0 * (d / 360.0).round()
 }
 
 /// Of the two Euler triples of `[a, b, c]`'s rotation and their ±360° copies, the nearest to
@@ -285,7 +284,7 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
         let axis = b.column(i) / b[(i, i)].max(1e-300).sqrt();
         return axis.normalize() * std::f64::consts::PI;
     }
-    v * (atan2(s, c) / s)
+    v * (s.atan2(c) / s)
 }
 
 /// Rodrigues' formula: the rotation by `w` (rad).
@@ -368,7 +367,7 @@ mod tests {
     /// included.
     #[test]
     fn wrap_is_the_formula() {
-        let formula = |x: f64, to: f64| x - 360.0 * round((x - to) / 360.0);
+        let formula = |x: f64, to: f64| x - 360.0 * ((x - to) / 360.0).round();
         let values = [
             0.0,
             -0.0,

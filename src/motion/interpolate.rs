@@ -581,7 +581,7 @@ pub fn arrival_and_end(
             .axes_deg;
         for i in 0..6 {
             let d = walked[i] - q1[i];
-            let turns = crate::kinematics::trig::round(d / 360.0);
+            let turns = (d / 360.0).round();
             if (d - 360.0 * turns).abs() > END_MATCH_DEG {
                 return Err(PathError::EndMismatch {
                     axis: i as u8 + 1,
