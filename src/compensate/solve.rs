@@ -6,7 +6,7 @@
 //! it out in axis space: one step is `q ← q − J⁻¹·(p̂(q) − p*)`, where `J` is the complete
 //! Jacobian of the predicted TCP with respect to the axes: the error chain's, plus how the
 //! command-dependent errors change with the axes (the tables' slopes, crosstalk, tilt;
-//! `Effect::add_with_axis_slopes`). The chain's second-order term ([`Curvature`]) is added
+//! `Effect::add_with_axis_slopes`). The chain's second-order term ([`Curvature`](crate::motion::nominal::Curvature)) is added
 //! to the first step, which then lands to third order (~10⁻³ µm for a 0.3 mm, 1 mrad
 //! correction): one Jacobian and one verifying evaluation per target, unless the step
 //! crosses a table's grid point. (With the errors frozen in `J` the first step missed by
@@ -304,7 +304,7 @@ const WARM_EVALUATIONS: u32 = 3;
 /// `−J₀⁻¹·(e − 2·e₁ + e₂)`. On the 1M-point program (2 mm pitch) the prediction lands a
 /// median 0.05 µm from the goal, mostly the goals' own rounding to the written decimals, and
 /// a few tenths of a micrometre after a grid point. [`nominal::quasi_newton`] finishes from
-/// there; a target it does not settle within [`WARM_EVALUATIONS`] is solved afresh, so the
+/// there; a target it does not settle within `WARM_EVALUATIONS` is solved afresh, so the
 /// result always meets the tolerance. A chain is worked in order, so its results are the
 /// same whoever works it.
 #[derive(Clone, Copy, Debug, Default)]

@@ -1114,7 +1114,7 @@ fn latest_score(model: &Model, points: &[Point], rows: &[&Row], spec: &Spec, pla
 }
 
 /// The score on the latest data of an effect of the table that extrapolates in time (drift):
-/// as [`latest_score`], from the effect's own Jacobian with the model's columns partialled
+/// as `latest_score`, from the effect's own Jacobian with the model's columns partialled
 /// out — fitted on top of tables that took up part of it with the later data, it would count
 /// that part twice.
 pub fn latest_effect_score(

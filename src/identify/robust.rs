@@ -171,7 +171,7 @@ pub fn limit_share(gross: &mut [bool], test: &[usize]) -> Vec<usize> {
 const HALF_WINDOW: usize = 2;
 
 /// Each residual less the coordinate-wise median of the residuals of its test's points from
-/// [`HALF_WINDOW`] before to [`HALF_WINDOW`] after it (itself included; the window shifted
+/// `HALF_WINDOW` before to `HALF_WINDOW` after it (itself included; the window shifted
 /// inwards at a test's ends; a test of fewer than five points is left as it is).
 pub fn detrended(residuals: &[Vector3<f64>], test: &[usize]) -> Vec<Vector3<f64>> {
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); test.iter().max().map_or(0, |t| t + 1)];
