@@ -15,8 +15,17 @@ fn main() {
 /// every window of a streamed program): the time of each phase of the main job on standard
 /// error, as each span closes. Unset, no subscriber exists and the spans cost a check each.
 fn trace_if_asked() {
-    let Ok(filter) = tracing_subscriber::EnvFilter::try_from_env("ROBOPOST_LOG") else {
+    let Some(value) = std::env::var_os("ROBOPOST_LOG") else {
         return;
+    };
+    let filter = match tracing_subscriber::EnvFilter::try_from_env("ROBOPOST_LOG") {
+        Ok(filter) => filter,
+        Err(e) => {
+            eprintln!(
+                "warning: ROBOPOST_LOG={value:?} is not a tracing filter ({e}); no timings printed"
+            );
+            return;
+        }
     };
     tracing_subscriber::fmt()
         .with_env_filter(filter)

@@ -211,6 +211,15 @@ fn report_of(cal: &Calibration, data: &[Stop]) -> String {
     })
 }
 
+/// The campaign's indexing sweeps, without its reversal tests: what a calibration made by
+/// another tool from the paper's campaign saw.
+fn sweeps_of(data: &[Stop]) -> Vec<Stop> {
+    data.iter()
+        .filter(|s| !s.test.contains("reversal"))
+        .cloned()
+        .collect()
+}
+
 fn rms(cal: &Calibration, data: &[Stop]) -> f64 {
     Summary::residuals(&compare::compare(cal, &[file(data, "validation")]))
         .all
@@ -223,11 +232,7 @@ fn the_play_is_named_where_reversal_tests_show_it() {
     let data = measure(&robot, &campaign(true));
     // The calibration another tool made from the paper's campaign: maps and an instant switch
     // of sign per axis.
-    let sweeps: Vec<Stop> = data
-        .iter()
-        .filter(|s| !s.test.contains("reversal"))
-        .cloned()
-        .collect();
+    let sweeps = sweeps_of(&data);
     let old = calibrate(&instant_switch(), &sweeps);
     let d = run(&old, &data);
     let named = named_backlash(&d);
@@ -323,11 +328,7 @@ fn without_short_reversals_the_play_is_not_named() {
 fn a_map_only_calibration_misses_the_play_where_reversal_tests_show_it() {
     let robot = robot();
     let data = measure(&robot, &campaign(true));
-    let sweeps: Vec<Stop> = data
-        .iter()
-        .filter(|s| !s.test.contains("reversal"))
-        .cloned()
-        .collect();
+    let sweeps = sweeps_of(&data);
     let d = run(&calibrate(MAP_ONLY, &sweeps), &data);
     let named = named_backlash(&d);
     println!("named {named:?}");

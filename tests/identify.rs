@@ -627,14 +627,7 @@ fn adding_an_effect_to_a_calibration_reidentifies() {
         state ^= state << 17;
         (state >> 11) as f64 / (1u64 << 53) as f64
     };
-    let ranges = [
-        [-60.0, 60.0],
-        [-112.0, -19.0],
-        [20.0, 150.0],
-        [-90.0, 90.0],
-        [-90.0, 90.0],
-        [-180.0, 180.0],
-    ];
+    let ranges = robopost::simulate::poses::CAMPAIGN_RANGES_DEG;
     let plan: Vec<PlannedStop> = (0..200)
         .map(|i| PlannedStop {
             test: "held-out".into(),
