@@ -47,9 +47,10 @@ pub const SPELLING: &str = "learned:<action>(<driver>[*<driver>]) with action an
 /// Most basis functions of one spec (two angles: 4 + 4 + 2·2; gravity and an angle: 3 + 4 + 3·2).
 pub const MAX_TERMS: usize = 16;
 
-/// The travel of axis `n` (0-based) since its last reversal, as the drivers read it. Until the
-/// axis histories exist it is the sign of the last motion (the saturated play); then
-/// `state.history[n].travel_since_reversal()` — this one line changes.
+/// The `dir:An` driver of axis `n` (0-based): the sign of its last motion, an instant switch.
+/// A learned term stays a switch on purpose: a lag that grows with the travel since the last
+/// reversal is the gear play's (`backlash:An`), which `diagnose` proposes in its place when
+/// the residuals follow the travel (`diagnose::play`).
 pub fn reversal(state: &AxisState, n: usize) -> f64 {
     state.directions()[n].sign()
 }
