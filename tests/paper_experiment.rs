@@ -367,6 +367,48 @@ fn table_one_floor_taken_apart() {
     assert!(stats[3].z_2sigma_um < stats[0].z_2sigma_um, "{stats:?}");
 }
 
+/// The recommended campaign as a file for `robopost simulate campaign --campaign`: it is
+/// `Campaign::recommended()`, and the command line measures every planned stop of it.
+#[test]
+fn recommended_campaign_on_the_command_line() {
+    let path = root().join("fixtures/campaigns/recommended.json");
+    let file: Campaign = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(file, Campaign::recommended());
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("recommended.csv");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_robopost"))
+        .args(["simulate", "campaign", "--truth"])
+        .arg(root().join("fixtures/measurements/kr30ha-truth.json"))
+        .arg("--campaign")
+        .arg(&path)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let plan = Campaign::recommended().plan().unwrap();
+    let rows = read_csv(&out).unwrap().stops;
+    let measured = |n: usize| assert_eq!(n, plan.iter().filter(|s| s.measured).count());
+    measured(rows.iter().filter(|s| s.measured_mm.is_some()).count());
+    // The crosstalk's columns: the A2 test at each recommended A3 angle, in each of the runs.
+    for a3 in robopost::simulate::campaign::RECOMMENDED_CROSSTALK_A3_DEG {
+        let label = format!("A2@A3={a3}");
+        let n = rows
+            .iter()
+            .filter(|s| s.test == label && s.measured_mm.is_some())
+            .count();
+        assert_eq!(
+            n,
+            2 * 94 * robopost::simulate::campaign::RECOMMENDED_RUNS,
+            "{label}"
+        );
+    }
+}
+
 /// `robopost simulate program`: the library's run on the command line; a tool that is not the
 /// tracker's target is a warning with both vectors; a program the controller would stop on is
 /// rejected with a located error, exit 1 and nothing written; an unreadable one exits 2.
