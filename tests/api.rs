@@ -127,8 +127,12 @@ fn identify_and_compare_through_the_api() {
     assert_eq!(fitted.points, 3232);
     assert!(fitted.rms_um < 20.0, "{fitted:?}");
     assert!(nominal.rms_um > 100.0, "{nominal:?}");
-    assert!(matches!(
-        identify(&files, "no-such-effect"),
-        Err(Error::Effects(_))
-    ));
+    // The typed error names what was found, and its message says what was expected.
+    match identify(&files, "map:A1,no-such-effect") {
+        Err(Error::Effects(e)) => {
+            assert_eq!(e.found, "no-such-effect");
+            assert!(e.to_string().starts_with("expected an effect name (geometric, map:An"));
+        }
+        other => panic!("{other:?}"),
+    }
 }

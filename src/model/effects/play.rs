@@ -14,7 +14,7 @@
 use std::f64::consts::PI;
 
 use super::axis_table::AxisTable;
-use super::{GridOptions, ToRecord};
+use super::{EffectError, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::effect::{
     AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role, Slot,
@@ -34,7 +34,7 @@ impl GearPlay {
         axis: u8,
         options: &GridOptions,
         robot: &RobotDescription,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, EffectError> {
         AxisTable::zeros(axis, options, robot).map(GearPlay)
     }
 
