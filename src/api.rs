@@ -21,7 +21,7 @@ pub use crate::diagnose::{DiagnoseOptions, Diagnosis};
 pub use crate::identify::pipeline::{Identified, PAPER_EFFECTS};
 pub use crate::kinematics::RobotDescription;
 pub use crate::measure::{Measurements, Stop as MeasuredStop};
-pub use crate::model::NameError;
+pub use crate::model::{NameError, RecordError};
 pub use crate::stats::ErrorStats;
 
 /// Why a call could not do its job.

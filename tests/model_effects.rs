@@ -334,9 +334,9 @@ fn constructors_refuse_with_typed_errors_naming_the_axis() {
         other => panic!("{other:?}"),
     }
     assert!(
-        refused
-            .to_string()
-            .starts_with(&format!("grid {lo}..{hi} step 0.0001: a grid from {lo}° to {hi}°")),
+        refused.to_string().starts_with(&format!(
+            "grid {lo}..{hi} step 0.0001: a grid from {lo}° to {hi}°"
+        )),
         "{refused}"
     );
 

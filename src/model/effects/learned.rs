@@ -340,10 +340,14 @@ pub enum SpecError {
     #[error("`{definition}`: expected <action>(<drivers>)")]
     Shape { definition: String },
     /// Not one of the actions.
-    #[error("`{action}` is not an action (angle@An, rotation@An, rotation@arm, offset@An, offset@tool)")]
+    #[error(
+        "`{action}` is not an action (angle@An, rotation@An, rotation@arm, offset@An, offset@tool)"
+    )]
     UnknownAction { action: String },
     /// Not one of the drivers.
-    #[error("`{driver}` is not a driver (An, reach, height, gravity, torque:An, time[T0:T1h], dir:An)")]
+    #[error(
+        "`{driver}` is not a driver (An, reach, height, gravity, torque:An, time[T0:T1h], dir:An)"
+    )]
     UnknownDriver { driver: String },
     /// A driver of one axis (`torque:An`, `dir:An`) without an axis 1..6 after `prefix`.
     #[error("`{driver}`: expected {prefix}An with n in 1..6")]
@@ -585,8 +589,8 @@ impl Learned {
         rec: &EffectRecord,
         robot: &RobotDescription,
     ) -> Result<Learned, RecordError> {
-        let mut l =
-            Learned::zeros(text, robot).map_err(|e| RecordError::new("name", SPELLING, e.to_string()))?;
+        let mut l = Learned::zeros(text, robot)
+            .map_err(|e| RecordError::new("name", SPELLING, e.to_string()))?;
         l.values = rec.named_values(&l.spec.local_names())?;
         Ok(l)
     }

@@ -43,11 +43,12 @@ impl GearPlay {
         let table = AxisTable::from_record(axis, rec)?;
         for (i, &b) in table.table.values.iter().enumerate() {
             if !(0.0..=MAX_PLAY_DEG).contains(&b) {
-                return Err(RecordError::new(
-                    format!("table.values_deg[{i}]"),
-                    format!("a play width in [0, {MAX_PLAY_DEG}]° (the output lags the command by half of it)"),
-                    b.to_string(),
-                ));
+                return Err(RecordError::PlayWidth {
+                    axis,
+                    index: i,
+                    width_deg: b,
+                    max_deg: MAX_PLAY_DEG,
+                });
             }
         }
         Ok(GearPlay(table))
