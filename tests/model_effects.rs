@@ -321,7 +321,9 @@ fn constructors_refuse_with_typed_errors_naming_the_axis() {
         ..GridOptions::default()
     };
     let play = EffectName::parse("backlash:A3").unwrap();
-    let refused = play.create(&fine, &robot).err().expect("a refusal");
+    let Err(refused) = play.create(&fine, &robot) else {
+        panic!("a pitch of 1e-4° is refused")
+    };
     let [lo, hi] = robot.limits_deg[2];
     match &refused {
         EffectError::Grid {
