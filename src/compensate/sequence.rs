@@ -1545,8 +1545,8 @@ fn settle_target(
     };
     let mut differs = false;
     let mut turns: Option<interpolate::Turns> = None;
-    for n in 0..6 {
-        match axes.settle(n, rest[n], &mut turns, &mut out.travels_play[n]) {
+    for (n, &rest) in rest.iter().enumerate() {
+        match axes.settle(n, rest, &mut turns, &mut out.travels_play[n]) {
             AxisSettled::Kept => continue,
             AxisSettled::Reflanked(d) => again.flanks[n] = d,
             AxisSettled::Held { command, driven } => {
