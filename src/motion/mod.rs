@@ -16,8 +16,8 @@ pub mod workspace;
 
 pub use cell::Cell;
 pub use simulate::{
-    simulate, simulate_streaming, CircularAngle, GivenFrame, Rel, Role, RunSink, Simulation,
-    SplineEnds, Stop, Walked,
+    simulate, simulate_streaming, CircularAngle, GivenFrame, Programmed, Rel, Role, RunSink,
+    Simulation, SplineEnds, Stop, Walked,
 };
 pub use workspace::{FileId, Workspace};
 

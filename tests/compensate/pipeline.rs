@@ -361,7 +361,7 @@ fn compensated_paths_reach_the_programmed_poses() {
                 // target half a unit of every axis, each moving the TCP by its lever.
                 let half_mm = 0.5e-3;
                 let half_deg = 0.5e-4;
-                let (bound_mm, bound_rad) = if a.axis {
+                let (bound_mm, bound_rad) = if a.programmed.is_axes() {
                     let bare = Model::new(robot, Payload::default(), nalgebra::Vector3::zeros());
                     let tcp = |axes: [f64; 6]| {
                         (bare.flange_pose(&AxisState::new(axes)) * tool)

@@ -15,7 +15,7 @@
 use std::collections::{HashMap, HashSet};
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::kinematics::RobotDescription;
+use crate::kinematics::{Pose, RobotDescription};
 use crate::krl::{MotionKind, RoutineHeader, SourceFile, Span, Stmt, Symbols};
 
 use super::frame::Frame;
@@ -97,6 +97,34 @@ pub struct CircularAngle {
     pub from_points: bool,
 }
 
+/// What a motion target programs, as the controller completes it: axis angles or a KUKA
+/// pose, never six numbers a reader must guess the meaning of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Programmed {
+    /// An axis target `{A1 …, A6 …}`: the axis angles, degrees (of a relative target, the
+    /// offsets added to the start's).
+    Axes([f64; 6]),
+    /// A Cartesian target `{X …, C …}` in the base: mm and degrees (of a relative target, the
+    /// offset in the base or the tool).
+    Pose(Pose),
+}
+
+impl Programmed {
+    /// An axis target (`A1..A6`).
+    pub fn is_axes(&self) -> bool {
+        matches!(self, Programmed::Axes(_))
+    }
+
+    /// The six numbers in the order the target's aggregate names them: `A1..A6`, or
+    /// `X Y Z A B C` — for reading and writing the aggregate, which knows which by its names.
+    pub fn components(&self) -> [f64; 6] {
+        match self {
+            Programmed::Axes(q) => *q,
+            Programmed::Pose(p) => p.to_array(),
+        }
+    }
+}
+
 /// One executed motion target.
 #[derive(Clone, Copy, Debug)]
 pub struct Stop<'f> {
@@ -116,11 +144,9 @@ pub struct Stop<'f> {
     /// Each axis's last turning point inside the motion that reaches this stop (see
     /// `interpolate::Arrival::turns`).
     pub turns: interpolate::Turns,
-    /// An axis target (`A1..A6`).
-    pub axis: bool,
     /// The programmed values as the controller completes them (absolute: missing components
-    /// from the start; relative: missing ones zero), `X Y Z A B C` in the base or `A1..A6`.
-    pub programmed: [f64; 6],
+    /// from the start; relative: missing ones zero).
+    pub programmed: Programmed,
     pub keep_s: bool,
     pub keep_t: bool,
     pub rel: Option<Rel>,

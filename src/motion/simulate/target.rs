@@ -2,7 +2,7 @@
 //! controller's axes (IK with S/T or nearness), samples the interpolation for the arrival
 //! motion and records the [`Stop`]s of a motion (and of a circle's auxiliary point).
 
-use crate::kinematics::{self, status_turn, Select};
+use crate::kinematics::{self, status_turn, Pose, Select};
 use crate::krl::{Expr, Motion, RelFrameKind, Stmt};
 
 use super::eval::reason;
@@ -45,8 +45,7 @@ impl<'f> Simulator<'f> {
             nominal_axes: [0.0; 6],
             arrival: None,
             turns: interpolate::NO_TURNS,
-            axis: false,
-            programmed: [0.0; 6],
+            programmed: Programmed::Pose(Pose::IDENTITY),
             keep_s: true,
             keep_t: false,
             rel,
@@ -345,8 +344,8 @@ impl<'f> Simulator<'f> {
             circle = Some(cart);
         }
         // The controller's axes for the target.
-        let q = if pos.axis {
-            programmed
+        let q = if let Programmed::Axes(q) = programmed {
+            q
         } else {
             let (s_given, t_given) = s_t;
             let select = match (m.kind.is_joint(), current) {
@@ -523,8 +522,8 @@ impl<'f> Simulator<'f> {
                             &end.position,
                         ),
                     });
-                    if rel.is_none() {
-                        self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
+                    if let (None, Programmed::Pose(p)) = (rel, programmed) {
+                        self.state.last_abc = [p.a, p.b, p.c];
                     }
                     self.state.current = Some(Current {
                         axes: q_end,
@@ -610,7 +609,6 @@ impl<'f> Simulator<'f> {
             nominal_axes: q,
             arrival,
             turns,
-            axis: pos.axis,
             programmed,
             keep_s: !pos.axis,
             keep_t: !pos.axis && m.kind.is_joint() && s_t.1.is_some(),
@@ -622,8 +620,8 @@ impl<'f> Simulator<'f> {
             ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
         };
         let idx = self.push_stop(stop);
-        if !pos.axis && rel.is_none() {
-            self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
+        if let (None, Programmed::Pose(p)) = (rel, programmed) {
+            self.state.last_abc = [p.a, p.b, p.c];
         }
         self.state.current = Some(Current {
             axes: q,
@@ -679,7 +677,7 @@ impl<'f> Simulator<'f> {
         base: &Frame,
         tool: &Frame,
         start_tcp: Option<&Frame>,
-    ) -> Option<([f64; 6], Frame, (Option<u8>, Option<u8>))> {
+    ) -> Option<(Programmed, Frame, (Option<u8>, Option<u8>))> {
         let st = (pos.s, pos.t);
         if pos.axis {
             let q: [f64; 6] = match rel {
@@ -697,7 +695,7 @@ impl<'f> Simulator<'f> {
                 }
             };
             let goal = Nominal(&self.robot).tcp(&q, tool);
-            return Some((q, goal, st));
+            return Some((Programmed::Axes(q), goal, st));
         }
         match rel {
             Some(kind) => {
@@ -712,8 +710,8 @@ impl<'f> Simulator<'f> {
                     },
                 };
                 let near = start_in_base.to_kuka_near(&self.state.last_abc);
-                let programmed = p.to_kuka_near(&[near[3], near[4], near[5]]);
-                Some((programmed, base.compose(&p), st))
+                let programmed = Pose::from_array(p.to_kuka_near(&[near[3], near[4], near[5]]));
+                Some((Programmed::Pose(programmed), base.compose(&p), st))
             }
             None => {
                 let v: [f64; 6] = if pos.is_complete() {
@@ -738,7 +736,7 @@ impl<'f> Simulator<'f> {
                 if let Some(i) = pos.origin.and_then(|o| o.suffix) {
                     goal = goal.compose(&table[i as usize]);
                 }
-                Some((v, goal, st))
+                Some((Programmed::Pose(Pose::from_array(v)), goal, st))
             }
         }
     }
