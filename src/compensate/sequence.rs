@@ -17,7 +17,7 @@
 //! than the play makes the command travel the play; such targets are counted and reported.
 
 use super::solve::{self, Method, Problem, SolveError};
-use crate::kinematics::status_turn;
+use crate::kinematics::{status_turn, AxisAngles};
 use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
@@ -44,7 +44,7 @@ pub struct Target {
     /// Index of the tool (flange → TCP) in the tool table passed alongside.
     pub tool: u32,
     /// The nominal command axes (what the controller computes for the programmed target).
-    pub nominal_axes: [f64; 6],
+    pub nominal_axes: AxisAngles,
     /// Nominal motion of each axis on arrival, deg per segment (the step for PTP, the arrival
     /// velocity `dq/du` at the end for LIN/CIRC; 0 when the axis rests); `None` when the
     /// motion comes from an unknown place (first motion, unresolved target before).
@@ -741,14 +741,14 @@ fn solve_target(
 ) -> Result<(solve::Solution, [bool; 6]), TargetError> {
     // Equation (3) is taken at the programmed (nominal) command, whatever the start.
     let start = if method == Method::OneStep && !hold.iter().any(|&h| h) {
-        target.nominal_axes
+        *target.nominal_axes
     } else {
         start
     };
     let problem = Problem {
         goal: target.goal,
         tool,
-        start,
+        start: start.into(),
         histories: *histories,
         hold,
     };
@@ -792,7 +792,7 @@ fn solve_target(
             }
         }
         let retry = Problem {
-            start,
+            start: start.into(),
             hold,
             ..problem
         };
@@ -840,7 +840,7 @@ fn first_pass(
         c.follow_tool(target.tool);
     }
     let directions = histories.map(|h| h.simple_direction());
-    *out = Outcome::unsolved(target.nominal_axes, directions);
+    *out = Outcome::unsolved(*target.nominal_axes, directions);
     if !target.compensate {
         if let Some(c) = chain {
             c.forget();
@@ -854,7 +854,7 @@ fn first_pass(
         tool,
         target,
         histories,
-        target.nominal_axes,
+        *target.nominal_axes,
         [false; 6],
         method,
         chain.as_deref_mut(),
@@ -1603,7 +1603,7 @@ fn settle_target(
         }
         Err(e) => {
             out.error = Some(e);
-            out.axes_deg = target.nominal_axes;
+            out.axes_deg = *target.nominal_axes;
             out.changed = false;
         }
     }

@@ -18,6 +18,6 @@ pub use fk::{
     wrist_point, Singularity, SingularityKind, SingularityThresholds,
 };
 pub use ik::{inverse, inverse_all, inverse_all_into, IkError, IkSolution, Select};
-pub use pose::{abc_to_matrix, matrix_to_abc, E6Axis, E6Pos, Pose};
+pub use pose::{abc_to_matrix, matrix_to_abc, AxisAngles, E6Axis, E6Pos, Pose};
 pub use rates::ArmState;
 pub use robot::{Gravity, Links, Payload, RobotDescription};

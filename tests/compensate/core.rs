@@ -41,7 +41,7 @@ fn target(model: &Model, axes: [f64; 6], arrival: Option<[f64; 6]>) -> Target {
     Target {
         goal: Frame::from_isometry(&nominal_tcp(model, axes)),
         tool: 0,
-        nominal_axes: axes,
+        nominal_axes: axes.into(),
         arrival,
         turns: robopost::motion::interpolate::NO_TURNS,
         interp: Interp::Joint,

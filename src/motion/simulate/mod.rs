@@ -15,7 +15,7 @@
 use std::collections::{HashMap, HashSet};
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::kinematics::{Pose, RobotDescription};
+use crate::kinematics::{AxisAngles, Pose, RobotDescription};
 use crate::krl::{MotionKind, RoutineHeader, SourceFile, Span, Stmt, Symbols};
 
 use super::frame::Frame;
@@ -101,11 +101,11 @@ pub struct CircularAngle {
 /// pose, never six numbers a reader must guess the meaning of.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Programmed {
-    /// An axis target `{A1 …, A6 …}`: the axis angles, degrees (of a relative target, the
-    /// offsets added to the start's).
-    Axes([f64; 6]),
-    /// A Cartesian target `{X …, C …}` in the base: mm and degrees (of a relative target, the
-    /// offset in the base or the tool).
+    /// An axis target `{A1 …, A6 …}`: the axis angles, degrees (a relative target's: the
+    /// start's plus the offsets).
+    Axes(AxisAngles),
+    /// A Cartesian target `{X …, C …}`: the pose in the base, mm and degrees (a relative
+    /// target's: where its offset takes the start).
     Pose(Pose),
 }
 
@@ -119,7 +119,7 @@ impl Programmed {
     /// `X Y Z A B C` — for reading and writing the aggregate, which knows which by its names.
     pub fn components(&self) -> [f64; 6] {
         match self {
-            Programmed::Axes(q) => *q,
+            Programmed::Axes(q) => q.0,
             Programmed::Pose(p) => p.to_array(),
         }
     }
@@ -138,14 +138,14 @@ pub struct Stop<'f> {
     pub tool: u32,
     pub base: u32,
     /// The controller's axes for the programmed target.
-    pub nominal_axes: [f64; 6],
+    pub nominal_axes: AxisAngles,
     /// Arrival motion of each axis (see `interpolate`); `None` after an unknown position.
     pub arrival: Option<[f64; 6]>,
     /// Each axis's last turning point inside the motion that reaches this stop (see
     /// `interpolate::Arrival::turns`).
     pub turns: interpolate::Turns,
-    /// The programmed values as the controller completes them (absolute: missing components
-    /// from the start; relative: missing ones zero).
+    /// The programmed values as the controller completes them, absolute (missing components
+    /// from the start; a relative target's missing offsets zero).
     pub programmed: Programmed,
     pub keep_s: bool,
     pub keep_t: bool,
@@ -340,7 +340,7 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                     tool,
                     &cart,
                     1.0,
-                    (&prev.nominal_axes, carried.as_ref()),
+                    (&*prev.nominal_axes, carried.as_ref()),
                     &stop.nominal_axes,
                 );
                 *slot = Some(match a {

@@ -2,7 +2,7 @@
 //! controller's axes (IK with S/T or nearness), samples the interpolation for the arrival
 //! motion and records the [`Stop`]s of a motion (and of a circle's auxiliary point).
 
-use crate::kinematics::{self, status_turn, Pose, Select};
+use crate::kinematics::{self, status_turn, AxisAngles, Pose, Select};
 use crate::krl::{Expr, Motion, RelFrameKind, Stmt};
 
 use super::eval::reason;
@@ -42,7 +42,7 @@ impl<'f> Simulator<'f> {
             goal: Frame::identity(),
             tool: self.frames_index(tool),
             base: self.frames_index(base),
-            nominal_axes: [0.0; 6],
+            nominal_axes: AxisAngles::default(),
             arrival: None,
             turns: interpolate::NO_TURNS,
             programmed: Programmed::Pose(Pose::IDENTITY),
@@ -330,7 +330,7 @@ impl<'f> Simulator<'f> {
             let stop = Stop {
                 role: Role::Aux,
                 goal: aux_pose,
-                nominal_axes: q_aux,
+                nominal_axes: q_aux.into(),
                 arrival,
                 turns,
                 programmed: aux_prog,
@@ -345,7 +345,7 @@ impl<'f> Simulator<'f> {
         }
         // The controller's axes for the target.
         let q = if let Programmed::Axes(q) = programmed {
-            q
+            q.into()
         } else {
             let (s_given, t_given) = s_t;
             let select = match (m.kind.is_joint(), current) {
@@ -462,7 +462,7 @@ impl<'f> Simulator<'f> {
             };
             let end_stop = Stop {
                 goal: end,
-                nominal_axes: q_end,
+                nominal_axes: q_end.into(),
                 arrival,
                 turns,
                 programmed,
@@ -606,7 +606,7 @@ impl<'f> Simulator<'f> {
         self.warn_unwritable(file, s, pos.origin.is_none(), shared);
         let stop = Stop {
             goal,
-            nominal_axes: q,
+            nominal_axes: q.into(),
             arrival,
             turns,
             programmed,
@@ -629,7 +629,7 @@ impl<'f> Simulator<'f> {
         });
         // A circle compensated through its points ends after its target.
         if let Some(end) = through {
-            let axes = end.nominal_axes;
+            let axes = end.nominal_axes.into();
             let idx = self.push_stop(Stop {
                 prev: Some(idx),
                 ..end
@@ -695,7 +695,7 @@ impl<'f> Simulator<'f> {
                 }
             };
             let goal = Nominal(&self.robot).tcp(&q, tool);
-            return Some((Programmed::Axes(q), goal, st));
+            return Some((Programmed::Axes(q.into()), goal, st));
         }
         match rel {
             Some(kind) => {
