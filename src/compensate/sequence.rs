@@ -193,7 +193,7 @@ pub enum TargetError {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Outcome {
     /// The command axes (compensated, or nominal when not compensated or rejected).
-    pub axes_deg: [f64; 6],
+    pub axes_deg: AxisAngles,
     /// The flank each axis's gear is engaged on at arrival with the command (the direction
     /// of the commanded motion; `Unknown` before the axis first moves or, for an axis held
     /// inside its play, the direction it last moved in).
@@ -226,7 +226,7 @@ impl Outcome {
     /// before anything is solved or predicted.
     fn unsolved(axes: [f64; 6], directions: [Direction; 6]) -> Outcome {
         Outcome {
-            axes_deg: axes,
+            axes_deg: axes.into(),
             directions,
             nominal_directions: directions,
             before: Vector6::zeros(),
@@ -872,7 +872,7 @@ fn first_pass(
     match solved {
         Ok((sol, turn_held)) => {
             out.changed = sol.axes_deg != target.nominal_axes;
-            out.axes_deg = sol.axes_deg;
+            out.axes_deg = sol.axes_deg.into();
             out.residual = sol.residual;
             out.iterations = sol.iterations;
             out.turn_held = turn_held;
@@ -1150,11 +1150,11 @@ fn settle_one(
     outcomes[k] = o;
     let history = match (settled.flatten(), &previous) {
         // The turns the settling worked out for this very command.
-        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg).history,
+        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg.into()).history,
         _ => arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
     };
     AxisState {
-        axes_deg: o.axes_deg,
+        axes_deg: o.axes_deg.into(),
         history,
         time_s: 0.0,
     }
@@ -1179,7 +1179,8 @@ fn arrival_histories(
     };
     let widths = std::array::from_fn(|n| ctx.play_width(n, out.axes_deg[n]));
     let turns = compensated_turns(ctx, k, p, (&out.axes_deg, &widths), outcomes);
-    p.then_through(&turns.angle_deg, out.axes_deg).history
+    p.then_through(&turns.angle_deg, out.axes_deg.into())
+        .history
 }
 
 /// A motion that moves an axis by less than this many of its play's widths (degrees, plus
@@ -1260,7 +1261,7 @@ fn walk_compensated(
     let target = ctx.target(k);
     let robot = &ctx.model.robot;
     let tool = ctx.tool(k);
-    let cmd = |j: usize| if j == k { *c } else { outcomes[j].axes_deg };
+    let cmd = |j: usize| if j == k { *c } else { *outcomes[j].axes_deg };
     let tcp = |j: usize| Nominal(robot).tcp(&cmd(j), ctx.tool(j));
     // The path, where it starts (its command) and the share of it before the stop before.
     let (path, from, before): (Cartesian, usize, f64) = match target.interp {
@@ -1508,7 +1509,7 @@ fn settle_target(
     let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
         return Settling::Settled(None);
     };
-    let c = out.axes_deg;
+    let c: [f64; 6] = out.axes_deg.into();
     let assumed = out.directions;
     let mut flanks = assumed;
     let mut hold = [false; 6];
@@ -1573,7 +1574,7 @@ fn settle_target(
     out.directions = flanks;
     // The held axes' plays where their commands leave them; the others on their flanks.
     let mut commanded = *out;
-    commanded.axes_deg = start;
+    commanded.axes_deg = start.into();
     let exact = arrival_histories(ctx, k, previous, &commanded, outcomes);
     let solving: [AxisHistory; 6] = std::array::from_fn(|n| {
         if hold[n] {
@@ -1591,7 +1592,7 @@ fn settle_target(
     }
     match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
-            out.axes_deg = sol.axes_deg;
+            out.axes_deg = sol.axes_deg.into();
             out.iterations += sol.iterations;
             out.changed = sol.axes_deg != target.nominal_axes;
             out.turn_held = turn_held;
@@ -1603,7 +1604,7 @@ fn settle_target(
         }
         Err(e) => {
             out.error = Some(e);
-            out.axes_deg = *target.nominal_axes;
+            out.axes_deg = target.nominal_axes;
             out.changed = false;
         }
     }

@@ -55,7 +55,7 @@ impl Writer<'_> {
             Some(rel) => {
                 let start = base
                     .inverse()
-                    .compose(&Nominal(self.robot).tcp(&prev_cmd?, tool));
+                    .compose(&Nominal(self.robot).tcp(&*prev_cmd?, tool));
                 let moved = match rel {
                     Rel::Tool => start.inverse().compose(&in_base),
                     _ => Frame {
