@@ -21,6 +21,7 @@ pub use crate::diagnose::{DiagnoseOptions, Diagnosis};
 pub use crate::identify::pipeline::{Identified, PAPER_EFFECTS};
 pub use crate::kinematics::RobotDescription;
 pub use crate::measure::{Measurements, Stop as MeasuredStop};
+pub use crate::model::{NameError, RecordError};
 pub use crate::stats::ErrorStats;
 
 /// Why a call could not do its job.
@@ -56,7 +57,7 @@ pub enum Error {
     },
     /// An effect list that names no known effect (`--effects` syntax).
     #[error("{0}")]
-    Effects(String),
+    Effects(#[from] crate::model::NameError),
 }
 
 /// Reads a calibration file (`robopost-calibration/2` JSON, docs/calibration.md).
@@ -208,7 +209,7 @@ pub fn read_measurements(path: &Path) -> Result<Measurements, Error> {
 /// Identifies a calibration of `effects` (contract names, e.g. [`PAPER_EFFECTS`]) from
 /// measurement files, unaided: the target vector from the data, gross errors screened out.
 pub fn identify(files: &[Measurements], effects: &str) -> Result<Identified, Error> {
-    let names = crate::model::expand_list(effects).map_err(|e| Error::Effects(e.to_string()))?;
+    let names = crate::model::expand_list(effects)?;
     let mut stops = Vec::new();
     let mut file_of = Vec::new();
     for (k, f) in files.iter().enumerate() {

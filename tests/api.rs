@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 
 use robopost::{
     compare, compensate_file, compensate_source, identify, load_calibration, parse_calibration,
-    read_measurements, simulate_source, Error, RobotDescription, PAPER_EFFECTS,
+    read_measurements, simulate_source, CalError, Error, RecordError, RobotDescription,
+    PAPER_EFFECTS,
 };
 
 fn root() -> &'static Path {
@@ -127,8 +128,49 @@ fn identify_and_compare_through_the_api() {
     assert_eq!(fitted.points, 3232);
     assert!(fitted.rms_um < 20.0, "{fitted:?}");
     assert!(nominal.rms_um > 100.0, "{nominal:?}");
-    assert!(matches!(
-        identify(&files, "no-such-effect"),
-        Err(Error::Effects(_))
-    ));
+    // The typed error names what was found, and its message says what was expected.
+    match identify(&files, "map:A1,no-such-effect") {
+        Err(Error::Effects(e)) => {
+            assert_eq!(e.found, "no-such-effect");
+            assert!(e
+                .to_string()
+                .starts_with("expected an effect name (geometric, map:An"));
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// A calibration whose gear play of A2 has a negative width: the API's error is a value a
+/// caller can match on (which effect in the file, which axis, which grid point, what width),
+/// and its message is the command line's.
+#[test]
+fn a_negative_play_width_is_a_typed_error_naming_the_axis() {
+    let mut json: serde_json::Value = serde_json::from_str(&zero_calibration_text()).unwrap();
+    json["effects"] = serde_json::json!([
+        {"name": "map:A1", "table": {"grid_deg": [0, 10], "values_deg": [0.0, 0.001]}},
+        {"name": "backlash:A2", "table": {"grid_deg": [0, 10], "values_deg": [0.01, -0.002]}}
+    ]);
+    let refused = parse_calibration(&json.to_string(), "cal.json").unwrap_err();
+    match &refused {
+        Error::Calibration(CalError::Effect {
+            at,
+            source:
+                RecordError::PlayWidth {
+                    axis: 2,
+                    index: 1,
+                    width_deg,
+                    max_deg,
+                },
+            ..
+        }) => {
+            assert_eq!(at, "effects[1]");
+            assert_eq!((*width_deg, *max_deg), (-0.002, 1.0));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(
+        refused.to_string(),
+        "cal.json: effects[1].table.values_deg[1]: expected a play width in [0, 1]° (the output \
+         lags the command by half of it), found -0.002"
+    );
 }

@@ -24,9 +24,9 @@ use robopost::diagnose::{diagnose, DiagnoseOptions};
 use robopost::identify::pipeline::PAPER_EFFECTS;
 use robopost::kinematics::{Payload, RobotDescription};
 use robopost::measure::{Measurements, Stop};
-use robopost::model::effects::ToRecord;
+use robopost::model::effects::{EffectError, ToRecord};
 use robopost::model::record::{self, EffectRecord, RecordError};
-use robopost::model::registry::{self, Arity, Evidence, Kind};
+use robopost::model::registry::{self, Arity, Evidence, Kind, RegisterError};
 use robopost::model::{AxisState, ChainErrors, Context, Effect, EffectName, Parameter, Partial};
 use robopost::model::{Model, Slot};
 use robopost::motion;
@@ -188,14 +188,38 @@ fn the_registry_takes_a_new_kind_once_and_refuses_a_taken_prefix() {
         prefix: "map",
         arity: Arity::Axis,
         meaning: "",
-        create: |_, _, _| Err("no".into()),
+        create: |_, _, _| {
+            Err(EffectError::NeedsGravity {
+                effect: "map".into(),
+            })
+        },
         decode: |_, _, _| Err(RecordError::new("", "", "")),
         upgrade_v1: None,
         look_alikes: |_| Vec::new(),
         in_time: false,
         evidence: Evidence::Meaning,
     };
-    assert!(registry::register(&IMPOSTOR).is_err());
+    assert_eq!(
+        registry::register(&IMPOSTOR),
+        Err(RegisterError::Taken { prefix: "map" })
+    );
+    static SHOUTING: Kind = Kind {
+        prefix: "Wavy",
+        arity: Arity::Robot,
+        meaning: "",
+        create: |_, _, _| Ok(Box::new(WavyBearing::default())),
+        decode: |_, _, _| Err(RecordError::new("", "", "")),
+        upgrade_v1: None,
+        look_alikes: |_| Vec::new(),
+        in_time: false,
+        evidence: Evidence::Meaning,
+    };
+    let refused = registry::register(&SHOUTING).unwrap_err();
+    assert_eq!(refused, RegisterError::BadPrefix { prefix: "Wavy" });
+    assert_eq!(
+        refused.to_string(),
+        "an effect prefix of lowercase letters, digits and `_`, found `Wavy`"
+    );
     // The calibration file carries it.
     let mut model = Model::new(
         RobotDescription::kr30ha(),

@@ -8,12 +8,14 @@ use robopost::model::effects::axis_table::AxisTable;
 use robopost::model::effects::compliance::{gravity_torques_knm, Compliance, STANDARD_GRAVITY};
 use robopost::model::effects::crosstalk::Crosstalk;
 use robopost::model::effects::drift::Drift;
+use robopost::model::effects::learned::{Learned, SpecError};
 use robopost::model::effects::map::AngleMap;
 use robopost::model::effects::play::GearPlay;
 use robopost::model::effects::tilt::Tilt;
-use robopost::model::table::{Grid, Table1, Table2};
+use robopost::model::table::{Grid, GridError, Table1, Table2};
 use robopost::model::{
-    expand_list, AxisHistory, AxisState, ChainErrors, Context, Direction, Effect, EffectName, Slot,
+    expand_list, AxisHistory, AxisState, ChainErrors, Context, Direction, Effect, EffectError,
+    EffectName, GridOptions, Slot,
 };
 
 const DEG: f64 = PI / 180.0;
@@ -295,7 +297,84 @@ fn compliance_deflects_by_c_times_torque_and_needs_mass_data() {
     assert!((errors.get(Slot::Angle { axis: 2 }) / DEG - 0.0980665).abs() < 1e-14);
     let mut bare = RobotDescription::kr30ha();
     bare.gravity = None;
-    assert!(Compliance::zeros(2, &bare).is_err());
+    let refused = Compliance::zeros(2, &bare).unwrap_err();
+    assert_eq!(
+        refused,
+        EffectError::NeedsGravity {
+            effect: "compliance:A2".into()
+        }
+    );
+    assert_eq!(
+        refused.to_string(),
+        "compliance:A2 needs the link masses (robot.gravity) to compute gravity torques"
+    );
+}
+
+/// A zero effect that cannot be built says which axis and which grid, as values a caller can
+/// match on: a play table at a pitch finer than the finest grid, a crosstalk whose explicit
+/// grid of the influencing axis goes backwards, a learned driver without its axis.
+#[test]
+fn constructors_refuse_with_typed_errors_naming_the_axis() {
+    let robot = RobotDescription::kr30ha();
+    let fine = GridOptions {
+        pitch_deg: Some(1e-4),
+        ..GridOptions::default()
+    };
+    let play = EffectName::parse("backlash:A3").unwrap();
+    let Err(refused) = play.create(&fine, &robot) else {
+        panic!("a pitch of 1e-4° is refused")
+    };
+    let [lo, hi] = robot.limits_deg[2];
+    match &refused {
+        EffectError::Grid {
+            axis: 3,
+            lo_deg,
+            hi_deg,
+            pitch_deg,
+            source: GridError::TooFine { .. },
+        } => assert_eq!((*lo_deg, *hi_deg, *pitch_deg), (lo, hi, 1e-4)),
+        other => panic!("{other:?}"),
+    }
+    assert!(
+        refused.to_string().starts_with(&format!(
+            "grid {lo}..{hi} step 0.0001: a grid from {lo}° to {hi}°"
+        )),
+        "{refused}"
+    );
+
+    let backwards = GridOptions {
+        other_grid_deg: Some(vec![60.0, 10.0]),
+        ..GridOptions::default()
+    };
+    let refused = Crosstalk::zeros(3, 2, &backwards, &robot).unwrap_err();
+    assert_eq!(
+        refused,
+        EffectError::PairGrid {
+            axis: 3,
+            source: GridError::NotIncreasing {
+                index: 1,
+                previous: 60.0,
+                found: 10.0
+            }
+        }
+    );
+    assert_eq!(
+        refused.to_string(),
+        "grid of A3: grid point 1 is 10, not greater than the previous point 60"
+    );
+
+    let refused = Learned::zeros("angle@A2(torque:A9)", &robot).unwrap_err();
+    assert_eq!(
+        refused,
+        EffectError::Spec(SpecError::DriverAxis {
+            driver: "torque:A9".into(),
+            prefix: "torque:".into()
+        })
+    );
+    assert_eq!(
+        refused.to_string(),
+        "`torque:A9`: expected torque:An with n in 1..6"
+    );
 }
 
 #[test]

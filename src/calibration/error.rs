@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum CalError {
     #[error("{}: {source}", path.display())]
     Io {
@@ -28,6 +29,14 @@ pub enum CalError {
         key: String,
         expected: String,
         found: String,
+    },
+    /// An effect record (at JSON path `at`, e.g. `effects[2]`) whose values do not describe
+    /// a valid effect; `source` says which value and why.
+    #[error("{}: {at}.{source}", path.display())]
+    Effect {
+        path: PathBuf,
+        at: String,
+        source: crate::model::RecordError,
     },
 }
 

@@ -316,8 +316,11 @@ fn validate(file: &CalibrationFile, path: &Path) -> Result<Model, CalError> {
             ));
         }
         seen.push((canonical, i));
-        let invalid =
-            |e: crate::model::RecordError| CalError::invalid(path, at(&e.key), e.expected, e.found);
+        let invalid = |source| CalError::Effect {
+            path: path.to_path_buf(),
+            at: format!("effects[{i}]"),
+            source,
+        };
         let effect = match (file.format == FORMAT_V1, name.kind.upgrade_v1) {
             (true, Some(upgrade)) => {
                 let mut upgraded = record.clone();

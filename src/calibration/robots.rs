@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use super::Calibration;
+use super::{CalError, Calibration};
 
 /// One shipped robot.
 #[derive(Clone, Copy, Debug)]
@@ -95,20 +95,35 @@ pub fn by_name(name: &str) -> Option<&'static Robot> {
     ROBOTS.iter().find(|r| r.answers_to(name))
 }
 
+/// Why `--robot NAME|FILE` names no robot.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ResolveError {
+    /// Neither a shipped robot's name or alias nor a file; `known` are the shipped names.
+    #[error("`{arg}` is neither a robot robopost knows ({}) nor a calibration file", known.join(", "))]
+    Unknown {
+        arg: String,
+        known: Vec<&'static str>,
+    },
+    /// A file that is not a valid calibration.
+    #[error(transparent)]
+    Calibration(#[from] CalError),
+}
+
 /// `--robot NAME|FILE`: a shipped robot by name, or a calibration file (its robot). The
 /// error lists the names known.
-pub fn resolve(arg: &str) -> Result<Calibration, String> {
+pub fn resolve(arg: &str) -> Result<Calibration, ResolveError> {
     if let Some(r) = by_name(arg) {
         return Ok(r.calibration());
     }
     let path = Path::new(arg);
     if path.is_file() {
-        return super::load(path).map_err(|e| e.to_string());
+        return Ok(super::load(path)?);
     }
-    Err(format!(
-        "`{arg}` is neither a robot robopost knows ({}) nor a calibration file",
-        ROBOTS.iter().map(|r| r.name).collect::<Vec<_>>().join(", ")
-    ))
+    Err(ResolveError::Unknown {
+        arg: arg.to_string(),
+        known: ROBOTS.iter().map(|r| r.name).collect(),
+    })
 }
 
 #[cfg(test)]
@@ -132,6 +147,16 @@ mod tests {
         assert_eq!(by_name("kr16-2").unwrap().name, "KR 16-2");
         assert_eq!(by_name("kr 16").unwrap().name, "KR 16-2");
         assert!(by_name("KR 1000 titan").is_none());
-        assert!(resolve("KR 1000 titan").unwrap_err().contains("KR 16-2"));
+        match resolve("KR 1000 titan") {
+            Err(e @ ResolveError::Unknown { .. }) => {
+                let ResolveError::Unknown { arg, known } = &e else {
+                    unreachable!()
+                };
+                assert_eq!(arg, "KR 1000 titan");
+                assert!(known.contains(&"KR 16-2"), "{known:?}");
+                assert!(e.to_string().contains("KR 16-2"), "{e}");
+            }
+            other => panic!("{other:?}"),
+        }
     }
 }

@@ -190,7 +190,7 @@ fn run_in_pool(
         .copies
         .par_iter()
         .filter_map(|(from, to)| {
-            let r = batch::copy(from, to).err();
+            let r = batch::copy(from, to).err().map(|e| e.to_string());
             bar.inc(1);
             r
         })

@@ -261,7 +261,10 @@ pub fn run(args: Args) -> Exit {
         Ok(()) => {}
         // A value outside its physical range: the fit went astray (a failed fit written
         // with --accept-poor-fit); no command could read the file back.
-        Err(e @ crate::calibration::CalError::Invalid { .. }) => {
+        Err(
+            e @ (crate::calibration::CalError::Invalid { .. }
+            | crate::calibration::CalError::Effect { .. }),
+        ) => {
             eprintln!(
                 "robopost identify: the identified calibration is not physical ({e}); nothing \
                  was written"

@@ -245,7 +245,7 @@ pub fn run_job(
         return failed(text.join("\n"));
     }
     if let Err(e) = files::no_stale_dat(&ws, &job.out) {
-        return failed(e);
+        return failed(e.to_string());
     }
     let outputs = files::outputs(&ws, &result.files, &job.out);
     if let Err(e) = files::write_atomic_pieces(&outputs) {
@@ -269,7 +269,7 @@ pub fn rejected_note(out: &Path) -> PathBuf {
 }
 
 /// A rejected program's files copied unchanged into the output tree, and the note of why.
-fn keep_unchanged(job: &Job, message: &str) -> Result<(), String> {
+fn keep_unchanged(job: &Job, message: &str) -> Result<(), CopyError> {
     copy(&job.src, &job.out)?;
     if let Some(dat) = krl::companion_dat(&job.src) {
         let ext = dat
@@ -283,12 +283,37 @@ fn keep_unchanged(job: &Job, message: &str) -> Result<(), String> {
     );
     let path = rejected_note(&job.out);
     files::write_atomic(&[(path.clone(), note.as_bytes())])
-        .map_err(|e| format!("writing {}: {e}", path.display()))
+        .map_err(|source| CopyError::Write { path, source })
+}
+
+/// Why a file could not be copied: the file and what the system said.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CopyError {
+    /// The file to copy could not be read.
+    #[error("{}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The copy could not be written (nothing was left half-written).
+    #[error("writing {}: {source}", path.display())]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 /// Copies a file atomically.
-pub fn copy(from: &Path, to: &Path) -> Result<(), String> {
-    let bytes = std::fs::read(from).map_err(|e| format!("{}: {e}", from.display()))?;
-    files::write_atomic(&[(to.to_path_buf(), bytes.as_slice())])
-        .map_err(|e| format!("writing {}: {e}", to.display()))
+pub fn copy(from: &Path, to: &Path) -> Result<(), CopyError> {
+    let bytes = std::fs::read(from).map_err(|source| CopyError::Read {
+        path: from.to_path_buf(),
+        source,
+    })?;
+    files::write_atomic(&[(to.to_path_buf(), bytes.as_slice())]).map_err(|source| {
+        CopyError::Write {
+            path: to.to_path_buf(),
+            source,
+        }
+    })
 }

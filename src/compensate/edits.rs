@@ -384,21 +384,56 @@ impl EditList {
     /// its own part of the output.
     fn apply_in_order(&self, source: &[u8], first: &Edit) -> Result<Vec<u8>, EditError> {
         use rayon::prelude::*;
-        /// Edits per run (a few in tests, so that they cut runs everywhere).
-        const RUN: usize = if cfg!(test) { 3 } else { 1 << 16 };
+        let runs = Runs::cut(self, first);
+        let measured: Vec<Result<usize, EditError>> = (0..runs.len())
+            .into_par_iter()
+            .map(|j| runs.written_len(j))
+            .collect();
+        let lengths = measured.into_iter().collect::<Result<Vec<usize>, _>>()?;
+        let tail = &source[runs.len().checked_sub(1).map_or(0, |j| runs.last_end(j))..];
+        let mut out = vec![0u8; lengths.iter().sum::<usize>() + tail.len()];
+        let mut parts = Vec::with_capacity(runs.len());
+        let mut rest = &mut out[..];
+        for &len in &lengths {
+            let (part, after) = rest.split_at_mut(len);
+            parts.push(part);
+            rest = after;
+        }
+        rest.copy_from_slice(tail);
+        parts
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(j, part)| runs.write(j, source, part));
+        Ok(out)
+    }
+}
+
+/// The merged, ordered edits of [`EditList::apply_in_order`] cut into [`Run`]s: each run is
+/// measured and written on its own, starting where the run before it ended in the source.
+struct Runs<'e> {
+    list: &'e EditList,
+    first: &'e Edit,
+    runs: Vec<Run>,
+}
+
+impl<'e> Runs<'e> {
+    /// Edits per run (a few in tests, so that they cut runs everywhere).
+    const RUN: usize = if cfg!(test) { 3 } else { 1 << 16 };
+
+    fn cut(list: &'e EditList, first: &'e Edit) -> Runs<'e> {
         let first_key = (first.range.start as u32, first.range.end as u32);
         let mut runs = Vec::new();
         let pieces = |seg: usize, from: usize, to: usize, runs: &mut Vec<Run>| {
-            for a in (from..to).step_by(RUN) {
+            for a in (from..to).step_by(Self::RUN) {
                 runs.push(Run::Pieces {
                     seg,
                     from: a,
-                    to: (a + RUN).min(to),
+                    to: (a + Self::RUN).min(to),
                 });
             }
         };
         let mut placed = false;
-        for (seg, s) in self.segments.iter().enumerate() {
+        for (seg, s) in list.segments.iter().enumerate() {
             let mut from = 0;
             if !placed {
                 let at = s.pieces.partition_point(|p| p.key() < first_key);
@@ -414,75 +449,79 @@ impl EditList {
         if !placed {
             runs.push(Run::First);
         }
-        let item = |run: &Run, k: usize| -> (Range<usize>, &[u8]) {
-            match *run {
-                Run::First => (first.range.clone(), &first.bytes[..]),
-                Run::Pieces { seg, from, .. } => {
-                    let s = &self.segments[seg];
-                    let p = &s.pieces[from + k];
-                    (p.range(), s.bytes(p))
-                }
+        Runs { list, first, runs }
+    }
+
+    fn len(&self) -> usize {
+        self.runs.len()
+    }
+
+    /// Edit `k` of run `j`: the source range it replaces and its bytes.
+    fn item(&self, j: usize, k: usize) -> (Range<usize>, &'e [u8]) {
+        match self.runs[j] {
+            Run::First => (self.first.range.clone(), &self.first.bytes[..]),
+            Run::Pieces { seg, from, .. } => {
+                let s = &self.list.segments[seg];
+                let p = &s.pieces[from + k];
+                (p.range(), s.bytes(p))
             }
-        };
-        let count = |run: &Run| match *run {
+        }
+    }
+
+    fn count(&self, j: usize) -> usize {
+        match self.runs[j] {
             Run::First => 1,
             Run::Pieces { from, to, .. } => to - from,
-        };
-        let last_end = |j: usize| item(&runs[j], count(&runs[j]) - 1).0.end;
-        // Measure each run (and find the first overlap, the one with the previous run first).
-        let measured: Vec<Result<(usize, usize), EditError>> = (0..runs.len())
-            .into_par_iter()
-            .map(|j| {
-                let mut last = (j > 0).then(|| item(&runs[j - 1], count(&runs[j - 1]) - 1).0);
-                let (mut removed, mut added) = (0, 0);
-                for k in 0..count(&runs[j]) {
-                    let (r, bytes) = item(&runs[j], k);
-                    if let Some(a) = &last {
-                        if r.start < a.end {
-                            return Err(EditError::Overlap {
-                                first: a.clone(),
-                                second: r,
-                            });
-                        }
-                    }
-                    removed += r.len();
-                    added += bytes.len();
-                    last = Some(r);
+        }
+    }
+
+    /// Where run `j` starts in the source: where the run before it ended.
+    fn start(&self, j: usize) -> usize {
+        if j == 0 {
+            0
+        } else {
+            self.last_end(j - 1)
+        }
+    }
+
+    fn last_end(&self, j: usize) -> usize {
+        self.item(j, self.count(j) - 1).0.end
+    }
+
+    /// The bytes run `j` writes (the source between its edits included), or the first
+    /// overlap in it, the one with the run before checked first.
+    fn written_len(&self, j: usize) -> Result<usize, EditError> {
+        let mut last = (j > 0).then(|| self.item(j - 1, self.count(j - 1) - 1).0);
+        let (mut removed, mut added) = (0, 0);
+        for k in 0..self.count(j) {
+            let (r, bytes) = self.item(j, k);
+            if let Some(a) = &last {
+                if r.start < a.end {
+                    return Err(EditError::Overlap {
+                        first: a.clone(),
+                        second: r,
+                    });
                 }
-                Ok((removed, added))
-            })
-            .collect();
-        let mut lengths = Vec::with_capacity(runs.len());
-        for (j, m) in measured.into_iter().enumerate() {
-            let (removed, added) = m?;
-            let start = if j == 0 { 0 } else { last_end(j - 1) };
-            lengths.push(last_end(j) - start - removed + added);
-        }
-        let tail = &source[runs.len().checked_sub(1).map_or(0, last_end)..];
-        let total: usize = lengths.iter().sum::<usize>() + tail.len();
-        let mut out = vec![0u8; total];
-        let mut parts = Vec::with_capacity(runs.len());
-        let mut rest = &mut out[..];
-        for &len in &lengths {
-            let (part, after) = rest.split_at_mut(len);
-            parts.push(part);
-            rest = after;
-        }
-        rest.copy_from_slice(tail);
-        parts.into_par_iter().enumerate().for_each(|(j, part)| {
-            let mut at = if j == 0 { 0 } else { last_end(j - 1) };
-            let mut w = 0;
-            for k in 0..count(&runs[j]) {
-                let (r, bytes) = item(&runs[j], k);
-                let keep = &source[at..r.start];
-                part[w..w + keep.len()].copy_from_slice(keep);
-                w += keep.len();
-                part[w..w + bytes.len()].copy_from_slice(bytes);
-                w += bytes.len();
-                at = r.end;
             }
-        });
-        Ok(out)
+            removed += r.len();
+            added += bytes.len();
+            last = Some(r);
+        }
+        Ok(self.last_end(j) - self.start(j) - removed + added)
+    }
+
+    /// Run `j` written into `part` (exactly [`Self::written_len`] bytes).
+    fn write(&self, j: usize, source: &[u8], part: &mut [u8]) {
+        let (mut at, mut w) = (self.start(j), 0);
+        for k in 0..self.count(j) {
+            let (r, bytes) = self.item(j, k);
+            let keep = &source[at..r.start];
+            part[w..w + keep.len()].copy_from_slice(keep);
+            w += keep.len();
+            part[w..w + bytes.len()].copy_from_slice(bytes);
+            w += bytes.len();
+            at = r.end;
+        }
     }
 }
 

@@ -125,11 +125,23 @@ pub fn output_paths(ws: &Workspace, out: &Path) -> Vec<(FileId, PathBuf)> {
     v
 }
 
+/// A `.dat` left beside the output of a program that has none (see [`no_stale_dat`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{} exists beside the output {}, but {program} has no .dat: the controller would load that data list with the new program; remove it or choose another output", dat.display(), output.display())]
+pub struct StaleDat {
+    /// The `.dat` found.
+    pub dat: PathBuf,
+    /// The `.src` that would be written.
+    pub output: PathBuf,
+    /// The program's name.
+    pub program: String,
+}
+
 /// The rule that keeps a `.src` and its `.dat` one unit on output: both are written (an
 /// unchanged `.dat` too) or neither. A program without a `.dat` may therefore not be written
 /// beside a `.dat` of its output name (left by an earlier run, or someone else's): the
 /// controller would load that data list with the new program. That is refused, not removed.
-pub fn no_stale_dat(ws: &Workspace, out: &Path) -> Result<(), String> {
+pub fn no_stale_dat(ws: &Workspace, out: &Path) -> Result<(), StaleDat> {
     for (id, path) in output_paths(ws, out) {
         let f = ws.get(id);
         let is_src = f.file.kind() == krl::FileKind::Src;
@@ -141,12 +153,11 @@ pub fn no_stale_dat(ws: &Workspace, out: &Path) -> Result<(), String> {
             .map(|e| path.with_extension(e))
             .find(|d| std::fs::symlink_metadata(d).is_ok());
         if let Some(dat) = stale {
-            return Err(format!(
-                "{} exists beside the output {}, but {} has no .dat: the controller would load that data list with the new program; remove it or choose another output",
-                dat.display(),
-                path.display(),
-                f.name
-            ));
+            return Err(StaleDat {
+                dat,
+                output: path,
+                program: f.name.to_string(),
+            });
         }
     }
     Ok(())

@@ -218,66 +218,15 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
 }
 
 /// Compensates the main program of `ws` (its streamed runs, if it was loaded with
-/// `Workspace::load_streaming`, window by window).
+/// `Workspace::load_streaming`, window by window), in four steps: refuse a file compensated
+/// before; walk the motion and compensate every segment as the walk hands it over; rewrite
+/// the skeleton's targets and gather what every step said into the report; apply the edits.
+/// Any step that fails leaves every file as it was (`rejected`).
 pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -> ProgramResult {
-    let main = ws.get(ws.main);
-    let mut report = Report {
-        program: main.name.clone(),
-        calibration: CalibrationRef {
-            file: cal.name.clone(),
-            sha256: cal.sha256.clone(),
-        },
-        method: match options.method {
-            Method::Iterate => "iterate",
-            Method::OneStep => "one-step",
-        },
-        ..Report::default()
-    };
-    let mut diagnostics = Vec::new();
-    for (i, f) in ws.files.iter().enumerate() {
-        if f.role == FileRole::Config {
-            continue;
-        }
-        if let Some(at) = already_compensated(&f.file) {
-            diagnostics.push(
-                ws.diagnostic(
-                    Severity::Error,
-                    i as FileId,
-                    krl::Span::new(at, at + HEADER_MARK.len()),
-                    "this file was already compensated by robopost: compensating it again would apply the correction twice",
-                )
-                .with_help("compensate the original program"),
-            );
-        }
-    }
-    // The program is refused: every file as it was, the report listing the errors.
-    let rejected = |mut report: Report, diagnostics: Vec<Diagnostic>, target_errors: usize| {
-        report.errors = diagnostics
-            .iter()
-            .filter(|d| d.severity == Severity::Error)
-            .map(|d| d.render())
-            .collect();
-        let files = ws
-            .files
-            .iter()
-            .enumerate()
-            .filter(|(_, f)| f.role != FileRole::Config)
-            .map(|(i, f)| FileOutput {
-                file: i as FileId,
-                bytes: Output::source(&f.file),
-                changed: false,
-            })
-            .collect();
-        ProgramResult {
-            files,
-            report,
-            diagnostics,
-            rejected: true,
-            target_errors,
-        }
-    };
-    if !diagnostics.is_empty() {
-        return rejected(report, diagnostics, 0);
+    let report = empty_report(ws, cal, options);
+    let compensated_before = already_compensated_files(ws);
+    if !compensated_before.is_empty() {
+        return rejected(ws, report, compensated_before, 0);
     }
     let model = cal.model;
     let mut seg = Segments::new(ws, model, options);
@@ -289,16 +238,127 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         return compensate_program(&ws.whole(), cal, options);
     }
     // What loading the cell had to say (a shared data list with a line left out…).
-    diagnostics.extend(
-        ws.notes
-            .iter()
-            .map(|n| Diagnostic::new(Severity::Warning, &main.name, n.clone())),
-    );
+    let main = ws.get(ws.main);
+    let mut diagnostics: Vec<Diagnostic> = ws
+        .notes
+        .iter()
+        .map(|n| Diagnostic::new(Severity::Warning, &main.name, n.clone()))
+        .collect();
     diagnostics.extend(sim.diagnostics.iter().cloned());
     if sim.rejected() {
-        return rejected(report, diagnostics, 0);
+        return rejected(ws, report, diagnostics, 0);
     }
-    seg.skeleton_from(ws, &sim, seg.skeleton.len());
+    let unfilled = report.clone();
+    let (edits, report) = rewrite_and_report(ws, &sim, &mut seg, report, &mut diagnostics);
+    let target_errors = report.rejected;
+    drop(sim);
+    if let Some(d) = seg.failed.take() {
+        diagnostics.push(*d);
+        return rejected(ws, unfilled, diagnostics, target_errors);
+    }
+    let windows = std::mem::take(&mut seg.windows);
+    let applied =
+        tracing::info_span!("apply").in_scope(|| apply(ws, edits, windows, cal, options.method));
+    match applied {
+        Ok(files) => ProgramResult {
+            files,
+            report,
+            diagnostics,
+            rejected: false,
+            target_errors,
+        },
+        Err(d) => {
+            diagnostics.push(*d);
+            rejected(ws, unfilled, diagnostics, target_errors)
+        }
+    }
+}
+
+/// The report before anything was done: the program, the calibration and the method.
+fn empty_report(ws: &Workspace, cal: &Calibrated, options: &Options) -> Report {
+    Report {
+        program: ws.get(ws.main).name.clone(),
+        calibration: CalibrationRef {
+            file: cal.name.clone(),
+            sha256: cal.sha256.clone(),
+        },
+        method: match options.method {
+            Method::Iterate => "iterate",
+            Method::OneStep => "one-step",
+        },
+        ..Report::default()
+    }
+}
+
+/// An error for every file of the program that carries robopost's header: compensating it
+/// again would apply the correction twice.
+fn already_compensated_files(ws: &Workspace) -> Vec<Diagnostic> {
+    ws.files
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.role != FileRole::Config)
+        .filter_map(|(i, f)| {
+            let at = already_compensated(&f.file)?;
+            Some(
+                ws.diagnostic(
+                    Severity::Error,
+                    i as FileId,
+                    krl::Span::new(at, at + HEADER_MARK.len()),
+                    "this file was already compensated by robopost: compensating it again would apply the correction twice",
+                )
+                .with_help("compensate the original program"),
+            )
+        })
+        .collect()
+}
+
+/// The program refused: every file as it was, the report listing the errors.
+fn rejected(
+    ws: &Workspace,
+    mut report: Report,
+    diagnostics: Vec<Diagnostic>,
+    target_errors: usize,
+) -> ProgramResult {
+    report.errors = diagnostics
+        .iter()
+        .filter(|d| d.severity == Severity::Error)
+        .map(|d| d.render())
+        .collect();
+    let files = ws
+        .files
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.role != FileRole::Config)
+        .map(|(i, f)| FileOutput {
+            file: i as FileId,
+            bytes: Output::source(&f.file),
+            changed: false,
+        })
+        .collect();
+    ProgramResult {
+        files,
+        report,
+        diagnostics,
+        rejected: true,
+        target_errors,
+    }
+}
+
+/// After the walk: the skeleton's targets compensated and rewritten (the windows were
+/// rewritten as they came), what every step said appended to `diagnostics`, and the report
+/// filled. Returns the skeleton's edits and the report.
+fn rewrite_and_report(
+    ws: &Workspace,
+    sim: &Simulation,
+    seg: &mut Segments,
+    mut report: Report,
+    diagnostics: &mut Vec<Diagnostic>,
+) -> (
+    std::collections::BTreeMap<FileId, super::edits::EditList>,
+    Report,
+) {
+    let robot = &seg.model().robot;
+    seg.skeleton_from(ws, sim, seg.skeleton.len());
     seg.count_target_errors();
     diagnostics.append(&mut seg.singular);
     diagnostics.append(&mut seg.target_errors);
@@ -307,51 +367,21 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         commands: &seg.skeleton_commands,
     };
     let mut rw = tracing::info_span!("rewrite")
-        .in_scope(|| rewrite::rewrite_placed(ws, &sim, &seg.skeleton, placed, &model.robot, None));
+        .in_scope(|| rewrite::rewrite_placed(ws, sim, &seg.skeleton, placed, robot, None));
     diagnostics.append(&mut seg.rewrite_diagnostics);
     diagnostics.extend(rw.diagnostics.iter().cloned());
     diagnostics.append(&mut seg.tally.large_corrections());
     if let Some(e) = rewrite::EulerLeft::merge(seg.euler.take(), rw.euler.take()) {
         diagnostics.push(e.diagnostic());
     }
-    let unfilled = report.clone();
-    seg.tally.fill(&mut report, &rw, &diagnostics);
+    seg.tally.fill(&mut report, &rw, diagnostics.as_slice());
     // Targets the walk refused (unreachable, beyond the joint limits) are targets rejected:
     // one count of rejected targets everywhere (summary, report, `check`, exit status).
     report.targets += sim.unreachable;
     report.rejected += sim.unreachable;
     report.unresolved = sim.lost;
     report.needs = sim.needs.iter().cloned().collect();
-    let target_errors = report.rejected;
-    drop(sim);
-    if let Some(d) = seg.failed.take() {
-        diagnostics.push(*d);
-        return rejected(unfilled, diagnostics, target_errors);
-    }
-    let windows = std::mem::take(&mut seg.windows);
-    let applied = tracing::info_span!("apply").in_scope(|| {
-        apply(
-            ws,
-            std::mem::take(&mut rw.edits),
-            windows,
-            cal,
-            options.method,
-        )
-    });
-    let files = match applied {
-        Ok(files) => files,
-        Err(d) => {
-            diagnostics.push(*d);
-            return rejected(unfilled, diagnostics, target_errors);
-        }
-    };
-    ProgramResult {
-        files,
-        report,
-        diagnostics,
-        rejected: false,
-        target_errors,
-    }
+    (std::mem::take(&mut rw.edits), report)
 }
 
 /// Every output file: the edits applied, the main file's streamed windows put in place.

@@ -131,6 +131,11 @@ pub(super) struct Segments<'a> {
 }
 
 impl<'a> Segments<'a> {
+    /// The calibrated model the segments are compensated with.
+    pub fn model(&self) -> &'a Model {
+        self.model
+    }
+
     pub fn new(ws: &'a Workspace, model: &'a Model, options: &'a Options) -> Segments<'a> {
         Segments {
             main: &ws.get(ws.main).file,

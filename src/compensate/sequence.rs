@@ -17,7 +17,7 @@
 //! than the play makes the command travel the play; such targets are counted and reported.
 
 use super::solve::{self, Method, Problem, SolveError};
-use crate::kinematics::{status_turn, AxisAngles};
+use crate::kinematics::{status_turn, AxisAngles, RobotDescription};
 use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
@@ -773,33 +773,53 @@ fn solve_target(
         _ => solve_or_best(&problem, method)?,
     };
     let mut turn_held = [false; 6];
-    let ((s0, t0), (mut s1, mut t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
+    let ((s0, t0), (s1, t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
     if target.keep.t && t0 != t1 && s0 == s1 {
-        let mut start = sol.axes_deg;
-        let mut hold = hold;
-        for i in 0..6 {
-            if (t0 ^ t1) >> i & 1 == 1 {
-                turn_held[i] = true;
-                hold[i] = true;
-                // Held just inside its side of zero, by more than the written decimals can
-                // move it back: held at zero, the rounded target lands on the other side,
-                // where the programmed T has no solution within the limits.
-                start[i] = if t0 >> i & 1 == 1 {
-                    -TURN_MARGIN_DEG
-                } else {
-                    TURN_MARGIN_DEG
-                };
-            }
-        }
-        let retry = Problem {
-            start: start.into(),
-            hold,
-            ..problem
-        };
+        let retry;
+        (retry, turn_held) = turn_kept(&problem, t0 ^ t1, t0);
         sol = solve_or_best(&retry, Method::Iterate)?;
-        (s1, t1) = status_turn(robot, &sol.axes_deg);
     }
-    for (n, (a, [lo, hi])) in sol.axes_deg.iter().zip(robot.limits_deg.iter()).enumerate() {
+    within_limits_and_configuration(robot, target, (s0, t0), &sol.axes_deg)?;
+    Ok((sol, turn_held))
+}
+
+/// `problem` with the axes of `changed` (bits of T) held just inside the side of zero the
+/// programmed turn `t0` puts them on, and the axes held so.
+fn turn_kept<'p>(problem: &Problem<'p>, changed: u8, t0: u8) -> (Problem<'p>, [bool; 6]) {
+    let mut turn_held = [false; 6];
+    let mut start = problem.start;
+    let mut hold = problem.hold;
+    for i in 0..6 {
+        if changed >> i & 1 == 1 {
+            turn_held[i] = true;
+            hold[i] = true;
+            // Held just inside its side of zero, by more than the written decimals can
+            // move it back: held at zero, the rounded target lands on the other side,
+            // where the programmed T has no solution within the limits.
+            start[i] = if t0 >> i & 1 == 1 {
+                -TURN_MARGIN_DEG
+            } else {
+                TURN_MARGIN_DEG
+            };
+        }
+    }
+    let retry = Problem {
+        start,
+        hold,
+        ..*problem
+    };
+    (retry, turn_held)
+}
+
+/// A solution's axes within the joint limits, and its S and T those of the programmed target
+/// where the target keeps them.
+fn within_limits_and_configuration(
+    robot: &RobotDescription,
+    target: &Target,
+    (s0, t0): (u8, u8),
+    axes: &[f64; 6],
+) -> Result<(), TargetError> {
+    for (n, (a, [lo, hi])) in axes.iter().zip(robot.limits_deg.iter()).enumerate() {
         if a < lo || a > hi {
             return Err(TargetError::OutOfLimits {
                 axis: n as u8 + 1,
@@ -809,6 +829,7 @@ fn solve_target(
             });
         }
     }
+    let (s1, t1) = status_turn(robot, axes);
     let s_bad = target.keep.s && s0 != s1;
     let t_bad = target.keep.t && t0 != t1;
     if s_bad || t_bad {
@@ -819,7 +840,7 @@ fn solve_target(
             t_to: t1,
         });
     }
-    Ok((sol, turn_held))
+    Ok(())
 }
 
 /// How far inside its programmed side of zero an axis is held to keep the target's T: ten
@@ -1505,63 +1526,34 @@ fn settle_target(
     previous: Option<&AxisState>,
     (out, outcomes): (&mut Outcome, &[Outcome]),
 ) -> Settling {
-    let model = ctx.model;
     let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
         return Settling::Settled(None);
     };
     let c: [f64; 6] = out.axes_deg.into();
-    let assumed = out.directions;
-    let mut flanks = assumed;
-    let mut hold = [false; 6];
-    let mut start = c;
+    let axes = AxesOf {
+        ctx,
+        k,
+        p,
+        c,
+        widths: std::array::from_fn(|n| ctx.play_width(n, c[n])),
+        assumed: out.directions,
+        outcomes,
+    };
+    let mut again = Again {
+        flanks: out.directions,
+        hold: [false; 6],
+        start: c,
+    };
     let mut differs = false;
     let mut turns: Option<interpolate::Turns> = None;
-    let widths: [f64; 6] = std::array::from_fn(|n| ctx.play_width(n, c[n]));
-    for n in 0..6 {
-        let b = widths[n];
-        // Without a play every command's output is the command: nothing to settle.
-        if b == 0.0 {
-            continue;
-        }
-        let moved = c[n] - p.axes_deg[n];
-        let jitter = rest[n] && moved != 0.0 && moved.abs() <= HOLD_DEG;
-        // The common case needs nothing more: a long motion that the command continues by
-        // more than the compensated path could turn it round by.
-        let engaged = p.history[n].engaged_at(p.axes_deg[n]) == Some(assumed[n])
-            && assumed[n].sign() * moved >= SENSITIVE_PLAYS * b + 1e-3
-            && !ctx.target(k).turns.angle_deg[n].is_finite();
-        if engaged && !jitter {
-            continue;
-        }
-        let turns =
-            turns.get_or_insert_with(|| compensated_turns(ctx, k, p, (&c, &widths), outcomes));
-        let segment = Segment::of(ctx, k, p, n, (turns, &c));
-        let wanted = c[n] - assumed[n].sign() * 0.5 * b;
-        // The output moves back by less than the play: the command travels it.
-        let driven = p.history[n].direction(p.axes_deg[n]);
-        let way = wanted - segment.start_output;
-        let turning = Direction::Unknown.after_move(way);
-        out.travels_play[n] = driven != Direction::Unknown
-            && turning != Direction::Unknown
-            && turning != driven
-            && way.abs() < 2.0 * segment.half;
-        if (segment.output(c[n]) - wanted).abs() <= 1e-12 && !jitter {
-            continue;
-        }
-        let (mut command, mut reach) = segment.command_for(wanted, c[n]);
-        // A held axis whose output need not move (beyond the solver's own noise) stays exactly
-        // where it was.
-        if rest[n] && (segment.output(p.axes_deg[n]) - wanted).abs() <= HOLD_DEG {
-            (command, reach) = (p.axes_deg[n], Reach::Stuck);
-            out.travels_play[n] = false;
-        }
-        match reach {
-            Reach::Flank(d) if d == assumed[n] => continue,
-            Reach::Flank(d) => flanks[n] = d,
-            Reach::Stuck => {
-                hold[n] = true;
-                start[n] = command;
-                flanks[n] = driven;
+    for (n, &rest) in rest.iter().enumerate() {
+        match axes.settle(n, rest, &mut turns, &mut out.travels_play[n]) {
+            AxisSettled::Kept => continue,
+            AxisSettled::Reflanked(d) => again.flanks[n] = d,
+            AxisSettled::Held { command, driven } => {
+                again.hold[n] = true;
+                again.start[n] = command;
+                again.flanks[n] = driven;
             }
         }
         differs = true;
@@ -1569,8 +1561,118 @@ fn settle_target(
     if !differs {
         return Settling::Settled(turns);
     }
-    let target = ctx.target(k);
-    let tool = ctx.tool(k);
+    solve_again(ctx, k, previous, (out, outcomes), again);
+    Settling::Resolved
+}
+
+/// What [`settle_target`] works an axis out from: the target, the state the motion arrives
+/// from, the first pass's commands, their play widths and the flanks it assumed.
+struct AxesOf<'x, 'a> {
+    ctx: &'x Recheck<'a>,
+    k: usize,
+    p: &'x AxisState,
+    c: [f64; 6],
+    widths: [f64; 6],
+    assumed: [Direction; 6],
+    outcomes: &'x [Outcome],
+}
+
+/// Where an axis's play leaves the first pass's command.
+enum AxisSettled {
+    /// On the flank the solve assumed: nothing to do.
+    Kept,
+    /// The arrival drives the other flank: solve again on it.
+    Reflanked(Direction),
+    /// The output stays inside the play: solve again with the axis held at `command`, its
+    /// play as the motion (last driven `driven`) leaves it.
+    Held { command: f64, driven: Direction },
+}
+
+impl AxesOf<'_, '_> {
+    /// Axis `n` (`rest`: the nominal motion holds it), the compensated motion's turns worked
+    /// out into `turns` when first needed; `travels_play` marks an output that moves back by
+    /// less than the play.
+    fn settle(
+        &self,
+        n: usize,
+        rest: bool,
+        turns: &mut Option<interpolate::Turns>,
+        travels_play: &mut bool,
+    ) -> AxisSettled {
+        let (ctx, k, p, c, b, assumed) = (
+            self.ctx,
+            self.k,
+            self.p,
+            &self.c,
+            self.widths[n],
+            self.assumed[n],
+        );
+        // Without a play every command's output is the command: nothing to settle.
+        if b == 0.0 {
+            return AxisSettled::Kept;
+        }
+        let moved = c[n] - p.axes_deg[n];
+        let jitter = rest && moved != 0.0 && moved.abs() <= HOLD_DEG;
+        // The common case needs nothing more: a long motion that the command continues by
+        // more than the compensated path could turn it round by.
+        let engaged = p.history[n].engaged_at(p.axes_deg[n]) == Some(assumed)
+            && assumed.sign() * moved >= SENSITIVE_PLAYS * b + 1e-3
+            && !ctx.target(k).turns.angle_deg[n].is_finite();
+        if engaged && !jitter {
+            return AxisSettled::Kept;
+        }
+        let turns = turns
+            .get_or_insert_with(|| compensated_turns(ctx, k, p, (c, &self.widths), self.outcomes));
+        let segment = Segment::of(ctx, k, p, n, (turns, c));
+        let wanted = c[n] - assumed.sign() * 0.5 * b;
+        // The output moves back by less than the play: the command travels it.
+        let driven = p.history[n].direction(p.axes_deg[n]);
+        let way = wanted - segment.start_output;
+        let turning = Direction::Unknown.after_move(way);
+        *travels_play = driven != Direction::Unknown
+            && turning != Direction::Unknown
+            && turning != driven
+            && way.abs() < 2.0 * segment.half;
+        if (segment.output(c[n]) - wanted).abs() <= 1e-12 && !jitter {
+            return AxisSettled::Kept;
+        }
+        let (mut command, mut reach) = segment.command_for(wanted, c[n]);
+        // A held axis whose output need not move (beyond the solver's own noise) stays exactly
+        // where it was.
+        if rest && (segment.output(p.axes_deg[n]) - wanted).abs() <= HOLD_DEG {
+            (command, reach) = (p.axes_deg[n], Reach::Stuck);
+            *travels_play = false;
+        }
+        match reach {
+            Reach::Flank(d) if d == assumed => AxisSettled::Kept,
+            Reach::Flank(d) => AxisSettled::Reflanked(d),
+            Reach::Stuck => AxisSettled::Held { command, driven },
+        }
+    }
+}
+
+/// How [`solve_again`] solves a target: each axis on a flank, or held at its start.
+struct Again {
+    flanks: [Direction; 6],
+    hold: [bool; 6],
+    start: [f64; 6],
+}
+
+/// Target `k` solved again as [`settle_target`] decided (`again`), its prediction then taken
+/// with every play evaluated exactly where the command leaves it.
+fn solve_again(
+    ctx: &Recheck,
+    k: usize,
+    previous: Option<&AxisState>,
+    (out, outcomes): (&mut Outcome, &[Outcome]),
+    again: Again,
+) {
+    let Again {
+        flanks,
+        hold,
+        start,
+    } = again;
+    let (model, target, tool) = (ctx.model, ctx.target(k), ctx.tool(k));
     out.directions = flanks;
     // The held axes' plays where their commands leave them; the others on their flanks.
     let mut commanded = *out;
@@ -1588,7 +1690,7 @@ fn settle_target(
         let nominal = arrival_histories(ctx, k, previous, out, outcomes);
         out.before = tcp_error(model, tool, &target.nominal_axes, &nominal, &target.goal);
         out.residual = out.before;
-        return Settling::Resolved;
+        return;
     }
     match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
@@ -1608,8 +1710,6 @@ fn settle_target(
             out.changed = false;
         }
     }
-    // The prediction with every play evaluated exactly where the command leaves it.
     let histories = arrival_histories(ctx, k, previous, out, outcomes);
     out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
-    Settling::Resolved
 }

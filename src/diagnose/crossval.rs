@@ -181,7 +181,7 @@ fn with_candidate(
     for e in base.effects().iter().filter(|e| !gone.contains(&e.name())) {
         with.push(e.clone());
     }
-    add_effects(&mut with, &[*name], stops, grid)?;
+    add_effects(&mut with, &[*name], stops, grid).map_err(|e| e.to_string())?;
     let added = with.n_parameters() as isize - base.n_parameters() as isize;
     Ok((with, added.max(0) as usize))
 }

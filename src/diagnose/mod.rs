@@ -39,9 +39,12 @@ pub use crossval::{Evaluation, Score};
 pub use learn::LearnedDrivers;
 pub use noise::{NoiseFloor, NoiseSource};
 
+/// A progress callback: (stage, done, of).
+pub type ProgressFn = dyn Fn(&str, usize, usize) + Send + Sync;
+
 /// Reports progress: (stage, done, of).
 #[derive(Clone)]
-pub struct ProgressSink(pub Arc<dyn Fn(&str, usize, usize) + Send + Sync>);
+pub struct ProgressSink(pub Arc<ProgressFn>);
 
 impl std::fmt::Debug for ProgressSink {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

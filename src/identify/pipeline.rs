@@ -178,10 +178,10 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
                 }
             }
             model = kept;
-            add_effects(&mut model, &names, stops, &request.grid).map_err(IdentifyError::Setup)?;
+            add_effects(&mut model, &names, stops, &request.grid)?;
         }
         Effects::Add(names) => {
-            add_effects(&mut model, &names, stops, &request.grid).map_err(IdentifyError::Setup)?;
+            add_effects(&mut model, &names, stops, &request.grid)?;
         }
     }
     let effects: Vec<String> = model.effects().iter().map(|e| e.name()).collect();

@@ -159,7 +159,7 @@ pub enum IdentifyError {
     #[error("cannot start the tracker-frame registration: the measured points are collinear or fewer than three")]
     FrameStart,
     #[error("cannot set up the effect: {0}")]
-    Setup(String),
+    Setup(#[from] super::setup::SetupError),
     #[error("least squares failed: {0}")]
     Lsq(#[from] LsqError),
 }

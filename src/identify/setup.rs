@@ -116,12 +116,22 @@ pub fn grid_options(name: &EffectName, data: &[Stop], choice: &GridChoice) -> Gr
 
 /// Appends the effects `names` (at zero, grids from the data) to `model`; effects the model
 /// already has are left as they are. Returns the canonical names appended.
+/// An effect that cannot be set up on the data (its grid, its robot data).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{effect}: {source}")]
+pub struct SetupError {
+    /// The effect's name.
+    pub effect: String,
+    /// Why.
+    pub source: crate::model::EffectError,
+}
+
 pub fn add_effects(
     model: &mut Model,
     names: &[EffectName],
     data: &[Stop],
     choice: &GridChoice,
-) -> Result<Vec<String>, String> {
+) -> Result<Vec<String>, SetupError> {
     let mut added = Vec::new();
     for name in names {
         let canonical = name.to_string();
@@ -130,7 +140,10 @@ pub fn add_effects(
         }
         model
             .push_named(name, &grid_options(name, data, choice))
-            .map_err(|e| format!("{canonical}: {e}"))?;
+            .map_err(|source| SetupError {
+                effect: canonical.clone(),
+                source,
+            })?;
         added.push(canonical);
     }
     Ok(added)

@@ -111,8 +111,10 @@ pub fn thin(
 
 /// A number per (file, test, rotation directions) for each of the `measured` rows.
 fn group_ids(stops: &[Stop], file_of: &[usize], measured: &[usize]) -> Vec<u32> {
-    let mut ids: HashMap<(usize, &str, [i8; 6]), u32> = HashMap::new();
-    let mut last: Option<((usize, &str, [i8; 6]), u32)> = None;
+    // (file, test, rotation directions)
+    type Group<'s> = (usize, &'s str, [i8; 6]);
+    let mut ids: HashMap<Group, u32> = HashMap::new();
+    let mut last: Option<(Group, u32)> = None;
     measured
         .iter()
         .map(|&i| {

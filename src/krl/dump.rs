@@ -7,7 +7,7 @@ use super::decl::{Decl, DeclVar, ParamMode, RoutineHeader};
 use super::expr::{Access, Expr, UnOp};
 use super::fold::Ilf;
 use super::motion::{ApproxKind, Motion, RelFrameKind, WithItem};
-use super::stmt::{Action, ArmKind, Interrupt, Stmt, StmtKind};
+use super::stmt::{Action, Anout, ArmKind, Interrupt, Stmt, StmtKind, Trigger};
 use super::tree::SourceFile;
 use std::fmt::Write;
 
@@ -185,19 +185,7 @@ fn stmt_text(f: &SourceFile, s: &Stmt) -> String {
         StmtKind::Continue => "CONTINUE".into(),
         StmtKind::OnErrorProceed => "ON_ERROR_PROCEED".into(),
         StmtKind::Resume => "RESUME".into(),
-        StmtKind::Anout(a) => format!(
-            "{} {} {}{}{}",
-            if a.input { "ANIN" } else { "ANOUT" },
-            if a.on { "ON" } else { "OFF" },
-            e(&a.signal),
-            a.value
-                .as_ref()
-                .map_or(String::new(), |v| format!(" = {}", e(v))),
-            a.options
-                .iter()
-                .map(|(n, v)| format!(" {}={}", t(*n), e(v)))
-                .collect::<String>()
-        ),
+        StmtKind::Anout(a) => anout_text(f, a),
         StmtKind::Brake(fl) => format!("BRAKE{}", if fl.is_some() { " F" } else { "" }),
         StmtKind::Return(v) => format!(
             "RETURN{}",
@@ -207,43 +195,72 @@ fn stmt_text(f: &SourceFile, s: &Stmt) -> String {
         StmtKind::Label(l) => format!("label {}", t(*l)),
         StmtKind::WaitFor(c) => format!("WAIT FOR {}", e(c)),
         StmtKind::WaitSec(c) => format!("WAIT SEC {}", e(c)),
-        StmtKind::Interrupt(i) => match &**i {
-            Interrupt::Decl {
-                global,
-                prio,
-                cond,
-                action,
-            } => format!(
-                "{}INTERRUPT DECL {} WHEN {} DO {}",
-                if global.is_some() { "GLOBAL " } else { "" },
-                e(prio),
-                e(cond),
-                action_text(f, action)
-            ),
-            Interrupt::Control { op, number } => format!(
-                "INTERRUPT {}{}",
-                t(*op).to_ascii_uppercase(),
-                number
-                    .as_ref()
-                    .map_or(String::new(), |x| format!(" {}", e(x)))
-            ),
-        },
-        StmtKind::Trigger(tr) => format!(
-            "TRIGGER WHEN {:?} = {}{}{} DO {}{}",
-            tr.when,
-            e(&tr.value),
-            if tr.onstart.is_some() { " ONSTART" } else { "" },
-            tr.delay
-                .as_ref()
-                .map_or(String::new(), |x| format!(" DELAY = {}", e(x))),
-            action_text(f, &tr.action),
-            tr.prio
-                .as_ref()
-                .map_or(String::new(), |x| format!(" PRIO = {}", e(x)))
-        ),
+        StmtKind::Interrupt(i) => interrupt_text(f, i),
+        StmtKind::Trigger(tr) => trigger_text(f, tr),
         StmtKind::Invalid => format!("invalid ‹{}›", t(s.head)),
         StmtKind::Opaque => format!("opaque ‹{}›", t(s.head)),
     }
+}
+
+fn anout_text(f: &SourceFile, a: &Anout) -> String {
+    let t = |span| f.text_lossy(span).into_owned();
+    let e = |x: &Expr| expr_text(f, x);
+    format!(
+        "{} {} {}{}{}",
+        if a.input { "ANIN" } else { "ANOUT" },
+        if a.on { "ON" } else { "OFF" },
+        e(&a.signal),
+        a.value
+            .as_ref()
+            .map_or(String::new(), |v| format!(" = {}", e(v))),
+        a.options
+            .iter()
+            .map(|(n, v)| format!(" {}={}", t(*n), e(v)))
+            .collect::<String>()
+    )
+}
+
+fn interrupt_text(f: &SourceFile, i: &Interrupt) -> String {
+    let t = |span| f.text_lossy(span).into_owned();
+    let e = |x: &Expr| expr_text(f, x);
+    match i {
+        Interrupt::Decl {
+            global,
+            prio,
+            cond,
+            action,
+        } => format!(
+            "{}INTERRUPT DECL {} WHEN {} DO {}",
+            if global.is_some() { "GLOBAL " } else { "" },
+            e(prio),
+            e(cond),
+            action_text(f, action)
+        ),
+        Interrupt::Control { op, number } => format!(
+            "INTERRUPT {}{}",
+            t(*op).to_ascii_uppercase(),
+            number
+                .as_ref()
+                .map_or(String::new(), |x| format!(" {}", e(x)))
+        ),
+    }
+}
+
+fn trigger_text(f: &SourceFile, tr: &Trigger) -> String {
+    let e = |x: &Expr| expr_text(f, x);
+    format!(
+        "TRIGGER WHEN {:?} = {}{}{} DO {}{}",
+        tr.when,
+        e(&tr.value),
+        if tr.onstart.is_some() { " ONSTART" } else { "" },
+        tr.delay
+            .as_ref()
+            .map_or(String::new(), |x| format!(" DELAY = {}", e(x))),
+        action_text(f, &tr.action),
+        tr.prio
+            .as_ref()
+            .map_or(String::new(), |x| format!(" PRIO = {}", e(x)))
+    )
 }
 
 fn action_text(f: &SourceFile, a: &Action) -> String {

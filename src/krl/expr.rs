@@ -714,83 +714,29 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
         return too_deep(i);
     }
     let (j, _) = punct(b'{')(i)?;
-    let (mut j, _) = ws(j)?;
-    let mut type_name = None;
-    if let Ok((k, name)) = ident(j) {
-        let (k, _) = ws(k)?;
-        if let Ok((k, _)) = punct(b':')(k) {
-            type_name = Some(cx.span_of(name));
-            j = ws(k)?.0;
-        }
-    }
-    // The outermost aggregate writes its members straight into the pool; nested ones gather
-    // theirs on the scratch stack (see `Nodes`).
-    let (nested, mark) = {
-        let mut n = cx.nodes.borrow_mut();
-        n.agg_depth += 1;
-        let nested = n.agg_depth > 1;
-        (
-            nested,
-            if nested {
-                n.scratch.len()
-            } else {
-                n.members.len()
-            },
-        )
-    };
+    let (mut j, type_name) = aggregate_type(cx, ws(j)?.0)?;
+    let (nested, mark) = open_aggregate(cx);
+    let close = |k: &'a [u8]| close_aggregate(cx, cx.span(i, k), type_name, nested, mark);
     if let Ok((k, _)) = punct(b'}')(j) {
-        return Ok((
-            k,
-            close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
-        ));
+        return Ok((k, close(k)));
     }
     loop {
-        // Fast path: a run of `NAME number` members (what CAM programs are made of), read
-        // without the general machinery; the first other member leaves it.
         if !nested {
-            let mut n = cx.nodes.borrow_mut();
-            let keep = n.keep_values;
-            while let Some((k, m, value)) = plain_member(cx, j, keep) {
-                n.push_member(m, value);
-                let k = &k[blanks(k)..];
-                if k[0] == b',' {
-                    j = &k[1..];
-                    j = &j[blanks(j)..];
-                    continue;
-                }
-                drop(n);
-                let k = &k[1..];
-                return Ok((
-                    k,
-                    close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
-                ));
+            match plain_members(cx, j) {
+                Members::Closed(k) => return Ok((k, close(k))),
+                Members::Other(k) => j = k,
             }
         }
         let (k, (name, value)) =
             expecting!("expected a member name", HELP_AGG, |x| member(cx, d, x))(j)?;
-        {
-            let mut n = cx.nodes.borrow_mut();
-            let number = match &value {
-                Expr::Number(x) => x.value,
-                _ => f64::NAN,
-            };
-            let m = n.pack(cx.base(), name, value);
-            if nested {
-                n.scratch.push(m);
-            } else {
-                n.push_member(m, number);
-            }
-        }
+        push_member(cx, nested, name, value);
         let (k, _) = ws(k)?;
         if let Ok((k, _)) = punct(b',')(k) {
             j = ws(k)?.0;
             continue;
         }
         if let Ok((k, _)) = punct(b'}')(k) {
-            return Ok((
-                k,
-                close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
-            ));
+            return Ok((k, close(k)));
         }
         if k.is_empty() {
             return fail!(
@@ -804,6 +750,72 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
             "expected `,` or `}` in the aggregate",
             "separate members with commas and close the aggregate with } on the same line",
         );
+    }
+}
+
+/// The optional `TYPE :` after an aggregate's `{` (and the blanks after it).
+fn aggregate_type<'a>(cx: Cx<'a>, j: &'a [u8]) -> PResult<'a, Option<Span>> {
+    if let Ok((k, name)) = ident(j) {
+        let (k, _) = ws(k)?;
+        if let Ok((k, _)) = punct(b':')(k) {
+            return Ok((ws(k)?.0, Some(cx.span_of(name))));
+        }
+    }
+    Ok((j, None))
+}
+
+/// Enters an aggregate: whether it is nested, and where its members start. The outermost
+/// aggregate writes its members straight into the pool; nested ones gather theirs on the
+/// scratch stack (see `Nodes`).
+fn open_aggregate(cx: Cx) -> (bool, usize) {
+    let mut n = cx.nodes.borrow_mut();
+    n.agg_depth += 1;
+    let nested = n.agg_depth > 1;
+    let mark = if nested {
+        n.scratch.len()
+    } else {
+        n.members.len()
+    };
+    (nested, mark)
+}
+
+/// Where [`plain_members`] left an outermost aggregate.
+enum Members<'a> {
+    /// At its `}`: the input after it.
+    Closed(&'a [u8]),
+    /// At a member that is not `NAME number`: the input there.
+    Other(&'a [u8]),
+}
+
+/// The fast path: a run of `NAME number` members (what CAM programs are made of), read
+/// without the general machinery, until the `}` or the first other member.
+fn plain_members<'a>(cx: Cx<'a>, mut j: &'a [u8]) -> Members<'a> {
+    let mut n = cx.nodes.borrow_mut();
+    let keep = n.keep_values;
+    while let Some((k, m, value)) = plain_member(cx, j, keep) {
+        n.push_member(m, value);
+        let k = &k[blanks(k)..];
+        if k[0] != b',' {
+            return Members::Closed(&k[1..]);
+        }
+        j = &k[1..];
+        j = &j[blanks(j)..];
+    }
+    Members::Other(j)
+}
+
+/// A member read by the general parser, onto the pool (outermost) or the scratch stack.
+fn push_member(cx: Cx, nested: bool, name: Span, value: Expr) {
+    let mut n = cx.nodes.borrow_mut();
+    let number = match &value {
+        Expr::Number(x) => x.value,
+        _ => f64::NAN,
+    };
+    let m = n.pack(cx.base(), name, value);
+    if nested {
+        n.scratch.push(m);
+    } else {
+        n.push_member(m, number);
     }
 }
 

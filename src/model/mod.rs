@@ -24,9 +24,9 @@ pub mod table;
 pub use effect::{
     AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role, Slot, JOINT_SLOTS, N_SLOTS,
 };
-pub use effects::{GridOptions, ModelEffect};
+pub use effects::{EffectError, GridOptions, ModelEffect};
 pub use history::{AxisHistory, PlayAt, ENGAGING_RUN_DEG, MAX_PLAY_DEG};
 pub use model::{JacobianScratch, Model};
 pub use record::{EffectRecord, RecordError, TableRecord};
-pub use registry::{expand_list, EffectName, NameError};
+pub use registry::{expand_list, EffectName, NameError, RegisterError};
 pub use state::{AxisState, Direction};

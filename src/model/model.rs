@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Vector3, Vector6};
 
 use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
 use super::effect::{AxisSlopes, ChainErrors, Context, Parameter, Partial, Slot};
-use super::effects::{GridOptions, ModelEffect};
+use super::effects::{EffectError, GridOptions, ModelEffect};
 use super::merged::Merged;
 use super::registry::EffectName;
 use super::AxisState;
@@ -62,7 +62,11 @@ impl Model {
     }
 
     /// Appends a zero effect of `name` for identification.
-    pub fn push_named(&mut self, name: &EffectName, options: &GridOptions) -> Result<(), String> {
+    pub fn push_named(
+        &mut self,
+        name: &EffectName,
+        options: &GridOptions,
+    ) -> Result<(), EffectError> {
         let effect = name.create(options, &self.robot)?;
         self.push(effect);
         Ok(())

@@ -44,21 +44,35 @@ pub struct TableRecord {
 
 /// A record that does not describe a valid effect: where, what was expected, what was found.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("{key}: expected {expected}, found {found}")]
-pub struct RecordError {
-    /// JSON path relative to the record, e.g. `table.grid_deg[3]`.
-    pub key: String,
-    pub expected: String,
-    pub found: String,
+#[non_exhaustive]
+pub enum RecordError {
+    /// A value at `key` (a JSON path relative to the record, e.g. `table.grid_deg[3]`) that
+    /// is not what the effect needs.
+    #[error("{key}: expected {expected}, found {found}")]
+    Invalid {
+        key: String,
+        expected: String,
+        found: String,
+    },
+    /// The gear play of axis `axis` has width `width_deg` at grid point `index`, outside
+    /// `[0, max_deg]`.
+    #[error("table.values_deg[{index}]: expected a play width in [0, {max_deg}]° (the output lags the command by half of it), found {width_deg}")]
+    PlayWidth {
+        axis: u8,
+        index: usize,
+        width_deg: f64,
+        max_deg: f64,
+    },
 }
 
 impl RecordError {
+    /// An [`Invalid`](RecordError::Invalid) value.
     pub fn new(
         key: impl Into<String>,
         expected: impl Into<String>,
         found: impl Into<String>,
     ) -> Self {
-        RecordError {
+        RecordError::Invalid {
             key: key.into(),
             expected: expected.into(),
             found: found.into(),

@@ -18,7 +18,7 @@ use super::effects::{
     map::AngleMap,
     play::GearPlay,
     tilt::Tilt,
-    GridOptions, ModelEffect,
+    EffectError, GridOptions, ModelEffect,
 };
 use super::record::{EffectRecord, RecordError};
 use crate::kinematics::RobotDescription;
@@ -97,7 +97,7 @@ pub enum Evidence {
 }
 
 pub type CreateFn =
-    fn(Axes, &GridOptions, &RobotDescription) -> Result<Box<dyn ModelEffect>, String>;
+    fn(Axes, &GridOptions, &RobotDescription) -> Result<Box<dyn ModelEffect>, EffectError>;
 pub type DecodeFn =
     fn(Axes, &EffectRecord, &RobotDescription) -> Result<Box<dyn ModelEffect>, RecordError>;
 pub type UpgradeFn = fn(&mut EffectRecord) -> Result<(), RecordError>;
@@ -139,7 +139,7 @@ pub static KINDS: &[Kind] = &[
         prefix: "geometric",
         arity: Arity::Robot,
         meaning: "position/orientation errors of the axis average lines and the target vector",
-        create: |_, _, _| boxed(Ok::<_, String>(Geometric::default())),
+        create: |_, _, _| Ok(Box::new(Geometric::default())),
         decode: |_, r, _| boxed(Geometric::from_record(r)),
         upgrade_v1: None,
         look_alikes: none,
@@ -203,7 +203,7 @@ pub static KINDS: &[Kind] = &[
         prefix: "tilt",
         arity: Arity::Axis,
         meaning: "tilt error motion of an axis over its own angle",
-        create: |a, _, _| boxed(Ok::<_, String>(Tilt::zeros(one(a)))),
+        create: |a, _, _| Ok(Box::new(Tilt::zeros(one(a)))),
         decode: |a, rec, _| boxed(Tilt::from_record(one(a), rec)),
         upgrade_v1: None,
         look_alikes: none,
@@ -214,7 +214,7 @@ pub static KINDS: &[Kind] = &[
         prefix: "drift",
         arity: Arity::Robot,
         meaning: "geometry change linear in time",
-        create: |_, _, _| boxed(Ok::<_, String>(Drift::default())),
+        create: |_, _, _| Ok(Box::new(Drift::default())),
         decode: |_, r, _| boxed(Drift::from_record(r)),
         upgrade_v1: None,
         look_alikes: none,
@@ -237,27 +237,40 @@ pub static KINDS: &[Kind] = &[
 /// Kinds added at run time by [`register`], after the built-in ones.
 static REGISTERED: RwLock<Vec<&'static Kind>> = RwLock::new(Vec::new());
 
+/// Why [`register`] refused a kind.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RegisterError {
+    /// The prefix is empty or has characters other than lowercase letters, digits and `_`.
+    #[error("an effect prefix of lowercase letters, digits and `_`, found `{prefix}`")]
+    BadPrefix { prefix: &'static str },
+    /// Another kind (built-in or registered) already has this prefix.
+    #[error("the effect prefix `{prefix}` is taken")]
+    Taken { prefix: &'static str },
+}
+
 /// Adds a kind of effect defined outside this crate (a plug-in, a test's own physics): its
 /// names parse, calibration files carry it, identification and compensation use it, and a
 /// diagnosis tries it after the built-in kinds. Registering the same kind again is a no-op;
 /// a different kind with a prefix already taken is refused.
-pub fn register(kind: &'static Kind) -> Result<(), String> {
+pub fn register(kind: &'static Kind) -> Result<(), RegisterError> {
     let valid = !kind.prefix.is_empty()
         && kind
             .prefix
             .chars()
             .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
     if !valid {
-        return Err(format!(
-            "an effect prefix of lowercase letters, digits and `_`, found `{}`",
-            kind.prefix
-        ));
+        return Err(RegisterError::BadPrefix {
+            prefix: kind.prefix,
+        });
     }
     let mut registered = REGISTERED.write().unwrap_or_else(|e| e.into_inner());
     let taken = kinds_in(&registered).find(|k| k.prefix.eq_ignore_ascii_case(kind.prefix));
     match taken {
         Some(k) if std::ptr::eq(k, kind) => Ok(()),
-        Some(_) => Err(format!("the effect prefix `{}` is taken", kind.prefix)),
+        Some(_) => Err(RegisterError::Taken {
+            prefix: kind.prefix,
+        }),
         None => {
             registered.push(kind);
             Ok(())
@@ -406,7 +419,7 @@ impl EffectName {
         &self,
         options: &GridOptions,
         robot: &RobotDescription,
-    ) -> Result<Box<dyn ModelEffect>, String> {
+    ) -> Result<Box<dyn ModelEffect>, EffectError> {
         (self.kind.create)(self.axes, options, robot)
     }
 

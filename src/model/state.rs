@@ -89,10 +89,10 @@ impl AxisState {
     /// last at command `turns[n]` (NaN: it does not turn round).
     pub fn then_through(&self, turns: &[f64; 6], axes_deg: [f64; 6]) -> AxisState {
         let mut next = *self;
-        for n in 0..6 {
+        for (n, &turn) in turns.iter().enumerate() {
             next.history[n].push(self.axes_deg[n]);
-            if turns[n].is_finite() {
-                next.history[n].push(turns[n]);
+            if turn.is_finite() {
+                next.history[n].push(turn);
             }
         }
         next.axes_deg = axes_deg;

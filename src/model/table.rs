@@ -30,6 +30,7 @@ pub struct Cell {
 
 /// Why a list of numbers is not a grid.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum GridError {
     #[error("a grid needs at least one point")]
     Empty,

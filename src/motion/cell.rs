@@ -261,17 +261,42 @@ impl Cell {
     }
 }
 
+/// Why the machine data give no robot robopost can model.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum MachineDataError {
+    /// The file could not be read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// A value the description needs is not there (`what`: `$LENGTH_A`, a software limit…).
+    #[error("{}: no {what} in the machine data", path.display())]
+    Missing { path: PathBuf, what: String },
+    /// The machine data describe another kinematic family: `robot` is its `$TRAFONAME`,
+    /// `why` the reason read from the data.
+    #[error("{}: the robot {robot} is {why}: robopost models six-axis arms with a central wrist (the KUKA KR family of its calibration files)", path.display())]
+    NotModelled {
+        path: PathBuf,
+        robot: String,
+        why: String,
+    },
+}
+
 /// The robot the machine data (`$machine.dat`) describe: its type (`$TRAFONAME`, without the
 /// `#`) and its nominal description — `$LENGTH_A`, `$LENGTH_B`, the frames `$TIRORO` (base to
 /// the A2 height), `$TX3P3` (A3 to the wrist point, with the wrist offset) and `$TFLWP` (wrist
 /// point to flange), the software limits `$SOFTN_END`/`$SOFTP_END`. Refused with the reason
 /// when they describe another kinematic family than the six-axis arm with a central wrist
 /// robopost models (a palletiser's offset wrist, a special kinematic class).
-pub fn machine_robot(path: &Path) -> Result<(String, RobotDescription), String> {
+pub fn machine_robot(path: &Path) -> Result<(String, RobotDescription), MachineDataError> {
     use crate::krl::{Expr, FileKind, StmtKind};
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let bytes = std::fs::read(path).map_err(|source| MachineDataError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let file = crate::krl::parse_recovering(&bytes, FileKind::Dat);
-    let shown = path.display();
     let mut values: HashMap<Vec<u8>, &Expr> = HashMap::new();
     let mut limits = [[None::<f64>; 2]; 6];
     let mut name = None;
@@ -318,14 +343,17 @@ pub fn machine_robot(path: &Path) -> Result<(String, RobotDescription), String> 
             _ => {}
         }
     }
-    let missing = |what: &str| format!("{shown}: no {what} in the machine data");
-    let real = |key: &str| -> Result<f64, String> {
+    let missing = |what: &str| MachineDataError::Missing {
+        path: path.to_path_buf(),
+        what: what.to_string(),
+    };
+    let real = |key: &str| -> Result<f64, MachineDataError> {
         values
             .get(key.as_bytes())
             .and_then(|e| number(e))
             .ok_or_else(|| missing(key))
     };
-    let member = |key: &str, m: &str| -> Result<f64, String> {
+    let member = |key: &str, m: &str| -> Result<f64, MachineDataError> {
         let agg = values
             .get(key.as_bytes())
             .and_then(|e| file.aggregate_of(e))
@@ -339,9 +367,11 @@ pub fn machine_robot(path: &Path) -> Result<(String, RobotDescription), String> 
         .map(|n| n.trim_start_matches('#').trim().to_string())
         .unwrap_or_else(|| "the robot of the machine data".into());
     let refuse = |why: String| {
-        Err(format!(
-            "{shown}: the robot {name} is {why}: robopost models six-axis arms with a central wrist (the KUKA KR family of its calibration files)"
-        ))
+        Err(MachineDataError::NotModelled {
+            path: path.to_path_buf(),
+            robot: name.clone(),
+            why,
+        })
     };
     if let Some(Expr::Enum(k)) = values.get(&b"$KINCLASS"[..]).copied() {
         if !file.text(*k).eq_ignore_ascii_case(b"#STANDARD") {

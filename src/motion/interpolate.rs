@@ -439,7 +439,8 @@ impl Turns {
     /// (a circle's end: the turns before its auxiliary point belong to the auxiliary point).
     pub fn after(mut self, u: f64) -> Turns {
         for n in 0..6 {
-            if !(self.at[n] > u) {
+            // A turn at NaN (none) is not after `u` either.
+            if self.at[n] <= u || self.at[n].is_nan() {
                 self.angle_deg[n] = f64::NAN;
                 self.at[n] = f64::NAN;
             } else if u > 0.0 {
@@ -718,7 +719,7 @@ fn parabola_extremum(a: (f64, f64), b: (f64, f64), c: (f64, f64)) -> Option<(f64
     // y = y1 + s·(x − x1) + curvature·(x − x1)² with s the slope at x1.
     let s = d01 + curvature * (x1 - x0);
     let x = x1 - s / (2.0 * curvature);
-    (x > x0 && x < x2).then(|| (y1 + s * (x - x1) + curvature * (x - x1) * (x - x1), x))
+    (x > x0 && x < x2).then_some((y1 + s * (x - x1) + curvature * (x - x1) * (x - x1), x))
 }
 
 /// The extremum `(value, t)`, inside the interval (t ∈ (0, 1)), of the cubic Hermite from

@@ -161,6 +161,11 @@ impl TruthFile {
                 expected,
                 found,
             },
+            CalError::Effect { path, at, source } => CalError::Effect {
+                path,
+                at: format!("model.{at}"),
+                source,
+            },
             other => other,
         })
     }

@@ -143,9 +143,17 @@ fn a_palletiser_s_machine_data_are_refused_with_the_reason() {
     let path = dir.path().join("$machine.dat");
     std::fs::write(&path, text).unwrap();
     let err = motion::cell::machine_robot(&path).unwrap_err();
+    match &err {
+        motion::cell::MachineDataError::NotModelled { robot, why, .. } => {
+            assert_eq!(robot, "KR120R3200PA C4 FLR");
+            assert!(why.contains("offset ($DH_5 = A 265"), "{why}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let text = err.to_string();
     assert!(
-        err.contains("KR120R3200PA") && err.contains("offset") && err.contains("palletiser"),
-        "{err}"
+        text.contains("KR120R3200PA") && text.contains("offset") && text.contains("palletiser"),
+        "{text}"
     );
 }
 

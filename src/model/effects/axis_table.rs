@@ -9,7 +9,7 @@ use crate::model::record::{self, EffectRecord, RecordError, TableRecord};
 use crate::model::table::{Grid, Table1};
 use crate::model::AxisState;
 
-use super::{grid_label, GridOptions};
+use super::{grid_label, EffectError, GridOptions};
 use crate::kinematics::RobotDescription;
 
 #[derive(Clone, Debug, PartialEq)]
@@ -25,13 +25,18 @@ impl AxisTable {
         axis: u8,
         options: &GridOptions,
         robot: &RobotDescription,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, EffectError> {
         let [lo, hi] = options
             .range_deg
             .unwrap_or(robot.limits_deg[axis as usize - 1]);
         let pitch = options.pitch_deg.unwrap_or(1.0);
-        let grid = Grid::from_range(lo, hi, pitch)
-            .map_err(|e| format!("grid {lo}..{hi} step {pitch}: {e}"))?;
+        let grid = Grid::from_range(lo, hi, pitch).map_err(|source| EffectError::Grid {
+            axis,
+            lo_deg: lo,
+            hi_deg: hi,
+            pitch_deg: pitch,
+            source,
+        })?;
         Ok(AxisTable {
             axis,
             table: Table1::zeros(grid),

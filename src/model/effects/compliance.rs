@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 
 use nalgebra::Vector3;
 
-use super::ToRecord;
+use super::{EffectError, ToRecord};
 use crate::kinematics::{Payload, RobotDescription};
 use crate::model::chain::ChainFrames;
 use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot};
@@ -71,11 +71,11 @@ pub fn gravity_look_alikes(n: u8) -> Vec<String> {
 
 impl Compliance {
     /// A zero compliance; an error when the robot has no mass data to compute torques from.
-    pub fn zeros(axis: u8, robot: &RobotDescription) -> Result<Self, String> {
+    pub fn zeros(axis: u8, robot: &RobotDescription) -> Result<Self, EffectError> {
         if robot.gravity.is_none() {
-            return Err(format!(
-                "compliance:A{axis} needs the link masses (robot.gravity) to compute gravity torques"
-            ));
+            return Err(EffectError::NeedsGravity {
+                effect: format!("compliance:A{axis}"),
+            });
         }
         Ok(Compliance {
             axis,

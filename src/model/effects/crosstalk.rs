@@ -6,7 +6,7 @@
 
 use std::f64::consts::PI;
 
-use super::{grid_label, GridOptions, ToRecord};
+use super::{grid_label, EffectError, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::effect::{
     AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role, Slot,
@@ -40,12 +40,13 @@ impl Crosstalk {
         to: u8,
         options: &GridOptions,
         robot: &RobotDescription,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, EffectError> {
         let [lo, hi] = options
             .range_deg
             .unwrap_or(robot.limits_deg[to as usize - 1]);
         let pitch = options.pitch_deg.unwrap_or(5.0);
-        let rows = Grid::from_range(lo, hi, pitch).map_err(|e| format!("grid of A{to}: {e}"))?;
+        let rows = Grid::from_range(lo, hi, pitch)
+            .map_err(|source| EffectError::PairGrid { axis: to, source })?;
         let columns = match &options.other_grid_deg {
             Some(points) => Grid::new(points.clone()),
             None => {
@@ -55,7 +56,7 @@ impl Crosstalk {
                 Grid::from_range(lo, hi, options.other_pitch_deg.unwrap_or(15.0))
             }
         }
-        .map_err(|e| format!("grid of A{from}: {e}"))?;
+        .map_err(|source| EffectError::PairGrid { axis: from, source })?;
         Ok(Crosstalk {
             from,
             to,

@@ -32,7 +32,7 @@ use std::sync::Mutex;
 use nalgebra::Vector3;
 
 use super::compliance::gravity_torques_knm;
-use super::ToRecord;
+use super::{EffectError, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::chain::{link_vectors, ChainFrames};
 use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot};
@@ -47,9 +47,10 @@ pub const SPELLING: &str = "learned:<action>(<driver>[*<driver>]) with action an
 /// Most basis functions of one spec (two angles: 4 + 4 + 2·2; gravity and an angle: 3 + 4 + 3·2).
 pub const MAX_TERMS: usize = 16;
 
-/// The travel of axis `n` (0-based) since its last reversal, as the drivers read it. Until the
-/// axis histories exist it is the sign of the last motion (the saturated play); then
-/// `state.history[n].travel_since_reversal()` — this one line changes.
+/// The `dir:An` driver of axis `n` (0-based): the sign of its last motion, an instant switch.
+/// A learned term stays a switch on purpose: a lag that grows with the travel since the last
+/// reversal is the gear play's (`backlash:An`), which `diagnose` proposes in its place when
+/// the residuals follow the travel (`diagnose::play`).
 pub fn reversal(state: &AxisState, n: usize) -> f64 {
     state.directions()[n].sign()
 }
@@ -332,7 +333,38 @@ fn axis_number(text: &str) -> Option<u8> {
     }
 }
 
-fn parse_driver(text: &str) -> Result<Driver, String> {
+/// A `learned:` definition that does not parse: the offending part and what was expected.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpecError {
+    /// Not `<action>(<drivers>)`.
+    #[error("`{definition}`: expected <action>(<drivers>)")]
+    Shape { definition: String },
+    /// Not one of the actions.
+    #[error(
+        "`{action}` is not an action (angle@An, rotation@An, rotation@arm, offset@An, offset@tool)"
+    )]
+    UnknownAction { action: String },
+    /// Not one of the drivers.
+    #[error(
+        "`{driver}` is not a driver (An, reach, height, gravity, torque:An, time[T0:T1h], dir:An)"
+    )]
+    UnknownDriver { driver: String },
+    /// A driver of one axis (`torque:An`, `dir:An`) without an axis 1..6 after `prefix`.
+    #[error("`{driver}`: expected {prefix}An with n in 1..6")]
+    DriverAxis { driver: String, prefix: String },
+    /// A time window that is not `time[T0:T1h]` with finite `T0 < T1`.
+    #[error("`{driver}`: expected time[T0:T1h] with T0 < T1 in hours")]
+    TimeWindow { driver: String },
+    /// No driver, or more than two.
+    #[error("`{definition}`: one driver or two joined by `*`")]
+    DriverCount { definition: String },
+    /// The same driver twice (`A2*A2`).
+    #[error("`{definition}`: the same driver twice")]
+    SameDriver { definition: String },
+}
+
+fn parse_driver(text: &str) -> Result<Driver, SpecError> {
     let t = text.trim();
     let lower = t.to_ascii_lowercase();
     if let Some(n) = axis_number(t) {
@@ -342,7 +374,10 @@ fn parse_driver(text: &str) -> Result<Driver, String> {
         lower
             .strip_prefix(prefix)
             .and_then(axis_number)
-            .ok_or_else(|| format!("`{t}`: expected {prefix}An with n in 1..6"))
+            .ok_or_else(|| SpecError::DriverAxis {
+                driver: t.to_string(),
+                prefix: prefix.to_string(),
+            })
     };
     match lower.as_str() {
         "reach" => return Ok(Driver::Reach),
@@ -366,7 +401,9 @@ fn parse_driver(text: &str) -> Result<Driver, String> {
         .strip_prefix("time[")
         .and_then(|w| w.strip_suffix("h]"))
     {
-        let bad = || format!("`{t}`: expected time[T0:T1h] with T0 < T1 in hours");
+        let bad = || SpecError::TimeWindow {
+            driver: t.to_string(),
+        };
         let (a, b) = window.split_once(':').ok_or_else(bad)?;
         let (from_h, to_h) = (
             a.trim().parse::<f64>().map_err(|_| bad())?,
@@ -377,18 +414,16 @@ fn parse_driver(text: &str) -> Result<Driver, String> {
         }
         return Ok(Driver::Time { from_h, to_h });
     }
-    Err(format!(
-        "`{t}` is not a driver (An, reach, height, gravity, torque:An, time[T0:T1h], dir:An)"
-    ))
+    Err(SpecError::UnknownDriver {
+        driver: t.to_string(),
+    })
 }
 
-fn parse_action(text: &str) -> Result<Action, String> {
+fn parse_action(text: &str) -> Result<Action, SpecError> {
     let t = text.trim();
     let lower = t.to_ascii_lowercase();
-    let bad = || {
-        format!(
-            "`{t}` is not an action (angle@An, rotation@An, rotation@arm, offset@An, offset@tool)"
-        )
+    let bad = || SpecError::UnknownAction {
+        action: t.to_string(),
     };
     let (kind, at) = lower.split_once('@').ok_or_else(bad)?;
     if kind == "offset" && at == "tool" {
@@ -408,12 +443,14 @@ fn parse_action(text: &str) -> Result<Action, String> {
 
 impl Spec {
     /// Parses the part after `learned:`.
-    pub fn parse(text: &str) -> Result<Spec, String> {
+    pub fn parse(text: &str) -> Result<Spec, SpecError> {
         let t = text.trim();
         let open = t
             .find('(')
             .filter(|_| t.ends_with(')'))
-            .ok_or_else(|| format!("`{t}`: expected <action>(<drivers>)"))?;
+            .ok_or_else(|| SpecError::Shape {
+                definition: t.to_string(),
+            })?;
         let action = parse_action(&t[..open])?;
         let inner = &t[open + 1..t.len() - 1];
         let drivers = inner
@@ -421,13 +458,17 @@ impl Spec {
             .map(parse_driver)
             .collect::<Result<Vec<_>, _>>()?;
         if drivers.is_empty() || drivers.len() > 2 {
-            return Err(format!("`{t}`: one driver or two joined by `*`"));
+            return Err(SpecError::DriverCount {
+                definition: t.to_string(),
+            });
         }
         if drivers.len() == 2
             && std::mem::discriminant(&drivers[0]) == std::mem::discriminant(&drivers[1])
             && drivers[0].to_string() == drivers[1].to_string()
         {
-            return Err(format!("`{t}`: the same driver twice"));
+            return Err(SpecError::SameDriver {
+                definition: t.to_string(),
+            });
         }
         Ok(Spec { action, drivers })
     }
@@ -505,7 +546,7 @@ impl Spec {
 static SPELLINGS: Mutex<Vec<&'static str>> = Mutex::new(Vec::new());
 
 /// The canonical spelling of a definition (the part after `learned:`), checked.
-pub fn canonical(text: &str) -> Result<&'static str, String> {
+pub fn canonical(text: &str) -> Result<&'static str, SpecError> {
     let spelled = Spec::parse(text)?.to_string();
     let mut seen = SPELLINGS.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(s) = seen.iter().find(|s| **s == spelled) {
@@ -527,12 +568,12 @@ pub struct Learned {
 
 impl Learned {
     /// A zero effect of definition `text`; an error when it cannot be evaluated on `robot`.
-    pub fn zeros(text: &str, robot: &RobotDescription) -> Result<Learned, String> {
+    pub fn zeros(text: &str, robot: &RobotDescription) -> Result<Learned, EffectError> {
         let spec = Spec::parse(text)?;
         if spec.needs().1 && robot.gravity.is_none() {
-            return Err(format!(
-                "learned:{spec} needs the link masses (robot.gravity) for its gravity torque"
-            ));
+            return Err(EffectError::NeedsGravity {
+                effect: format!("learned:{spec}"),
+            });
         }
         let outputs = spec.action.outputs(robot);
         let needs = spec.needs();
@@ -549,8 +590,8 @@ impl Learned {
         rec: &EffectRecord,
         robot: &RobotDescription,
     ) -> Result<Learned, RecordError> {
-        let mut l =
-            Learned::zeros(text, robot).map_err(|e| RecordError::new("name", SPELLING, e))?;
+        let mut l = Learned::zeros(text, robot)
+            .map_err(|e| RecordError::new("name", SPELLING, e.to_string()))?;
         l.values = rec.named_values(&l.spec.local_names())?;
         Ok(l)
     }

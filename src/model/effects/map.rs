@@ -3,7 +3,7 @@
 //! `dθ_n += map(A_n)`, linear interpolation, degrees in KUKA sign.
 
 use super::axis_table::AxisTable;
-use super::{GridOptions, ToRecord};
+use super::{EffectError, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role};
 use crate::model::merged::AxisFactor;
@@ -19,7 +19,7 @@ impl AngleMap {
         axis: u8,
         options: &GridOptions,
         robot: &RobotDescription,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, EffectError> {
         AxisTable::zeros(axis, options, robot).map(AngleMap)
     }
     pub fn from_record(axis: u8, rec: &EffectRecord) -> Result<Self, RecordError> {

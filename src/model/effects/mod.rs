@@ -15,6 +15,35 @@ pub mod tilt;
 
 use super::effect::Effect;
 use super::record::EffectRecord;
+use super::table::GridError;
+
+/// Why a zero effect could not be built for identification: its grid, the robot's data or
+/// (for `learned:`) its definition. The message is the one the command line prints after the
+/// effect's name.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum EffectError {
+    /// The table of axis `axis` (`map:An`, `backlash:An`) cannot be laid out over
+    /// `lo_deg..hi_deg` at `pitch_deg`.
+    #[error("grid {lo_deg}..{hi_deg} step {pitch_deg}: {source}")]
+    Grid {
+        axis: u8,
+        lo_deg: f64,
+        hi_deg: f64,
+        pitch_deg: f64,
+        source: GridError,
+    },
+    /// One grid of a crosstalk table, the one over axis `axis`, cannot be laid out.
+    #[error("grid of A{axis}: {source}")]
+    PairGrid { axis: u8, source: GridError },
+    /// The effect `effect` (its contract name) evaluates the gravity torque and the robot has
+    /// no link masses.
+    #[error("{effect} needs the link masses (robot.gravity) to compute gravity torques")]
+    NeedsGravity { effect: String },
+    /// A `learned:` definition that does not parse.
+    #[error(transparent)]
+    Spec(#[from] learned::SpecError),
+}
 
 /// An effect as a [`Model`](super::Model) holds it: the [`Effect`] trait plus its calibration
 /// record. Implemented for every `Effect + ToRecord + Clone`.

@@ -14,7 +14,7 @@
 use std::f64::consts::PI;
 
 use super::axis_table::AxisTable;
-use super::{GridOptions, ToRecord};
+use super::{EffectError, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::effect::{
     AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role, Slot,
@@ -34,7 +34,7 @@ impl GearPlay {
         axis: u8,
         options: &GridOptions,
         robot: &RobotDescription,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, EffectError> {
         AxisTable::zeros(axis, options, robot).map(GearPlay)
     }
 
@@ -43,11 +43,12 @@ impl GearPlay {
         let table = AxisTable::from_record(axis, rec)?;
         for (i, &b) in table.table.values.iter().enumerate() {
             if !(0.0..=MAX_PLAY_DEG).contains(&b) {
-                return Err(RecordError::new(
-                    format!("table.values_deg[{i}]"),
-                    format!("a play width in [0, {MAX_PLAY_DEG}]° (the output lags the command by half of it)"),
-                    b.to_string(),
-                ));
+                return Err(RecordError::PlayWidth {
+                    axis,
+                    index: i,
+                    width_deg: b,
+                    max_deg: MAX_PLAY_DEG,
+                });
             }
         }
         Ok(GearPlay(table))
