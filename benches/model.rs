@@ -84,7 +84,7 @@ fn solve_one_target(c: &mut Criterion<ThreadCpuTime>) {
         .map(|s| Problem {
             goal: nominal.tcp(&s.axes_deg, &tool),
             tool: &tool,
-            start: s.axes_deg,
+            start: s.axes_deg.into(),
             histories: s.history,
             hold: [false; 6],
         })

@@ -192,7 +192,7 @@ pub fn simulate_source(
             .iter()
             .map(|s| ProgramStop {
                 line: s.stmt.line as usize,
-                axes_deg: s.nominal_axes,
+                axes_deg: s.nominal_axes.into(),
                 tcp_mm: s.goal.position.into(),
             })
             .collect(),

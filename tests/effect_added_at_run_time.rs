@@ -331,7 +331,7 @@ fn compensation_moves_each_target_against_the_bearing_motion() {
     let a1_of: Vec<f64> = sim
         .stops
         .iter()
-        .filter(|s| !s.axis)
+        .filter(|s| !s.programmed.is_axes())
         .map(|s| s.nominal_axes[0])
         .collect();
     assert_eq!(a1_of.len(), 3);

@@ -358,7 +358,7 @@ fn joint_frame_errors_alone_are_what_the_paper_model_describes() {
         let original = load(&src);
         let sim = motion::simulate(&original, robot.robot(), &[]);
         for (i, p) in rectangle(&original, &robot, level_z) {
-            let axes = sim.stops[i].nominal_axes;
+            let axes: [f64; 6] = sim.stops[i].nominal_axes.into();
             let truth = robot.target_at(&axes, 0.0);
             let predicted = model.target_position(&robopost::model::AxisState::new(axes));
             worst_prediction = worst_prediction.max((predicted - truth).norm());

@@ -123,8 +123,8 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
             compensate: s.compensable,
             quantum: s.origin.filter(|_| s.compensable).map(|o| Quantum {
                 base: s.base,
-                axis: s.axis,
-                decimals: rewrite::decimals(&o, s.axis),
+                axis: s.programmed.is_axes(),
+                decimals: rewrite::decimals(&o, s.programmed.is_axes()),
             }),
             keep: Keep {
                 s: s.keep_s,

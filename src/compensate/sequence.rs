@@ -17,7 +17,7 @@
 //! than the play makes the command travel the play; such targets are counted and reported.
 
 use super::solve::{self, Method, Problem, SolveError};
-use crate::kinematics::{status_turn, RobotDescription};
+use crate::kinematics::{status_turn, AxisAngles, RobotDescription};
 use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
@@ -44,7 +44,7 @@ pub struct Target {
     /// Index of the tool (flange → TCP) in the tool table passed alongside.
     pub tool: u32,
     /// The nominal command axes (what the controller computes for the programmed target).
-    pub nominal_axes: [f64; 6],
+    pub nominal_axes: AxisAngles,
     /// Nominal motion of each axis on arrival, deg per segment (the step for PTP, the arrival
     /// velocity `dq/du` at the end for LIN/CIRC; 0 when the axis rests); `None` when the
     /// motion comes from an unknown place (first motion, unresolved target before).
@@ -193,7 +193,7 @@ pub enum TargetError {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Outcome {
     /// The command axes (compensated, or nominal when not compensated or rejected).
-    pub axes_deg: [f64; 6],
+    pub axes_deg: AxisAngles,
     /// The flank each axis's gear is engaged on at arrival with the command (the direction
     /// of the commanded motion; `Unknown` before the axis first moves or, for an axis held
     /// inside its play, the direction it last moved in).
@@ -226,7 +226,7 @@ impl Outcome {
     /// before anything is solved or predicted.
     fn unsolved(axes: [f64; 6], directions: [Direction; 6]) -> Outcome {
         Outcome {
-            axes_deg: axes,
+            axes_deg: axes.into(),
             directions,
             nominal_directions: directions,
             before: Vector6::zeros(),
@@ -741,14 +741,14 @@ fn solve_target(
 ) -> Result<(solve::Solution, [bool; 6]), TargetError> {
     // Equation (3) is taken at the programmed (nominal) command, whatever the start.
     let start = if method == Method::OneStep && !hold.iter().any(|&h| h) {
-        target.nominal_axes
+        *target.nominal_axes
     } else {
         start
     };
     let problem = Problem {
         goal: target.goal,
         tool,
-        start,
+        start: start.into(),
         histories: *histories,
         hold,
     };
@@ -861,7 +861,7 @@ fn first_pass(
         c.follow_tool(target.tool);
     }
     let directions = histories.map(|h| h.simple_direction());
-    *out = Outcome::unsolved(target.nominal_axes, directions);
+    *out = Outcome::unsolved(*target.nominal_axes, directions);
     if !target.compensate {
         if let Some(c) = chain {
             c.forget();
@@ -875,7 +875,7 @@ fn first_pass(
         tool,
         target,
         histories,
-        target.nominal_axes,
+        *target.nominal_axes,
         [false; 6],
         method,
         chain.as_deref_mut(),
@@ -893,7 +893,7 @@ fn first_pass(
     match solved {
         Ok((sol, turn_held)) => {
             out.changed = sol.axes_deg != target.nominal_axes;
-            out.axes_deg = sol.axes_deg;
+            out.axes_deg = sol.axes_deg.into();
             out.residual = sol.residual;
             out.iterations = sol.iterations;
             out.turn_held = turn_held;
@@ -1171,11 +1171,11 @@ fn settle_one(
     outcomes[k] = o;
     let history = match (settled.flatten(), &previous) {
         // The turns the settling worked out for this very command.
-        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg).history,
+        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg.into()).history,
         _ => arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
     };
     AxisState {
-        axes_deg: o.axes_deg,
+        axes_deg: o.axes_deg.into(),
         history,
         time_s: 0.0,
     }
@@ -1200,7 +1200,8 @@ fn arrival_histories(
     };
     let widths = std::array::from_fn(|n| ctx.play_width(n, out.axes_deg[n]));
     let turns = compensated_turns(ctx, k, p, (&out.axes_deg, &widths), outcomes);
-    p.then_through(&turns.angle_deg, out.axes_deg).history
+    p.then_through(&turns.angle_deg, out.axes_deg.into())
+        .history
 }
 
 /// A motion that moves an axis by less than this many of its play's widths (degrees, plus
@@ -1281,7 +1282,7 @@ fn walk_compensated(
     let target = ctx.target(k);
     let robot = &ctx.model.robot;
     let tool = ctx.tool(k);
-    let cmd = |j: usize| if j == k { *c } else { outcomes[j].axes_deg };
+    let cmd = |j: usize| if j == k { *c } else { *outcomes[j].axes_deg };
     let tcp = |j: usize| Nominal(robot).tcp(&cmd(j), ctx.tool(j));
     // The path, where it starts (its command) and the share of it before the stop before.
     let (path, from, before): (Cartesian, usize, f64) = match target.interp {
@@ -1528,7 +1529,7 @@ fn settle_target(
     let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
         return Settling::Settled(None);
     };
-    let c = out.axes_deg;
+    let c: [f64; 6] = out.axes_deg.into();
     let axes = AxesOf {
         ctx,
         k,
@@ -1675,7 +1676,7 @@ fn solve_again(
     out.directions = flanks;
     // The held axes' plays where their commands leave them; the others on their flanks.
     let mut commanded = *out;
-    commanded.axes_deg = start;
+    commanded.axes_deg = start.into();
     let exact = arrival_histories(ctx, k, previous, &commanded, outcomes);
     let solving: [AxisHistory; 6] = std::array::from_fn(|n| {
         if hold[n] {
@@ -1693,7 +1694,7 @@ fn solve_again(
     }
     match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
-            out.axes_deg = sol.axes_deg;
+            out.axes_deg = sol.axes_deg.into();
             out.iterations += sol.iterations;
             out.changed = sol.axes_deg != target.nominal_axes;
             out.turn_held = turn_held;

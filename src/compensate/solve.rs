@@ -29,6 +29,7 @@ use nalgebra::{Matrix6, Vector6};
 
 use std::ops::AddAssign;
 
+use crate::kinematics::AxisAngles;
 use crate::model::chain::{self, axis_lines, ChainFrames, JointTrig, LinkBlocks};
 use crate::model::{AxisHistory, AxisSlopes, AxisState, ChainErrors, Model, Slot};
 use crate::motion::frame::{self as pose, Frame};
@@ -223,7 +224,7 @@ pub struct Problem<'a> {
     /// Flange → TCP.
     pub tool: &'a Frame,
     /// Starting command (the nominal axes; held axes carry their held value).
-    pub start: [f64; 6],
+    pub start: AxisAngles,
     /// Each axis's history on arrival: the flank its gear play is engaged on
     /// ([`AxisHistory::engaged`]), or, for an axis held still, where its play stands.
     pub histories: [AxisHistory; 6],
@@ -237,7 +238,7 @@ impl Problem<'_> {
         Goal {
             pose: self.goal,
             tool: self.tool,
-            start: self.start,
+            start: *self.start,
             hold: self.hold,
             tol_mm: TOL_POSITION_MM,
             tol_rad: TOL_ROTATION_RAD,
@@ -405,7 +406,7 @@ fn at_start(arm: &Predicted, problem: &Problem) -> Result<Solution, Vector6<f64>
     let e0 = pose::error(&arm.tcp(&problem.start, problem.tool), &problem.goal);
     if converged(&e0) {
         Ok(Solution {
-            axes_deg: problem.start,
+            axes_deg: *problem.start,
             residual: e0,
             iterations: 0,
             initial: e0,

@@ -2,7 +2,11 @@
 //! X/Y/Z/A/B/C convention, the robot description as plain data, forward kinematics (a pure
 //! function), the S/T configuration bits, singularity distances, and closed-form inverse
 //! kinematics with every branch and the controller's ways of choosing one. Knows nothing of
-//! KRL syntax nor of error models.
+//! KRL syntax nor of error models. Its words: [`AxisAngles`] are the six axis angles, never a
+//! pose; a [`Pose`] is the KUKA record a user writes (X, Y, Z, A, B, C), read and written at
+//! the edges; a rigid transform is nalgebra's `Isometry3` here, where nalgebra's operations
+//! are used (FK gives one, IK takes one), and `motion::frame::Frame` (rotation matrix +
+//! position) downstream, where poses are composed in inner loops.
 
 mod branches;
 pub mod fk;
@@ -18,6 +22,6 @@ pub use fk::{
     wrist_point, Singularity, SingularityKind, SingularityThresholds,
 };
 pub use ik::{inverse, inverse_all, inverse_all_into, IkError, IkSolution, Select};
-pub use pose::{abc_to_matrix, matrix_to_abc, E6Axis, E6Pos, Pose};
+pub use pose::{abc_to_matrix, matrix_to_abc, AxisAngles, E6Axis, E6Pos, Pose};
 pub use rates::ArmState;
 pub use robot::{Gravity, Links, Payload, RobotDescription};

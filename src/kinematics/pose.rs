@@ -154,6 +154,51 @@ fn tidy(angle: f64) -> f64 {
     }
 }
 
+/// The angles of the six robot axes A1..A6, degrees: what the controller commands and an
+/// axis target programs, never a pose's X, Y, Z, A, B, C. It dereferences to the `[f64; 6]`
+/// the numeric code works on (index it, pass `&axes` where `&[f64; 6]` is taken), so the type
+/// costs nothing in a loop; convert with `From` at a module's edge.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(transparent)]
+pub struct AxisAngles(pub [f64; 6]);
+
+impl std::ops::Deref for AxisAngles {
+    type Target = [f64; 6];
+    fn deref(&self) -> &[f64; 6] {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for AxisAngles {
+    fn deref_mut(&mut self) -> &mut [f64; 6] {
+        &mut self.0
+    }
+}
+
+impl From<[f64; 6]> for AxisAngles {
+    fn from(deg: [f64; 6]) -> AxisAngles {
+        AxisAngles(deg)
+    }
+}
+
+impl From<AxisAngles> for [f64; 6] {
+    fn from(axes: AxisAngles) -> [f64; 6] {
+        axes.0
+    }
+}
+
+impl PartialEq<[f64; 6]> for AxisAngles {
+    fn eq(&self, other: &[f64; 6]) -> bool {
+        self.0 == *other
+    }
+}
+
+impl PartialEq<AxisAngles> for [f64; 6] {
+    fn eq(&self, other: &AxisAngles) -> bool {
+        *self == other.0
+    }
+}
+
 /// An E6POS: a pose with the optional status and turn bits and the external axes E1..E6.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct E6Pos {

@@ -2,7 +2,10 @@
 //! matrix + position (cheaper than quaternions in inner loops), pose errors as six-vectors
 //! `[Δp (mm); Δr (rad)]` with the rotation error as the rotation vector of `R_actual · R_goalᵀ`
 //! (a world-frame error, the frame in which the paper writes `p̂ − p*`), and its inverse, the
-//! exponential; conversions to and from KUKA X/Y/Z/A/B/C.
+//! exponential; conversions to and from KUKA X/Y/Z/A/B/C. Downstream of `kinematics` a rigid
+//! transform is a [`Frame`]: a KUKA record (`kinematics::Pose`, or a target's six numbers) is
+//! converted at the edges (`from_kuka`, `to_kuka_near`), and a frame becomes an `Isometry3`
+//! only to be handed to `kinematics` or `model` (`to_isometry`).
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 

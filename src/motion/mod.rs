@@ -16,8 +16,8 @@ pub mod workspace;
 
 pub use cell::Cell;
 pub use simulate::{
-    simulate, simulate_streaming, CircularAngle, GivenFrame, Rel, Role, RunSink, Simulation,
-    SplineEnds, Stop, Walked,
+    simulate, simulate_streaming, CircularAngle, GivenFrame, Programmed, Rel, Role, RunSink,
+    Simulation, SplineEnds, Stop, Walked,
 };
 pub use workspace::{FileId, Workspace};
 
@@ -32,8 +32,8 @@ pub fn program_states(sim: &Simulation) -> Vec<crate::model::AxisState> {
         .enumerate()
         .map(|(i, s)| {
             let state = match (s.arrival, &previous) {
-                (Some(_), Some(p)) => p.then_through(&s.turns.angle_deg, s.nominal_axes),
-                _ => crate::model::AxisState::new(s.nominal_axes),
+                (Some(_), Some(p)) => p.then_through(&s.turns.angle_deg, s.nominal_axes.into()),
+                _ => crate::model::AxisState::new(s.nominal_axes.into()),
             };
             if !sim.passes_by(i) {
                 previous = Some(state);

@@ -80,6 +80,14 @@ fn directions(sim: &Simulation) -> Vec<robopost::model::AxisState> {
     motion::program_states(sim)
 }
 
+/// The position a Cartesian stop programs (in its base).
+fn programmed_position(stop: &motion::Stop) -> Vector3<f64> {
+    match stop.programmed {
+        motion::Programmed::Pose(p) => p.position(),
+        motion::Programmed::Axes(_) => panic!("a circle's target is Cartesian"),
+    }
+}
+
 /// The circle through `a`, `b`, `c` (circumcentre by the perpendicular bisectors solved as a
 /// 3×3 linear system: an independent construction), and the point reached from `a` after
 /// turning by `angle_deg` in the sense a → b → c.
@@ -196,7 +204,7 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
             sim1.frames[sim1.stops[target_stop].base as usize],
             Frame::identity()
         );
-        let target = Frame::from_kuka(&sim1.stops[target_stop].programmed).position;
+        let target = programmed_position(&sim1.stops[target_stop]);
         // Where the controller ends with the written numbers, by the independent circle.
         let end = sim1.stops[e1].goal.position;
         let independent = turned(start, aux, target, angle);
@@ -212,7 +220,7 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
                     .cross(&(target - s))
                     .normalize()
             };
-            let target0 = Frame::from_kuka(&sim0.stops[e0].programmed).position;
+            let target0 = programmed_position(&sim0.stops[e0]);
             let tilt = normal(&sim0, a0, target0).angle(&normal(&sim1, a1, target));
             assert!(tilt < 0.01, "CA {angle}: the plane tilts by {tilt} rad");
         }

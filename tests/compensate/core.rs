@@ -41,7 +41,7 @@ fn target(model: &Model, axes: [f64; 6], arrival: Option<[f64; 6]>) -> Target {
     Target {
         goal: Frame::from_isometry(&nominal_tcp(model, axes)),
         tool: 0,
-        nominal_axes: axes,
+        nominal_axes: axes.into(),
         arrival,
         turns: robopost::motion::interpolate::NO_TURNS,
         interp: Interp::Joint,
@@ -91,7 +91,7 @@ proptest! {
         let goal = nominal_tcp(&model, axes);
         let (p0, _) = pose_gap(&predicted_tcp(&model, axes, dirs), &goal);
         prop_assume!(p0 > 1e-3, "the hand-set model moves the TCP here");
-        let (dp, dr) = pose_gap(&predicted_tcp(&model, o.axes_deg, dirs), &goal);
+        let (dp, dr) = pose_gap(&predicted_tcp(&model, o.axes_deg.into(), dirs), &goal);
         prop_assert!(dp < TOL_POSITION_MM && dr < TOL_ROTATION_RAD, "{dp} mm {dr} rad");
         prop_assert!(o.iterations <= 6, "{} iterations", o.iterations);
     }
@@ -119,19 +119,19 @@ fn one_step_is_equation_3() {
     // p_c = p* − (p̂ − p*), R_c = (R̂ R*⁻¹)⁻¹ R*, computed here with isometries.
     let p_c = goal.translation.vector * 2.0 - predicted.translation.vector;
     let r_c = (predicted.rotation * goal.rotation.inverse()).inverse() * goal.rotation;
-    let command = nominal_tcp(&model, one.axes_deg);
+    let command = nominal_tcp(&model, one.axes_deg.into());
     assert_relative_eq!(command.translation.vector, p_c, epsilon = 1e-8);
     assert!((command.rotation * r_c.inverse()).angle() < 1e-11);
     // One step leaves a second-order error, the iteration none.
     let (before, _) = pose_gap(&predicted, &goal);
-    let (after, _) = pose_gap(&predicted_tcp(&model, one.axes_deg, dirs), &goal);
+    let (after, _) = pose_gap(&predicted_tcp(&model, one.axes_deg.into(), dirs), &goal);
     assert!(after < before / 50.0, "{before} → {after}");
     assert!(
         after > TOL_POSITION_MM / 100.0,
         "one step is not already exact here: {after}"
     );
     let it = compensate(&model, &tools, &[t], [Direction::Unknown; 6], &ITERATE)[0];
-    let (iterated, _) = pose_gap(&predicted_tcp(&model, it.axes_deg, dirs), &goal);
+    let (iterated, _) = pose_gap(&predicted_tcp(&model, it.axes_deg.into(), dirs), &goal);
     assert!(iterated < TOL_POSITION_MM && iterated < after);
 }
 
@@ -251,7 +251,7 @@ fn arrivals(targets: &[Target], out: &[robopost::compensate::Outcome]) -> Vec<Ax
     for (t, o) in targets.iter().zip(out) {
         let state = match states.last() {
             Some(p) if t.interp == Interp::Line => {
-                let (q0, q1) = (p.axes_deg, o.axes_deg);
+                let (q0, q1) = (p.axes_deg, o.axes_deg.into());
                 let walked = arrival(
                     &robot,
                     &Frame::identity(),
@@ -261,9 +261,9 @@ fn arrivals(targets: &[Target], out: &[robopost::compensate::Outcome]) -> Vec<Ax
                 );
                 p.then_through(&walked.unwrap().turns.angle_deg, q1)
             }
-            Some(p) => p.then(o.axes_deg),
+            Some(p) => p.then(o.axes_deg.into()),
             None => AxisState {
-                axes_deg: o.axes_deg,
+                axes_deg: o.axes_deg.into(),
                 history: o.nominal_directions.map(AxisHistory::engaged),
                 time_s: 0.0,
             },

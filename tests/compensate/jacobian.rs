@@ -185,7 +185,7 @@ fn one_step_reaches_the_tolerance() {
             let problem = Problem {
                 goal: nominal.tcp(&axes, &tool),
                 tool: &tool,
-                start: axes,
+                start: axes.into(),
                 histories: dirs,
                 hold: [false; 6],
             };
@@ -276,7 +276,7 @@ fn warm_starts_along_a_path_meet_the_tolerance() {
         let problem = Problem {
             goal,
             tool: &tool,
-            start: axes,
+            start: axes.into(),
             histories: dirs.map(AxisHistory::engaged),
             hold: [false; 6],
         };

@@ -361,7 +361,7 @@ fn compensated_paths_reach_the_programmed_poses() {
                 // target half a unit of every axis, each moving the TCP by its lever.
                 let half_mm = 0.5e-3;
                 let half_deg = 0.5e-4;
-                let (bound_mm, bound_rad) = if a.axis {
+                let (bound_mm, bound_rad) = if a.programmed.is_axes() {
                     let bare = Model::new(robot, Payload::default(), nalgebra::Vector3::zeros());
                     let tcp = |axes: [f64; 6]| {
                         (bare.flange_pose(&AxisState::new(axes)) * tool)
@@ -370,7 +370,7 @@ fn compensated_paths_reach_the_programmed_poses() {
                     };
                     let lever: f64 = (0..6)
                         .map(|j| {
-                            let (mut up, mut down) = (a.nominal_axes, a.nominal_axes);
+                            let (mut up, mut down) = (a.nominal_axes.0, a.nominal_axes.0);
                             up[j] += 1e-3;
                             down[j] -= 1e-3;
                             (tcp(up) - tcp(down)).norm() / 2e-3
@@ -746,6 +746,46 @@ fn partial_aggregates_are_completed() {
     }
     // X, Y before Z, A..C after it, in the file's separator style.
     assert!(line.starts_with("LIN {X "), "{line}");
+}
+
+/// A stop says what its target programs: an axis target's angles (a relative one's added to
+/// the start's), a Cartesian target's pose in the base, completed from the start where
+/// components are missing.
+#[test]
+fn programmed_values_are_axis_angles_or_a_pose() {
+    use robopost::kinematics::Pose;
+    use robopost::motion::Programmed;
+    let src = format!(
+        "{HEAD}LIN {{X 300, Y 200, Z 0, A 0, B 0, C 180}}\nLIN {{Z -50}}\nPTP_REL {{A1 5}}\nEND\n"
+    );
+    let ws = files::load_program(None, src.as_bytes(), None).expect("loads");
+    let sim = motion::simulate(&ws, &RobotDescription::kr30ha(), &[]);
+    assert_eq!(sim.stops.len(), 4);
+    let home = [0.0, -80.0, 100.0, 0.0, 60.0, 0.0];
+    assert_eq!(sim.stops[0].programmed, Programmed::Axes(home.into()));
+    assert_eq!(sim.stops[0].nominal_axes, home);
+    let written = Pose {
+        x: 300.0,
+        y: 200.0,
+        z: 0.0,
+        a: 0.0,
+        b: 0.0,
+        c: 180.0,
+    };
+    assert_eq!(sim.stops[1].programmed, Programmed::Pose(written));
+    let Programmed::Pose(completed) = sim.stops[2].programmed else {
+        panic!("a Cartesian target: {:?}", sim.stops[2].programmed);
+    };
+    let want = Pose {
+        z: -50.0,
+        ..written
+    };
+    for (got, want) in completed.to_array().iter().zip(want.to_array()) {
+        assert!((got - want).abs() < 1e-9, "{completed:?}");
+    }
+    let mut moved: [f64; 6] = sim.stops[2].nominal_axes.into();
+    moved[0] += 5.0;
+    assert_eq!(sim.stops[3].programmed, Programmed::Axes(moved.into()));
 }
 
 /// `LIN_REL` is rewritten relative to the compensated previous command.

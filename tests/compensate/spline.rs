@@ -65,8 +65,8 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
         .unwrap()
         .axes_deg
     };
-    let q1 = axes_at(barry_goldman(&p, 1.0), stop.nominal_axes);
-    for (i, (a, b)) in q1.iter().zip(stop.nominal_axes).enumerate() {
+    let q1 = axes_at(barry_goldman(&p, 1.0), stop.nominal_axes.into());
+    for (i, (a, b)) in q1.iter().zip(*stop.nominal_axes).enumerate() {
         assert!((a - b).abs() < 1e-6, "A{}", i + 1);
     }
     let h = 1e-5;
@@ -98,7 +98,7 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
     // The block's first SPL: the start and the first two points lie on a line, so the curve
     // is that line there and A1 arrives as its chord says.
     let first = spl[0].arrival.unwrap();
-    let start = axes_at(p[0], spl[0].nominal_axes);
+    let start = axes_at(p[0], spl[0].nominal_axes.into());
     assert!((spl[0].nominal_axes[0] - start[0]) * first[0] > 0.0);
 
     // Compensation re-checks the directions of the compensated motion along the same curve:

@@ -139,7 +139,7 @@ pub(super) fn components(
     file: &SourceFile,
     agg: &Aggregate,
     axis: bool,
-    read: Option<(&[f64; 6], u8)>,
+    read: Option<([f64; 6], u8)>,
 ) -> [Option<Component>; 6] {
     let src = file.source();
     let mut out = [None; 6];
@@ -359,19 +359,21 @@ mod tests {
                 };
                 let file = &ws.get(origin.file).file;
                 assert_eq!(
-                    decimals(&origin, stop.axis),
-                    decimals_from_text(file, origin.agg, stop.axis),
+                    decimals(&origin, stop.programmed.is_axes()),
+                    decimals_from_text(file, origin.agg, stop.programmed.is_axes()),
                     "{}",
                     path.display()
                 );
-                let read = components(file, origin.agg, stop.axis, None);
-                let given = Some((&stop.programmed, origin.literals));
-                let taken_here = components(file, origin.agg, stop.axis, given);
+                let axis = stop.programmed.is_axes();
+                let read = components(file, origin.agg, axis, None);
+                let values = stop.programmed.components();
+                let given = Some((values, origin.literals));
+                let taken_here = components(file, origin.agg, axis, given);
                 for k in 0..6 {
                     let bits = |c: &Option<Component>| c.and_then(|c| c.value).map(f64::to_bits);
                     assert_eq!(bits(&read[k]), bits(&taken_here[k]), "{}", path.display());
                     if origin.literals & (1 << k) != 0 {
-                        assert_eq!(read[k].and_then(|c| c.value), Some(stop.programmed[k]));
+                        assert_eq!(read[k].and_then(|c| c.value), Some(values[k]));
                         taken += 1;
                     }
                 }

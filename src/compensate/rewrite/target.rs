@@ -2,9 +2,10 @@
 //! form its aggregate is written in (absolute, relative, before a geometric operator), and
 //! the auxiliary point and end of a `CA` circle written by construction.
 
+use crate::kinematics::Pose;
 use crate::motion::frame::{abc_continuous, kuka_near, Frame};
 use crate::motion::nominal::{Arm, Nominal};
-use crate::motion::{Rel, Role, Simulation, Stop};
+use crate::motion::{Programmed, Rel, Role, Simulation, Stop};
 
 use super::super::sequence::Outcome;
 use super::{Commanded, Writer};
@@ -33,25 +34,28 @@ impl Writer<'_> {
             p => p,
         };
         let prev_cmd = start_stop.map(|p| self.outcomes[p as usize].axes_deg);
-        if stop.axis {
-            return match stop.rel {
-                Some(_) => {
-                    let prev = prev_cmd?;
-                    Some((std::array::from_fn(|i| axes[i] - prev[i]), None))
+        let programmed = match &stop.programmed {
+            Programmed::Axes(_) => {
+                return match stop.rel {
+                    Some(_) => {
+                        let prev = prev_cmd?;
+                        Some((std::array::from_fn(|i| axes[i] - prev[i]), None))
+                    }
+                    None => Some((*axes, None)),
                 }
-                None => Some((*axes, None)),
-            };
-        }
+            }
+            Programmed::Pose(p) => p,
+        };
         let tool = &sim.frames[stop.tool as usize];
         let base = &sim.frames[stop.base as usize];
         let in_base = base.inverse().compose(&command.tcp);
         let abc_near = [3, 4, 5].map(|k| original[k].unwrap_or(0.0));
         match stop.rel {
-            None => Some(self.absolute_values(stop, &in_base, command, original)),
+            None => Some(self.absolute_values(stop, programmed, &in_base, command, original)),
             Some(rel) => {
                 let start = base
                     .inverse()
-                    .compose(&Nominal(self.robot).tcp(&prev_cmd?, tool));
+                    .compose(&Nominal(self.robot).tcp(&*prev_cmd?, tool));
                 let moved = match rel {
                     Rel::Tool => start.inverse().compose(&in_base),
                     _ => Frame {
@@ -64,16 +68,21 @@ impl Writer<'_> {
         }
     }
 
-    /// [`Self::new_values`] of an absolute Cartesian target whose command in its base is
-    /// `in_base`.
+    /// [`Self::new_values`] of an absolute Cartesian target `programmed` whose command in its
+    /// base is `in_base`.
     fn absolute_values(
         &self,
         stop: &Stop,
+        programmed: &Pose,
         in_base: &Frame,
         command: &Commanded,
         original: &[Option<f64>; 6],
     ) -> ([f64; 6], Option<f64>) {
-        let near_abc = [3, 4, 5].map(|k| original[k].unwrap_or(stop.programmed[k]));
+        let near_abc = [
+            original[3].unwrap_or(programmed.a),
+            original[4].unwrap_or(programmed.b),
+            original[5].unwrap_or(programmed.c),
+        ];
         let (prefix, suffix) = match stop.origin {
             Some(o) => (o.prefix, o.suffix),
             None => (None, None),

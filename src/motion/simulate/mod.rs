@@ -15,7 +15,7 @@
 use std::collections::{HashMap, HashSet};
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::kinematics::RobotDescription;
+use crate::kinematics::{AxisAngles, Pose, RobotDescription};
 use crate::krl::{MotionKind, RoutineHeader, SourceFile, Span, Stmt, Symbols};
 
 use super::frame::Frame;
@@ -97,6 +97,34 @@ pub struct CircularAngle {
     pub from_points: bool,
 }
 
+/// What a motion target programs, as the controller completes it: axis angles or a KUKA
+/// pose, never six numbers a reader must guess the meaning of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Programmed {
+    /// An axis target `{A1 …, A6 …}`: the axis angles, degrees (a relative target's: the
+    /// start's plus the offsets).
+    Axes(AxisAngles),
+    /// A Cartesian target `{X …, C …}`: the pose in the base, mm and degrees (a relative
+    /// target's: where its offset takes the start).
+    Pose(Pose),
+}
+
+impl Programmed {
+    /// An axis target (`A1..A6`).
+    pub fn is_axes(&self) -> bool {
+        matches!(self, Programmed::Axes(_))
+    }
+
+    /// The six numbers in the order the target's aggregate names them: `A1..A6`, or
+    /// `X Y Z A B C` — for reading and writing the aggregate, which knows which by its names.
+    pub fn components(&self) -> [f64; 6] {
+        match self {
+            Programmed::Axes(q) => q.0,
+            Programmed::Pose(p) => p.to_array(),
+        }
+    }
+}
+
 /// One executed motion target.
 #[derive(Clone, Copy, Debug)]
 pub struct Stop<'f> {
@@ -110,17 +138,15 @@ pub struct Stop<'f> {
     pub tool: u32,
     pub base: u32,
     /// The controller's axes for the programmed target.
-    pub nominal_axes: [f64; 6],
+    pub nominal_axes: AxisAngles,
     /// Arrival motion of each axis (see `interpolate`); `None` after an unknown position.
     pub arrival: Option<[f64; 6]>,
     /// Each axis's last turning point inside the motion that reaches this stop (see
     /// `interpolate::Arrival::turns`).
     pub turns: interpolate::Turns,
-    /// An axis target (`A1..A6`).
-    pub axis: bool,
-    /// The programmed values as the controller completes them (absolute: missing components
-    /// from the start; relative: missing ones zero), `X Y Z A B C` in the base or `A1..A6`.
-    pub programmed: [f64; 6],
+    /// The programmed values as the controller completes them, absolute (missing components
+    /// from the start; a relative target's missing offsets zero).
+    pub programmed: Programmed,
     pub keep_s: bool,
     pub keep_t: bool,
     pub rel: Option<Rel>,
@@ -314,7 +340,7 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                     tool,
                     &cart,
                     1.0,
-                    (&prev.nominal_axes, carried.as_ref()),
+                    (&*prev.nominal_axes, carried.as_ref()),
                     &stop.nominal_axes,
                 );
                 *slot = Some(match a {

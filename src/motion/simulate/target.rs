@@ -2,7 +2,7 @@
 //! controller's axes (IK with S/T or nearness), samples the interpolation for the arrival
 //! motion and records the [`Stop`]s of a motion (and of a circle's auxiliary point).
 
-use crate::kinematics::{self, status_turn, Select};
+use crate::kinematics::{self, status_turn, AxisAngles, Pose, Select};
 use crate::krl::{Expr, Motion, RelFrameKind, Stmt};
 
 use super::eval::reason;
@@ -42,11 +42,10 @@ impl<'f> Simulator<'f> {
             goal: Frame::identity(),
             tool: self.frames_index(tool),
             base: self.frames_index(base),
-            nominal_axes: [0.0; 6],
+            nominal_axes: AxisAngles::default(),
             arrival: None,
             turns: interpolate::NO_TURNS,
-            axis: false,
-            programmed: [0.0; 6],
+            programmed: Programmed::Pose(Pose::IDENTITY),
             keep_s: true,
             keep_t: false,
             rel,
@@ -331,7 +330,7 @@ impl<'f> Simulator<'f> {
             let stop = Stop {
                 role: Role::Aux,
                 goal: aux_pose,
-                nominal_axes: q_aux,
+                nominal_axes: q_aux.into(),
                 arrival,
                 turns,
                 programmed: aux_prog,
@@ -345,8 +344,8 @@ impl<'f> Simulator<'f> {
             circle = Some(cart);
         }
         // The controller's axes for the target.
-        let q = if pos.axis {
-            programmed
+        let q = if let Programmed::Axes(q) = programmed {
+            q.into()
         } else {
             let (s_given, t_given) = s_t;
             let select = match (m.kind.is_joint(), current) {
@@ -463,7 +462,7 @@ impl<'f> Simulator<'f> {
             };
             let end_stop = Stop {
                 goal: end,
-                nominal_axes: q_end,
+                nominal_axes: q_end.into(),
                 arrival,
                 turns,
                 programmed,
@@ -523,8 +522,8 @@ impl<'f> Simulator<'f> {
                             &end.position,
                         ),
                     });
-                    if rel.is_none() {
-                        self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
+                    if let (None, Programmed::Pose(p)) = (rel, programmed) {
+                        self.state.last_abc = [p.a, p.b, p.c];
                     }
                     self.state.current = Some(Current {
                         axes: q_end,
@@ -607,10 +606,9 @@ impl<'f> Simulator<'f> {
         self.warn_unwritable(file, s, pos.origin.is_none(), shared);
         let stop = Stop {
             goal,
-            nominal_axes: q,
+            nominal_axes: q.into(),
             arrival,
             turns,
-            axis: pos.axis,
             programmed,
             keep_s: !pos.axis,
             keep_t: !pos.axis && m.kind.is_joint() && s_t.1.is_some(),
@@ -622,8 +620,8 @@ impl<'f> Simulator<'f> {
             ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
         };
         let idx = self.push_stop(stop);
-        if !pos.axis && rel.is_none() {
-            self.state.last_abc = [programmed[3], programmed[4], programmed[5]];
+        if let (None, Programmed::Pose(p)) = (rel, programmed) {
+            self.state.last_abc = [p.a, p.b, p.c];
         }
         self.state.current = Some(Current {
             axes: q,
@@ -631,7 +629,7 @@ impl<'f> Simulator<'f> {
         });
         // A circle compensated through its points ends after its target.
         if let Some(end) = through {
-            let axes = end.nominal_axes;
+            let axes = end.nominal_axes.into();
             let idx = self.push_stop(Stop {
                 prev: Some(idx),
                 ..end
@@ -679,7 +677,7 @@ impl<'f> Simulator<'f> {
         base: &Frame,
         tool: &Frame,
         start_tcp: Option<&Frame>,
-    ) -> Option<([f64; 6], Frame, (Option<u8>, Option<u8>))> {
+    ) -> Option<(Programmed, Frame, (Option<u8>, Option<u8>))> {
         let st = (pos.s, pos.t);
         if pos.axis {
             let q: [f64; 6] = match rel {
@@ -697,7 +695,7 @@ impl<'f> Simulator<'f> {
                 }
             };
             let goal = Nominal(&self.robot).tcp(&q, tool);
-            return Some((q, goal, st));
+            return Some((Programmed::Axes(q.into()), goal, st));
         }
         match rel {
             Some(kind) => {
@@ -712,8 +710,8 @@ impl<'f> Simulator<'f> {
                     },
                 };
                 let near = start_in_base.to_kuka_near(&self.state.last_abc);
-                let programmed = p.to_kuka_near(&[near[3], near[4], near[5]]);
-                Some((programmed, base.compose(&p), st))
+                let programmed = Pose::from_array(p.to_kuka_near(&[near[3], near[4], near[5]]));
+                Some((Programmed::Pose(programmed), base.compose(&p), st))
             }
             None => {
                 let v: [f64; 6] = if pos.is_complete() {
@@ -738,7 +736,7 @@ impl<'f> Simulator<'f> {
                 if let Some(i) = pos.origin.and_then(|o| o.suffix) {
                     goal = goal.compose(&table[i as usize]);
                 }
-                Some((v, goal, st))
+                Some((Programmed::Pose(Pose::from_array(v)), goal, st))
             }
         }
     }
