@@ -10,7 +10,7 @@ mod readme;
 use std::path::Path;
 use std::process::Command;
 
-use robopost::measure::read_csv;
+use robopost::read_measurements;
 
 const F: &str = "fixtures/measurements";
 
@@ -43,7 +43,7 @@ fn hidden_effect_walkthrough_prints_what_the_readme_says() {
 
     // The data as the introduction describes them.
     let count = |file: &str| {
-        read_csv(&root.join(file))
+        read_measurements(&root.join(file))
             .unwrap()
             .stops
             .iter()
