@@ -32,8 +32,9 @@
 //! `bytes → krl (lossless syntax) → motion (targets, joints, axis histories) → model (error
 //! effects) → compensate → krl edits → bytes`, and `csv → identify → model`,
 //! `model + csv → report`. `krl` knows nothing of kinematics; `kinematics` knows nothing of
-//! KRL. Those modules are public for the command line and the tests only (hidden from these
-//! docs, no stability promised); the API above is what other programs should call.
+//! KRL. Those modules are public for the `robopost` command (its command line lives in the
+//! binary, `src/cli/`) and the tests only (hidden from these docs, no stability promised); the
+//! API above is what other programs should call.
 
 #![warn(missing_docs)]
 
@@ -44,8 +45,6 @@ pub use api::*;
 pub mod atomic_file;
 #[doc(hidden)]
 pub mod calibration;
-#[doc(hidden)]
-pub mod cli;
 #[doc(hidden)]
 pub mod compare;
 #[doc(hidden)]

@@ -1,3 +1,7 @@
+//! The `robopost` command: the command line (`cli`) over the library.
+
+mod cli;
+
 fn main() {
     // Rust ignores SIGPIPE, so a closed pipe (`robopost ik … | head`) makes println! panic.
     // A command-line filter should instead end quietly, as cat or grep do.
@@ -8,7 +12,7 @@ fn main() {
     }
     keep_freed_memory();
     trace_if_asked();
-    std::process::exit(robopost::cli::main());
+    std::process::exit(cli::main());
 }
 
 /// With `ROBOPOST_LOG` set (a `tracing` filter such as `robopost=info`, or `robopost=trace` for

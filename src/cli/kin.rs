@@ -8,12 +8,12 @@ use nalgebra::{Isometry3, Vector3};
 use serde_json::json;
 
 use super::Exit;
-use crate::calibration;
-use crate::kinematics::{
+use robopost::calibration;
+use robopost::kinematics::{
     forward, inverse, inverse_all, singularity, status_turn, IkError, IkSolution, Pose,
     RobotDescription, Select,
 };
-use crate::model::AxisState;
+use robopost::model::AxisState;
 
 #[derive(clap::Args, Debug)]
 #[command(allow_negative_numbers = true)]

@@ -32,8 +32,8 @@ pub fn usage(message: impl std::fmt::Display) -> Exit {
     Exit::Usage
 }
 
-/// An output refused by the guard of [`crate::paths`]: exit 2, nothing written.
-pub fn refuse(clash: &crate::paths::Clash) -> Exit {
+/// An output refused by the guard of [`robopost::paths`]: exit 2, nothing written.
+pub fn refuse(clash: &robopost::paths::Clash) -> Exit {
     usage(clash)
 }
 
