@@ -76,10 +76,15 @@ fn grammar_names_exactly_the_parser_functions() {
     let ebnf = std::fs::read_to_string(root().join("grammars/krl.ebnf")).unwrap();
     let grammar = productions(&ebnf);
     let mut code = BTreeSet::new();
-    for e in std::fs::read_dir(root().join("src/krl")).unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().is_some_and(|x| x == "rs") {
-            code.extend(parser_functions(&std::fs::read_to_string(&p).unwrap()));
+    let mut dirs = vec![root().join("src/krl")];
+    while let Some(dir) = dirs.pop() {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                dirs.push(p);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                code.extend(parser_functions(&std::fs::read_to_string(&p).unwrap()));
+            }
         }
     }
     assert!(grammar.len() > 40, "{grammar:?}");
