@@ -133,7 +133,7 @@ pub fn run(args: Args) -> Exit {
                 None => Campaign::paper().plan(),
                 Some(path) => match read_campaign(&path) {
                     Ok(c) => c.plan(),
-                    Err(e) => return usage(&e),
+                    Err(exit) => return exit,
                 },
             };
             match plan {
@@ -205,22 +205,25 @@ fn guard_output<'a>(inputs: impl IntoIterator<Item = &'a Path>, out: &Path) -> R
     guard.write(out).map_err(|clash| super::refuse(&clash))
 }
 
-fn read_campaign(path: &Path) -> Result<Campaign, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+/// The campaign file at `path`; a usage error (file:line:col and the line) when it cannot be
+/// read or is not a valid campaign.
+fn read_campaign(path: &Path) -> Result<Campaign, Exit> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| usage(&format!("{}: {e}", path.display())))?;
     let campaign: Campaign = serde_json::from_str(&text).map_err(|e| {
         let line = text.lines().nth(e.line().saturating_sub(1)).unwrap_or("");
-        format!(
+        usage(&format!(
             "{}:{}:{}: {e}\n{:>4} | {line}\n     | {}^",
             path.display(),
             e.line(),
             e.column(),
             e.line(),
             " ".repeat(e.column().saturating_sub(1))
-        )
+        ))
     })?;
     campaign
         .validate()
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+        .map_err(|e| usage(&format!("{}: {e}", path.display())))?;
     Ok(campaign)
 }
 

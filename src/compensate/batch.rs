@@ -49,7 +49,7 @@ pub struct Plan {
     pub jobs: Vec<Job>,
     pub copies: Vec<(PathBuf, PathBuf)>,
     /// Files that could not be read while planning.
-    pub unreadable: Vec<(PathBuf, String)>,
+    pub unreadable: Vec<(PathBuf, std::io::Error)>,
     /// Directories not entered because they were reached before (a link back up the tree,
     /// or a second link to one directory).
     pub skipped: Vec<PathBuf>,
@@ -111,11 +111,12 @@ fn walk<Id: Eq + std::hash::Hash>(
 }
 
 /// Routine names a program calls (upper case), or why it could not be read.
-type Called = Result<HashSet<Vec<u8>>, String>;
+type Called = std::io::Result<HashSet<Vec<u8>>>;
 
-/// Routine names called by a `.src` (upper case), if it parses.
-fn calls(path: &Path) -> Result<HashSet<Vec<u8>>, String> {
-    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+/// Routine names called by a `.src` (upper case); its syntax errors are the compensation's
+/// to report, so only a file that cannot be read fails.
+fn calls(path: &Path) -> Called {
+    let bytes = std::fs::read(path)?;
     let file = krl::parse_recovering(&bytes, FileKind::Src);
     let mut out = HashSet::new();
     for st in file.statements() {
@@ -149,13 +150,13 @@ pub fn plan(inputs: &[PathBuf], out_dir: &Path) -> std::io::Result<Plan> {
             srcs.par_iter().map(|p| ((*p).clone(), calls(p))).collect();
         // Names called per directory.
         let mut by_dir: HashMap<PathBuf, HashSet<Vec<u8>>> = HashMap::new();
-        for (p, c) in &called {
+        for (p, c) in called {
             match c {
                 Ok(names) => by_dir
                     .entry(p.parent().map(Path::to_path_buf).unwrap_or_default())
                     .or_default()
-                    .extend(names.iter().cloned()),
-                Err(e) => plan.unreadable.push((p.clone(), e.clone())),
+                    .extend(names),
+                Err(e) => plan.unreadable.push((p, e)),
             }
         }
         let mirrored = |p: &Path| out_dir.join(p.strip_prefix(&root).unwrap_or(p));

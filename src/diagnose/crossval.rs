@@ -16,10 +16,25 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::blocks::{Plan, Scheme};
-use crate::identify::setup::{add_effects, GridChoice};
-use crate::identify::{refine, Free, RefineOptions, Warning};
+use crate::identify::setup::{add_effects, GridChoice, SetupError};
+use crate::identify::{refine, Free, IdentifyError, RefineOptions, Warning};
 use crate::measure::Stop;
 use crate::model::{EffectName, GridOptions, Model};
+
+/// Why a candidate could not be scored.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum NotEvaluated {
+    /// The candidate could not be added to the model (its tables do not fit the data).
+    #[error("{0}")]
+    Candidate(#[from] SetupError),
+    /// A fold's fit failed.
+    #[error("{0}")]
+    Fit(#[from] IdentifyError),
+    /// A fold's training points do not observe the candidate.
+    #[error("{0}")]
+    Unobserved(Warning),
+}
 
 /// Iterations of each fit: the candidate enters linearly to first order, so a few suffice.
 const MAX_ITERATIONS: usize = 3;
@@ -135,7 +150,7 @@ pub struct Evaluation {
     /// prediction, mm): its signature, to tell which candidates explain the same residual.
     pub correction: Vec<Vector3<f64>>,
     /// Why it could not be evaluated (no measured point depends on it, or the fit failed).
-    pub not_evaluated: Option<String>,
+    pub not_evaluated: Option<NotEvaluated>,
 }
 
 impl Evaluation {
@@ -175,13 +190,13 @@ fn with_candidate(
     stops: &[Stop],
     name: &EffectName,
     grid: &GridChoice,
-) -> Result<(Model, usize), String> {
+) -> Result<(Model, usize), NotEvaluated> {
     let gone = replaced(base, name);
     let mut with = Model::new(base.robot, base.payload, base.target_mm);
     for e in base.effects().iter().filter(|e| !gone.contains(&e.name())) {
         with.push(e.clone());
     }
-    add_effects(&mut with, &[*name], stops, grid).map_err(|e| e.to_string())?;
+    add_effects(&mut with, &[*name], stops, grid)?;
     let added = with.n_parameters() as isize - base.n_parameters() as isize;
     Ok((with, added.max(0) as usize))
 }
@@ -196,7 +211,7 @@ pub fn held_out(
     plan: &Plan,
     max_iterations: usize,
     unobserved_is_zero: bool,
-) -> Result<Vec<Option<Vector3<f64>>>, String> {
+) -> Result<Vec<Option<Vector3<f64>>>, NotEvaluated> {
     let fallback = unobserved_is_zero.then_some(with);
     held_out_or(with, free, stops, plan, max_iterations, fallback)
 }
@@ -210,7 +225,7 @@ fn held_out_or(
     plan: &Plan,
     max_iterations: usize,
     fallback: Option<&Model>,
-) -> Result<Vec<Option<Vector3<f64>>>, String> {
+) -> Result<Vec<Option<Vector3<f64>>>, NotEvaluated> {
     let options = RefineOptions {
         free: Free::Effects(free.to_vec()),
         max_iterations,
@@ -228,7 +243,7 @@ fn held_out_or(
             })
             .collect();
         let mut model = with.clone();
-        let fit = refine(&mut model, &training, &options).map_err(|e| e.to_string())?;
+        let fit = refine(&mut model, &training, &options)?;
         if let Some(w) = fit
             .warnings
             .iter()
@@ -236,7 +251,7 @@ fn held_out_or(
         {
             match fallback {
                 Some(current) => model = current.clone(),
-                None => return Err(w.to_string()),
+                None => return Err(NotEvaluated::Unobserved(w.clone())),
             }
         }
         for &i in held {
@@ -319,7 +334,7 @@ pub fn check(
     name: &EffectName,
     plan: &Plan,
     grid: &GridChoice,
-) -> Result<Score, String> {
+) -> Result<Score, NotEvaluated> {
     let (with, _) = with_candidate(base, stops, name, grid)?;
     let after = held_out_or(
         &with,

@@ -690,7 +690,7 @@ fn finding(
         checks: e.checks.clone(),
         vetoed,
         indistinguishable_from: same,
-        not_evaluated: e.not_evaluated.clone(),
+        not_evaluated: e.not_evaluated.as_ref().map(ToString::to_string),
     }
 }
 

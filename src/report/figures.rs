@@ -24,11 +24,11 @@ pub struct Figure {
     pub svg: String,
 }
 
-fn figure(title: String, caption: String, svg: Result<String, String>) -> Figure {
+fn figure(title: String, caption: String, svg: plot::Svg) -> Figure {
     Figure {
         title,
         caption,
-        svg: svg.unwrap_or_else(|e| format!("<p class=\"error\">plot failed: {e}</p>")),
+        svg: svg.unwrap_or_else(|e| format!("<p class=\"error\">{e}</p>")),
     }
 }
 

@@ -33,6 +33,20 @@ const FONT: &str = "sans-serif";
 
 type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
+/// A chart plotters could not draw (the page shows the message in its place).
+#[derive(Debug, thiserror::Error)]
+#[error("plot failed: {0}")]
+pub struct PlotError(Box<dyn Error>);
+
+impl PlotError {
+    fn from_drawing(e: impl Error + 'static) -> PlotError {
+        PlotError(Box::new(e))
+    }
+}
+
+/// An SVG document, or why it could not be drawn.
+pub type Svg = std::result::Result<String, PlotError>;
+
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Style {
@@ -55,13 +69,13 @@ pub struct Series {
 fn render(
     size: (u32, u32),
     draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> Result<()>,
-) -> std::result::Result<String, String> {
+) -> Svg {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        draw(&root).map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
+        root.fill(&WHITE).map_err(PlotError::from_drawing)?;
+        draw(&root).map_err(PlotError)?;
+        root.present().map_err(PlotError::from_drawing)?;
     }
     Ok(svg)
 }
@@ -100,7 +114,7 @@ pub fn xy_chart(
     y_desc: &str,
     series: &[Series],
     size: (u32, u32),
-) -> std::result::Result<String, String> {
+) -> Svg {
     let x = padded(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
     let fx = ticks(&x);
     chart(title, x_desc, y_desc, series, size, x, &fx)
@@ -114,7 +128,7 @@ pub fn log_x_chart(
     y_desc: &str,
     series: &[Series],
     size: (u32, u32),
-) -> std::result::Result<String, String> {
+) -> Svg {
     let x = padded(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
     let fx = |v: &f64| {
         let value = 10f64.powf(*v);
@@ -132,7 +146,7 @@ fn chart(
     size: (u32, u32),
     x: Range<f64>,
     fx: &dyn Fn(&f64) -> String,
-) -> std::result::Result<String, String> {
+) -> Svg {
     let y = padded(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
     let fy = ticks(&y);
     render(size, |root| {
@@ -207,7 +221,7 @@ pub fn trajectory_panels(
     panels: &[Trajectory],
     scale: f64,
     panel_size: (u32, u32),
-) -> std::result::Result<String, String> {
+) -> Svg {
     let shifted: Vec<Vec<(f64, f64)>> = panels
         .iter()
         .map(|p| {
@@ -284,7 +298,7 @@ pub fn histograms(
     rows: &[Distribution],
     bins: usize,
     row_size: (u32, u32),
-) -> std::result::Result<String, String> {
+) -> Svg {
     let x = padded(rows.iter().flat_map(|r| r.values.iter().copied()));
     let bins = bins.max(1);
     let width = (x.end - x.start) / bins as f64;
