@@ -222,9 +222,9 @@ impl<'f> Simulator<'f> {
                 sink.run_end();
             };
             // Taken on a thread of the pool, each window's `rayon::join` starts where it is
-            // called instead of being handed over and waited for from outside: 1.62 → 1.55 s
-            // (median of 10) on the 1M program. Not with a pool of one thread: waiting for the
-            // walker there would leave no thread for the walker's parsing.
+            // called instead of being handed over and waited for from outside. Not with a pool
+            // of one thread: waiting for the walker there would leave no thread for the
+            // walker's parsing.
             if rayon::current_num_threads() >= 2 {
                 rayon::scope(move |_| take_windows());
             } else {
