@@ -24,6 +24,8 @@ use crate::motion::frame::{kuka_near, Frame};
 use crate::motion::interpolate;
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 use nalgebra::{Vector3, Vector6};
+use std::cell::Cell;
+use std::collections::VecDeque;
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -927,7 +929,7 @@ struct Ctx<'a> {
 struct Recheck<'a> {
     ctx: Ctx<'a>,
     plays: [Option<&'a Table1>; 6],
-    widths: std::cell::RefCell<WidthMemo>,
+    widths: WidthMemo,
 }
 
 impl<'a> std::ops::Deref for Recheck<'a> {
@@ -942,7 +944,10 @@ impl<'a> std::ops::Deref for Recheck<'a> {
 /// recent angles of an axis answer most lookups (the same angle's bits, the same width).
 struct WidthMemo {
     /// Per axis, `(angle bits, width)` of recent lookups, each in the slot its bits hash to.
-    slots: [[(u64, f64); WIDTH_MEMO]; 6],
+    slots: [[Cell<(u64, f64)>; WIDTH_MEMO]; 6],
+    /// Per axis, the width table's cell of the last lookup: the next command is a few
+    /// millidegrees away, nearly always in the same cell (see `Grid::locate_near`).
+    cells: [Cell<usize>; 6],
 }
 
 /// Slots per axis of [`WidthMemo`] (a power of two).
@@ -958,7 +963,10 @@ impl WidthMemo {
     fn new(plays: &[Option<&Table1>; 6]) -> WidthMemo {
         // Every slot starts as a true lookup (at 0°), so a slot never answers wrongly.
         WidthMemo {
-            slots: std::array::from_fn(|n| [(0f64.to_bits(), width_in(plays[n], 0.0)); WIDTH_MEMO]),
+            slots: std::array::from_fn(|n| {
+                std::array::from_fn(|_| Cell::new((0f64.to_bits(), width_in(plays[n], 0.0))))
+            }),
+            cells: Default::default(),
         }
     }
 
@@ -974,19 +982,28 @@ impl<'a> Recheck<'a> {
         Recheck {
             ctx,
             plays,
-            widths: std::cell::RefCell::new(WidthMemo::new(&plays)),
+            widths: WidthMemo::new(&plays),
         }
     }
 
     /// The width (degrees) of axis n's play at command `angle` ([`Model::play_width_deg`]).
     fn play_width(&self, n: usize, angle: f64) -> f64 {
+        let Some(table) = self.plays[n] else {
+            return 0.0;
+        };
         let bits = angle.to_bits();
-        let mut memo = self.widths.borrow_mut();
-        let slot = &mut memo.slots[n][WidthMemo::slot(bits)];
-        if slot.0 != bits {
-            *slot = (bits, width_in(self.plays[n], angle));
+        let slot = &self.widths.slots[n][WidthMemo::slot(bits)];
+        let (held, width) = slot.get();
+        if held == bits {
+            return width;
         }
-        slot.1
+        // The cell `eval` would locate, found from the last one.
+        let hint = &self.widths.cells[n];
+        let mut cell = hint.get();
+        let width = table.value_in(&table.grid.locate_near(angle, &mut cell));
+        hint.set(cell);
+        slot.set((bits, width));
+        width
     }
 
     /// Where axis n's play output stands against the command at `state` (0 without a play).
@@ -1079,15 +1096,17 @@ pub const HOLD_DEG: f64 = 1e-5;
 /// states of the last (up to [`LOOK_BACK`]) targets.
 fn recheck(
     ctx: &Recheck,
-    mut previous: Option<AxisState>,
+    previous: Option<AxisState>,
     from: usize,
     outcomes: &mut [Outcome],
     nominal: &[Signs],
     resolved: &mut [bool],
 ) -> (Counts, Vec<AxisState>) {
     let mut counts = Counts::default();
-    // The states of the targets settled so far (the history's last), oldest first.
-    let mut states: Vec<AxisState> = previous.into_iter().collect();
+    // The states of the targets settled so far (the history's last), oldest first; the last
+    // is the state the next target's motion starts from. A ring: states are 400-byte records.
+    let mut states: VecDeque<AxisState> = VecDeque::with_capacity(LOOK_BACK + 1);
+    states.extend(previous);
     for k in from..ctx.len() {
         let rest = |k: usize| -> [bool; 6] {
             let turns = ctx.target(k).turns.angle_deg;
@@ -1096,12 +1115,12 @@ fn recheck(
                 None => [false; 6],
             }
         };
-        let mut state = settle_one(ctx, k, &rest(k), previous, outcomes, &mut resolved[k]);
+        let mut state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
         // A circle's auxiliary point and end shape one arc: the end settled, its auxiliary
         // point (settled with the end's first-pass command) is settled again, then the end.
         if ctx.target(k).interp == Interp::CircEnd && k > from && states.len() >= 2 {
-            let before_aux = Some(states[states.len() - 2]);
             for _ in 0..2 {
+                let before_aux = Some(&states[states.len() - 2]);
                 let aux = settle_one(
                     ctx,
                     k - 1,
@@ -1110,8 +1129,8 @@ fn recheck(
                     outcomes,
                     &mut resolved[k - 1],
                 );
-                *states.last_mut().expect("the auxiliary point's state") = aux;
-                state = settle_one(ctx, k, &rest(k), Some(aux), outcomes, &mut resolved[k]);
+                *states.back_mut().expect("the auxiliary point's state") = aux;
+                state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
             }
         }
         let o = &outcomes[k];
@@ -1123,17 +1142,19 @@ fn recheck(
         // The auxiliary point of a circle written by construction is not visited: the circle
         // starts from the stop before it.
         if ctx.target(k).interp == Interp::CircAngleAux {
-            state = previous.unwrap_or(state);
+            if let Some(before) = states.back() {
+                state = *before;
+            }
         }
-        states.push(state);
+        states.push_back(state);
         if states.len() > LOOK_BACK {
-            states.remove(0);
+            states.pop_front();
         }
-        previous = Some(state);
     }
     // The segment's own (the history's state may still be among them).
     let keep = (ctx.len() - from).min(states.len());
-    (counts, states.split_off(states.len() - keep))
+    let older = states.len() - keep;
+    (counts, states.into_iter().skip(older).collect())
 }
 
 /// Settles target `k` in `outcomes`, arriving from `previous` (see [`settle_target`]): solving
@@ -1145,7 +1166,7 @@ fn settle_one(
     ctx: &Recheck,
     k: usize,
     rest: &[bool; 6],
-    previous: Option<AxisState>,
+    previous: Option<&AxisState>,
     outcomes: &mut [Outcome],
     resolved: &mut bool,
 ) -> AxisState {
@@ -1153,8 +1174,7 @@ fn settle_one(
     let mut best: Option<Outcome> = None;
     let mut settled = None;
     for _ in 0..SETTLE_ROUNDS {
-        if let Settling::Settled(turns) =
-            settle_target(ctx, k, rest, previous.as_ref(), (&mut o, outcomes))
+        if let Settling::Settled(turns) = settle_target(ctx, k, rest, previous, (&mut o, outcomes))
         {
             settled = Some(turns);
             break;
@@ -1169,16 +1189,18 @@ fn settle_one(
         o = b;
     }
     outcomes[k] = o;
-    let history = match (settled.flatten(), &previous) {
+    let axes_deg = o.axes_deg.into();
+    let mut state = match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
-        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg.into()).history,
-        _ => arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
+        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, axes_deg),
+        _ => AxisState {
+            axes_deg,
+            history: arrival_histories(ctx, k, previous, &o, outcomes),
+            time_s: 0.0,
+        },
     };
-    AxisState {
-        axes_deg: o.axes_deg.into(),
-        history,
-        time_s: 0.0,
-    }
+    state.time_s = 0.0;
+    state
 }
 
 /// Each axis's history on arrival at target `k` commanded as in `out`: the compensated

@@ -44,7 +44,9 @@ pub const TOL_ROTATION_RAD: f64 = 1e-7;
 /// is engaged on, or for an axis held still the history that says where its play stands).
 pub struct Predicted<'a> {
     pub model: &'a Model,
-    pub histories: [AxisHistory; 6],
+    /// The state evaluated last: the histories stay, each evaluation writes its axes (the
+    /// 400-byte state is not built again per evaluation).
+    state: RefCell<AxisState>,
     /// The errors that do not change with the command (time 0), summed once per model.
     fixed: &'a ChainErrors,
     /// The joint sines and cosines of the first evaluation: the solve's later commands are
@@ -61,7 +63,11 @@ impl<'a> Predicted<'a> {
     pub fn new(model: &'a Model, histories: [AxisHistory; 6]) -> Self {
         Predicted {
             model,
-            histories,
+            state: RefCell::new(AxisState {
+                axes_deg: [0.0; 6],
+                history: histories,
+                time_s: 0.0,
+            }),
             fixed: model.fixed_errors_at_time_zero(),
             trig: RefCell::default(),
             cells: Cell::new([0; 6]),
@@ -77,12 +83,10 @@ impl<'a> Predicted<'a> {
         }
     }
 
-    fn state(&self, axes: &[f64; 6]) -> AxisState {
-        AxisState {
-            axes_deg: *axes,
-            history: self.histories,
-            time_s: 0.0,
-        }
+    /// The state at `axes`.
+    fn state(&self, axes: &[f64; 6]) -> std::cell::Ref<'_, AxisState> {
+        self.state.borrow_mut().axes_deg = *axes;
+        self.state.borrow()
     }
 
     fn errors(&self, axes: &[f64; 6]) -> ChainErrors {
