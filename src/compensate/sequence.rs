@@ -987,6 +987,8 @@ impl<'a> Recheck<'a> {
     }
 
     /// The width (degrees) of axis n's play at command `angle` ([`Model::play_width_deg`]).
+    /// Inlined where it is asked: most lookups are answered by the memo.
+    #[inline(always)]
     fn play_width(&self, n: usize, angle: f64) -> f64 {
         let Some(table) = self.plays[n] else {
             return 0.0;
@@ -997,12 +999,18 @@ impl<'a> Recheck<'a> {
         if held == bits {
             return width;
         }
+        self.look_width_up(n, table, angle, slot)
+    }
+
+    /// [`Self::play_width`] not in the memo: looked up in the table and kept in `slot`.
+    #[inline(never)]
+    fn look_width_up(&self, n: usize, table: &Table1, angle: f64, slot: &Cell<(u64, f64)>) -> f64 {
         // The cell `eval` would locate, found from the last one.
         let hint = &self.widths.cells[n];
         let mut cell = hint.get();
         let width = table.value_in(&table.grid.locate_near(angle, &mut cell));
         hint.set(cell);
-        slot.set((bits, width));
+        slot.set((angle.to_bits(), width));
         width
     }
 
@@ -1192,7 +1200,11 @@ fn settle_one(
     let axes_deg = o.axes_deg.into();
     let mut state = match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
-        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, axes_deg),
+        (Some(turns), Some(p)) => {
+            let mut state = *p;
+            state.advance_through(&turns.angle_deg, axes_deg);
+            state
+        }
         _ => AxisState {
             axes_deg,
             history: arrival_histories(ctx, k, previous, &o, outcomes),
@@ -1463,6 +1475,32 @@ impl Segment {
         n + 2
     }
 
+    /// The flank [`Self::command_for`] finds driven, when it is certain without the search
+    /// (`None`: search). On a motion without a turning point whose wanted output lies clearly
+    /// above where the output starts, every command that reaches it lies past the band's
+    /// upper edge `start_output + half`, where the output is the command less half the play:
+    /// the positive flank; clearly below, the negative one. "Clearly" is by far more than the
+    /// rounding of the breakpoints (a few ulps) and the search's tolerance, and the bracket
+    /// is then found well within its 360° limit. Most moving axes of a path are settled here.
+    fn sure_flank(&self, wanted: f64, near: f64) -> Option<Direction> {
+        const CLEAR_DEG: f64 = 1e-9;
+        let (s, h) = (self.start_output, self.half);
+        let certain = !self.turn.is_finite()
+            && h >= 1e-6
+            && h < 1.0
+            && s.is_finite()
+            && (wanted - near).abs() < 90.0;
+        if !certain {
+            None
+        } else if wanted > s + CLEAR_DEG {
+            Some(Direction::Positive)
+        } else if wanted < s - CLEAR_DEG {
+            Some(Direction::Negative)
+        } else {
+            None
+        }
+    }
+
     /// The command whose arrival puts the play's output at `wanted`, nearest `near` where a
     /// range of commands does (inside the play), and how it does it.
     fn command_for(&self, wanted: f64, near: f64) -> (f64, Reach) {
@@ -1658,7 +1696,14 @@ impl AxesOf<'_, '_> {
         if (segment.output(c[n]) - wanted).abs() <= 1e-12 && !jitter {
             return AxisSettled::Kept;
         }
-        let (mut command, mut reach) = segment.command_for(wanted, c[n]);
+        let (mut command, mut reach) = match segment.sure_flank(wanted, c[n]) {
+            // The command found would only be used for an axis held inside its play.
+            Some(d) => {
+                debug_assert_eq!(segment.command_for(wanted, c[n]).1, Reach::Flank(d));
+                (c[n], Reach::Flank(d))
+            }
+            None => segment.command_for(wanted, c[n]),
+        };
         // A held axis whose output need not move (beyond the solver's own noise) stays exactly
         // where it was.
         if rest && (segment.output(p.axes_deg[n]) - wanted).abs() <= HOLD_DEG {
@@ -1734,4 +1779,37 @@ fn solve_again(
     }
     let histories = arrival_histories(ctx, k, previous, out, outcomes);
     out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Where [`Segment::sure_flank`] answers, the search answers the same: a motion
+        /// without a turning point, its output starting anywhere near the command, the wanted
+        /// output near it too (down to the rounding of the breakpoints).
+        #[test]
+        fn a_sure_flank_is_the_one_the_search_finds(
+            near in -350.0f64..350.0,
+            start in -1.0f64..1.0,
+            half in 0.0f64..0.6,
+            wanted in -1.0f64..1.0,
+            scale in 0usize..4,
+        ) {
+            // Offsets down to a few ulps of the angle.
+            let shrink = [1.0, 1e-4, 1e-8, 1e-12][scale];
+            let segment = Segment {
+                start_output: near + start * shrink,
+                turn: f64::NAN,
+                at: 0.0,
+                half,
+            };
+            let wanted = segment.start_output + wanted * shrink;
+            if let Some(d) = segment.sure_flank(wanted, near) {
+                prop_assert_eq!(segment.command_for(wanted, near).1, Reach::Flank(d));
+            }
+        }
+    }
 }
