@@ -951,7 +951,7 @@ struct WidthMemo {
 }
 
 /// Slots per axis of [`WidthMemo`] (a power of two).
-const WIDTH_MEMO: usize = 16;
+const WIDTH_MEMO: usize = 64;
 
 /// The width of a play whose table is `play` (0 without one) at command `angle`, as
 /// [`Model::play_width_deg`] gives it.
