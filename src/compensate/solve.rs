@@ -319,6 +319,10 @@ pub struct Chain {
     recent: [Option<Solved>; 2],
     /// The tool of the targets (another tool moves the TCP elsewhere: the chain starts over).
     tool: Option<u32>,
+    /// The merged tables' cells of the last target's last evaluation: the next target is
+    /// nearby, its first lookup starts from them (a hint only: `Grid::locate_near` finds the
+    /// same cell from any).
+    cells: [usize; 6],
 }
 
 /// A target solved along a [`Chain`].
@@ -384,21 +388,33 @@ pub fn solve_in_chain(
     chain: &mut Chain,
 ) -> Result<Solution, SolveError> {
     let arm = Predicted::new(model, problem.histories);
+    arm.cells.set(chain.cells);
+    let solved = solve_warm_or_afresh(&arm, problem, chain);
+    chain.cells = arm.cells.get();
+    solved
+}
+
+/// [`solve_in_chain`] with the model at the target's histories.
+fn solve_warm_or_afresh(
+    arm: &Predicted,
+    problem: &Problem,
+    chain: &mut Chain,
+) -> Result<Solution, SolveError> {
     let goal = problem.newton_goal();
     let warm = chain.recent[0].is_some() && !problem.hold.contains(&true);
     if let Some(lu) = chain.jacobian.as_ref().filter(|_| warm) {
-        let e0 = match at_start(&arm, problem) {
+        let e0 = match at_start(arm, problem) {
             Ok(there) => return Ok(there),
             Err(e0) => e0,
         };
         if let Some(q) = chain.predict(lu, &problem.start, &e0) {
-            if let Some(sol) = nominal::quasi_newton(&arm, &goal, q, lu, e0, WARM_EVALUATIONS) {
+            if let Some(sol) = nominal::quasi_newton(arm, &goal, q, lu, e0, WARM_EVALUATIONS) {
                 return Ok(sol);
             }
         }
     }
     let mut first = None;
-    let solved = nominal::newton_keeping(&arm, &goal, &mut first);
+    let solved = nominal::newton_keeping(arm, &goal, &mut first);
     if first.is_some() {
         chain.jacobian = first;
     }
