@@ -776,12 +776,15 @@ fn solve_target(
     };
     let mut turn_held = [false; 6];
     let ((s0, t0), (s1, t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
+    // The solution's status and turn, known unless it is solved again.
+    let mut solved = Some((s1, t1));
     if target.keep.t && t0 != t1 && s0 == s1 {
         let retry;
         (retry, turn_held) = turn_kept(&problem, t0 ^ t1, t0);
         sol = solve_or_best(&retry, Method::Iterate)?;
+        solved = None;
     }
-    within_limits_and_configuration(robot, target, (s0, t0), &sol.axes_deg)?;
+    within_limits_and_configuration(robot, target, (s0, t0), &sol.axes_deg, solved)?;
     Ok((sol, turn_held))
 }
 
@@ -813,13 +816,14 @@ fn turn_kept<'p>(problem: &Problem<'p>, changed: u8, t0: u8) -> (Problem<'p>, [b
     (retry, turn_held)
 }
 
-/// A solution's axes within the joint limits, and its S and T those of the programmed target
-/// where the target keeps them.
+/// A solution's axes within the joint limits, and its S and T (`status`, [`status_turn`]'s
+/// when not given) those of the programmed target where the target keeps them.
 fn within_limits_and_configuration(
     robot: &RobotDescription,
     target: &Target,
     (s0, t0): (u8, u8),
     axes: &[f64; 6],
+    status: Option<(u8, u8)>,
 ) -> Result<(), TargetError> {
     for (n, (a, [lo, hi])) in axes.iter().zip(robot.limits_deg.iter()).enumerate() {
         if a < lo || a > hi {
@@ -831,7 +835,7 @@ fn within_limits_and_configuration(
             });
         }
     }
-    let (s1, t1) = status_turn(robot, axes);
+    let (s1, t1) = status.unwrap_or_else(|| status_turn(robot, axes));
     let s_bad = target.keep.s && s0 != s1;
     let t_bad = target.keep.t && t0 != t1;
     if s_bad || t_bad {
