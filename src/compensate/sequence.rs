@@ -1490,8 +1490,7 @@ impl Segment {
         const CLEAR_DEG: f64 = 1e-9;
         let (s, h) = (self.start_output, self.half);
         let certain = !self.turn.is_finite()
-            && h >= 1e-6
-            && h < 1.0
+            && (1e-6..1.0).contains(&h)
             && s.is_finite()
             && (wanted - near).abs() < 90.0;
         if !certain {
