@@ -24,6 +24,8 @@ use crate::motion::frame::{kuka_near, Frame};
 use crate::motion::interpolate;
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 use nalgebra::{Vector3, Vector6};
+use std::cell::Cell;
+use std::collections::VecDeque;
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -774,12 +776,15 @@ fn solve_target(
     };
     let mut turn_held = [false; 6];
     let ((s0, t0), (s1, t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
+    // The solution's status and turn, known unless it is solved again.
+    let mut solved = Some((s1, t1));
     if target.keep.t && t0 != t1 && s0 == s1 {
         let retry;
         (retry, turn_held) = turn_kept(&problem, t0 ^ t1, t0);
         sol = solve_or_best(&retry, Method::Iterate)?;
+        solved = None;
     }
-    within_limits_and_configuration(robot, target, (s0, t0), &sol.axes_deg)?;
+    within_limits_and_configuration(robot, target, (s0, t0), &sol.axes_deg, solved)?;
     Ok((sol, turn_held))
 }
 
@@ -811,13 +816,14 @@ fn turn_kept<'p>(problem: &Problem<'p>, changed: u8, t0: u8) -> (Problem<'p>, [b
     (retry, turn_held)
 }
 
-/// A solution's axes within the joint limits, and its S and T those of the programmed target
-/// where the target keeps them.
+/// A solution's axes within the joint limits, and its S and T (`status`, [`status_turn`]'s
+/// when not given) those of the programmed target where the target keeps them.
 fn within_limits_and_configuration(
     robot: &RobotDescription,
     target: &Target,
     (s0, t0): (u8, u8),
     axes: &[f64; 6],
+    status: Option<(u8, u8)>,
 ) -> Result<(), TargetError> {
     for (n, (a, [lo, hi])) in axes.iter().zip(robot.limits_deg.iter()).enumerate() {
         if a < lo || a > hi {
@@ -829,7 +835,7 @@ fn within_limits_and_configuration(
             });
         }
     }
-    let (s1, t1) = status_turn(robot, axes);
+    let (s1, t1) = status.unwrap_or_else(|| status_turn(robot, axes));
     let s_bad = target.keep.s && s0 != s1;
     let t_bad = target.keep.t && t0 != t1;
     if s_bad || t_bad {
@@ -927,7 +933,7 @@ struct Ctx<'a> {
 struct Recheck<'a> {
     ctx: Ctx<'a>,
     plays: [Option<&'a Table1>; 6],
-    widths: std::cell::RefCell<WidthMemo>,
+    widths: WidthMemo,
 }
 
 impl<'a> std::ops::Deref for Recheck<'a> {
@@ -942,11 +948,14 @@ impl<'a> std::ops::Deref for Recheck<'a> {
 /// recent angles of an axis answer most lookups (the same angle's bits, the same width).
 struct WidthMemo {
     /// Per axis, `(angle bits, width)` of recent lookups, each in the slot its bits hash to.
-    slots: [[(u64, f64); WIDTH_MEMO]; 6],
+    slots: [[Cell<(u64, f64)>; WIDTH_MEMO]; 6],
+    /// Per axis, the width table's cell of the last lookup: the next command is a few
+    /// millidegrees away, nearly always in the same cell (see `Grid::locate_near`).
+    cells: [Cell<usize>; 6],
 }
 
 /// Slots per axis of [`WidthMemo`] (a power of two).
-const WIDTH_MEMO: usize = 16;
+const WIDTH_MEMO: usize = 64;
 
 /// The width of a play whose table is `play` (0 without one) at command `angle`, as
 /// [`Model::play_width_deg`] gives it.
@@ -958,7 +967,10 @@ impl WidthMemo {
     fn new(plays: &[Option<&Table1>; 6]) -> WidthMemo {
         // Every slot starts as a true lookup (at 0°), so a slot never answers wrongly.
         WidthMemo {
-            slots: std::array::from_fn(|n| [(0f64.to_bits(), width_in(plays[n], 0.0)); WIDTH_MEMO]),
+            slots: std::array::from_fn(|n| {
+                std::array::from_fn(|_| Cell::new((0f64.to_bits(), width_in(plays[n], 0.0))))
+            }),
+            cells: Default::default(),
         }
     }
 
@@ -974,19 +986,36 @@ impl<'a> Recheck<'a> {
         Recheck {
             ctx,
             plays,
-            widths: std::cell::RefCell::new(WidthMemo::new(&plays)),
+            widths: WidthMemo::new(&plays),
         }
     }
 
     /// The width (degrees) of axis n's play at command `angle` ([`Model::play_width_deg`]).
+    /// Inlined where it is asked: most lookups are answered by the memo.
+    #[inline(always)]
     fn play_width(&self, n: usize, angle: f64) -> f64 {
+        let Some(table) = self.plays[n] else {
+            return 0.0;
+        };
         let bits = angle.to_bits();
-        let mut memo = self.widths.borrow_mut();
-        let slot = &mut memo.slots[n][WidthMemo::slot(bits)];
-        if slot.0 != bits {
-            *slot = (bits, width_in(self.plays[n], angle));
+        let slot = &self.widths.slots[n][WidthMemo::slot(bits)];
+        let (held, width) = slot.get();
+        if held == bits {
+            return width;
         }
-        slot.1
+        self.look_width_up(n, table, angle, slot)
+    }
+
+    /// [`Self::play_width`] not in the memo: looked up in the table and kept in `slot`.
+    #[inline(never)]
+    fn look_width_up(&self, n: usize, table: &Table1, angle: f64, slot: &Cell<(u64, f64)>) -> f64 {
+        // The cell `eval` would locate, found from the last one.
+        let hint = &self.widths.cells[n];
+        let mut cell = hint.get();
+        let width = table.value_in(&table.grid.locate_near(angle, &mut cell));
+        hint.set(cell);
+        slot.set((angle.to_bits(), width));
+        width
     }
 
     /// Where axis n's play output stands against the command at `state` (0 without a play).
@@ -1079,15 +1108,17 @@ pub const HOLD_DEG: f64 = 1e-5;
 /// states of the last (up to [`LOOK_BACK`]) targets.
 fn recheck(
     ctx: &Recheck,
-    mut previous: Option<AxisState>,
+    previous: Option<AxisState>,
     from: usize,
     outcomes: &mut [Outcome],
     nominal: &[Signs],
     resolved: &mut [bool],
 ) -> (Counts, Vec<AxisState>) {
     let mut counts = Counts::default();
-    // The states of the targets settled so far (the history's last), oldest first.
-    let mut states: Vec<AxisState> = previous.into_iter().collect();
+    // The states of the targets settled so far (the history's last), oldest first; the last
+    // is the state the next target's motion starts from. A ring: states are 400-byte records.
+    let mut states: VecDeque<AxisState> = VecDeque::with_capacity(LOOK_BACK + 1);
+    states.extend(previous);
     for k in from..ctx.len() {
         let rest = |k: usize| -> [bool; 6] {
             let turns = ctx.target(k).turns.angle_deg;
@@ -1096,12 +1127,12 @@ fn recheck(
                 None => [false; 6],
             }
         };
-        let mut state = settle_one(ctx, k, &rest(k), previous, outcomes, &mut resolved[k]);
+        let mut state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
         // A circle's auxiliary point and end shape one arc: the end settled, its auxiliary
         // point (settled with the end's first-pass command) is settled again, then the end.
         if ctx.target(k).interp == Interp::CircEnd && k > from && states.len() >= 2 {
-            let before_aux = Some(states[states.len() - 2]);
             for _ in 0..2 {
+                let before_aux = Some(&states[states.len() - 2]);
                 let aux = settle_one(
                     ctx,
                     k - 1,
@@ -1110,8 +1141,8 @@ fn recheck(
                     outcomes,
                     &mut resolved[k - 1],
                 );
-                *states.last_mut().expect("the auxiliary point's state") = aux;
-                state = settle_one(ctx, k, &rest(k), Some(aux), outcomes, &mut resolved[k]);
+                *states.back_mut().expect("the auxiliary point's state") = aux;
+                state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
             }
         }
         let o = &outcomes[k];
@@ -1123,17 +1154,19 @@ fn recheck(
         // The auxiliary point of a circle written by construction is not visited: the circle
         // starts from the stop before it.
         if ctx.target(k).interp == Interp::CircAngleAux {
-            state = previous.unwrap_or(state);
+            if let Some(before) = states.back() {
+                state = *before;
+            }
         }
-        states.push(state);
+        states.push_back(state);
         if states.len() > LOOK_BACK {
-            states.remove(0);
+            states.pop_front();
         }
-        previous = Some(state);
     }
     // The segment's own (the history's state may still be among them).
     let keep = (ctx.len() - from).min(states.len());
-    (counts, states.split_off(states.len() - keep))
+    let older = states.len() - keep;
+    (counts, states.into_iter().skip(older).collect())
 }
 
 /// Settles target `k` in `outcomes`, arriving from `previous` (see [`settle_target`]): solving
@@ -1145,7 +1178,7 @@ fn settle_one(
     ctx: &Recheck,
     k: usize,
     rest: &[bool; 6],
-    previous: Option<AxisState>,
+    previous: Option<&AxisState>,
     outcomes: &mut [Outcome],
     resolved: &mut bool,
 ) -> AxisState {
@@ -1153,8 +1186,7 @@ fn settle_one(
     let mut best: Option<Outcome> = None;
     let mut settled = None;
     for _ in 0..SETTLE_ROUNDS {
-        if let Settling::Settled(turns) =
-            settle_target(ctx, k, rest, previous.as_ref(), (&mut o, outcomes))
+        if let Settling::Settled(turns) = settle_target(ctx, k, rest, previous, (&mut o, outcomes))
         {
             settled = Some(turns);
             break;
@@ -1169,16 +1201,22 @@ fn settle_one(
         o = b;
     }
     outcomes[k] = o;
-    let history = match (settled.flatten(), &previous) {
+    let axes_deg = o.axes_deg.into();
+    let mut state = match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
-        (Some(turns), Some(p)) => p.then_through(&turns.angle_deg, o.axes_deg.into()).history,
-        _ => arrival_histories(ctx, k, previous.as_ref(), &o, outcomes),
+        (Some(turns), Some(p)) => {
+            let mut state = *p;
+            state.advance_through(&turns.angle_deg, axes_deg);
+            state
+        }
+        _ => AxisState {
+            axes_deg,
+            history: arrival_histories(ctx, k, previous, &o, outcomes),
+            time_s: 0.0,
+        },
     };
-    AxisState {
-        axes_deg: o.axes_deg.into(),
-        history,
-        time_s: 0.0,
-    }
+    state.time_s = 0.0;
+    state
 }
 
 /// Each axis's history on arrival at target `k` commanded as in `out`: the compensated
@@ -1441,6 +1479,31 @@ impl Segment {
         n + 2
     }
 
+    /// The flank [`Self::command_for`] finds driven, when it is certain without the search
+    /// (`None`: search). On a motion without a turning point whose wanted output lies clearly
+    /// above where the output starts, every command that reaches it lies past the band's
+    /// upper edge `start_output + half`, where the output is the command less half the play:
+    /// the positive flank; clearly below, the negative one. "Clearly" is by far more than the
+    /// rounding of the breakpoints (a few ulps) and the search's tolerance, and the bracket
+    /// is then found well within its 360° limit. Most moving axes of a path are settled here.
+    fn sure_flank(&self, wanted: f64, near: f64) -> Option<Direction> {
+        const CLEAR_DEG: f64 = 1e-9;
+        let (s, h) = (self.start_output, self.half);
+        let certain = !self.turn.is_finite()
+            && (1e-6..1.0).contains(&h)
+            && s.is_finite()
+            && (wanted - near).abs() < 90.0;
+        if !certain {
+            None
+        } else if wanted > s + CLEAR_DEG {
+            Some(Direction::Positive)
+        } else if wanted < s - CLEAR_DEG {
+            Some(Direction::Negative)
+        } else {
+            None
+        }
+    }
+
     /// The command whose arrival puts the play's output at `wanted`, nearest `near` where a
     /// range of commands does (inside the play), and how it does it.
     fn command_for(&self, wanted: f64, near: f64) -> (f64, Reach) {
@@ -1636,7 +1699,14 @@ impl AxesOf<'_, '_> {
         if (segment.output(c[n]) - wanted).abs() <= 1e-12 && !jitter {
             return AxisSettled::Kept;
         }
-        let (mut command, mut reach) = segment.command_for(wanted, c[n]);
+        let (mut command, mut reach) = match segment.sure_flank(wanted, c[n]) {
+            // The command found would only be used for an axis held inside its play.
+            Some(d) => {
+                debug_assert_eq!(segment.command_for(wanted, c[n]).1, Reach::Flank(d));
+                (c[n], Reach::Flank(d))
+            }
+            None => segment.command_for(wanted, c[n]),
+        };
         // A held axis whose output need not move (beyond the solver's own noise) stays exactly
         // where it was.
         if rest && (segment.output(p.axes_deg[n]) - wanted).abs() <= HOLD_DEG {
@@ -1712,4 +1782,37 @@ fn solve_again(
     }
     let histories = arrival_histories(ctx, k, previous, out, outcomes);
     out.residual = tcp_error(model, tool, &out.axes_deg, &histories, &target.goal);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Where [`Segment::sure_flank`] answers, the search answers the same: a motion
+        /// without a turning point, its output starting anywhere near the command, the wanted
+        /// output near it too (down to the rounding of the breakpoints).
+        #[test]
+        fn a_sure_flank_is_the_one_the_search_finds(
+            near in -350.0f64..350.0,
+            start in -1.0f64..1.0,
+            half in 0.0f64..0.6,
+            wanted in -1.0f64..1.0,
+            scale in 0usize..4,
+        ) {
+            // Offsets down to a few ulps of the angle.
+            let shrink = [1.0, 1e-4, 1e-8, 1e-12][scale];
+            let segment = Segment {
+                start_output: near + start * shrink,
+                turn: f64::NAN,
+                at: 0.0,
+                half,
+            };
+            let wanted = segment.start_output + wanted * shrink;
+            if let Some(d) = segment.sure_flank(wanted, near) {
+                prop_assert_eq!(segment.command_for(wanted, near).1, Reach::Flank(d));
+            }
+        }
+    }
 }

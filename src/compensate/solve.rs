@@ -43,7 +43,9 @@ pub const TOL_ROTATION_RAD: f64 = 1e-7;
 /// is engaged on, or for an axis held still the history that says where its play stands).
 pub struct Predicted<'a> {
     pub model: &'a Model,
-    pub histories: [AxisHistory; 6],
+    /// The state evaluated last: the histories stay, each evaluation writes its axes (the
+    /// 400-byte state is not built again per evaluation).
+    state: RefCell<AxisState>,
     /// The errors that do not change with the command (time 0), summed once per model.
     fixed: &'a ChainErrors,
     /// The joint sines and cosines of the first evaluation: the solve's later commands are
@@ -60,7 +62,11 @@ impl<'a> Predicted<'a> {
     pub fn new(model: &'a Model, histories: [AxisHistory; 6]) -> Self {
         Predicted {
             model,
-            histories,
+            state: RefCell::new(AxisState {
+                axes_deg: [0.0; 6],
+                history: histories,
+                time_s: 0.0,
+            }),
             fixed: model.fixed_errors_at_time_zero(),
             trig: RefCell::default(),
             cells: Cell::new([0; 6]),
@@ -76,12 +82,10 @@ impl<'a> Predicted<'a> {
         }
     }
 
-    fn state(&self, axes: &[f64; 6]) -> AxisState {
-        AxisState {
-            axes_deg: *axes,
-            history: self.histories,
-            time_s: 0.0,
-        }
+    /// The state at `axes`.
+    fn state(&self, axes: &[f64; 6]) -> std::cell::Ref<'_, AxisState> {
+        self.state.borrow_mut().axes_deg = *axes;
+        self.state.borrow()
     }
 
     fn errors(&self, axes: &[f64; 6]) -> ChainErrors {
@@ -314,6 +318,10 @@ pub struct Chain {
     recent: [Option<Solved>; 2],
     /// The tool of the targets (another tool moves the TCP elsewhere: the chain starts over).
     tool: Option<u32>,
+    /// The merged tables' cells of the last target's last evaluation: the next target is
+    /// nearby, its first lookup starts from them (a hint only: `Grid::locate_near` finds the
+    /// same cell from any).
+    cells: [usize; 6],
 }
 
 /// A target solved along a [`Chain`].
@@ -379,21 +387,33 @@ pub fn solve_in_chain(
     chain: &mut Chain,
 ) -> Result<Solution, SolveError> {
     let arm = Predicted::new(model, problem.histories);
+    arm.cells.set(chain.cells);
+    let solved = solve_warm_or_afresh(&arm, problem, chain);
+    chain.cells = arm.cells.get();
+    solved
+}
+
+/// [`solve_in_chain`] with the model at the target's histories.
+fn solve_warm_or_afresh(
+    arm: &Predicted,
+    problem: &Problem,
+    chain: &mut Chain,
+) -> Result<Solution, SolveError> {
     let goal = problem.newton_goal();
     let warm = chain.recent[0].is_some() && !problem.hold.contains(&true);
     if let Some(lu) = chain.jacobian.as_ref().filter(|_| warm) {
-        let e0 = match at_start(&arm, problem) {
+        let e0 = match at_start(arm, problem) {
             Ok(there) => return Ok(there),
             Err(e0) => e0,
         };
         if let Some(q) = chain.predict(lu, &problem.start, &e0) {
-            if let Some(sol) = nominal::quasi_newton(&arm, &goal, q, lu, e0, WARM_EVALUATIONS) {
+            if let Some(sol) = nominal::quasi_newton(arm, &goal, q, lu, e0, WARM_EVALUATIONS) {
                 return Ok(sol);
             }
         }
     }
     let mut first = None;
-    let solved = nominal::newton_keeping(&arm, &goal, &mut first);
+    let solved = nominal::newton_keeping(arm, &goal, &mut first);
     if first.is_some() {
         chain.jacobian = first;
     }

@@ -89,13 +89,18 @@ impl AxisState {
     /// last at command `turns[n]` (NaN: it does not turn round).
     pub fn then_through(&self, turns: &[f64; 6], axes_deg: [f64; 6]) -> AxisState {
         let mut next = *self;
+        next.advance_through(turns, axes_deg);
+        next
+    }
+
+    /// [`Self::then_through`] in place (the state is a 400-byte record).
+    pub fn advance_through(&mut self, turns: &[f64; 6], axes_deg: [f64; 6]) {
         for (n, &turn) in turns.iter().enumerate() {
-            next.history[n].push(self.axes_deg[n]);
+            self.history[n].push(self.axes_deg[n]);
             if turn.is_finite() {
-                next.history[n].push(turn);
+                self.history[n].push(turn);
             }
         }
-        next.axes_deg = axes_deg;
-        next
+        self.axes_deg = axes_deg;
     }
 }

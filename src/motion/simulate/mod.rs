@@ -324,15 +324,17 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                 let Some(p) = stop.prev else { continue };
                 let prev = &sim.stops[p as usize];
                 let tool = &sim.frames[stop.tool as usize];
-                let carried = match carry.take() {
-                    Some((i, t, at)) if i == p && t == stop.tool => Some(at),
+                // Borrowed, not moved out: the arm state is a 430-byte record.
+                let carried = match &carry {
+                    Some((i, t, at)) if *i == p && *t == stop.tool => Some(at),
                     _ => None,
                 };
-                let start = match &carried {
+                let start = match carried {
                     Some(at) => at.tcp,
                     None => interpolate::end_tcp(robot, &prev.nominal_axes, tool),
                 };
                 let Ok(cart) = Cartesian::new(&start, &stop.goal, &Path::Lin) else {
+                    carry = None;
                     continue;
                 };
                 let a = interpolate::arrival_and_end(
@@ -340,20 +342,21 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                     tool,
                     &cart,
                     1.0,
-                    (&*prev.nominal_axes, carried.as_ref()),
+                    (&*prev.nominal_axes, carried),
                     &stop.nominal_axes,
                 );
                 *slot = Some(match a {
                     Ok((a, end)) => {
-                        if a.end == stop.nominal_axes {
-                            carry = Some((k as u32, stop.tool, end));
-                        }
+                        carry = (a.end == stop.nominal_axes).then_some((k as u32, stop.tool, end));
                         (a.rate, a.turns)
                     }
-                    Err(_) => (
-                        std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
-                        interpolate::NO_TURNS,
-                    ),
+                    Err(_) => {
+                        carry = None;
+                        (
+                            std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
+                            interpolate::NO_TURNS,
+                        )
+                    }
                 });
             }
         });

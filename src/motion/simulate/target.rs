@@ -97,6 +97,12 @@ impl<'f> Simulator<'f> {
 
     /// The base and tool for a Cartesian motion, or an error naming where the frame was lost.
     pub(super) fn motion_frames(&mut self, file: FileId, s: &Stmt) -> Option<(Frame, Frame)> {
+        // Both known (nearly every motion): nothing to say, no state cloned.
+        if let (FrameState::Known(base), FrameState::Known(tool)) =
+            (&self.state.base, &self.state.tool)
+        {
+            return Some((*base, *tool));
+        }
         let mut out = [Frame::identity(); 2];
         for (k, st) in [self.state.base.clone(), self.state.tool.clone()]
             .iter()
