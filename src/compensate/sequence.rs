@@ -17,7 +17,7 @@
 //! than the play makes the command travel the play; such targets are counted and reported.
 
 use super::solve::{self, Method, Problem, SolveError};
-use crate::kinematics::{status_turn, AxisAngles, RobotDescription};
+use crate::kinematics::{status_turn, AxisAngles, Pose, RobotDescription};
 use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
@@ -334,7 +334,7 @@ pub struct Command {
     /// `tcp` in the target's base frame as [`Frame::to_kuka_unchosen`] gives it, for a
     /// Cartesian target the re-check did not re-solve: the rewrite chooses its Euler triple
     /// from this instead of converting the matrix again.
-    pub unchosen: Option<[f64; 6]>,
+    pub unchosen: Option<Pose>,
 }
 
 /// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
@@ -1042,7 +1042,7 @@ impl<'a> Ctx<'a> {
         k: usize,
         axes: &[f64; 6],
         raw: impl FnOnce() -> Frame,
-    ) -> (Frame, Option<[f64; 6]>) {
+    ) -> (Frame, Option<Pose>) {
         match self.target(k).quantum {
             Some(q) if q.axis => {
                 let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], q.decimals[i]));
@@ -1056,7 +1056,8 @@ impl<'a> Ctx<'a> {
                     Some(u) => kuka_near(u, &[0.0; 3]),
                     None => in_base.to_kuka_near(&[0.0; 3]),
                 };
-                let r: [f64; 6] = std::array::from_fn(|i| round_to(p[i], q.decimals[i]));
+                let p = p.to_array();
+                let r = Pose::from_array(std::array::from_fn(|i| round_to(p[i], q.decimals[i])));
                 (base.compose(&Frame::from_kuka(&r)), unchosen)
             }
             None => (raw(), None),

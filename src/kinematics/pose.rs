@@ -54,6 +54,11 @@ impl Pose {
         [self.x, self.y, self.z, self.a, self.b, self.c]
     }
 
+    /// `[A, B, C]`, degrees.
+    pub fn abc(&self) -> [f64; 3] {
+        [self.a, self.b, self.c]
+    }
+
     /// R = Rz(A)·Ry(B)·Rx(C) (KUKA's ZYX Euler angles, degrees).
     pub fn rotation_matrix(&self) -> Matrix3<f64> {
         abc_to_matrix(self.a, self.b, self.c)

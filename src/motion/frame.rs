@@ -3,13 +3,13 @@
 //! `[Δp (mm); Δr (rad)]` with the rotation error as the rotation vector of `R_actual · R_goalᵀ`
 //! (a world-frame error, the frame in which the paper writes `p̂ − p*`), and its inverse, the
 //! exponential; conversions to and from KUKA X/Y/Z/A/B/C. Downstream of `kinematics` a rigid
-//! transform is a [`Frame`]: a KUKA record (`kinematics::Pose`, or a target's six numbers) is
+//! transform is a [`Frame`]: a KUKA record (X, Y, Z, A, B, C) is a `kinematics::Pose`,
 //! converted at the edges (`from_kuka`, `to_kuka_near`), and a frame becomes an `Isometry3`
 //! only to be handed to `kinematics` or `model` (`to_isometry`).
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
-use crate::kinematics::{abc_to_matrix, matrix_to_abc};
+use crate::kinematics::{abc_to_matrix, matrix_to_abc, Pose};
 
 /// A rigid frame: `x ↦ rotation · x + position`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,11 +41,10 @@ impl Frame {
     }
 
     /// A KUKA frame: X, Y, Z in mm, R = Rz(A)·Ry(B)·Rx(C) in degrees.
-    pub fn from_kuka(xyzabc: &[f64; 6]) -> Frame {
-        let [x, y, z, a, b, c] = *xyzabc;
+    pub fn from_kuka(pose: &Pose) -> Frame {
         Frame {
-            rotation: abc_to_matrix(a, b, c),
-            position: Vector3::new(x, y, z),
+            rotation: abc_to_matrix(pose.a, pose.b, pose.c),
+            position: Vector3::new(pose.x, pose.y, pose.z),
         }
     }
 
@@ -53,24 +52,35 @@ impl Frame {
     /// value being replaced): of the two Euler triples of a rotation and their ±360° copies,
     /// the one a user would expect next to the original; at B = ±90° (where only A∓C is
     /// defined) C is kept.
-    pub fn to_kuka_near(&self, near: &[f64; 3]) -> [f64; 6] {
-        let p = self.position;
+    pub fn to_kuka_near(&self, near: &[f64; 3]) -> Pose {
         let [a, b, c] = abc_near(&self.rotation, near);
-        [p.x, p.y, p.z, a, b, c]
+        self.kuka_with(a, b, c)
+    }
+
+    /// This frame's X, Y, Z with the angles A, B, C.
+    fn kuka_with(&self, a: f64, b: f64, c: f64) -> Pose {
+        let p = self.position;
+        Pose {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+            a,
+            b,
+            c,
+        }
     }
 
     /// What [`Self::to_kuka_near`] chooses from, for any `near`: the position and the Euler
     /// triple of [`matrix_to_abc`]; `None` at gimbal lock, where the choice needs the matrix.
     /// Worked out once where a pose is written near two different references (the
     /// compensation's re-check near zero, the rewrite near the original numbers).
-    pub fn to_kuka_unchosen(&self) -> Option<[f64; 6]> {
+    pub fn to_kuka_unchosen(&self) -> Option<Pose> {
         let r = &self.rotation;
         if gimbal_locked(r) {
             return None;
         }
-        let p = self.position;
         let [a, b, c] = matrix_to_abc(r);
-        Some([p.x, p.y, p.z, a, b, c])
+        Some(self.kuka_with(a, b, c))
     }
 
     /// `self · other`.
@@ -114,10 +124,14 @@ pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
 
 /// [`Frame::to_kuka_near`] of the frame whose [`Frame::to_kuka_unchosen`] is `unchosen`, to
 /// the bit.
-pub fn kuka_near(unchosen: &[f64; 6], near: &[f64; 3]) -> [f64; 6] {
-    let [x, y, z, a, b, c] = *unchosen;
-    let [a, b, c] = choose_abc([a, b, c], near);
-    [x, y, z, a, b, c]
+pub fn kuka_near(unchosen: &Pose, near: &[f64; 3]) -> Pose {
+    let [a, b, c] = choose_abc(unchosen.abc(), near);
+    Pose {
+        a,
+        b,
+        c,
+        ..*unchosen
+    }
 }
 
 /// Whether `abc_near` must keep C (B = ±90° to 10⁻⁹).
@@ -314,7 +328,7 @@ mod tests {
     /// `log_so3` gives as π.
     #[test]
     fn half_turns_apart() {
-        let a = Frame::from_kuka(&[0.0, 0.0, 0.0, 30.0, -20.0, 75.0]).rotation;
+        let a = Frame::from_kuka(&Pose::from_array([0.0, 0.0, 0.0, 30.0, -20.0, 75.0])).rotation;
         let axis = nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8));
         let turned =
             |angle: f64| a * nalgebra::Rotation3::from_axis_angle(&axis, angle).into_inner();
@@ -324,8 +338,9 @@ mod tests {
         assert!(!half_turn_apart(&a, &turned(pi - 1e-5)));
         assert!(!half_turn_apart(&a, &turned(0.5)));
         assert!(!half_turn_apart(&a, &a));
-        let start = Frame::from_kuka(&[0.0, 0.0, 0.0, 180.0, 10.0, 180.0]).rotation;
-        let goal = Frame::from_kuka(&[0.0, 0.0, 0.0, 0.0, 0.0, 180.0]).rotation;
+        let start =
+            Frame::from_kuka(&Pose::from_array([0.0, 0.0, 0.0, 180.0, 10.0, 180.0])).rotation;
+        let goal = Frame::from_kuka(&Pose::from_array([0.0, 0.0, 0.0, 0.0, 0.0, 180.0])).rotation;
         assert!((log_so3(&(goal * start.transpose())).norm() - pi).abs() < 1e-7);
         assert!(half_turn_apart(&start, &goal));
     }
@@ -356,10 +371,10 @@ mod tests {
             ([30.0, -90.0, -40.0], [30.0, -90.0, -40.0]),
             ([0.0, 0.0, 350.0], [0.0, 0.0, 350.0]),
         ] {
-            let f = Frame::from_kuka(&[1.0, 2.0, 3.0, abc[0], abc[1], abc[2]]);
+            let f = Frame::from_kuka(&Pose::from_array([1.0, 2.0, 3.0, abc[0], abc[1], abc[2]]));
             let out = f.to_kuka_near(&near);
             for i in 0..3 {
-                assert!((out[3 + i] - near[i]).abs() < 1e-3, "{abc:?} → {out:?}");
+                assert!((out.abc()[i] - near[i]).abs() < 1e-3, "{abc:?} → {out:?}");
             }
             let back = Frame::from_kuka(&out);
             assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
@@ -412,12 +427,20 @@ mod tests {
         for a in (-180..=180).step_by(45) {
             for b in [-90.0, -89.99, -60.0, 0.0, 45.5, 89.9999, 90.0] {
                 for c in (-180..=180).step_by(60) {
-                    let f = Frame::from_kuka(&[5.0, -6.0, 7.0, a as f64 + 0.3, b, c as f64]);
+                    let f = Frame::from_kuka(&Pose::from_array([
+                        5.0,
+                        -6.0,
+                        7.0,
+                        a as f64 + 0.3,
+                        b,
+                        c as f64,
+                    ]));
                     match f.to_kuka_unchosen() {
                         Some(u) => {
                             for near in &nears {
                                 let (x, y) = (kuka_near(&u, near), f.to_kuka_near(near));
-                                assert_eq!(x.map(f64::to_bits), y.map(f64::to_bits));
+                                let bits = |p: Pose| p.to_array().map(f64::to_bits);
+                                assert_eq!(bits(x), bits(y));
                                 checked += 1;
                             }
                         }

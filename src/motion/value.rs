@@ -5,6 +5,7 @@
 //! back. Anything that depends on run time (inputs, sensor
 //! values, unknown functions) is `Unknown` with the reason.
 
+use crate::kinematics::Pose;
 use crate::krl::{Aggregate, Expr, Number, SourceFile, Span};
 use std::borrow::Cow;
 
@@ -83,6 +84,11 @@ pub struct Pos<'f> {
 impl Pos<'_> {
     pub fn is_complete(&self) -> bool {
         self.v.iter().all(Option::is_some)
+    }
+
+    /// A Cartesian position read as a frame: the components it does not give are zero.
+    pub fn frame_pose(&self) -> Pose {
+        Pose::from_array(self.v.map(|x| x.unwrap_or(0.0)))
     }
 }
 

@@ -420,9 +420,7 @@ impl<'f> Simulator<'f> {
     /// A frame's state from a value (missing components of a frame aggregate are zero).
     pub(super) fn frame_of(&self, file: FileId, s: &Stmt, v: Value<'f>, what: &str) -> FrameState {
         match v {
-            Value::Pos(p) if !p.axis => {
-                FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
-            }
+            Value::Pos(p) if !p.axis => FrameState::Known(Frame::from_kuka(&p.frame_pose())),
             v => FrameState::Unknown(
                 file,
                 s.head,
@@ -438,13 +436,11 @@ impl<'f> Simulator<'f> {
             return FrameState::Known(Frame::identity());
         }
         if let Some(g) = self.given.iter().find(|g| g.base == base && g.index == n) {
-            return FrameState::Known(Frame::from_kuka(&g.xyzabc));
+            return FrameState::Known(Frame::from_kuka(&g.pose));
         }
         let value = self.config_element(name, n);
         match value {
-            Some(Value::Pos(p)) if !p.axis => {
-                FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
-            }
+            Some(Value::Pos(p)) if !p.axis => FrameState::Known(Frame::from_kuka(&p.frame_pose())),
             _ => FrameState::Unknown(0, Span::default(), String::new(), GIVE_FRAME),
         }
     }

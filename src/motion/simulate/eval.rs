@@ -63,7 +63,7 @@ impl<'f> Simulator<'f> {
         let frame = |base: bool, n: Option<i64>| match n.map(|n| self.config_frame(base, n)) {
             Some(FrameState::Known(f)) => Value::Pos(Pos {
                 axis: false,
-                v: f.to_kuka_near(&[0.0; 3]).map(Some),
+                v: f.to_kuka_near(&[0.0; 3]).to_array().map(Some),
                 s: None,
                 t: None,
                 origin: None,
@@ -115,7 +115,10 @@ impl<'f> Simulator<'f> {
                 return Value::Unknown("the position in an unknown frame".into());
             };
             let tcp = Nominal(&self.robot).tcp(&cur.axes, &tool);
-            base.inverse().compose(&tcp).to_kuka_near(&[0.0; 3])
+            base.inverse()
+                .compose(&tcp)
+                .to_kuka_near(&[0.0; 3])
+                .to_array()
         };
         let (s, t) = status_turn(&self.robot, &cur.axes);
         Value::Pos(Pos {
@@ -175,7 +178,7 @@ impl<'f> Simulator<'f> {
                 return match self.known(st) {
                     Some(f) => Value::Pos(Pos {
                         axis: false,
-                        v: f.to_kuka_near(&[0.0; 3]).map(Some),
+                        v: f.to_kuka_near(&[0.0; 3]).to_array().map(Some),
                         s: None,
                         t: None,
                         origin: None,
@@ -278,7 +281,7 @@ impl<'f> Simulator<'f> {
             {
                 return Value::Pos(Pos {
                     axis: false,
-                    v: g.xyzabc.map(Some),
+                    v: g.pose.to_array().map(Some),
                     s: None,
                     t: None,
                     origin: None,
@@ -423,7 +426,7 @@ pub(super) fn binary<'f>(
     match op {
         BinOp::Geo => match (l, r) {
             (Pos(a), Pos(mut b)) if !a.axis && !b.axis && a.is_complete() => {
-                let fa = crate::motion::frame::Frame::from_kuka(&a.v.map(|x| x.unwrap_or(0.0)));
+                let fa = crate::motion::frame::Frame::from_kuka(&a.frame_pose());
                 // Both operands written in the program: compensating the right one while the
                 // left one may be compensated elsewhere would not add up; leave it.
                 if a.origin.is_some() {
@@ -444,12 +447,11 @@ pub(super) fn binary<'f>(
                         Pos(b)
                     }
                     None if complete => {
-                        let fb =
-                            crate::motion::frame::Frame::from_kuka(&b.v.map(|x| x.unwrap_or(0.0)));
+                        let fb = crate::motion::frame::Frame::from_kuka(&b.frame_pose());
                         let c = fa.compose(&fb);
                         Pos(value::Pos {
                             axis: false,
-                            v: c.to_kuka_near(&[0.0; 3]).map(Some),
+                            v: c.to_kuka_near(&[0.0; 3]).to_array().map(Some),
                             s: b.s,
                             t: b.t,
                             origin: None,

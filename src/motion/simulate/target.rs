@@ -700,7 +700,7 @@ impl<'f> Simulator<'f> {
         match rel {
             Some(kind) => {
                 let start = start_tcp?;
-                let r = Frame::from_kuka(&pos.v.map(|x| x.unwrap_or(0.0)));
+                let r = Frame::from_kuka(&pos.frame_pose());
                 let start_in_base = base.inverse().compose(start);
                 let p = match kind {
                     Rel::Tool => start_in_base.compose(&r),
@@ -710,12 +710,12 @@ impl<'f> Simulator<'f> {
                     },
                 };
                 let near = start_in_base.to_kuka_near(&self.state.last_abc);
-                let programmed = Pose::from_array(p.to_kuka_near(&[near[3], near[4], near[5]]));
+                let programmed = p.to_kuka_near(&near.abc());
                 Some((Programmed::Pose(programmed), base.compose(&p), st))
             }
             None => {
-                let v: [f64; 6] = if pos.is_complete() {
-                    pos.v.map(|x| x.unwrap_or(0.0))
+                let v = if pos.is_complete() {
+                    pos.frame_pose()
                 } else {
                     let start = start_tcp?;
                     let _ = current?;
@@ -725,7 +725,8 @@ impl<'f> Simulator<'f> {
                         pos.v[4].unwrap_or(last[1]),
                         pos.v[5].unwrap_or(last[2]),
                     ]);
-                    std::array::from_fn(|i| pos.v[i].unwrap_or(here[i]))
+                    let here = here.to_array();
+                    Pose::from_array(std::array::from_fn(|i| pos.v[i].unwrap_or(here[i])))
                 };
                 let p = Frame::from_kuka(&v);
                 let table = self.prefixes.borrow();
@@ -736,7 +737,7 @@ impl<'f> Simulator<'f> {
                 if let Some(i) = pos.origin.and_then(|o| o.suffix) {
                     goal = goal.compose(&table[i as usize]);
                 }
-                Some((Programmed::Pose(Pose::from_array(v)), goal, st))
+                Some((Programmed::Pose(v), goal, st))
             }
         }
     }
@@ -791,7 +792,7 @@ impl<'f> Simulator<'f> {
             });
         }
         // Components the offset does not give are zero (a frame).
-        let frame = Frame::from_kuka(&offset.v.map(|x| x.unwrap_or(0.0)));
+        let frame = Frame::from_kuka(&offset.frame_pose());
         let mut table = self.prefixes.borrow_mut();
         table.push(frame);
         let at = (table.len() - 1) as u32;
