@@ -62,13 +62,13 @@ pub struct Target {
     pub keep: Keep,
 }
 
-/// The rounding of a written command: decimals of `X Y Z A B C` in the base (index into the
-/// frame table), or of `A1..A6`.
+/// The rounding of a written command: the decimals of each of its numbers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Quantum {
-    pub base: u32,
-    pub axis: bool,
-    pub decimals: [u8; 6],
+pub enum Quantum {
+    /// Of `A1..A6`.
+    Axes { decimals: [u8; 6] },
+    /// Of `X Y Z A B C` in the base `base` (index into the frame table).
+    Pose { base: u32, decimals: [u8; 6] },
 }
 
 fn round_to(v: f64, decimals: u8) -> f64 {
@@ -1044,12 +1044,12 @@ impl<'a> Ctx<'a> {
         raw: impl FnOnce() -> Frame,
     ) -> (Frame, Option<Pose>) {
         match self.target(k).quantum {
-            Some(q) if q.axis => {
-                let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], q.decimals[i]));
+            Some(Quantum::Axes { decimals }) => {
+                let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], decimals[i]));
                 (Nominal(&self.model.robot).tcp(&r, self.tool(k)), None)
             }
-            Some(q) => {
-                let base = &self.tools[q.base as usize];
+            Some(Quantum::Pose { base, decimals }) => {
+                let base = &self.tools[base as usize];
                 let in_base = base.inverse().compose(&raw());
                 let unchosen = in_base.to_kuka_unchosen();
                 let p = match &unchosen {
@@ -1057,7 +1057,7 @@ impl<'a> Ctx<'a> {
                     None => in_base.to_kuka_near(&[0.0; 3]),
                 };
                 let p = p.to_array();
-                let r = Pose::from_array(std::array::from_fn(|i| round_to(p[i], q.decimals[i])));
+                let r = Pose::from_array(std::array::from_fn(|i| round_to(p[i], decimals[i])));
                 (base.compose(&Frame::from_kuka(&r)), unchosen)
             }
             None => (raw(), None),

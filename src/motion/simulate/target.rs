@@ -10,7 +10,7 @@ use super::*;
 use crate::motion::frame::Frame;
 use crate::motion::interpolate::{self, Cartesian, Path};
 use crate::motion::nominal::Nominal;
-use crate::motion::value::{Pos, Value};
+use crate::motion::value::{Components, Pos, Value};
 use crate::motion::workspace::FileId;
 
 impl<'f> Simulator<'f> {
@@ -205,7 +205,7 @@ impl<'f> Simulator<'f> {
             );
         }
         let rel = m.kind.is_relative().then(|| {
-            if pos.axis {
+            if pos.v.is_axes() {
                 Rel::Axis
             } else if m.frame().is_some_and(|f| f.kind == RelFrameKind::Tool) {
                 Rel::Tool
@@ -214,7 +214,7 @@ impl<'f> Simulator<'f> {
             }
         });
         // An axis target of a PTP needs no frame (the tool only weighs orientation errors).
-        let needs_frames = !pos.axis || !m.kind.is_joint() || m.aux().is_some();
+        let needs_frames = !pos.v.is_axes() || !m.kind.is_joint() || m.aux().is_some();
         let (base, tool) = if needs_frames {
             match self.motion_frames(file, s) {
                 Some(f) => f,
@@ -379,7 +379,7 @@ impl<'f> Simulator<'f> {
                 }
             }
         };
-        if pos.axis && !robot.within_limits(&q) {
+        if pos.v.is_axes() && !robot.within_limits(&q) {
             // The controller refuses it: an error of this target, as an unreachable one.
             let beyond = (0..6)
                 .find(|&i| q[i] < robot.limits_deg[i][0] || q[i] > robot.limits_deg[i][1])
@@ -400,7 +400,7 @@ impl<'f> Simulator<'f> {
             );
             return;
         }
-        let goal = if pos.axis {
+        let goal = if pos.v.is_axes() {
             Nominal(&robot).tcp(&q, &tool)
         } else {
             goal
@@ -610,8 +610,8 @@ impl<'f> Simulator<'f> {
             arrival,
             turns,
             programmed,
-            keep_s: !pos.axis,
-            keep_t: !pos.axis && m.kind.is_joint() && s_t.1.is_some(),
+            keep_s: !pos.v.is_axes(),
+            keep_t: !pos.v.is_axes() && m.kind.is_joint() && s_t.1.is_some(),
             origin: pos.origin,
             reference,
             prev: aux_stop.or(current.and_then(|c| c.stop)),
@@ -679,24 +679,27 @@ impl<'f> Simulator<'f> {
         start_tcp: Option<&Frame>,
     ) -> Option<(Programmed, Frame, (Option<u8>, Option<u8>))> {
         let st = (pos.s, pos.t);
-        if pos.axis {
-            let q: [f64; 6] = match rel {
-                Some(_) => {
-                    let c = current?;
-                    std::array::from_fn(|i| c.axes[i] + pos.v[i].unwrap_or(0.0))
-                }
-                None => {
-                    if pos.is_complete() {
-                        pos.v.map(|x| x.unwrap_or(0.0))
-                    } else {
+        let v = match pos.v {
+            Components::Axes(v) => {
+                let q: [f64; 6] = match rel {
+                    Some(_) => {
                         let c = current?;
-                        std::array::from_fn(|i| pos.v[i].unwrap_or(c.axes[i]))
+                        std::array::from_fn(|i| c.axes[i] + v[i].unwrap_or(0.0))
                     }
-                }
-            };
-            let goal = Nominal(&self.robot).tcp(&q, tool);
-            return Some((Programmed::Axes(q.into()), goal, st));
-        }
+                    None => {
+                        if pos.is_complete() {
+                            v.map(|x| x.unwrap_or(0.0))
+                        } else {
+                            let c = current?;
+                            std::array::from_fn(|i| v[i].unwrap_or(c.axes[i]))
+                        }
+                    }
+                };
+                let goal = Nominal(&self.robot).tcp(&q, tool);
+                return Some((Programmed::Axes(q.into()), goal, st));
+            }
+            Components::Pose(v) => v,
+        };
         match rel {
             Some(kind) => {
                 let start = start_tcp?;
@@ -721,12 +724,12 @@ impl<'f> Simulator<'f> {
                     let _ = current?;
                     let last = self.state.last_abc;
                     let here = base.inverse().compose(start).to_kuka_near(&[
-                        pos.v[3].unwrap_or(last[0]),
-                        pos.v[4].unwrap_or(last[1]),
-                        pos.v[5].unwrap_or(last[2]),
+                        v[3].unwrap_or(last[0]),
+                        v[4].unwrap_or(last[1]),
+                        v[5].unwrap_or(last[2]),
                     ]);
                     let here = here.to_array();
-                    Pose::from_array(std::array::from_fn(|i| pos.v[i].unwrap_or(here[i])))
+                    Pose::from_array(std::array::from_fn(|i| v[i].unwrap_or(here[i])))
                 };
                 let p = Frame::from_kuka(&v);
                 let table = self.prefixes.borrow();
@@ -772,13 +775,13 @@ impl<'f> Simulator<'f> {
         let named = point
             .origin
             .is_some_and(|o| o.var.is_some() && o.prefix.is_none());
-        if point.axis || !point.is_complete() || !named {
+        if point.v.is_axes() || !point.is_complete() || !named {
             return None;
         }
         let Value::Pos(offset) = self.eval(file, &b.rhs, scope) else {
             return None;
         };
-        if offset.axis {
+        if offset.v.is_axes() {
             return None;
         }
         // A declared point as the offset keeps its numbers here (see `Simulation::pinned`).
