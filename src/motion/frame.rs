@@ -1,53 +1,18 @@
-//! Pose arithmetic shared by motion simulation and compensation: a rigid frame as rotation
-//! matrix + position (cheaper than quaternions in inner loops), pose errors as six-vectors
+//! Pose arithmetic shared by motion simulation and compensation, on the crate's rigid
+//! transform [`Frame`] (`kinematics::Frame`, re-exported here): pose errors as six-vectors
 //! `[Δp (mm); Δr (rad)]` with the rotation error as the rotation vector of `R_actual · R_goalᵀ`
 //! (a world-frame error, the frame in which the paper writes `p̂ − p*`), and its inverse, the
-//! exponential; conversions to and from KUKA X/Y/Z/A/B/C. Downstream of `kinematics` a rigid
-//! transform is a [`Frame`]: a KUKA record (X, Y, Z, A, B, C) is a `kinematics::Pose`,
-//! converted at the edges (`from_kuka`, `to_kuka_near`), and a frame becomes an `Isometry3`
-//! only to be handed to `kinematics` or `model` (`to_isometry`).
+//! exponential; a frame written as KUKA X/Y/Z/A/B/C (a `kinematics::Pose`) near the numbers it
+//! replaces (`to_kuka_near`), continuous near gimbal lock (`abc_continuous`).
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Matrix3, Vector3, Vector6};
 
 use crate::kinematics::{abc_to_matrix, matrix_to_abc, Pose};
 
-/// A rigid frame: `x ↦ rotation · x + position`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Frame {
-    pub rotation: Matrix3<f64>,
-    pub position: Vector3<f64>,
-}
+pub use crate::kinematics::Frame;
 
+/// Writing a frame near the numbers it replaces, and moving it by a pose error.
 impl Frame {
-    pub fn identity() -> Frame {
-        Frame {
-            rotation: Matrix3::identity(),
-            position: Vector3::zeros(),
-        }
-    }
-
-    pub fn from_isometry(iso: &Isometry3<f64>) -> Frame {
-        Frame {
-            rotation: *iso.rotation.to_rotation_matrix().matrix(),
-            position: iso.translation.vector,
-        }
-    }
-
-    pub fn to_isometry(&self) -> Isometry3<f64> {
-        // Direct (Shepperd) conversion: the matrix is orthonormal to rounding.
-        let q =
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(self.rotation));
-        Isometry3::from_parts(Translation3::from(self.position), q)
-    }
-
-    /// A KUKA frame: X, Y, Z in mm, R = Rz(A)·Ry(B)·Rx(C) in degrees.
-    pub fn from_kuka(pose: &Pose) -> Frame {
-        Frame {
-            rotation: abc_to_matrix(pose.a, pose.b, pose.c),
-            position: Vector3::new(pose.x, pose.y, pose.z),
-        }
-    }
-
     /// X, Y, Z, A, B, C of this frame, the angles chosen nearest to `near` (A, B, C of the
     /// value being replaced): of the two Euler triples of a rotation and their ±360° copies,
     /// the one a user would expect next to the original; at B = ±90° (where only A∓C is
@@ -81,22 +46,6 @@ impl Frame {
         }
         let [a, b, c] = matrix_to_abc(r);
         Some(self.kuka_with(a, b, c))
-    }
-
-    /// `self · other`.
-    pub fn compose(&self, other: &Frame) -> Frame {
-        Frame {
-            rotation: self.rotation * other.rotation,
-            position: self.position + self.rotation * other.position,
-        }
-    }
-
-    pub fn inverse(&self) -> Frame {
-        let rt = self.rotation.transpose();
-        Frame {
-            rotation: rt,
-            position: -(rt * self.position),
-        }
     }
 
     /// The frame moved by the world-frame error `e` (`[Δp; Δr]`): position `p + Δp`,
@@ -321,6 +270,7 @@ pub fn exp_so3(w: &Vector3<f64>) -> Matrix3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Isometry3, Rotation3};
 
     /// Half turns recognised against angles built by hand: a rotation about any axis by π, by
     /// π less 10⁻⁷ rad (within) and less 10⁻⁵ rad (not); the orientation change of HEAD's pose

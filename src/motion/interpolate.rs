@@ -810,13 +810,9 @@ mod tests {
 
     /// The nominal IK with S = 2 nearest to `near` (the independent closed form).
     fn ik_near(pose: &Frame, near: [f64; 6]) -> [f64; 6] {
-        inverse(
-            &robot(),
-            &pose.to_isometry(),
-            Select::StatusNearest { s: 2, near },
-        )
-        .unwrap()
-        .axes_deg
+        inverse(&robot(), pose, Select::StatusNearest { s: 2, near })
+            .unwrap()
+            .axes_deg
     }
 
     fn fk(q: &[f64; 6]) -> Frame {

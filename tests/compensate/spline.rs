@@ -60,13 +60,9 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
             rotation: down,
             position: tcp - down * Vector3::new(0.0, 0.0, 200.0),
         };
-        inverse(
-            &robot,
-            &flange.to_isometry(),
-            Select::StatusNearest { s, near },
-        )
-        .unwrap()
-        .axes_deg
+        inverse(&robot, &flange, Select::StatusNearest { s, near })
+            .unwrap()
+            .axes_deg
     };
     let q1 = axes_at(barry_goldman(&p, 1.0), stop.nominal_axes.into());
     for (i, (a, b)) in q1.iter().zip(*stop.nominal_axes).enumerate() {

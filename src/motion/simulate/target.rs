@@ -292,7 +292,7 @@ impl<'f> Simulator<'f> {
             let s_cur = status_turn(&robot, &cur.axes).0;
             let q_aux = match kinematics::inverse(
                 &robot,
-                &aux_pose.compose(&tool.inverse()).to_isometry(),
+                &aux_pose.compose(&tool.inverse()),
                 Select::StatusNearest {
                     s: s_cur,
                     near: cur.axes,
@@ -371,7 +371,7 @@ impl<'f> Simulator<'f> {
                 },
             };
             let flange = goal.compose(&tool.inverse());
-            match kinematics::inverse(&robot, &flange.to_isometry(), select) {
+            match kinematics::inverse(&robot, &flange, select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
                     self.unreachable(file, s, format!("the target cannot be reached: {e}"));
@@ -440,7 +440,7 @@ impl<'f> Simulator<'f> {
                 s: s_cur,
                 near: cur.axes,
             };
-            let q_end = match kinematics::inverse(&robot, &flange.to_isometry(), select) {
+            let q_end = match kinematics::inverse(&robot, &flange, select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
                     self.unreachable(
