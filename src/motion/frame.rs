@@ -323,8 +323,8 @@ mod tests {
         ] {
             let f = Frame::from_kuka(&Pose::from_array([1.0, 2.0, 3.0, abc[0], abc[1], abc[2]]));
             let out = f.to_kuka_near(&near);
-            for i in 0..3 {
-                assert!((out.abc()[i] - near[i]).abs() < 1e-3, "{abc:?} → {out:?}");
+            for (got, want) in out.abc().iter().zip(&near) {
+                assert!((got - want).abs() < 1e-3, "{abc:?} → {out:?}");
             }
             let back = Frame::from_kuka(&out);
             assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
