@@ -360,12 +360,18 @@ fn one_tracker_frame_per_file() {
     // Each set-up found (its rotation about Z and height carry A1's zero and the A2 height,
     // which the truth's maps shift by thousandths of a degree), and the move between them
     // exactly.
-    for (k, f) in r.fit.tracker_frames.iter().enumerate() {
+    let found: Vec<_> = r
+        .fit
+        .tracker_frames
+        .iter()
+        .map(|f| f.to_isometry())
+        .collect();
+    for (k, f) in found.iter().enumerate() {
         let truth = setup_frame(k);
         assert!((f.translation.vector - truth.translation.vector).norm() < 0.5);
         assert!(f.rotation.angle_to(&truth.rotation) < 2e-4);
     }
-    let moved = r.fit.tracker_frames[0].inverse() * r.fit.tracker_frames[1];
+    let moved = found[0].inverse() * found[1];
     let truth_moved = setup_frame(0).inverse() * setup_frame(1);
     let dt = (moved.translation.vector - truth_moved.translation.vector).norm();
     let dr = moved.rotation.angle_to(&truth_moved.rotation);
