@@ -235,7 +235,8 @@ fn tracker_frame_registration_is_recovered() {
         c: -0.2,
     }
     .to_isometry();
-    let robot = VirtualRobot::new(truth.clone()).with_tracker_frame(Some(frame));
+    let robot =
+        VirtualRobot::new(truth.clone()).with_tracker_frame(Some(Frame::from_isometry(&frame)));
     let exact = robot
         .clone()
         .with_noise(TrackerNoise::NONE)

@@ -79,7 +79,7 @@ fn setup_frame(k: usize) -> Isometry3<f64> {
 
 fn robot(frame: Option<Isometry3<f64>>, seed: u64) -> VirtualRobot {
     let mut r = VirtualRobot::new(truth())
-        .with_tracker_frame(frame)
+        .with_tracker_frame(frame.map(|f| robopost::kinematics::Frame::from_isometry(&f)))
         .with_seed(seed);
     if let Some(f) = frame {
         r.station_mm = f.translation.vector;
