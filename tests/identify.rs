@@ -233,8 +233,8 @@ fn tracker_frame_registration_is_recovered() {
         a: 150.0,
         b: 0.4,
         c: -0.2,
-    }
-    .to_isometry();
+    };
+    let frame = Frame::from_kuka(&frame).to_isometry();
     let robot =
         VirtualRobot::new(truth.clone()).with_tracker_frame(Some(Frame::from_isometry(&frame)));
     let exact = robot

@@ -56,7 +56,7 @@ fn truth() -> Model {
 
 /// Where the tracker stood: 2.8 m in front and 1.2 m beside the robot, turned and tilted.
 fn setup_frame(k: usize) -> Isometry3<f64> {
-    [
+    let frame = [
         KukaFrame {
             x: 2800.0,
             y: 1200.0,
@@ -73,8 +73,8 @@ fn setup_frame(k: usize) -> Isometry3<f64> {
             b: -0.6,
             c: 0.2,
         },
-    ][k]
-        .to_isometry()
+    ][k];
+    robopost::kinematics::Frame::from_kuka(&frame).to_isometry()
 }
 
 fn robot(frame: Option<Isometry3<f64>>, seed: u64) -> VirtualRobot {
@@ -155,7 +155,7 @@ fn tracker_request() -> Request {
 /// The calibration's frame as an isometry (identity for the base frame).
 fn frame_of(cal: &Calibration) -> Isometry3<f64> {
     match cal.frame {
-        MeasurementFrame::Tracker(f) => f.to_isometry(),
+        MeasurementFrame::Tracker(f) => robopost::kinematics::Frame::from_kuka(&f).to_isometry(),
         MeasurementFrame::Base => Isometry3::identity(),
     }
 }

@@ -568,7 +568,7 @@ mod poses {
         #[test]
         fn pose_to_transform_and_back(x in -3000.0f64..3000.0, a in angle(), b in -89.9f64..89.9, c in angle()) {
             let p = Pose { x, y: -x / 2.0, z: 1000.0, a, b, c };
-            let back = Pose::from_isometry(&p.to_isometry());
+            let back = Frame::from_kuka(&p).to_pose();
             for (u, v) in p.to_array().iter().zip(back.to_array()) {
                 prop_assert!((u - v).abs() < 1e-9, "{:?} vs {:?}", p, back);
             }
@@ -578,9 +578,9 @@ mod poses {
         fn composition_is_the_transform_product(a in angle(), b in -89.0f64..89.0, c in angle(), d in angle()) {
             let p = Pose { x: 100.0, y: 20.0, z: -5.0, a, b, c };
             let q = Pose { x: -7.0, y: 300.0, z: 40.0, a: d, b: b / 2.0, c: a };
-            let product = p.to_isometry() * q.to_isometry();
-            assert_same_pose(&(p * q).to_isometry(), &product, 1e-9, "p : q");
-            assert_same_pose(&p.inverse().compose(&p).to_isometry(), &Isometry3::identity(), 1e-9, "inv(p) : p");
+            let product = Frame::from_kuka(&p).to_isometry() * Frame::from_kuka(&q).to_isometry();
+            assert_same_pose(&Frame::from_kuka(&(p * q)), &product, 1e-9, "p : q");
+            assert_same_pose(&Frame::from_kuka(&p.inverse().compose(&p)), &Isometry3::identity(), 1e-9, "inv(p) : p");
         }
     }
 
@@ -603,7 +603,7 @@ mod poses {
     #[test]
     fn rotation_is_rz_ry_rx() {
         let p = Pose::from_array([0.0, 0.0, 0.0, 20.0, 30.0, 40.0]);
-        let r = p.to_isometry().rotation.to_rotation_matrix().into_inner();
+        let r = Frame::from_kuka(&p).rotation;
         let rz = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 20f64.to_radians());
         let ry = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), 30f64.to_radians());
         let rx = nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), 40f64.to_radians());
@@ -623,7 +623,12 @@ mod poses {
             (p.a + 30.0).abs() < 1e-9 && p.b == 90.0 && p.c == 0.0,
             "{p:?}"
         );
-        assert_same_pose(&p.to_isometry(), &forward(&robot(), &axes), 1e-9, "B = 90");
+        assert_same_pose(
+            &Frame::from_kuka(&p),
+            &forward(&robot(), &axes),
+            1e-9,
+            "B = 90",
+        );
     }
 }
 

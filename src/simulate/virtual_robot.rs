@@ -263,8 +263,8 @@ mod tests {
             a: 150.0,
             b: 1.0,
             c: -2.0,
-        }
-        .to_isometry();
+        };
+        let frame = Frame::from_kuka(&frame).to_isometry();
         let exact = VirtualRobot::new(nominal())
             .with_noise(TrackerNoise::NONE)
             .with_tracker_frame(Some(Frame::from_isometry(&frame)));
