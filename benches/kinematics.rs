@@ -6,14 +6,13 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion};
 #[path = "support/cpu_time.rs"]
 mod cpu_time;
 use cpu_time::ThreadCpuTime;
-use nalgebra::Isometry3;
 use robopost::kinematics::{
-    forward, inverse, inverse_all, inverse_all_into, status_turn, RobotDescription, Select,
+    forward, inverse, inverse_all, inverse_all_into, status_turn, Frame, RobotDescription, Select,
 };
 
 /// Axis sets spread over the workspace (within limits, clear of singularities) and their
 /// flange poses.
-fn poses(robot: &RobotDescription) -> Vec<([f64; 6], Isometry3<f64>)> {
+fn poses(robot: &RobotDescription) -> Vec<([f64; 6], Frame)> {
     (0..256)
         .map(|i| {
             let t = i as f64;

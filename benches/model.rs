@@ -75,7 +75,9 @@ fn solve_one_target(c: &mut Criterion<ThreadCpuTime>) {
         robopost::calibration::load(std::path::Path::new("calibrations/kr30ha-handset.json"))
             .expect("hand-set calibration")
             .model();
-    let tool = Frame::from_kuka(&[12.0, -5.0, 180.0, 0.0, 20.0, 0.0]);
+    let tool = Frame::from_kuka(&robopost::kinematics::Pose::from_array([
+        12.0, -5.0, 180.0, 0.0, 20.0, 0.0,
+    ]));
     let nominal = Nominal(&model.robot);
     // Away from the wrist singularity (|A5| ≥ 10°), as CAM paths are.
     let problems: Vec<Problem> = states()

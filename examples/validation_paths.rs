@@ -9,7 +9,7 @@
 //! flipped), each point nearest the previous one, as a LIN path continues.
 
 use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
-use robopost::kinematics::{inverse, Payload, RobotDescription, Select};
+use robopost::kinematics::{inverse, Frame, Payload, RobotDescription, Select};
 use robopost::model::{AxisState, Model};
 use robopost::simulate::paper::TARGET_MM;
 
@@ -71,7 +71,7 @@ fn main() {
             // turned towards it (A4 is 0 to rounding on these paths, so T would not decide).
             let near = previous.unwrap_or([46.0, -58.0, 123.0, 0.0, 25.0, 46.0]);
             let select = Select::StatusNearest { s: 2, near };
-            let q = inverse(&robot, &goal, select)
+            let q = inverse(&robot, &Frame::from_isometry(&goal), select)
                 .unwrap_or_else(|e| panic!("{label} {p}: {e}"))
                 .axes_deg;
             // Independent check: the model's forward kinematics puts the flange on the goal.

@@ -37,8 +37,7 @@ fn nominal_calibration_predicts_the_nominal_home_pose() {
     let p = cal
         .model()
         .flange_pose(&AxisState::new([0.0, -90.0, 90.0, 0.0, 0.0, 0.0]))
-        .translation
-        .vector;
+        .position;
     assert!((p - Vector3::new(1340.0, 0.0, 1810.0)).norm() < 1e-9);
 }
 

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Point3, Vector3};
 use robopost::identify::pipeline::{identify, Effects, Request};
 use robopost::identify::{circle::fit_circle, direct, refine, setup, Free, RefineOptions, Status};
-use robopost::kinematics::{Payload, RobotDescription};
+use robopost::kinematics::{Frame, Payload, RobotDescription};
 use robopost::measure::{read_csv, Stop};
 use robopost::model::{expand_list, Model};
 use robopost::simulate::{paper, Campaign, PlannedStop, TrackerNoise, VirtualRobot};
@@ -104,7 +104,7 @@ fn gauge(
         exact,
         &RefineOptions {
             tracker_frame: frame.is_some(),
-            initial_frame: frame,
+            initial_frame: frame.map(|f| Frame::from_isometry(&f)),
             standard_errors: false,
             ..RefineOptions::default()
         },
@@ -115,7 +115,7 @@ fn gauge(
         "gauge change moved predictions: {:?}",
         fit.stats
     );
-    (g, fit.tracker_frame)
+    (g, fit.tracker_frame.map(|f| f.to_isometry()))
 }
 
 /// z-scores (estimate − truth) / standard error of every identified parameter.
@@ -233,9 +233,10 @@ fn tracker_frame_registration_is_recovered() {
         a: 150.0,
         b: 0.4,
         c: -0.2,
-    }
-    .to_isometry();
-    let robot = VirtualRobot::new(truth.clone()).with_tracker_frame(Some(frame));
+    };
+    let frame = Frame::from_kuka(&frame).to_isometry();
+    let robot =
+        VirtualRobot::new(truth.clone()).with_tracker_frame(Some(Frame::from_isometry(&frame)));
     let exact = robot
         .clone()
         .with_noise(TrackerNoise::NONE)
@@ -252,7 +253,7 @@ fn tracker_frame_registration_is_recovered() {
     };
     let fit = refine(&mut model, &noisy, &options).unwrap();
     assert!(fit.warnings.is_empty(), "{:?}", fit.warnings);
-    let found = fit.tracker_frame.unwrap();
+    let found = fit.tracker_frame.unwrap().to_isometry();
     let se = fit.tracker_frame_standard_errors.unwrap();
     // Difference as a left perturbation (the fit's parametrisation): found = D · truth.
     let d = found * truth_frame.inverse();
@@ -812,7 +813,7 @@ mod properties {
                 })
                 .collect();
             let to: Vec<Vector3<f64>> = from.iter().map(|p| (truth * Point3::from(*p)).coords).collect();
-            let fit = rigid_fit(&from, &to).unwrap();
+            let fit = rigid_fit(&from, &to).unwrap().to_isometry();
             prop_assert!((fit.translation.vector - truth.translation.vector).norm() < 1e-6);
             prop_assert!(fit.rotation.angle_to(&truth.rotation) < 1e-9);
         }

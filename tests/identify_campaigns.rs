@@ -56,7 +56,7 @@ fn truth() -> Model {
 
 /// Where the tracker stood: 2.8 m in front and 1.2 m beside the robot, turned and tilted.
 fn setup_frame(k: usize) -> Isometry3<f64> {
-    [
+    let frame = [
         KukaFrame {
             x: 2800.0,
             y: 1200.0,
@@ -73,13 +73,13 @@ fn setup_frame(k: usize) -> Isometry3<f64> {
             b: -0.6,
             c: 0.2,
         },
-    ][k]
-        .to_isometry()
+    ][k];
+    robopost::kinematics::Frame::from_kuka(&frame).to_isometry()
 }
 
 fn robot(frame: Option<Isometry3<f64>>, seed: u64) -> VirtualRobot {
     let mut r = VirtualRobot::new(truth())
-        .with_tracker_frame(frame)
+        .with_tracker_frame(frame.map(|f| robopost::kinematics::Frame::from_isometry(&f)))
         .with_seed(seed);
     if let Some(f) = frame {
         r.station_mm = f.translation.vector;
@@ -155,7 +155,7 @@ fn tracker_request() -> Request {
 /// The calibration's frame as an isometry (identity for the base frame).
 fn frame_of(cal: &Calibration) -> Isometry3<f64> {
     match cal.frame {
-        MeasurementFrame::Tracker(f) => f.to_isometry(),
+        MeasurementFrame::Tracker(f) => robopost::kinematics::Frame::from_kuka(&f).to_isometry(),
         MeasurementFrame::Base => Isometry3::identity(),
     }
 }
@@ -360,12 +360,18 @@ fn one_tracker_frame_per_file() {
     // Each set-up found (its rotation about Z and height carry A1's zero and the A2 height,
     // which the truth's maps shift by thousandths of a degree), and the move between them
     // exactly.
-    for (k, f) in r.fit.tracker_frames.iter().enumerate() {
+    let found: Vec<_> = r
+        .fit
+        .tracker_frames
+        .iter()
+        .map(|f| f.to_isometry())
+        .collect();
+    for (k, f) in found.iter().enumerate() {
         let truth = setup_frame(k);
         assert!((f.translation.vector - truth.translation.vector).norm() < 0.5);
         assert!(f.rotation.angle_to(&truth.rotation) < 2e-4);
     }
-    let moved = r.fit.tracker_frames[0].inverse() * r.fit.tracker_frames[1];
+    let moved = found[0].inverse() * found[1];
     let truth_moved = setup_frame(0).inverse() * setup_frame(1);
     let dt = (moved.translation.vector - truth_moved.translation.vector).norm();
     let dr = moved.rotation.angle_to(&truth_moved.rotation);

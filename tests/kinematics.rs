@@ -7,7 +7,7 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 use proptest::prelude::*;
 use robopost::kinematics::{
     flange_frame, forward, inverse, inverse_all, singularity, singularity_distances, status_turn,
-    wrist_point, IkError, Pose, RobotDescription, Select, SingularityKind,
+    wrist_point, Frame, IkError, Pose, RobotDescription, Select, SingularityKind,
 };
 
 fn robot() -> RobotDescription {
@@ -20,16 +20,32 @@ fn phi() -> f64 {
 }
 
 /// Largest position (mm) and rotation-matrix entry differences of two transforms.
-fn gap(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
-    let ra = a.rotation.to_rotation_matrix().into_inner();
-    let rb = b.rotation.to_rotation_matrix().into_inner();
+fn gap(a: &impl Rigid, b: &impl Rigid) -> (f64, f64) {
+    let (a, b) = (a.frame(), b.frame());
     (
-        (a.translation.vector - b.translation.vector).norm(),
-        (ra - rb).abs().max(),
+        (a.position - b.position).norm(),
+        (a.rotation - b.rotation).abs().max(),
     )
 }
 
-fn assert_same_pose(a: &Isometry3<f64>, b: &Isometry3<f64>, mm: f64, what: &str) {
+/// A transform either way it is written here: the crate's or nalgebra's.
+trait Rigid {
+    fn frame(&self) -> Frame;
+}
+
+impl Rigid for Frame {
+    fn frame(&self) -> Frame {
+        *self
+    }
+}
+
+impl Rigid for Isometry3<f64> {
+    fn frame(&self) -> Frame {
+        Frame::from_isometry(self)
+    }
+}
+
+fn assert_same_pose(a: &impl Rigid, b: &impl Rigid, mm: f64, what: &str) {
     let (dp, dr) = gap(a, b);
     assert!(
         dp < mm && dr < mm * 1e-3,
@@ -71,7 +87,7 @@ mod reference {
     #[test]
     fn forward_status_and_turn_match_the_table() {
         for (axes, xyzabc, s, t) in POSES {
-            let pose = Pose::from_isometry(&forward(&robot(), &axes));
+            let pose = forward(&robot(), &axes).to_pose();
             let got = pose.to_array();
             // The table is printed to 1e-3 mm and 1e-4 deg.
             for k in 0..6 {
@@ -90,12 +106,12 @@ mod reference {
     #[test]
     fn the_first_two_poses_are_exact_by_hand() {
         // HOME: upper arm up, forearm forward 145 above A3, flange 170 beyond the wrist.
-        let home = forward(&robot(), &POSES[0].0).translation.vector;
+        let home = forward(&robot(), &POSES[0].0).position;
         assert!(
             (home - Vector3::new(350.0 + 820.0 + 170.0, 0.0, 815.0 + 850.0 + 145.0)).norm() < 1e-12
         );
         // Zero: both arms forward.
-        let zero = forward(&robot(), &POSES[1].0).translation.vector;
+        let zero = forward(&robot(), &POSES[1].0).position;
         assert!(
             (zero - Vector3::new(350.0 + 850.0 + 820.0 + 170.0, 0.0, 815.0 + 145.0)).norm() < 1e-12
         );
@@ -422,7 +438,7 @@ mod inverse_kinematics {
     fn wrist_point_on_the_a1_axis() {
         let r = robot();
         // Flange Z up (A = B = C = 0), wrist point 170 mm below it on the A1 axis.
-        let flange = Pose::from_array([0.0, 0.0, 2170.0, 0.0, 0.0, 0.0]).to_isometry();
+        let flange = Frame::from_kuka(&Pose::from_array([0.0, 0.0, 2170.0, 0.0, 0.0, 0.0]));
         assert_singular(inverse_all(&r, &flange), SingularityKind::Shoulder, 1e-9);
         let sol = inverse(
             &r,
@@ -459,7 +475,7 @@ mod inverse_kinematics {
     #[test]
     fn beyond_the_reach_by_hand() {
         // Flange Z along +X (B = 90°): wrist point (2830, 0, 815), 2480 mm from the A2 axis.
-        let flange = Pose::from_array([3000.0, 0.0, 815.0, 0.0, 90.0, 0.0]).to_isometry();
+        let flange = Frame::from_kuka(&Pose::from_array([3000.0, 0.0, 815.0, 0.0, 90.0, 0.0]));
         let reach = 850.0 + 145f64.hypot(820.0);
         match inverse_all(&robot(), &flange) {
             Err(IkError::Unreachable {
@@ -479,7 +495,7 @@ mod inverse_kinematics {
         let mut r = robot();
         r.links.l1x = 0.0;
         let k = 145f64.hypot(820.0);
-        let flange = Pose::from_array([175.0, 0.0, 815.0, 0.0, 90.0, 0.0]).to_isometry();
+        let flange = Frame::from_kuka(&Pose::from_array([175.0, 0.0, 815.0, 0.0, 90.0, 0.0]));
         match inverse_all(&r, &flange) {
             Err(IkError::Unreachable {
                 distance_mm,
@@ -516,7 +532,7 @@ mod inverse_kinematics {
     fn non_finite_poses_are_errors_not_panics() {
         let r = robot();
         for bad in [f64::NAN, f64::INFINITY, 1e300] {
-            let flange = Pose::from_array([bad, 0.0, 1000.0, 0.0, 90.0, 0.0]).to_isometry();
+            let flange = Frame::from_kuka(&Pose::from_array([bad, 0.0, 1000.0, 0.0, 90.0, 0.0]));
             assert!(inverse_all(&r, &flange).is_err());
             assert!(inverse(&r, &flange, Select::Nearest([0.0; 6])).is_err());
             assert!(inverse(&r, &flange, Select::Status { s: 2, t: None }).is_err());
@@ -552,7 +568,7 @@ mod poses {
         #[test]
         fn pose_to_transform_and_back(x in -3000.0f64..3000.0, a in angle(), b in -89.9f64..89.9, c in angle()) {
             let p = Pose { x, y: -x / 2.0, z: 1000.0, a, b, c };
-            let back = Pose::from_isometry(&p.to_isometry());
+            let back = Frame::from_kuka(&p).to_pose();
             for (u, v) in p.to_array().iter().zip(back.to_array()) {
                 prop_assert!((u - v).abs() < 1e-9, "{:?} vs {:?}", p, back);
             }
@@ -562,9 +578,9 @@ mod poses {
         fn composition_is_the_transform_product(a in angle(), b in -89.0f64..89.0, c in angle(), d in angle()) {
             let p = Pose { x: 100.0, y: 20.0, z: -5.0, a, b, c };
             let q = Pose { x: -7.0, y: 300.0, z: 40.0, a: d, b: b / 2.0, c: a };
-            let product = p.to_isometry() * q.to_isometry();
-            assert_same_pose(&(p * q).to_isometry(), &product, 1e-9, "p : q");
-            assert_same_pose(&p.inverse().compose(&p).to_isometry(), &Isometry3::identity(), 1e-9, "inv(p) : p");
+            let product = Frame::from_kuka(&p).to_isometry() * Frame::from_kuka(&q).to_isometry();
+            assert_same_pose(&Frame::from_kuka(&(p * q)), &product, 1e-9, "p : q");
+            assert_same_pose(&Frame::from_kuka(&p.inverse().compose(&p)), &Isometry3::identity(), 1e-9, "inv(p) : p");
         }
     }
 
@@ -587,7 +603,7 @@ mod poses {
     #[test]
     fn rotation_is_rz_ry_rx() {
         let p = Pose::from_array([0.0, 0.0, 0.0, 20.0, 30.0, 40.0]);
-        let r = p.to_isometry().rotation.to_rotation_matrix().into_inner();
+        let r = Frame::from_kuka(&p).rotation;
         let rz = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 20f64.to_radians());
         let ry = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), 30f64.to_radians());
         let rx = nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), 40f64.to_radians());
@@ -597,17 +613,22 @@ mod poses {
 
     #[test]
     fn home_prints_with_the_b_90_convention() {
-        let p = Pose::from_isometry(&forward(&robot(), &[0.0, -90.0, 90.0, 0.0, 0.0, 0.0]));
+        let p = forward(&robot(), &[0.0, -90.0, 90.0, 0.0, 0.0, 0.0]).to_pose();
         assert_eq!((p.a, p.b, p.c), (0.0, 90.0, 0.0));
         // A1 = 30° at HOME turns about the flange X (pointing down): at B = 90° only A − C is
         // defined, and the convention puts it all in A.
         let axes = [30.0, -90.0, 90.0, 0.0, 0.0, 0.0];
-        let p = Pose::from_isometry(&forward(&robot(), &axes));
+        let p = forward(&robot(), &axes).to_pose();
         assert!(
             (p.a + 30.0).abs() < 1e-9 && p.b == 90.0 && p.c == 0.0,
             "{p:?}"
         );
-        assert_same_pose(&p.to_isometry(), &forward(&robot(), &axes), 1e-9, "B = 90");
+        assert_same_pose(
+            &Frame::from_kuka(&p),
+            &forward(&robot(), &axes),
+            1e-9,
+            "B = 90",
+        );
     }
 }
 
@@ -646,7 +667,7 @@ mod cli {
         let v = json(&run(&[
             "fk", "30", "-60", "100", "20", "40", "-50", "--json",
         ]));
-        let p = Pose::from_isometry(&forward(&robot(), &axes));
+        let p = forward(&robot(), &axes).to_pose();
         for (key, want) in ["x", "y", "z", "a", "b", "c"].iter().zip(p.to_array()) {
             assert_eq!(v[key].as_f64().unwrap(), want, "{key}");
         }
@@ -716,15 +737,15 @@ mod cli {
         let v = json(&run(&[&args[..], &["--json"]].concat()));
         // Unknown directions: the backlash branch mean, i.e. the map alone.
         let predicted = model.flange_pose(&AxisState::new(axes));
-        let p = Pose::from_isometry(&predicted);
+        let p = predicted.to_pose();
         for (key, want) in ["x", "y", "z", "a", "b", "c"].iter().zip(p.to_array()) {
             assert!(
                 (v["model"][key].as_f64().unwrap() - want).abs() < 1e-12,
                 "{key}"
             );
         }
-        let nominal = forward(&robot(), &axes).translation.vector;
-        let d = predicted.translation.vector - nominal;
+        let nominal = forward(&robot(), &axes).position;
+        let d = predicted.position - nominal;
         assert!(d.norm() > 0.01, "the errors move the flange");
         for (k, key) in ["x", "y", "z"].iter().enumerate() {
             assert!((v["difference"][key].as_f64().unwrap() - d[k]).abs() < 1e-12);
@@ -743,9 +764,7 @@ mod cli {
     fn ik_json_lists_branches_that_reach_the_pose() {
         let axes = [30.0, -60.0, 100.0, 20.0, 40.0, -50.0];
         let flange = forward(&robot(), &axes);
-        let p = Pose::from_isometry(&flange)
-            .to_array()
-            .map(|v| format!("{v}"));
+        let p = flange.to_pose().to_array().map(|v| format!("{v}"));
         let mut args = vec!["ik"];
         args.extend(p.iter().map(String::as_str));
         args.push("--json");

@@ -237,8 +237,8 @@ fn check(name: &str) {
         largest_effect = largest_effect.max((target_ref - target_nominal).norm());
 
         let pose = model.flange_pose(&state);
-        let r = pose.rotation.to_rotation_matrix().into_inner();
-        let dp = (pose.translation.vector - flange_ref).norm();
+        let r = pose.rotation;
+        let dp = (pose.position - flange_ref).norm();
         let dr = (r.transpose() * r_ref - Matrix3::identity()).norm();
         assert!(
             dp < POSITION_TOL_MM,

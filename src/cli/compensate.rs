@@ -8,7 +8,7 @@ use super::Exit;
 use robopost::calibration;
 use robopost::compensate::{self, files, program, Calibrated, Method};
 use robopost::diagnostic::Severity;
-use robopost::kinematics::RobotDescription;
+use robopost::kinematics::{Pose, RobotDescription};
 use robopost::motion::{Cell, GivenFrame};
 
 /// How a program's frames and shared data are found: shared by the main job, `batch`,
@@ -26,10 +26,10 @@ pub struct FrameArgs {
     pub cell: Option<PathBuf>,
     /// A base frame: `N=X,Y,Z,A,B,C` for `BASE_DATA[N]` (repeatable).
     #[arg(long = "base", value_name = "N=X,Y,Z,A,B,C", value_parser = parse_frame_arg, allow_hyphen_values = true)]
-    pub base: Vec<(i64, [f64; 6])>,
+    pub base: Vec<(i64, Pose)>,
     /// A tool frame: `N=X,Y,Z,A,B,C` for `TOOL_DATA[N]` (repeatable).
     #[arg(long = "tool", value_name = "N=X,Y,Z,A,B,C", value_parser = parse_frame_arg, allow_hyphen_values = true)]
-    pub tool: Vec<(i64, [f64; 6])>,
+    pub tool: Vec<(i64, Pose)>,
 }
 
 impl FrameArgs {
@@ -67,14 +67,14 @@ impl FrameArgs {
             frames.push(GivenFrame {
                 base: true,
                 index: *n,
-                xyzabc: *v,
+                pose: *v,
             });
         }
         for (n, v) in &self.tool {
             frames.push(GivenFrame {
                 base: false,
                 index: *n,
-                xyzabc: *v,
+                pose: *v,
             });
         }
         frames
@@ -236,7 +236,7 @@ pub fn robot_label(cal: &calibration::Calibration, cal_path: &Path) -> String {
 }
 
 /// `N=X,Y,Z,A,B,C`.
-pub fn parse_frame_arg(text: &str) -> Result<(i64, [f64; 6]), String> {
+pub fn parse_frame_arg(text: &str) -> Result<(i64, Pose), String> {
     let (n, rest) = text
         .split_once('=')
         .ok_or_else(|| format!("`{text}`: expected N=X,Y,Z,A,B,C"))?;
@@ -255,7 +255,7 @@ pub fn parse_frame_arg(text: &str) -> Result<(i64, [f64; 6]), String> {
     if values.iter().any(|v| !v.is_finite()) {
         return Err(format!("`{rest}`: numbers must be finite"));
     }
-    Ok((n, values))
+    Ok((n, Pose::from_array(values)))
 }
 
 #[derive(clap::Args, Debug)]

@@ -419,7 +419,7 @@ pub fn report(r: &Identified, requested: &str) -> String {
         }
     }
     if let (Some(f), Some(se)) = (fit.tracker_frame, fit.tracker_frame_standard_errors) {
-        let k = robopost::calibration::KukaFrame::from_isometry(&f);
+        let k = f.to_pose();
         out += &format!(
             "tracker frame: X {:.4} Y {:.4} Z {:.4} mm, A {:.5} B {:.5} C {:.5}° (±{:.4} {:.4} {:.4} mm, ±{:.5} {:.5} {:.5}°)\n",
             k.x, k.y, k.z, k.a, k.b, k.c, se[0], se[1], se[2], se[3], se[4], se[5]

@@ -4,13 +4,13 @@
 
 use std::path::PathBuf;
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::Vector3;
 use serde_json::json;
 
 use super::Exit;
 use robopost::calibration;
 use robopost::kinematics::{
-    forward, inverse, inverse_all, singularity, status_turn, IkError, IkSolution, Pose,
+    forward, inverse, inverse_all, singularity, status_turn, Frame, IkError, IkSolution, Pose,
     RobotDescription, Select,
 };
 use robopost::model::AxisState;
@@ -151,19 +151,19 @@ pub fn run_fk(args: FkArgs) -> Exit {
     let robot = cal
         .as_ref()
         .map_or_else(RobotDescription::kr30ha, |c| c.model_ref().robot);
-    let nominal_iso = forward(&robot, &axes);
-    let nominal = Pose::from_isometry(&nominal_iso);
+    let nominal_flange = forward(&robot, &axes);
+    let nominal = nominal_flange.to_pose();
     let (s, t) = status_turn(&robot, &axes);
     let model = cal.as_ref().map(|c| {
-        let iso = c.model_ref().flange_pose(&AxisState::new(axes));
-        (iso, Difference::between(&nominal_iso, &iso))
+        let flange = c.model_ref().flange_pose(&AxisState::new(axes));
+        (flange, Difference::between(&nominal_flange, &flange))
     });
     if args.json {
         let mut out = pose_json(&nominal);
         out["s"] = json!(s);
         out["t"] = json!(t);
-        if let Some((iso, d)) = &model {
-            out["model"] = pose_json(&Pose::from_isometry(iso));
+        if let Some((flange, d)) = &model {
+            out["model"] = pose_json(&flange.to_pose());
             out["difference"] = json!({
                 "x": d.offset.x, "y": d.offset.y, "z": d.offset.z,
                 "distance_um": d.offset.norm() * 1000.0,
@@ -174,8 +174,8 @@ pub fn run_fk(args: FkArgs) -> Exit {
     } else {
         println!("nominal  {}", pose_line(&nominal));
         println!("         S {s} {}  T {t} {}", bits(s, 3), bits(t, 6));
-        if let (Some((iso, d)), Some(path)) = (&model, &args.cal) {
-            println!("model    {}", pose_line(&Pose::from_isometry(iso)));
+        if let (Some((flange, d)), Some(path)) = (&model, &args.cal) {
+            println!("model    {}", pose_line(&flange.to_pose()));
             println!(
                 "         ({}; rotation directions unknown: mean of both branches)",
                 path.display()
@@ -201,10 +201,11 @@ struct Difference {
 }
 
 impl Difference {
-    fn between(nominal: &Isometry3<f64>, model: &Isometry3<f64>) -> Difference {
+    fn between(nominal: &Frame, model: &Frame) -> Difference {
+        let (n, m) = (nominal.to_isometry().rotation, model.to_isometry().rotation);
         Difference {
-            offset: model.translation.vector - nominal.translation.vector,
-            rotation_deg: nominal.rotation.angle_to(&model.rotation).to_degrees(),
+            offset: model.position - nominal.position,
+            rotation_deg: n.angle_to(&m).to_degrees(),
         }
     }
 }
@@ -217,7 +218,7 @@ struct Row {
 
 /// Every solution, plus the configurations that are singular resolved as the controller
 /// does by default (`$SINGUL_POS[] = 0`: the undefined A1 or A4 at 0°).
-fn all_rows(robot: &RobotDescription, flange: &Isometry3<f64>) -> Result<Vec<Row>, IkError> {
+fn all_rows(robot: &RobotDescription, flange: &Frame) -> Result<Vec<Row>, IkError> {
     let all = inverse_all(robot, flange);
     let mut rows: Vec<Row> = all
         .as_ref()
@@ -265,7 +266,7 @@ fn all_rows(robot: &RobotDescription, flange: &Isometry3<f64>) -> Result<Vec<Row
 
 fn selected_row(
     robot: &RobotDescription,
-    flange: &Isometry3<f64>,
+    flange: &Frame,
     s: u8,
     t: Option<u8>,
 ) -> Result<Row, IkError> {
@@ -309,7 +310,7 @@ pub fn run_ik(args: IkArgs) -> Exit {
         (Err(exit), _) | (_, Err(exit)) => return exit,
     };
     let robot = cal.map_or_else(RobotDescription::kr30ha, |c| c.model_ref().robot);
-    let flange = Pose::from_array(values).to_isometry();
+    let flange = Frame::from_kuka(&Pose::from_array(values));
     let rows = match args.s {
         Some(s) if s > 7 => {
             eprintln!("error: --s {s} has bits above bit 2 (S is 0..7)");

@@ -15,6 +15,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::calibration::{Calibration, MeasurementFrame};
+use crate::kinematics::Frame;
 use crate::measure::Measurements;
 use crate::model::{AxisState, Model};
 
@@ -57,7 +58,9 @@ impl Row {
 pub fn to_base(frame: &MeasurementFrame, measured: &Vector3<f64>) -> Vector3<f64> {
     match frame {
         MeasurementFrame::Base => *measured,
-        MeasurementFrame::Tracker(f) => (f.to_isometry() * Point3::from(*measured)).coords,
+        MeasurementFrame::Tracker(f) => {
+            (Frame::from_kuka(f).to_isometry() * Point3::from(*measured)).coords
+        }
     }
 }
 

@@ -8,7 +8,7 @@ use crate::diagnostic::{Diagnostic, Severity};
 use crate::krl::{self, StmtKind};
 use crate::model::Model;
 use crate::motion::workspace::Role as FileRole;
-use crate::motion::{self, FileId, GivenFrame, Role, Simulation, Workspace};
+use crate::motion::{self, FileId, GivenFrame, Programmed, Role, Simulation, Workspace};
 
 use super::output::Chunk;
 pub use super::output::Output;
@@ -121,10 +121,15 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
                 },
             },
             compensate: s.compensable,
-            quantum: s.origin.filter(|_| s.compensable).map(|o| Quantum {
-                base: s.base,
-                axis: s.programmed.is_axes(),
-                decimals: rewrite::decimals(&o, s.programmed.is_axes()),
+            quantum: s.origin.filter(|_| s.compensable).map(|o| {
+                let decimals = rewrite::decimals(&o, s.programmed.is_axes());
+                match s.programmed {
+                    Programmed::Axes(_) => Quantum::Axes { decimals },
+                    Programmed::Pose(_) => Quantum::Pose {
+                        base: s.base,
+                        decimals,
+                    },
+                }
             }),
             keep: Keep {
                 s: s.keep_s,

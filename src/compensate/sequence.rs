@@ -17,7 +17,7 @@
 //! than the play makes the command travel the play; such targets are counted and reported.
 
 use super::solve::{self, Method, Problem, SolveError};
-use crate::kinematics::{status_turn, AxisAngles, RobotDescription};
+use crate::kinematics::{status_turn, AxisAngles, Pose, RobotDescription};
 use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
@@ -64,13 +64,13 @@ pub struct Target {
     pub keep: Keep,
 }
 
-/// The rounding of a written command: decimals of `X Y Z A B C` in the base (index into the
-/// frame table), or of `A1..A6`.
+/// The rounding of a written command: the decimals of each of its numbers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Quantum {
-    pub base: u32,
-    pub axis: bool,
-    pub decimals: [u8; 6],
+pub enum Quantum {
+    /// Of `A1..A6`.
+    Axes { decimals: [u8; 6] },
+    /// Of `X Y Z A B C` in the base `base` (index into the frame table).
+    Pose { base: u32, decimals: [u8; 6] },
 }
 
 fn round_to(v: f64, decimals: u8) -> f64 {
@@ -336,7 +336,7 @@ pub struct Command {
     /// `tcp` in the target's base frame as [`Frame::to_kuka_unchosen`] gives it, for a
     /// Cartesian target the re-check did not re-solve: the rewrite chooses its Euler triple
     /// from this instead of converting the matrix again.
-    pub unchosen: Option<[f64; 6]>,
+    pub unchosen: Option<Pose>,
 }
 
 /// The command change at the TCP, µm and mdeg: the nominal TCP of the new command against
@@ -1071,21 +1071,22 @@ impl<'a> Ctx<'a> {
         k: usize,
         axes: &[f64; 6],
         raw: impl FnOnce() -> Frame,
-    ) -> (Frame, Option<[f64; 6]>) {
+    ) -> (Frame, Option<Pose>) {
         match self.target(k).quantum {
-            Some(q) if q.axis => {
-                let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], q.decimals[i]));
+            Some(Quantum::Axes { decimals }) => {
+                let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], decimals[i]));
                 (Nominal(&self.model.robot).tcp(&r, self.tool(k)), None)
             }
-            Some(q) => {
-                let base = &self.tools[q.base as usize];
+            Some(Quantum::Pose { base, decimals }) => {
+                let base = &self.tools[base as usize];
                 let in_base = base.inverse().compose(&raw());
                 let unchosen = in_base.to_kuka_unchosen();
                 let p = match &unchosen {
                     Some(u) => kuka_near(u, &[0.0; 3]),
                     None => in_base.to_kuka_near(&[0.0; 3]),
                 };
-                let r: [f64; 6] = std::array::from_fn(|i| round_to(p[i], q.decimals[i]));
+                let p = p.to_array();
+                let r = Pose::from_array(std::array::from_fn(|i| round_to(p[i], decimals[i])));
                 (base.compose(&Frame::from_kuka(&r)), unchosen)
             }
             None => (raw(), None),

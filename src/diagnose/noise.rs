@@ -86,7 +86,7 @@ pub fn estimate(rows: &[Row], frame: &MeasurementFrame) -> NoiseFloor {
     }
     let (station, station_assumed) = match frame {
         // The tracker frame's origin is the tracker head.
-        MeasurementFrame::Tracker(f) => (f.to_isometry().translation.vector, false),
+        MeasurementFrame::Tracker(f) => (f.position(), false),
         MeasurementFrame::Base => (Vector3::from(ASSUMED_STATION_MM), true),
     };
     from_spec(rows, &station, station_assumed)

@@ -10,7 +10,7 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use super::direct::{
@@ -24,10 +24,10 @@ use super::screen::{screen_test, Suspect};
 use super::setup::{add_effects, GridChoice};
 use super::thin::{thin, Thinning, DEFAULT_MAX_POINTS};
 use super::verdict::{judge, Clues, TestResidual, Verdict};
-use crate::calibration::{Calibration, ExcludedPoint, KukaFrame, MeasurementFrame, Provenance};
+use crate::calibration::{Calibration, ExcludedPoint, MeasurementFrame, Provenance};
 use crate::compare::Row;
 use crate::diagnose::noise::{self, NoiseFloor, ASSUMED_STATION_MM};
-use crate::kinematics::{Payload, RobotDescription};
+use crate::kinematics::{Frame, Payload, RobotDescription};
 use crate::measure::Stop;
 use crate::model::{EffectName, Model};
 use crate::stats::{error_stats, ErrorStats};
@@ -260,11 +260,11 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
     };
 
     // Tracker frames: the base calibration's (one file), else the rigid best fit per file.
-    let mut frames: Vec<Isometry3<f64>> = vec![Isometry3::identity(); n_files];
+    let mut frames: Vec<Frame> = vec![Frame::identity(); n_files];
     if tracker {
         for (g, frame) in frames.iter_mut().enumerate() {
             *frame = match old_frame {
-                Some(MeasurementFrame::Tracker(f)) if n_files == 1 => f.to_isometry(),
+                Some(MeasurementFrame::Tracker(f)) if n_files == 1 => Frame::from_kuka(&f),
                 _ => register(&model, &clean, &fit_file, g)?,
             };
         }
@@ -287,9 +287,9 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
     };
 
     // Refine, leave out what the fitted model shows to be gross errors, refine again.
-    let station = |g: usize, frames: &[Isometry3<f64>]| {
+    let station = |g: usize, frames: &[Frame]| {
         if tracker {
-            frames[g].translation.vector
+            frames[g].position
         } else {
             assumed
         }
@@ -507,7 +507,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
     let verdict = judge(residual_tests, floor, &clues);
 
     let frame = if tracker {
-        MeasurementFrame::Tracker(KukaFrame::from_isometry(&frames[0]))
+        MeasurementFrame::Tracker(frames[0].to_pose())
     } else {
         MeasurementFrame::Base
     };
@@ -580,7 +580,7 @@ fn residuals(
     model: &Model,
     data: &[Stop],
     file_of: &[usize],
-    frames: &[Isometry3<f64>],
+    frames: &[Frame],
 ) -> Vec<Vector3<f64>> {
     data.par_iter()
         .zip(file_of)
@@ -597,7 +597,7 @@ fn register(
     data: &[Stop],
     file_of: &[usize],
     g: usize,
-) -> Result<Isometry3<f64>, IdentifyError> {
+) -> Result<Frame, IdentifyError> {
     let (measured, predicted): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = data
         .iter()
         .zip(file_of)
@@ -671,7 +671,7 @@ fn least_squares_target(
     let mut m = model.clone();
     let mut p = effective_target_a6(&m);
     let n_files = file_of.iter().map(|g| g + 1).max().unwrap_or(1);
-    let mut frames = vec![Isometry3::identity(); n_files];
+    let mut frames = vec![Frame::identity(); n_files];
     for _ in 0..if tracker { 50 } else { 1 } {
         if tracker {
             for (g, f) in frames.iter_mut().enumerate() {
@@ -713,7 +713,7 @@ fn noise_floor(
     files: &[usize],
     checked: &[(Vector3<f64>, Vector3<f64>, f64)],
     used: &[bool],
-    frames: &[Isometry3<f64>],
+    frames: &[Frame],
     tracker: bool,
 ) -> NoiseFloor {
     let mut floors: Vec<(NoiseFloor, usize)> = Vec::new();
@@ -736,10 +736,7 @@ fn noise_floor(
             continue;
         }
         let (f, station) = if tracker {
-            (
-                MeasurementFrame::Tracker(KukaFrame::from_isometry(frame)),
-                frame.translation.vector,
-            )
+            (MeasurementFrame::Tracker(frame.to_pose()), frame.position)
         } else {
             (MeasurementFrame::Base, Vector3::from(ASSUMED_STATION_MM))
         };
@@ -874,7 +871,7 @@ fn provenance(
     target: &TargetSource,
     direct: bool,
     effects: &[String],
-    frames: &[Isometry3<f64>],
+    frames: &[Frame],
     measured: usize,
     physical: &[String],
 ) -> Provenance {
@@ -988,7 +985,7 @@ fn provenance(
                             .get(g)
                             .cloned()
                             .unwrap_or_else(|| g.to_string()),
-                        KukaFrame::from_isometry(f),
+                        f.to_pose(),
                     )
                 })
                 .collect()

@@ -36,6 +36,7 @@ use rayon::prelude::*;
 
 use super::lsq::{LsqError, SparseLsq};
 use super::register::rigid_fit;
+use crate::kinematics::Frame;
 use crate::measure::Stop;
 use crate::model::{AxisState, EffectName, JacobianScratch, Model, Role, Slot};
 use crate::stats::{error_stats, ErrorStats};
@@ -77,14 +78,14 @@ pub struct RefineOptions {
     pub tracker_frame: bool,
     /// Starting pose of the tracker frame in the base frame; `None`: the rigid best fit of the
     /// measured points onto the current model's predictions.
-    pub initial_frame: Option<Isometry3<f64>>,
+    pub initial_frame: Option<Frame>,
     /// Tracker frame of every data stop (an index into the frames), for data measured from
     /// several tracker set-ups (one file per day, the tracker moved): each gets its own pose.
     /// Empty: every stop in frame 0. Only with `tracker_frame`.
     pub frame_of: Vec<usize>,
     /// Starting poses of the frames by index; a missing one starts from `initial_frame` (frame
     /// 0) or the rigid best fit of its points.
-    pub initial_frames: Vec<Isometry3<f64>>,
+    pub initial_frames: Vec<Frame>,
     pub max_iterations: usize,
     /// Converged when an accepted step lowers the cost by less than this fraction.
     pub tolerance: f64,
@@ -246,12 +247,12 @@ pub struct Fit {
     pub standard_errors: Vec<Option<f64>>,
     /// Identified pose of the tracker frame in the base frame (`p_base = F·p_tracker`); the
     /// first of [`Self::tracker_frames`].
-    pub tracker_frame: Option<Isometry3<f64>>,
+    pub tracker_frame: Option<Frame>,
     /// Standard errors of the frame: translation x, y, z (mm), rotation about the base x, y,
     /// z axes (degrees).
     pub tracker_frame_standard_errors: Option<[f64; 6]>,
     /// Every identified tracker frame, by index ([`RefineOptions::frame_of`]).
-    pub tracker_frames: Vec<Isometry3<f64>>,
+    pub tracker_frames: Vec<Frame>,
     /// Their standard errors (as [`Self::tracker_frame_standard_errors`]).
     pub tracker_frames_standard_errors: Vec<[f64; 6]>,
     pub warnings: Vec<Warning>,
@@ -396,14 +397,16 @@ pub fn refine(
         });
         frames.push(match (options.tracker_frame, given) {
             (false, _) => Isometry3::identity(),
-            (true, Some(frame)) => frame,
+            (true, Some(frame)) => frame.to_isometry(),
             (true, None) => {
                 let (measured, predicted): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = points
                     .iter()
                     .filter(|p| p.frame == f)
                     .map(|p| (p.measured, model.target_position(&p.state)))
                     .unzip();
-                rigid_fit(&measured, &predicted).ok_or(IdentifyError::FrameStart)?
+                rigid_fit(&measured, &predicted)
+                    .ok_or(IdentifyError::FrameStart)?
+                    .to_isometry()
             }
         });
     }
@@ -764,10 +767,12 @@ pub fn refine(
         units,
         status,
         standard_errors,
-        tracker_frame: options.tracker_frame.then(|| frame[0]),
+        tracker_frame: options
+            .tracker_frame
+            .then(|| Frame::from_isometry(&frame[0])),
         tracker_frame_standard_errors: frames_se.first().copied(),
         tracker_frames: if options.tracker_frame {
-            frame
+            frame.iter().map(Frame::from_isometry).collect()
         } else {
             Vec::new()
         },

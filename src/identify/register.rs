@@ -4,11 +4,13 @@
 //! with Umeyama's sign correction against reflections, IEEE PAMI 13(4), 1991). It gives the
 //! tracker frame's starting value before the Levenberg–Marquardt refinement.
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Vector3};
+
+use crate::kinematics::Frame;
 
 /// The rigid transform `T` minimising `Σ |T·from_i − to_i|²`; `None` for fewer than three
 /// points or collinear points (the rotation is then not determined).
-pub fn rigid_fit(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<Isometry3<f64>> {
+pub fn rigid_fit(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<Frame> {
     let n = from.len().min(to.len());
     if n < 3 {
         return None;
@@ -29,14 +31,16 @@ pub fn rigid_fit(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<Isometry3
     let v = v_t.transpose();
     let d = (v * u.transpose()).determinant().signum();
     let r = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
-    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
-    let t = ct - rotation * cf;
-    Some(Isometry3::from_parts(Translation3::from(t), rotation))
+    Some(Frame {
+        rotation: r,
+        position: ct - r * cf,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Isometry3;
 
     #[test]
     fn recovers_a_known_transform() {
@@ -55,8 +59,8 @@ mod tests {
             .map(|p| truth.transform_point(&(*p).into()).coords)
             .collect();
         let fit = rigid_fit(&from, &to).unwrap();
-        assert!((fit.translation.vector - truth.translation.vector).norm() < 1e-8);
-        assert!(fit.rotation.angle_to(&truth.rotation) < 1e-12);
+        assert!((fit.position - truth.translation.vector).norm() < 1e-8);
+        assert!(fit.to_isometry().rotation.angle_to(&truth.rotation) < 1e-12);
         assert!(rigid_fit(&from[..2], &to[..2]).is_none());
     }
 }

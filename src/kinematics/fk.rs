@@ -11,7 +11,9 @@
 //! `(R06·Ry(90°), C + l5x·R06·x̂)`. It shares no code with the error model's chain
 //! (`model::chain`), so the two check each other.
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Vector3};
+
+use super::Frame;
 
 use super::robot::{Links, RobotDescription};
 use super::trig::sin_cos;
@@ -180,12 +182,9 @@ pub fn flange_frame(robot: &RobotDescription, axes_deg: &[f64; 6]) -> (Matrix3<f
 }
 
 /// The nominal flange frame of `axes_deg` (KUKA degrees) in the robot base frame.
-pub fn forward(robot: &RobotDescription, axes_deg: &[f64; 6]) -> Isometry3<f64> {
-    let (r, p) = flange_frame(robot, axes_deg);
-    Isometry3::from_parts(
-        Translation3::from(p),
-        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
-    )
+pub fn forward(robot: &RobotDescription, axes_deg: &[f64; 6]) -> Frame {
+    let (rotation, position) = flange_frame(robot, axes_deg);
+    Frame { rotation, position }
 }
 
 /// The wrist point (intersection of A4, A5, A6) of `axes_deg`, base frame, mm.

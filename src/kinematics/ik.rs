@@ -11,7 +11,9 @@
 //! being determined by the target to better than 1e-6 mm; use [`super::singularity`] to warn
 //! earlier.
 
-use nalgebra::{Isometry3, Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector3};
+
+use super::Frame;
 
 pub use super::branches::{
     ELBOW_SINGULAR_DEG, REACH_TOLERANCE_MM, SHOULDER_SINGULAR_MM, WRIST_SINGULAR_SIN,
@@ -209,21 +211,15 @@ fn failure(robot: &RobotDescription, configs: &[Config]) -> IkError {
     }
 }
 
-fn parts(flange: &Isometry3<f64>) -> (Matrix3<f64>, Vector3<f64>) {
-    (
-        flange.rotation.to_rotation_matrix().into_inner(),
-        flange.translation.vector,
-    )
+fn parts(flange: &Frame) -> (Matrix3<f64>, Vector3<f64>) {
+    (flange.rotation, flange.position)
 }
 
 /// Every solution within the joint limits: each non-singular configuration with every
 /// combination of ±360° variants, sorted by S then T. Fails when there is none (singular,
 /// out of limits or unreachable, in that order of precedence); a singular configuration is
 /// left out while others solve the target.
-pub fn inverse_all(
-    robot: &RobotDescription,
-    flange: &Isometry3<f64>,
-) -> Result<Vec<IkSolution>, IkError> {
+pub fn inverse_all(robot: &RobotDescription, flange: &Frame) -> Result<Vec<IkSolution>, IkError> {
     let mut out = Vec::with_capacity(32);
     inverse_all_into(robot, flange, &mut out)?;
     Ok(out)
@@ -232,7 +228,7 @@ pub fn inverse_all(
 /// [`inverse_all`] into a reused buffer (cleared first).
 pub fn inverse_all_into(
     robot: &RobotDescription,
-    flange: &Isometry3<f64>,
+    flange: &Frame,
     out: &mut Vec<IkSolution>,
 ) -> Result<(), IkError> {
     let (r, p) = parts(flange);
@@ -266,7 +262,7 @@ fn squared_distance(a: &[f64; 6], b: &[f64; 6]) -> f64 {
 /// The selected solution of `flange` (see [`Select`]).
 pub fn inverse(
     robot: &RobotDescription,
-    flange: &Isometry3<f64>,
+    flange: &Frame,
     select: Select,
 ) -> Result<IkSolution, IkError> {
     let (r, p) = parts(flange);
@@ -419,7 +415,7 @@ fn nearest(
 
 /// The error for a configuration that is not available: unreachable as a whole, or the list
 /// of what is.
-fn no_branch(robot: &RobotDescription, flange: &Isometry3<f64>, s: u8, t: Option<u8>) -> IkError {
+fn no_branch(robot: &RobotDescription, flange: &Frame, s: u8, t: Option<u8>) -> IkError {
     match inverse_all(robot, flange) {
         Ok(all) => {
             let mut available: Vec<(u8, u8)> = all.iter().map(|x| (x.s, x.t)).collect();

@@ -4,12 +4,13 @@
 //! kinematics with every branch and the controller's ways of choosing one. Knows nothing of
 //! KRL syntax nor of error models. Its words: [`AxisAngles`] are the six axis angles, never a
 //! pose; a [`Pose`] is the KUKA record a user writes (X, Y, Z, A, B, C), read and written at
-//! the edges; a rigid transform is nalgebra's `Isometry3` here, where nalgebra's operations
-//! are used (FK gives one, IK takes one), and `motion::frame::Frame` (rotation matrix +
-//! position) downstream, where poses are composed in inner loops.
+//! the edges; a rigid transform is a [`Frame`] (rotation matrix + position) here and
+//! downstream: FK gives one, IK takes one, the error model's flange is one, motion composes
+//! them.
 
 mod branches;
 pub mod fk;
+pub mod frame;
 pub mod ik;
 pub mod pose;
 mod rates;
@@ -21,6 +22,7 @@ pub use fk::{
     flange_frame, forward, singularity, singularity_distances, singularity_with, status_turn,
     wrist_point, Singularity, SingularityKind, SingularityThresholds,
 };
+pub use frame::Frame;
 pub use ik::{inverse, inverse_all, inverse_all_into, IkError, IkSolution, Select};
 pub use pose::{abc_to_matrix, matrix_to_abc, AxisAngles, E6Axis, E6Pos, Pose};
 pub use rates::ArmState;

@@ -3,11 +3,12 @@
 //! (`a : b` is the transform product a·b), the inverse frame, and E6POS/E6AXIS-style records
 //! that carry S/T and the external axes beside the six robot axes.
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::trig::sin_cos;
+use super::Frame;
 
 /// Below this `cos B` the orientation is taken as B = ±90° exactly, where only A − C (B = +90°)
 /// or A + C (B = −90°) is defined; MODEL.md's convention then puts everything in A (C = 0).
@@ -54,27 +55,18 @@ impl Pose {
         [self.x, self.y, self.z, self.a, self.b, self.c]
     }
 
+    /// `[A, B, C]`, degrees.
+    pub fn abc(&self) -> [f64; 3] {
+        [self.a, self.b, self.c]
+    }
+
     /// R = Rz(A)·Ry(B)·Rx(C) (KUKA's ZYX Euler angles, degrees).
     pub fn rotation_matrix(&self) -> Matrix3<f64> {
         abc_to_matrix(self.a, self.b, self.c)
     }
 
-    pub fn to_isometry(&self) -> Isometry3<f64> {
-        let r = Rotation3::from_matrix_unchecked(self.rotation_matrix());
-        Isometry3::from_parts(
-            Translation3::new(self.x, self.y, self.z),
-            UnitQuaternion::from_rotation_matrix(&r),
-        )
-    }
-
-    /// The KUKA angles of a transform: B in [−90°, 90°], A and C in (−180°, 180°]; at B = ±90°
-    /// C = 0 (MODEL.md).
-    pub fn from_isometry(iso: &Isometry3<f64>) -> Pose {
-        let r = iso.rotation.to_rotation_matrix();
-        Pose::from_parts(r.matrix(), &iso.translation.vector)
-    }
-
-    /// From a rotation matrix and a translation.
+    /// From a rotation matrix and a translation: B in [−90°, 90°], A and C in (−180°, 180°];
+    /// at B = ±90° C = 0 (MODEL.md). A [`Frame`]'s is [`Frame::to_pose`].
     pub fn from_parts(r: &Matrix3<f64>, p: &Vector3<f64>) -> Pose {
         let [a, b, c] = matrix_to_abc(r);
         Pose {
@@ -93,12 +85,14 @@ impl Pose {
 
     /// The KRL geometric operator `self : rhs` (first `self`, then `rhs` in `self`'s frame).
     pub fn compose(&self, rhs: &Pose) -> Pose {
-        Pose::from_isometry(&(self.to_isometry() * rhs.to_isometry()))
+        Frame::from_kuka(self)
+            .compose(&Frame::from_kuka(rhs))
+            .to_pose()
     }
 
     /// The inverse frame (KRL `INV_POS`): `p.inverse().compose(&p)` is the identity.
     pub fn inverse(&self) -> Pose {
-        Pose::from_isometry(&self.to_isometry().inverse())
+        Frame::from_kuka(self).inverse().to_pose()
     }
 }
 

@@ -8,10 +8,10 @@
 //! `t` moves every later point by `t`, a rotation about axis `ω` through `o` moves `p` by
 //! `ω × (p − o)` and the orientation by the rotation vector `ω`.
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Matrix3, Vector3, Vector6};
 
 use super::effect::{ChainErrors, Slot, JOINT_SLOTS, N_SLOTS};
-use crate::kinematics::{trig, RobotDescription};
+use crate::kinematics::{trig, Frame, RobotDescription};
 
 /// Model rotation axis of A1..A6 (0 = x, 1 = y, 2 = z): z, y, y, x, y, x (MODEL.md).
 pub const AXIS_COORD: [usize; 6] = [2, 1, 1, 0, 1, 0];
@@ -323,22 +323,13 @@ pub fn axis_lines(
     }
 }
 
-/// The unit quaternion of a chain rotation (orthonormal to rounding), by the direct
-/// (Shepperd) conversion. nalgebra's `UnitQuaternion::from_matrix` iterates from the
-/// identity and stays there for a rotation by a half turn (a flange pointing down with
-/// A ≈ 180°: its torque vanishes), whichever last bits the matrix has.
-fn rotation_of(r: &Matrix3<f64>) -> UnitQuaternion<f64> {
-    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r))
-}
-
 /// The KUKA flange frame in the base frame, fast path.
-pub fn flange_pose(
-    robot: &RobotDescription,
-    axes_deg: &[f64; 6],
-    errors: &ChainErrors,
-) -> Isometry3<f64> {
+pub fn flange_pose(robot: &RobotDescription, axes_deg: &[f64; 6], errors: &ChainErrors) -> Frame {
     let (r, p) = a6_frame(robot, axes_deg, errors);
-    Isometry3::from_parts(Translation3::from(p), rotation_of(&(r * a6_to_flange())))
+    Frame {
+        rotation: r * a6_to_flange(),
+        position: p,
+    }
 }
 
 /// The target position (`target_a6` plus the target slots, carried by the A6 frame), fast path.
@@ -411,12 +402,14 @@ impl ChainFrames {
     }
 
     /// The KUKA flange frame in the base frame.
-    pub fn flange_pose(&self) -> Isometry3<f64> {
-        let r = self.a6_rotation * a6_to_flange();
-        Isometry3::from_parts(Translation3::from(self.a6_origin), rotation_of(&r))
+    pub fn flange_pose(&self) -> Frame {
+        Frame {
+            rotation: self.flange_rotation(),
+            position: self.a6_origin,
+        }
     }
 
-    /// The flange rotation as a matrix (cheaper than the quaternion of [`Self::flange_pose`]).
+    /// The flange rotation.
     pub fn flange_rotation(&self) -> Matrix3<f64> {
         self.a6_rotation * a6_to_flange()
     }
@@ -534,9 +527,13 @@ mod tests {
                 let (r, p) = a6_frame(&robot, &axes, &e);
                 let pose = flange_pose(&robot, &axes, &e);
                 let want = r * a6_to_flange();
-                let got = pose.rotation.to_rotation_matrix().into_inner();
+                let got = pose
+                    .to_isometry()
+                    .rotation
+                    .to_rotation_matrix()
+                    .into_inner();
                 assert!((got - want).amax() < 1e-15, "{axes:?}: {got} vs {want}");
-                assert_eq!(pose.translation.vector, p);
+                assert_eq!(pose.position, p);
                 let frames = ChainFrames::new(&robot, &axes, &e).flange_pose();
                 assert_eq!(frames.rotation, pose.rotation);
             }

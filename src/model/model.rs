@@ -6,7 +6,7 @@
 
 use std::sync::OnceLock;
 
-use nalgebra::{Isometry3, Vector3, Vector6};
+use nalgebra::{Vector3, Vector6};
 
 use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
 use super::effect::{AxisSlopes, ChainErrors, Context, Parameter, Partial, Slot};
@@ -14,7 +14,7 @@ use super::effects::{EffectError, GridOptions, ModelEffect};
 use super::merged::Merged;
 use super::registry::EffectName;
 use super::AxisState;
-use crate::kinematics::{Payload, RobotDescription};
+use crate::kinematics::{Frame, Payload, RobotDescription};
 
 /// A tool within this distance of the measurement target (mm) is the target: the rounding of
 /// a `$TOOL` written to the micrometre.
@@ -245,7 +245,7 @@ impl Model {
     }
 
     /// The KUKA flange frame the robot actually reaches at `state`, in the base frame.
-    pub fn flange_pose(&self, state: &AxisState) -> Isometry3<f64> {
+    pub fn flange_pose(&self, state: &AxisState) -> Frame {
         chain::flange_pose(&self.robot, &state.axes_deg, &self.chain_errors(state))
     }
 
@@ -385,10 +385,7 @@ impl Model {
 
     /// The flange pose and its derivative with respect to each parameter: position (mm) on
     /// top of the small rotation vector in the base frame (rad), per stored unit.
-    pub fn flange_jacobian(
-        &self,
-        state: &AxisState,
-    ) -> (Isometry3<f64>, Vec<(usize, Vector6<f64>)>) {
+    pub fn flange_jacobian(&self, state: &AxisState) -> (Frame, Vec<(usize, Vector6<f64>)>) {
         let (frames, _) = self.frames(state);
         let slots = frames.flange_jacobian();
         let mut scratch = JacobianScratch::default();

@@ -1,92 +1,51 @@
-//! Pose arithmetic shared by motion simulation and compensation: a rigid frame as rotation
-//! matrix + position (cheaper than quaternions in inner loops), pose errors as six-vectors
+//! Pose arithmetic shared by motion simulation and compensation, on the crate's rigid
+//! transform [`Frame`] (`kinematics::Frame`, re-exported here): pose errors as six-vectors
 //! `[Δp (mm); Δr (rad)]` with the rotation error as the rotation vector of `R_actual · R_goalᵀ`
 //! (a world-frame error, the frame in which the paper writes `p̂ − p*`), and its inverse, the
-//! exponential; conversions to and from KUKA X/Y/Z/A/B/C. Downstream of `kinematics` a rigid
-//! transform is a [`Frame`]: a KUKA record (`kinematics::Pose`, or a target's six numbers) is
-//! converted at the edges (`from_kuka`, `to_kuka_near`), and a frame becomes an `Isometry3`
-//! only to be handed to `kinematics` or `model` (`to_isometry`).
+//! exponential; a frame written as KUKA X/Y/Z/A/B/C (a `kinematics::Pose`) near the numbers it
+//! replaces (`to_kuka_near`), continuous near gimbal lock (`abc_continuous`).
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Matrix3, Vector3, Vector6};
 
-use crate::kinematics::{abc_to_matrix, matrix_to_abc};
+use crate::kinematics::{abc_to_matrix, matrix_to_abc, Pose};
 
-/// A rigid frame: `x ↦ rotation · x + position`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Frame {
-    pub rotation: Matrix3<f64>,
-    pub position: Vector3<f64>,
-}
+pub use crate::kinematics::Frame;
 
+/// Writing a frame near the numbers it replaces, and moving it by a pose error.
 impl Frame {
-    pub fn identity() -> Frame {
-        Frame {
-            rotation: Matrix3::identity(),
-            position: Vector3::zeros(),
-        }
-    }
-
-    pub fn from_isometry(iso: &Isometry3<f64>) -> Frame {
-        Frame {
-            rotation: *iso.rotation.to_rotation_matrix().matrix(),
-            position: iso.translation.vector,
-        }
-    }
-
-    pub fn to_isometry(&self) -> Isometry3<f64> {
-        // Direct (Shepperd) conversion: the matrix is orthonormal to rounding.
-        let q =
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(self.rotation));
-        Isometry3::from_parts(Translation3::from(self.position), q)
-    }
-
-    /// A KUKA frame: X, Y, Z in mm, R = Rz(A)·Ry(B)·Rx(C) in degrees.
-    pub fn from_kuka(xyzabc: &[f64; 6]) -> Frame {
-        let [x, y, z, a, b, c] = *xyzabc;
-        Frame {
-            rotation: abc_to_matrix(a, b, c),
-            position: Vector3::new(x, y, z),
-        }
-    }
-
     /// X, Y, Z, A, B, C of this frame, the angles chosen nearest to `near` (A, B, C of the
     /// value being replaced): of the two Euler triples of a rotation and their ±360° copies,
     /// the one a user would expect next to the original; at B = ±90° (where only A∓C is
     /// defined) C is kept.
-    pub fn to_kuka_near(&self, near: &[f64; 3]) -> [f64; 6] {
-        let p = self.position;
+    pub fn to_kuka_near(&self, near: &[f64; 3]) -> Pose {
         let [a, b, c] = abc_near(&self.rotation, near);
-        [p.x, p.y, p.z, a, b, c]
+        self.kuka_with(a, b, c)
+    }
+
+    /// This frame's X, Y, Z with the angles A, B, C.
+    fn kuka_with(&self, a: f64, b: f64, c: f64) -> Pose {
+        let p = self.position;
+        Pose {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+            a,
+            b,
+            c,
+        }
     }
 
     /// What [`Self::to_kuka_near`] chooses from, for any `near`: the position and the Euler
     /// triple of [`matrix_to_abc`]; `None` at gimbal lock, where the choice needs the matrix.
     /// Worked out once where a pose is written near two different references (the
     /// compensation's re-check near zero, the rewrite near the original numbers).
-    pub fn to_kuka_unchosen(&self) -> Option<[f64; 6]> {
+    pub fn to_kuka_unchosen(&self) -> Option<Pose> {
         let r = &self.rotation;
         if gimbal_locked(r) {
             return None;
         }
-        let p = self.position;
         let [a, b, c] = matrix_to_abc(r);
-        Some([p.x, p.y, p.z, a, b, c])
-    }
-
-    /// `self · other`.
-    pub fn compose(&self, other: &Frame) -> Frame {
-        Frame {
-            rotation: self.rotation * other.rotation,
-            position: self.position + self.rotation * other.position,
-        }
-    }
-
-    pub fn inverse(&self) -> Frame {
-        let rt = self.rotation.transpose();
-        Frame {
-            rotation: rt,
-            position: -(rt * self.position),
-        }
+        Some(self.kuka_with(a, b, c))
     }
 
     /// The frame moved by the world-frame error `e` (`[Δp; Δr]`): position `p + Δp`,
@@ -114,10 +73,14 @@ pub fn abc_near(r: &Matrix3<f64>, near: &[f64; 3]) -> [f64; 3] {
 
 /// [`Frame::to_kuka_near`] of the frame whose [`Frame::to_kuka_unchosen`] is `unchosen`, to
 /// the bit.
-pub fn kuka_near(unchosen: &[f64; 6], near: &[f64; 3]) -> [f64; 6] {
-    let [x, y, z, a, b, c] = *unchosen;
-    let [a, b, c] = choose_abc([a, b, c], near);
-    [x, y, z, a, b, c]
+pub fn kuka_near(unchosen: &Pose, near: &[f64; 3]) -> Pose {
+    let [a, b, c] = choose_abc(unchosen.abc(), near);
+    Pose {
+        a,
+        b,
+        c,
+        ..*unchosen
+    }
 }
 
 /// Whether `abc_near` must keep C (B = ±90° to 10⁻⁹).
@@ -307,6 +270,7 @@ pub fn exp_so3(w: &Vector3<f64>) -> Matrix3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Isometry3, Rotation3};
 
     /// Half turns recognised against angles built by hand: a rotation about any axis by π, by
     /// π less 10⁻⁷ rad (within) and less 10⁻⁵ rad (not); the orientation change of HEAD's pose
@@ -314,7 +278,7 @@ mod tests {
     /// `log_so3` gives as π.
     #[test]
     fn half_turns_apart() {
-        let a = Frame::from_kuka(&[0.0, 0.0, 0.0, 30.0, -20.0, 75.0]).rotation;
+        let a = Frame::from_kuka(&Pose::from_array([0.0, 0.0, 0.0, 30.0, -20.0, 75.0])).rotation;
         let axis = nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8));
         let turned =
             |angle: f64| a * nalgebra::Rotation3::from_axis_angle(&axis, angle).into_inner();
@@ -324,8 +288,9 @@ mod tests {
         assert!(!half_turn_apart(&a, &turned(pi - 1e-5)));
         assert!(!half_turn_apart(&a, &turned(0.5)));
         assert!(!half_turn_apart(&a, &a));
-        let start = Frame::from_kuka(&[0.0, 0.0, 0.0, 180.0, 10.0, 180.0]).rotation;
-        let goal = Frame::from_kuka(&[0.0, 0.0, 0.0, 0.0, 0.0, 180.0]).rotation;
+        let start =
+            Frame::from_kuka(&Pose::from_array([0.0, 0.0, 0.0, 180.0, 10.0, 180.0])).rotation;
+        let goal = Frame::from_kuka(&Pose::from_array([0.0, 0.0, 0.0, 0.0, 0.0, 180.0])).rotation;
         assert!((log_so3(&(goal * start.transpose())).norm() - pi).abs() < 1e-7);
         assert!(half_turn_apart(&start, &goal));
     }
@@ -356,10 +321,10 @@ mod tests {
             ([30.0, -90.0, -40.0], [30.0, -90.0, -40.0]),
             ([0.0, 0.0, 350.0], [0.0, 0.0, 350.0]),
         ] {
-            let f = Frame::from_kuka(&[1.0, 2.0, 3.0, abc[0], abc[1], abc[2]]);
+            let f = Frame::from_kuka(&Pose::from_array([1.0, 2.0, 3.0, abc[0], abc[1], abc[2]]));
             let out = f.to_kuka_near(&near);
-            for i in 0..3 {
-                assert!((out[3 + i] - near[i]).abs() < 1e-3, "{abc:?} → {out:?}");
+            for (got, want) in out.abc().iter().zip(&near) {
+                assert!((got - want).abs() < 1e-3, "{abc:?} → {out:?}");
             }
             let back = Frame::from_kuka(&out);
             assert_relative_eq!(back.rotation, f.rotation, epsilon = 1e-12);
@@ -412,12 +377,20 @@ mod tests {
         for a in (-180..=180).step_by(45) {
             for b in [-90.0, -89.99, -60.0, 0.0, 45.5, 89.9999, 90.0] {
                 for c in (-180..=180).step_by(60) {
-                    let f = Frame::from_kuka(&[5.0, -6.0, 7.0, a as f64 + 0.3, b, c as f64]);
+                    let f = Frame::from_kuka(&Pose::from_array([
+                        5.0,
+                        -6.0,
+                        7.0,
+                        a as f64 + 0.3,
+                        b,
+                        c as f64,
+                    ]));
                     match f.to_kuka_unchosen() {
                         Some(u) => {
                             for near in &nears {
                                 let (x, y) = (kuka_near(&u, near), f.to_kuka_near(near));
-                                assert_eq!(x.map(f64::to_bits), y.map(f64::to_bits));
+                                let bits = |p: Pose| p.to_array().map(f64::to_bits);
+                                assert_eq!(bits(x), bits(y));
                                 checked += 1;
                             }
                         }

@@ -810,13 +810,9 @@ mod tests {
 
     /// The nominal IK with S = 2 nearest to `near` (the independent closed form).
     fn ik_near(pose: &Frame, near: [f64; 6]) -> [f64; 6] {
-        inverse(
-            &robot(),
-            &pose.to_isometry(),
-            Select::StatusNearest { s: 2, near },
-        )
-        .unwrap()
-        .axes_deg
+        inverse(&robot(), pose, Select::StatusNearest { s: 2, near })
+            .unwrap()
+            .axes_deg
     }
 
     fn fk(q: &[f64; 6]) -> Frame {
@@ -899,7 +895,9 @@ mod tests {
     #[test]
     fn end_rates_match_the_chains_jacobian() {
         let r = robot();
-        let tool = Frame::from_kuka(&[12.0, -30.0, 245.3, 10.0, -90.0, 5.0]);
+        let tool = Frame::from_kuka(&crate::kinematics::Pose::from_array([
+            12.0, -30.0, 245.3, 10.0, -90.0, 5.0,
+        ]));
         for q in [
             [10.0, -80.0, 100.0, 20.0, 50.0, -30.0],
             [-120.0, -45.0, 70.0, -160.0, -80.0, 200.0],

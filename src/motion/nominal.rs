@@ -668,7 +668,7 @@ mod tests {
             tool in proptest::array::uniform6(-200.0f64..200.0),
         ) {
             let robot = RobotDescription::kr30ha();
-            let tool = Frame::from_kuka(&tool);
+            let tool = Frame::from_kuka(&crate::kinematics::Pose::from_array(tool));
             let arm = Nominal(&robot);
             prop_assert_eq!(arm.tcp_jacobian(&axes, &tool).0, arm.tcp(&axes, &tool));
         }

@@ -5,6 +5,7 @@
 //! back. Anything that depends on run time (inputs, sensor
 //! values, unknown functions) is `Unknown` with the reason.
 
+use crate::kinematics::Pose;
 use crate::krl::{Aggregate, Expr, Number, SourceFile, Span};
 use std::borrow::Cow;
 
@@ -71,18 +72,73 @@ pub struct Declared {
 /// A (possibly partial) position.
 #[derive(Clone, Copy, Debug)]
 pub struct Pos<'f> {
-    /// Axis angles (`A1`..`A6`) rather than a Cartesian pose.
-    pub axis: bool,
-    /// `X Y Z A B C` or `A1..A6`; `None` when not given.
-    pub v: [Option<f64>; 6],
+    pub v: Components,
     pub s: Option<u8>,
     pub t: Option<u8>,
     pub origin: Option<Origin<'f>>,
 }
 
+/// The numbers of a position by what they are, in the order the aggregate names them;
+/// `None`: not given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Components {
+    /// Axis angles `A1..A6`, degrees.
+    Axes([Option<f64>; 6]),
+    /// A Cartesian pose `X Y Z A B C`, mm and degrees.
+    Pose([Option<f64>; 6]),
+}
+
+impl Components {
+    /// Numbers named by axis (`axes`, `A1..A6`) or Cartesian names.
+    pub fn named(axes: bool, v: [Option<f64>; 6]) -> Components {
+        if axes {
+            Components::Axes(v)
+        } else {
+            Components::Pose(v)
+        }
+    }
+
+    /// A whole pose.
+    pub fn of_pose(pose: &Pose) -> Components {
+        Components::Pose(pose.to_array().map(Some))
+    }
+
+    pub fn is_axes(&self) -> bool {
+        matches!(self, Components::Axes(_))
+    }
+
+    /// The six numbers, whatever they are.
+    pub fn values(&self) -> &[Option<f64>; 6] {
+        match self {
+            Components::Axes(v) | Components::Pose(v) => v,
+        }
+    }
+
+    pub fn values_mut(&mut self) -> &mut [Option<f64>; 6] {
+        match self {
+            Components::Axes(v) | Components::Pose(v) => v,
+        }
+    }
+}
+
 impl Pos<'_> {
+    /// A position that is only numbers (no S, T, nor place in the source).
+    pub fn numbers(v: Components) -> Self {
+        Pos {
+            v,
+            s: None,
+            t: None,
+            origin: None,
+        }
+    }
+
     pub fn is_complete(&self) -> bool {
-        self.v.iter().all(Option::is_some)
+        self.v.values().iter().all(Option::is_some)
+    }
+
+    /// A position read as a frame: the components it does not give are zero.
+    pub fn frame_pose(&self) -> Pose {
+        Pose::from_array(self.v.values().map(|x| x.unwrap_or(0.0)))
     }
 }
 
@@ -206,8 +262,7 @@ pub fn aggregate<'f>(
 ) -> Value<'f> {
     let src = file.source();
     let mut pos = Pos {
-        axis: false,
-        v: [None; 6],
+        v: Components::Pose([None; 6]),
         s: None,
         t: None,
         origin: Some(Origin {
@@ -284,7 +339,7 @@ pub fn aggregate<'f>(
                     }
                 }
             };
-            pos.v[k] = Some(v);
+            pos.v.values_mut()[k] = Some(v);
             if is_axis {
                 axis = true;
             } else {
@@ -367,7 +422,7 @@ pub fn aggregate<'f>(
     if axis && cartesian {
         return Value::Unknown("an aggregate mixing axis angles and Cartesian values".into());
     }
-    pos.axis = axis;
+    pos.v = Components::named(axis, *pos.v.values());
     if let Some(o) = &mut pos.origin {
         o.literals = literals;
         o.decimals = decimals;

@@ -174,7 +174,7 @@ impl TruthFile {
     pub fn station_mm(&self) -> Vector3<f64> {
         match (self.tracker.station_mm, self.model.frame) {
             (Some(s), _) => Vector3::from(s),
-            (None, Some(MeasurementFrame::Tracker(f))) => f.to_isometry().translation.vector,
+            (None, Some(MeasurementFrame::Tracker(f))) => f.position(),
             (None, _) => Vector3::from(DEFAULT_STATION_MM),
         }
     }

@@ -6,7 +6,7 @@
 //! generator seeded by the truth file's seed: the same truth, stops and seed always give the
 //! same file.
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -15,6 +15,7 @@ use super::campaign::PlannedStop;
 use super::program::ProgramVisit;
 use super::truth::{TrackerNoise, TruthFile};
 use crate::calibration::{CalError, MeasurementFrame};
+use crate::kinematics::Frame;
 use crate::measure::{infer_histories, Stop};
 use crate::model::{AxisState, Model};
 
@@ -41,7 +42,7 @@ pub struct VirtualRobot {
     pub truth: Model,
     /// Pose of the tracker frame in the base frame (`p_base = F · p_tracker`); `None`: the
     /// tracker reports in the base frame.
-    pub tracker_frame: Option<Isometry3<f64>>,
+    pub tracker_frame: Option<Frame>,
     pub noise: TrackerNoise,
     /// Tracker head in the base frame, mm (the noise grows with the distance to it).
     pub station_mm: Vector3<f64>,
@@ -65,7 +66,7 @@ impl VirtualRobot {
         let calibration = file.validate(path)?;
         let tracker_frame = match calibration.frame {
             MeasurementFrame::Base => None,
-            MeasurementFrame::Tracker(f) => Some(f.to_isometry()),
+            MeasurementFrame::Tracker(f) => Some(Frame::from_kuka(&f)),
         };
         Ok(VirtualRobot {
             truth: calibration.model(),
@@ -92,7 +93,7 @@ impl VirtualRobot {
     }
 
     /// Reports positions in a tracker frame whose pose in the base frame is `frame`.
-    pub fn with_tracker_frame(mut self, frame: Option<Isometry3<f64>>) -> VirtualRobot {
+    pub fn with_tracker_frame(mut self, frame: Option<Frame>) -> VirtualRobot {
         self.tracker_frame = frame;
         self
     }
@@ -105,7 +106,13 @@ impl VirtualRobot {
     /// A base-frame position as the tracker reports it (its frame), without noise.
     pub fn to_tracker(&self, p_base: &Vector3<f64>) -> Vector3<f64> {
         match &self.tracker_frame {
-            Some(f) => f.inverse_transform_point(&(*p_base).into()).coords,
+            // Through the unit quaternion: the readings keep the bits of the shipped
+            // measurement fixtures, which `tests/fixtures_regenerate.rs` compares byte for byte.
+            Some(f) => {
+                f.to_isometry()
+                    .inverse_transform_point(&(*p_base).into())
+                    .coords
+            }
             None => *p_base,
         }
     }
@@ -256,11 +263,11 @@ mod tests {
             a: 150.0,
             b: 1.0,
             c: -2.0,
-        }
-        .to_isometry();
+        };
+        let frame = Frame::from_kuka(&frame).to_isometry();
         let exact = VirtualRobot::new(nominal())
             .with_noise(TrackerNoise::NONE)
-            .with_tracker_frame(Some(frame));
+            .with_tracker_frame(Some(Frame::from_isometry(&frame)));
         let m = exact.measure(&[stop(10.0, true)]).unwrap()[0]
             .measured_mm
             .unwrap();

@@ -396,7 +396,7 @@ fn reached(
         }
         let state = states[k];
         let tool = again.frames[a.tool as usize].to_isometry();
-        let predicted = model.flange_pose(&state) * tool;
+        let predicted = model.flange_pose(&state).to_isometry() * tool;
         let goal = o.goal.to_isometry();
         dp = dp.max((predicted.translation.vector - goal.translation.vector).norm());
         dr = dr.max((predicted.rotation * goal.rotation.inverse()).angle());

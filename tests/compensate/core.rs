@@ -24,11 +24,14 @@ fn tool() -> Isometry3<f64> {
 /// the solver's own chain evaluation).
 fn nominal_tcp(model: &Model, axes: [f64; 6]) -> Isometry3<f64> {
     let bare = Model::new(model.robot, Payload::default(), Vector3::zeros());
-    bare.flange_pose(&AxisState::new(axes)) * tool()
+    bare.flange_pose(&AxisState::new(axes)).to_isometry() * tool()
 }
 
 fn predicted_tcp(model: &Model, axes: [f64; 6], dirs: [Direction; 6]) -> Isometry3<f64> {
-    model.flange_pose(&AxisState::with_directions(axes, dirs)) * tool()
+    model
+        .flange_pose(&AxisState::with_directions(axes, dirs))
+        .to_isometry()
+        * tool()
 }
 
 fn pose_gap(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
@@ -204,7 +207,7 @@ fn vertical_line(model: &Model, step_mm: f64) -> Vec<Target> {
     let tools = [Frame::identity()];
     let bare = Model::new(model.robot, Payload::default(), Vector3::zeros());
     let top = [20.0, -75.0, 95.0, 0.0, 70.0, 10.0];
-    let top_pose = Frame::from_isometry(&bare.flange_pose(&AxisState::new(top)));
+    let top_pose = bare.flange_pose(&AxisState::new(top));
     let mut targets = vec![target(model, top, Some([1.0, 1.0, -1.0, 0.0, 1.0, 1.0]))];
     targets[0].goal = top_pose;
     let mut previous = top;
@@ -246,7 +249,7 @@ fn arrivals(targets: &[Target], out: &[robopost::compensate::Outcome]) -> Vec<Ax
     use robopost::motion::interpolate::{arrival, Path};
     let robot = robopost::kinematics::RobotDescription::kr30ha();
     let bare = Model::new(robot, Payload::default(), Vector3::zeros());
-    let flange = |q: &[f64; 6]| Frame::from_isometry(&bare.flange_pose(&AxisState::new(*q)));
+    let flange = |q: &[f64; 6]| bare.flange_pose(&AxisState::new(*q));
     let mut states: Vec<AxisState> = Vec::new();
     for (t, o) in targets.iter().zip(out) {
         let state = match states.last() {
@@ -283,7 +286,7 @@ fn assert_reaches_goals(
 ) {
     for (k, (state, t)) in arrivals(targets, out).iter().zip(targets).enumerate() {
         assert!(out[k].error.is_none(), "{k}: {:?}", out[k].error);
-        let reached = Frame::from_isometry(&model.flange_pose(state));
+        let reached = model.flange_pose(state);
         let (p, r) =
             robopost::compensate::pose::norms(&robopost::motion::frame::error(&reached, &t.goal));
         assert!(
@@ -356,7 +359,7 @@ fn a_reversal_inside_the_play_travels_it() {
     assert!(back > 0.5 * b1, "A1 back by {back}°, play {b1}°");
     // Evaluated with the play from the commands, with the tool: every target at its goal.
     for (k, state) in arrivals(&targets, &out).iter().enumerate() {
-        let reached = Frame::from_isometry(&(model.flange_pose(state) * tool()));
+        let reached = Frame::from_isometry(&(model.flange_pose(state).to_isometry() * tool()));
         let (p, r) = robopost::compensate::pose::norms(&robopost::motion::frame::error(
             &reached,
             &targets[k].goal,

@@ -328,9 +328,9 @@ fn the_angle_only_fast_path_predicts_the_whole_model() {
                 time_s: 0.0,
             };
             let flange = model.flange_pose(&state);
-            let want = flange.rotation * tool.position + flange.translation.vector;
+            let want = flange.rotation * tool.position + flange.position;
             let goal = Frame {
-                rotation: flange.rotation.to_rotation_matrix().into_inner() * tool.rotation,
+                rotation: flange.rotation * tool.rotation,
                 position: want,
             };
             let e = solve::predicted_error(&model, &dirs, &axes, &tool, &goal);

@@ -304,7 +304,7 @@ fn compensated_paths_reach_the_programmed_poses() {
         for (k, (a, o)) in again.stops.iter().zip(&original.stops).enumerate() {
             let axis_state = states[k];
             let tool = again.frames[a.tool as usize].to_isometry();
-            let predicted = model.flange_pose(&axis_state) * tool;
+            let predicted = model.flange_pose(&axis_state).to_isometry() * tool;
             let goal = o.goal.to_isometry();
             let dp = (predicted.translation.vector - goal.translation.vector).norm();
             let dr = (predicted.rotation * goal.rotation.inverse()).angle();
@@ -364,7 +364,7 @@ fn compensated_paths_reach_the_programmed_poses() {
                 let (bound_mm, bound_rad) = if a.programmed.is_axes() {
                     let bare = Model::new(robot, Payload::default(), nalgebra::Vector3::zeros());
                     let tcp = |axes: [f64; 6]| {
-                        (bare.flange_pose(&AxisState::new(axes)) * tool)
+                        (bare.flange_pose(&AxisState::new(axes)).to_isometry() * tool)
                             .translation
                             .vector
                     };

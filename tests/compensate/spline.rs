@@ -50,20 +50,19 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
     // Barry–Goldman, the flange by hand, the axes by the closed-form IK nearest to the stop's.
     let p = [-500.0, -300.0, 300.0, 300.0].map(|y| Vector3::new(1000.0, y, 800.0));
     let p = [p[0], p[1], p[2], Vector3::new(1100.0, 300.0, 800.0)];
-    let down = Frame::from_kuka(&[0.0, 0.0, 0.0, 180.0, 0.0, 180.0]).rotation;
+    let down = Frame::from_kuka(&robopost::kinematics::Pose::from_array([
+        0.0, 0.0, 0.0, 180.0, 0.0, 180.0,
+    ]))
+    .rotation;
     let s = status_turn(&robot, &stop.nominal_axes).0;
     let axes_at = |tcp: Vector3<f64>, near: [f64; 6]| {
         let flange = Frame {
             rotation: down,
             position: tcp - down * Vector3::new(0.0, 0.0, 200.0),
         };
-        inverse(
-            &robot,
-            &flange.to_isometry(),
-            Select::StatusNearest { s, near },
-        )
-        .unwrap()
-        .axes_deg
+        inverse(&robot, &flange, Select::StatusNearest { s, near })
+            .unwrap()
+            .axes_deg
     };
     let q1 = axes_at(barry_goldman(&p, 1.0), stop.nominal_axes.into());
     for (i, (a, b)) in q1.iter().zip(*stop.nominal_axes).enumerate() {

@@ -117,7 +117,7 @@ impl Placed<'_> {
 #[derive(Clone, Copy)]
 struct Commanded {
     tcp: Frame,
-    unchosen: Option<[f64; 6]>,
+    unchosen: Option<crate::kinematics::Pose>,
 }
 
 /// The edits of one target's aggregate: replacements of member values and insertions of
@@ -478,7 +478,7 @@ impl<'a> Writer<'a> {
             relative: stop.rel.is_some(),
             file_sep: self.separator,
         };
-        if aggregate_edits(&target, &present, &values, write, list) {
+        if aggregate_edits(&target, &present, &values.components(), write, list) {
             TargetWrite::Written
         } else {
             TargetWrite::Skipped(Skip::NotLiteral(i))

@@ -2,7 +2,7 @@
 //! form its aggregate is written in (absolute, relative, before a geometric operator), and
 //! the auxiliary point and end of a `CA` circle written by construction.
 
-use crate::kinematics::Pose;
+use crate::kinematics::{AxisAngles, Pose};
 use crate::motion::frame::{abc_continuous, kuka_near, Frame};
 use crate::motion::nominal::{Arm, Nominal};
 use crate::motion::{Programmed, Rel, Role, Simulation, Stop};
@@ -15,15 +15,16 @@ use super::{Commanded, Writer};
 pub(super) const CONTINUITY_LEFT_RAD: f64 = 3.0 * 0.5e-4 * std::f64::consts::PI / 180.0;
 
 impl Writer<'_> {
-    /// The new component values of `stop` commanded at `axes` (`None`: nothing can be
-    /// written), with the orientation left out near B = ±90° (see `abc_continuous`), if any.
+    /// The new values of `stop` commanded at `axes` (`None`: nothing can be written): axis
+    /// angles or a pose as the target programs (a relative target's: its offsets), with the
+    /// orientation left out near B = ±90° (see `abc_continuous`), if any.
     pub(super) fn new_values(
         &self,
         stop: &Stop,
         axes: &[f64; 6],
         command: &Commanded,
         original: &[Option<f64>; 6],
-    ) -> Option<([f64; 6], Option<f64>)> {
+    ) -> Option<(Programmed, Option<f64>)> {
         let sim = self.sim;
         // A relative circle's points are both relative to where the motion starts: the
         // target's `prev` is its auxiliary point, whose own `prev` is the start.
@@ -39,9 +40,10 @@ impl Writer<'_> {
                 return match stop.rel {
                     Some(_) => {
                         let prev = prev_cmd?;
-                        Some((std::array::from_fn(|i| axes[i] - prev[i]), None))
+                        let offsets = std::array::from_fn(|i| axes[i] - prev[i]);
+                        Some((Programmed::Axes(AxisAngles(offsets)), None))
                     }
-                    None => Some((*axes, None)),
+                    None => Some((Programmed::Axes(AxisAngles(*axes)), None)),
                 }
             }
             Programmed::Pose(p) => p,
@@ -51,7 +53,11 @@ impl Writer<'_> {
         let in_base = base.inverse().compose(&command.tcp);
         let abc_near = [3, 4, 5].map(|k| original[k].unwrap_or(0.0));
         match stop.rel {
-            None => Some(self.absolute_values(stop, programmed, &in_base, command, original)),
+            None => {
+                let (pose, left) =
+                    self.absolute_values(stop, programmed, &in_base, command, original);
+                Some((Programmed::Pose(pose), left))
+            }
             Some(rel) => {
                 let start = base
                     .inverse()
@@ -63,7 +69,7 @@ impl Writer<'_> {
                         position: in_base.position - start.position,
                     },
                 };
-                Some((moved.to_kuka_near(&abc_near), None))
+                Some((Programmed::Pose(moved.to_kuka_near(&abc_near)), None))
             }
         }
     }
@@ -77,7 +83,7 @@ impl Writer<'_> {
         in_base: &Frame,
         command: &Commanded,
         original: &[Option<f64>; 6],
-    ) -> ([f64; 6], Option<f64>) {
+    ) -> (Pose, Option<f64>) {
         let near_abc = [
             original[3].unwrap_or(programmed.a),
             original[4].unwrap_or(programmed.b),
@@ -103,10 +109,10 @@ impl Writer<'_> {
         // written (A and C turn together there, A ∓ C stays continuous): an orientation
         // correction left out would leave the TCP off by it times the tool's lever.
         let mut euler_left = None;
-        if let Some((abc, left)) = abc_continuous(&written.rotation, [v[3], v[4], v[5]], &near_abc)
+        if let Some(([a, b, c], left)) = abc_continuous(&written.rotation, v.abc(), &near_abc)
             .filter(|(_, left)| stop.role == Role::Target && *left <= CONTINUITY_LEFT_RAD)
         {
-            v[3..].copy_from_slice(&abc);
+            (v.a, v.b, v.c) = (a, b, c);
             euler_left = Some(left);
         }
         (v, euler_left)

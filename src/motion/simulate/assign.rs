@@ -56,14 +56,16 @@ pub(super) fn with_member<'f>(
         Value::Pos(mut pos) if rest.is_empty() => {
             let component = value::component(field);
             match (component, field.as_slice()) {
-                (Some((axis, k)), _) if axis == pos.axis || pos.v.iter().all(Option::is_none) => {
+                (Some((axis, k)), _)
+                    if axis == pos.v.is_axes() || pos.v.values().iter().all(Option::is_none) =>
+                {
                     let Some(x) = new.as_f64() else {
                         return Value::Unknown(format!(
                             "{place} was set from a value that is not a number"
                         ));
                     };
-                    pos.axis = axis;
-                    pos.v[k] = Some(x);
+                    pos.v = value::Components::named(axis, *pos.v.values());
+                    pos.v.values_mut()[k] = Some(x);
                 }
                 (_, b"S") | (_, b"T") => {
                     let Some(x) = new.as_int() else {
@@ -100,13 +102,7 @@ pub(super) fn with_member<'f>(
         // Nothing known yet: a structure (or a position, by its component names) begins.
         Value::Unknown(_) => {
             let start = if rest.is_empty() && value::component(field).is_some() {
-                Value::Pos(value::Pos {
-                    axis: false,
-                    v: [None; 6],
-                    s: None,
-                    t: None,
-                    origin: None,
-                })
+                Value::Pos(value::Pos::numbers(value::Components::Pose([None; 6])))
             } else {
                 Value::Struc(Vec::new())
             };
@@ -420,9 +416,7 @@ impl<'f> Simulator<'f> {
     /// A frame's state from a value (missing components of a frame aggregate are zero).
     pub(super) fn frame_of(&self, file: FileId, s: &Stmt, v: Value<'f>, what: &str) -> FrameState {
         match v {
-            Value::Pos(p) if !p.axis => {
-                FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
-            }
+            Value::Pos(p) if !p.v.is_axes() => FrameState::Known(Frame::from_kuka(&p.frame_pose())),
             v => FrameState::Unknown(
                 file,
                 s.head,
@@ -438,12 +432,12 @@ impl<'f> Simulator<'f> {
             return FrameState::Known(Frame::identity());
         }
         if let Some(g) = self.given.iter().find(|g| g.base == base && g.index == n) {
-            return FrameState::Known(Frame::from_kuka(&g.xyzabc));
+            return FrameState::Known(Frame::from_kuka(&g.pose));
         }
         let value = self.config_element(name, n);
         match value {
-            Some(Value::Pos(p)) if !p.axis => {
-                FrameState::Known(Frame::from_kuka(&p.v.map(|x| x.unwrap_or(0.0))))
+            Some(Value::Pos(p)) if !p.v.is_axes() => {
+                FrameState::Known(Frame::from_kuka(&p.frame_pose()))
             }
             _ => FrameState::Unknown(0, Span::default(), String::new(), GIVE_FRAME),
         }

@@ -7,7 +7,7 @@ use crate::krl::{self, Access, BinOp, Call, Expr, UnOp};
 use super::*;
 use crate::motion::frame::Frame;
 use crate::motion::nominal::Nominal;
-use crate::motion::value::{self, Pos, Value, VarRef};
+use crate::motion::value::{self, Components, Pos, Value, VarRef};
 use crate::motion::workspace::FileId;
 
 impl<'f> Simulator<'f> {
@@ -61,13 +61,9 @@ impl<'f> Simulator<'f> {
                 .map(|a| self.eval(file, a, scope))
         };
         let frame = |base: bool, n: Option<i64>| match n.map(|n| self.config_frame(base, n)) {
-            Some(FrameState::Known(f)) => Value::Pos(Pos {
-                axis: false,
-                v: f.to_kuka_near(&[0.0; 3]).map(Some),
-                s: None,
-                t: None,
-                origin: None,
-            }),
+            Some(FrameState::Known(f)) => Value::Pos(Pos::numbers(Components::of_pose(
+                &f.to_kuka_near(&[0.0; 3]),
+            ))),
             _ => Value::Unknown(format!(
                 "{}[{}], which is not known",
                 if base { "BASE_DATA" } else { "TOOL_DATA" },
@@ -107,7 +103,7 @@ impl<'f> Simulator<'f> {
             return Value::Unknown("the robot's position, unknown here".into());
         };
         let v = if axis {
-            cur.axes
+            Components::Axes(cur.axes.map(Some))
         } else {
             let (Some(base), Some(tool)) =
                 (self.known(&self.state.base), self.known(&self.state.tool))
@@ -115,12 +111,11 @@ impl<'f> Simulator<'f> {
                 return Value::Unknown("the position in an unknown frame".into());
             };
             let tcp = Nominal(&self.robot).tcp(&cur.axes, &tool);
-            base.inverse().compose(&tcp).to_kuka_near(&[0.0; 3])
+            Components::of_pose(&base.inverse().compose(&tcp).to_kuka_near(&[0.0; 3]))
         };
         let (s, t) = status_turn(&self.robot, &cur.axes);
         Value::Pos(Pos {
-            axis,
-            v: v.map(Some),
+            v,
             s: (!axis).then_some(s),
             t: (!axis).then_some(t),
             origin: None,
@@ -145,15 +140,7 @@ impl<'f> Simulator<'f> {
             }
         }
         match name {
-            b"$NULLFRAME" => {
-                return Value::Pos(Pos {
-                    axis: false,
-                    v: [Some(0.0); 6],
-                    s: None,
-                    t: None,
-                    origin: None,
-                })
-            }
+            b"$NULLFRAME" => return Value::Pos(Pos::numbers(Components::Pose([Some(0.0); 6]))),
             // The operating mode: compensated programs are for the production run,
             // automatic external (said once, see `Simulator::mode_assumed`).
             b"$T1" | b"$T2" | b"$AUT" | b"$EXT" => {
@@ -173,13 +160,9 @@ impl<'f> Simulator<'f> {
                     &self.state.tool
                 };
                 return match self.known(st) {
-                    Some(f) => Value::Pos(Pos {
-                        axis: false,
-                        v: f.to_kuka_near(&[0.0; 3]).map(Some),
-                        s: None,
-                        t: None,
-                        origin: None,
-                    }),
+                    Some(f) => Value::Pos(Pos::numbers(Components::of_pose(
+                        &f.to_kuka_near(&[0.0; 3]),
+                    ))),
                     None => {
                         Value::Unknown(format!("{}, unknown here", String::from_utf8_lossy(name)))
                     }
@@ -210,7 +193,7 @@ impl<'f> Simulator<'f> {
                                 });
                             }
                             if sym.decl.ty.kind.is_axis() {
-                                p.axis = true;
+                                p.v = Components::Axes(*p.v.values());
                             }
                         }
                         v
@@ -276,13 +259,7 @@ impl<'f> Simulator<'f> {
                 .iter()
                 .find(|g| g.base == base && g.index == idx[0])
             {
-                return Value::Pos(Pos {
-                    axis: false,
-                    v: g.xyzabc.map(Some),
-                    s: None,
-                    t: None,
-                    origin: None,
-                });
+                return Value::Pos(Pos::numbers(Components::of_pose(&g.pose)));
             }
         }
         let own = self
@@ -303,7 +280,7 @@ impl<'f> Simulator<'f> {
                 if let Value::Pos(p) = &mut v {
                     if let Some(sym) = self.symbol(file, name) {
                         if sym.decl.ty.kind.is_axis() {
-                            p.axis = true;
+                            p.v = Components::Axes(*p.v.values());
                         }
                     }
                 }
@@ -356,7 +333,7 @@ impl<'f> Simulator<'f> {
             let field = upper(src.text(*field));
             v = match v {
                 Value::Pos(pos) => match (value::component(&field), field.as_slice()) {
-                    (Some((axis, k)), _) if axis == pos.axis => match pos.v[k] {
+                    (Some((axis, k)), _) if axis == pos.v.is_axes() => match pos.v.values()[k] {
                         Some(x) => Value::Real(x),
                         None => Value::Unknown("a component not given".into()),
                     },
@@ -422,15 +399,15 @@ pub(super) fn binary<'f>(
     }
     match op {
         BinOp::Geo => match (l, r) {
-            (Pos(a), Pos(mut b)) if !a.axis && !b.axis && a.is_complete() => {
-                let fa = crate::motion::frame::Frame::from_kuka(&a.v.map(|x| x.unwrap_or(0.0)));
+            (Pos(a), Pos(mut b)) if !a.v.is_axes() && !b.v.is_axes() && a.is_complete() => {
+                let fa = crate::motion::frame::Frame::from_kuka(&a.frame_pose());
                 // Both operands written in the program: compensating the right one while the
                 // left one may be compensated elsewhere would not add up; leave it.
                 if a.origin.is_some() {
                     b.origin = None;
                 }
                 // The right operand is a frame: components it does not give are zero.
-                b.v = b.v.map(|x| Some(x.unwrap_or(0.0)));
+                b.v = value::Components::of_pose(&b.frame_pose());
                 let complete = b.is_complete();
                 match &mut b.origin {
                     Some(o) => {
@@ -444,12 +421,10 @@ pub(super) fn binary<'f>(
                         Pos(b)
                     }
                     None if complete => {
-                        let fb =
-                            crate::motion::frame::Frame::from_kuka(&b.v.map(|x| x.unwrap_or(0.0)));
+                        let fb = crate::motion::frame::Frame::from_kuka(&b.frame_pose());
                         let c = fa.compose(&fb);
                         Pos(value::Pos {
-                            axis: false,
-                            v: c.to_kuka_near(&[0.0; 3]).map(Some),
+                            v: value::Components::of_pose(&c.to_kuka_near(&[0.0; 3])),
                             s: b.s,
                             t: b.t,
                             origin: None,

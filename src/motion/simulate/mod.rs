@@ -51,8 +51,7 @@ const HOME: [f64; 6] = [0.0, -90.0, 90.0, 0.0, 0.0, 0.0];
 pub struct GivenFrame {
     pub base: bool,
     pub index: i64,
-    /// X, Y, Z, A, B, C.
-    pub xyzabc: [f64; 6],
+    pub pose: Pose,
 }
 
 /// What the target of a stop is relative to.

@@ -10,7 +10,7 @@ use super::*;
 use crate::motion::frame::Frame;
 use crate::motion::interpolate::{self, Cartesian, Path};
 use crate::motion::nominal::Nominal;
-use crate::motion::value::{Pos, Value};
+use crate::motion::value::{Components, Pos, Value};
 use crate::motion::workspace::FileId;
 
 impl<'f> Simulator<'f> {
@@ -211,7 +211,7 @@ impl<'f> Simulator<'f> {
             );
         }
         let rel = m.kind.is_relative().then(|| {
-            if pos.axis {
+            if pos.v.is_axes() {
                 Rel::Axis
             } else if m.frame().is_some_and(|f| f.kind == RelFrameKind::Tool) {
                 Rel::Tool
@@ -220,7 +220,7 @@ impl<'f> Simulator<'f> {
             }
         });
         // An axis target of a PTP needs no frame (the tool only weighs orientation errors).
-        let needs_frames = !pos.axis || !m.kind.is_joint() || m.aux().is_some();
+        let needs_frames = !pos.v.is_axes() || !m.kind.is_joint() || m.aux().is_some();
         let (base, tool) = if needs_frames {
             match self.motion_frames(file, s) {
                 Some(f) => f,
@@ -298,7 +298,7 @@ impl<'f> Simulator<'f> {
             let s_cur = status_turn(&robot, &cur.axes).0;
             let q_aux = match kinematics::inverse(
                 &robot,
-                &aux_pose.compose(&tool.inverse()).to_isometry(),
+                &aux_pose.compose(&tool.inverse()),
                 Select::StatusNearest {
                     s: s_cur,
                     near: cur.axes,
@@ -377,7 +377,7 @@ impl<'f> Simulator<'f> {
                 },
             };
             let flange = goal.compose(&tool.inverse());
-            match kinematics::inverse(&robot, &flange.to_isometry(), select) {
+            match kinematics::inverse(&robot, &flange, select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
                     self.unreachable(file, s, format!("the target cannot be reached: {e}"));
@@ -385,7 +385,7 @@ impl<'f> Simulator<'f> {
                 }
             }
         };
-        if pos.axis && !robot.within_limits(&q) {
+        if pos.v.is_axes() && !robot.within_limits(&q) {
             // The controller refuses it: an error of this target, as an unreachable one.
             let beyond = (0..6)
                 .find(|&i| q[i] < robot.limits_deg[i][0] || q[i] > robot.limits_deg[i][1])
@@ -406,7 +406,7 @@ impl<'f> Simulator<'f> {
             );
             return;
         }
-        let goal = if pos.axis {
+        let goal = if pos.v.is_axes() {
             Nominal(&robot).tcp(&q, &tool)
         } else {
             goal
@@ -446,7 +446,7 @@ impl<'f> Simulator<'f> {
                 s: s_cur,
                 near: cur.axes,
             };
-            let q_end = match kinematics::inverse(&robot, &flange.to_isometry(), select) {
+            let q_end = match kinematics::inverse(&robot, &flange, select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
                     self.unreachable(
@@ -616,8 +616,8 @@ impl<'f> Simulator<'f> {
             arrival,
             turns,
             programmed,
-            keep_s: !pos.axis,
-            keep_t: !pos.axis && m.kind.is_joint() && s_t.1.is_some(),
+            keep_s: !pos.v.is_axes(),
+            keep_t: !pos.v.is_axes() && m.kind.is_joint() && s_t.1.is_some(),
             origin: pos.origin,
             reference,
             prev: aux_stop.or(current.and_then(|c| c.stop)),
@@ -685,28 +685,31 @@ impl<'f> Simulator<'f> {
         start_tcp: Option<&Frame>,
     ) -> Option<(Programmed, Frame, (Option<u8>, Option<u8>))> {
         let st = (pos.s, pos.t);
-        if pos.axis {
-            let q: [f64; 6] = match rel {
-                Some(_) => {
-                    let c = current?;
-                    std::array::from_fn(|i| c.axes[i] + pos.v[i].unwrap_or(0.0))
-                }
-                None => {
-                    if pos.is_complete() {
-                        pos.v.map(|x| x.unwrap_or(0.0))
-                    } else {
+        let v = match pos.v {
+            Components::Axes(v) => {
+                let q: [f64; 6] = match rel {
+                    Some(_) => {
                         let c = current?;
-                        std::array::from_fn(|i| pos.v[i].unwrap_or(c.axes[i]))
+                        std::array::from_fn(|i| c.axes[i] + v[i].unwrap_or(0.0))
                     }
-                }
-            };
-            let goal = Nominal(&self.robot).tcp(&q, tool);
-            return Some((Programmed::Axes(q.into()), goal, st));
-        }
+                    None => {
+                        if pos.is_complete() {
+                            v.map(|x| x.unwrap_or(0.0))
+                        } else {
+                            let c = current?;
+                            std::array::from_fn(|i| v[i].unwrap_or(c.axes[i]))
+                        }
+                    }
+                };
+                let goal = Nominal(&self.robot).tcp(&q, tool);
+                return Some((Programmed::Axes(q.into()), goal, st));
+            }
+            Components::Pose(v) => v,
+        };
         match rel {
             Some(kind) => {
                 let start = start_tcp?;
-                let r = Frame::from_kuka(&pos.v.map(|x| x.unwrap_or(0.0)));
+                let r = Frame::from_kuka(&pos.frame_pose());
                 let start_in_base = base.inverse().compose(start);
                 let p = match kind {
                     Rel::Tool => start_in_base.compose(&r),
@@ -716,22 +719,23 @@ impl<'f> Simulator<'f> {
                     },
                 };
                 let near = start_in_base.to_kuka_near(&self.state.last_abc);
-                let programmed = Pose::from_array(p.to_kuka_near(&[near[3], near[4], near[5]]));
+                let programmed = p.to_kuka_near(&near.abc());
                 Some((Programmed::Pose(programmed), base.compose(&p), st))
             }
             None => {
-                let v: [f64; 6] = if pos.is_complete() {
-                    pos.v.map(|x| x.unwrap_or(0.0))
+                let v = if pos.is_complete() {
+                    pos.frame_pose()
                 } else {
                     let start = start_tcp?;
                     let _ = current?;
                     let last = self.state.last_abc;
                     let here = base.inverse().compose(start).to_kuka_near(&[
-                        pos.v[3].unwrap_or(last[0]),
-                        pos.v[4].unwrap_or(last[1]),
-                        pos.v[5].unwrap_or(last[2]),
+                        v[3].unwrap_or(last[0]),
+                        v[4].unwrap_or(last[1]),
+                        v[5].unwrap_or(last[2]),
                     ]);
-                    std::array::from_fn(|i| pos.v[i].unwrap_or(here[i]))
+                    let here = here.to_array();
+                    Pose::from_array(std::array::from_fn(|i| v[i].unwrap_or(here[i])))
                 };
                 let p = Frame::from_kuka(&v);
                 let table = self.prefixes.borrow();
@@ -742,7 +746,7 @@ impl<'f> Simulator<'f> {
                 if let Some(i) = pos.origin.and_then(|o| o.suffix) {
                     goal = goal.compose(&table[i as usize]);
                 }
-                Some((Programmed::Pose(Pose::from_array(v)), goal, st))
+                Some((Programmed::Pose(v), goal, st))
             }
         }
     }
@@ -777,13 +781,13 @@ impl<'f> Simulator<'f> {
         let named = point
             .origin
             .is_some_and(|o| o.var.is_some() && o.prefix.is_none());
-        if point.axis || !point.is_complete() || !named {
+        if point.v.is_axes() || !point.is_complete() || !named {
             return None;
         }
         let Value::Pos(offset) = self.eval(file, &b.rhs, scope) else {
             return None;
         };
-        if offset.axis {
+        if offset.v.is_axes() {
             return None;
         }
         // A declared point as the offset keeps its numbers here (see `Simulation::pinned`).
@@ -797,7 +801,7 @@ impl<'f> Simulator<'f> {
             });
         }
         // Components the offset does not give are zero (a frame).
-        let frame = Frame::from_kuka(&offset.v.map(|x| x.unwrap_or(0.0)));
+        let frame = Frame::from_kuka(&offset.frame_pose());
         let mut table = self.prefixes.borrow_mut();
         table.push(frame);
         let at = (table.len() - 1) as u32;

@@ -174,8 +174,8 @@ impl PhysicalRobot {
     }
 
     /// The flange pose of the arm (no tracker) at output angles `output_deg`.
-    pub fn flange_at(&self, output_deg: &[f64; 6], time_s: f64) -> nalgebra::Isometry3<f64> {
-        self.arm.bodies(output_deg, time_s).flange
+    pub fn flange_at(&self, output_deg: &[f64; 6], time_s: f64) -> crate::kinematics::Frame {
+        crate::kinematics::Frame::from_isometry(&self.arm.bodies(output_deg, time_s).flange)
     }
 
     /// Runs the command trajectory `samples` in order and returns one row per `Visit` and

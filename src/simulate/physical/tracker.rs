@@ -10,6 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal, StudentT};
 
 use super::file::{Noise, Tracker};
+use crate::kinematics::Frame;
 
 /// Where the tracker stands when nothing says otherwise (the virtual robot's default).
 const DEFAULT_STATION_MM: [f64; 3] = crate::simulate::truth::DEFAULT_STATION_MM;
@@ -28,7 +29,7 @@ pub(super) struct Head {
 
 impl Head {
     pub fn new(t: &Tracker) -> Head {
-        let frame = t.frame.map(|f| f.to_isometry());
+        let frame = t.frame.map(|f| Frame::from_kuka(&f).to_isometry());
         let station = match (t.station_mm, &frame) {
             (Some(s), _) => Vector3::from(s),
             (None, Some(f)) => f.translation.vector,
@@ -125,7 +126,10 @@ mod tests {
         });
         let p = Vector3::new(1200.0, 300.0, 1000.0);
         let m = head.measure(&p, &mut ChaCha8Rng::seed_from_u64(0));
-        let back = frame.to_isometry().transform_point(&Point3::from(m)).coords;
+        let back = Frame::from_kuka(&frame)
+            .to_isometry()
+            .transform_point(&Point3::from(m))
+            .coords;
         assert!((back - p).norm() < 1e-9);
     }
 
