@@ -345,35 +345,39 @@ impl Scan<'_> {
     /// Skips spaces and tabs; whether there were any.
     fn blanks(&mut self) -> bool {
         let at = self.p;
-        while matches!(self.peek(), Some(b' ' | b'\t')) {
-            self.p += 1;
+        let mut p = at;
+        while p < self.b.len() && matches!(self.b[p], b' ' | b'\t') {
+            p += 1;
         }
-        self.p > at
+        self.p = p;
+        p > at
     }
 
     /// An identifier (empty when none starts here).
     fn word(&mut self) -> &[u8] {
         let at = self.p;
-        if self
-            .peek()
-            .is_some_and(|c| c.is_ascii_alphabetic() || c == b'_')
+        let b = self.b;
+        if b.get(at)
+            .is_some_and(|&c| c.is_ascii_alphabetic() || c == b'_')
         {
-            while self
-                .peek()
-                .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_')
-            {
-                self.p += 1;
+            let mut p = at + 1;
+            while p < b.len() && (b[p].is_ascii_alphanumeric() || b[p] == b'_') {
+                p += 1;
             }
+            self.p = p;
         }
-        &self.b[at..self.p]
+        &b[at..self.p]
     }
 
     fn digits(&mut self) -> usize {
         let at = self.p;
-        while self.peek().is_some_and(|c| c.is_ascii_digit()) {
-            self.p += 1;
+        // On a local index: `self.p` stored back once, not at every digit.
+        let mut p = at;
+        while p < self.b.len() && self.b[p].is_ascii_digit() {
+            p += 1;
         }
-        self.p - at
+        self.p = p;
+        p - at
     }
 
     /// `[+-] d+ [. d+]` or `[+-] . d+`, at most 15 digits, not followed by a name character.

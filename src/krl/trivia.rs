@@ -47,7 +47,11 @@ pub(crate) fn split_line(src: &[u8], start: usize) -> RawLine {
     // Skip eight bytes at a time while none of them is `\n`, `;` or `"`.
     while p + 8 <= src.len() {
         let chunk = u64::from_le_bytes(src[p..p + 8].try_into().expect("eight bytes"));
-        if has_byte(chunk, b'\n') | has_byte(chunk, b';') | has_byte(chunk, b'"') != 0 {
+        let found = has_byte(chunk, b'\n') | has_byte(chunk, b';') | has_byte(chunk, b'"');
+        if found != 0 {
+            // On to the first of them: the lowest flagged byte (the test can flag a byte
+            // wrongly only above a true one, by the borrow).
+            p += (found.trailing_zeros() / 8) as usize;
             break;
         }
         p += 8;
@@ -107,6 +111,43 @@ mod tests {
         let l = split_line(src, 16);
         assert_eq!(&src[l.code_start..l.code_end], b"END");
         assert_eq!((l.newline, l.next), (19, 19));
+    }
+
+    /// Where `split_line` ends the code and the line, found one byte at a time: the first
+    /// `\n`, or the first `;` outside a string.
+    fn code_and_line_end(src: &[u8], code_start: usize) -> (usize, usize) {
+        let mut in_string = false;
+        for (p, &b) in src.iter().enumerate().skip(code_start) {
+            match b {
+                b'\n' => return (p, p),
+                b'"' => in_string = !in_string,
+                b';' if !in_string => {
+                    let nl = src[p..].iter().position(|&b| b == b'\n');
+                    return (p, nl.map_or(src.len(), |n| p + n));
+                }
+                _ => {}
+            }
+        }
+        (src.len(), src.len())
+    }
+
+    proptest::proptest! {
+        /// The eight-byte skip lands where the byte-by-byte scan does: lines of the bytes
+        /// it looks for (and look-alikes: `:`, `#`, `\r`, bytes above 127) at any place.
+        #[test]
+        fn the_skip_finds_what_a_byte_scan_finds(
+            text in proptest::collection::vec(
+                proptest::sample::select(b"aZ0 \t;\"\n:#\r\xA2\x8a".to_vec()),
+                0..60,
+            ),
+            start in 0usize..60,
+        ) {
+            let start = start.min(text.len());
+            let l = split_line(&text, start);
+            let (code_limit, newline) = code_and_line_end(&text, l.code_start);
+            proptest::prop_assert_eq!(l.newline, newline);
+            proptest::prop_assert_eq!(l.comment.map(|(c, _)| c).unwrap_or(newline), code_limit);
+        }
     }
 
     #[test]

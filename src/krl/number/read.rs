@@ -185,38 +185,34 @@ fn scan_plain(i: &[u8]) -> Option<PlainParts> {
         }
         _ => false,
     };
-    // Digits from `p` appended to `m`; `None` past 19 digits in all (m would overflow).
-    let run = |mut p: usize, mut m: u64, mut taken: usize| -> Option<(usize, u64, usize)> {
+    // Digits from `p` appended to `m` (wrapping past 19 digits in all: declined below).
+    let run = |mut p: usize, mut m: u64| -> (usize, u64) {
         while let Some(&b) = i.get(p) {
             let d = b.wrapping_sub(b'0');
             if d > 9 {
                 break;
             }
-            if taken == 19 {
-                return None;
-            }
-            m = m * 10 + u64::from(d);
-            taken += 1;
+            m = m.wrapping_mul(10).wrapping_add(u64::from(d));
             p += 1;
         }
-        Some((p, m, taken))
+        (p, m)
     };
-    let (q, m, int_digits) = run(p, 0, 0)?;
+    let (q, m) = run(p, 0);
+    let int_digits = q - p;
     p = q;
     let dot = i.get(p) == Some(&b'.');
     let (m, frac_digits) = if dot {
-        let (q, m, taken) = run(p + 1, m, int_digits)?;
+        let (q, m) = run(p + 1, m);
         let frac_digits = q - (p + 1);
-        if taken == 0 {
-            return None;
-        }
         p = q;
         (m, frac_digits)
-    } else if int_digits == 0 {
-        return None;
     } else {
         (m, 0)
     };
+    // No digit at all, or more than 19 (`m` would have overflowed).
+    if !(1..=19).contains(&(int_digits + frac_digits)) {
+        return None;
+    }
     if matches!(i.get(p), Some(b'e' | b'E')) {
         return None;
     }

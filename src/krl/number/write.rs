@@ -179,9 +179,39 @@ fn plain_decimals(text: &[u8]) -> Option<usize> {
 /// `value` rounded to `decimals` as an integer count of units (`None` beyond ±9·10^15): how
 /// a number is written, and so how the compensation rounds a command it will write.
 pub fn units(value: f64, decimals: usize) -> Option<i64> {
-    let scaled = (value * ten_to(decimals)).round();
+    let scaled = value * ten_to(decimals);
+    if scaled.abs() < EXACT_TRUNC {
+        // `f64::round` is a library call on the baseline x86-64 (no SSE4.1): below 2^52 the
+        // truncation to an integer and the fraction left are exact, and rounding half away
+        // from zero is a comparison of that fraction: the same integer, to the unit.
+        let t = scaled as i64;
+        let frac = scaled - t as f64;
+        return Some(if frac >= 0.5 {
+            t + 1
+        } else if frac <= -0.5 {
+            t - 1
+        } else {
+            t
+        });
+    }
+    let scaled = scaled.round();
     (scaled.abs() < 9.0e15).then_some(scaled as i64)
 }
+
+/// Below this (< 2^52) a double's integer part and fraction are exact ([`units`]).
+const EXACT_TRUNC: f64 = 4.0e15;
+
+/// Pairs of decimal digits `00`..`99`, for [`write_plain`].
+const DIGIT_PAIRS: [u8; 200] = {
+    let mut t = [0u8; 200];
+    let mut i = 0;
+    while i < 100 {
+        t[2 * i] = b'0' + (i / 10) as u8;
+        t[2 * i + 1] = b'0' + (i % 10) as u8;
+        i += 1;
+    }
+    t
+};
 
 /// Appends the plain literal of `units` at `decimals` (`-0.000` written `0.000`): digits by
 /// integer division, no formatting machinery. The digits go straight into `out`, over a
@@ -217,23 +247,33 @@ fn write_plain(units: i64, decimals: usize, out: &mut Vec<u8>) {
     }
     let text = &mut out[start..start + len];
     // Right to left: the fraction (its leading zeros are there already), point, integer.
+    // Two digits a step (one division by 100 for two by 10).
     let mut at = len;
-    while frac > 0 {
-        at -= 1;
-        text[at] = b'0' + (frac % 10) as u8;
-        frac /= 10;
+    while frac >= 10 {
+        at -= 2;
+        let d = (frac % 100) as usize * 2;
+        text[at..at + 2].copy_from_slice(&DIGIT_PAIRS[d..d + 2]);
+        frac /= 100;
+    }
+    if frac > 0 {
+        text[at - 1] = b'0' + frac as u8;
     }
     at = len - decimals - point;
     if point == 1 {
         text[at] = b'.';
     }
-    loop {
-        at -= 1;
-        text[at] = b'0' + (int % 10) as u8;
-        int /= 10;
-        if int == 0 {
-            break;
-        }
+    while int >= 100 {
+        at -= 2;
+        let d = (int % 100) as usize * 2;
+        text[at..at + 2].copy_from_slice(&DIGIT_PAIRS[d..d + 2]);
+        int /= 100;
+    }
+    if int >= 10 {
+        at -= 2;
+        let d = int as usize * 2;
+        text[at..at + 2].copy_from_slice(&DIGIT_PAIRS[d..d + 2]);
+    } else {
+        text[at - 1] = b'0' + int as u8;
     }
     if sign == 1 {
         text[0] = b'-';
@@ -322,7 +362,49 @@ mod tests {
         format!("{sign}{int}.{frac}")
     }
 
+    /// `units` by the library's rounding (what it computes without the call).
+    fn units_by_round(value: f64, decimals: usize) -> Option<i64> {
+        let scaled = (value * ten_to(decimals)).round();
+        (scaled.abs() < 9.0e15).then_some(scaled as i64)
+    }
+
+    #[test]
+    fn units_by_hand() {
+        for (v, d, u) in [
+            (0.5, 0, Some(1)),
+            (-0.5, 0, Some(-1)),
+            (1.5, 0, Some(2)),
+            (2.5, 0, Some(3)),
+            (-2.5, 0, Some(-3)),
+            (0.49999999999999994, 0, Some(0)),
+            (-0.0, 3, Some(0)),
+            (1.0005, 3, Some(1001)), // the product is 1000.5: half away from zero
+            (8.999_999_999_999_999e15, 0, Some(8_999_999_999_999_999)),
+            (9.0e15, 0, None),
+            (f64::NAN, 3, None),
+            (f64::INFINITY, 3, None),
+        ] {
+            assert_eq!(units(v, d), units_by_round(v, d), "{v} at {d}");
+            if !v.is_nan() && v.abs() < 1e15 {
+                assert_eq!(units(v, d), u, "{v} at {d}");
+            }
+        }
+    }
+
     proptest! {
+        #[test]
+        fn units_match_the_library_rounding(
+            value in prop_oneof![
+                any::<f64>(),
+                -1e7f64..1e7,
+                (-4_000_000_000i64..4_000_000_000).prop_map(|k| k as f64 * 0.5e-4),
+                (-2i64.pow(53)..2i64.pow(53)).prop_map(|k| k as f64 * 0.5),
+            ],
+            decimals in 0usize..25,
+        ) {
+            prop_assert_eq!(units(value, decimals), units_by_round(value, decimals));
+        }
+
         #[test]
         fn digit_writer_matches_format(units in any::<i64>(), decimals in 0usize..30) {
             prop_assert_eq!(plain_text(units, decimals), plain_by_format(units, decimals));
