@@ -122,7 +122,7 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
             },
             compensate: s.compensable,
             quantum: s.origin.filter(|_| s.compensable).map(|o| {
-                let decimals = rewrite::decimals(&o, s.programmed.is_axes());
+                let decimals = rewrite::decimals(&o, s.programmed.naming());
                 match s.programmed {
                     Programmed::Axes(_) => Quantum::Axes { decimals },
                     Programmed::Pose(_) => Quantum::Pose {

@@ -89,12 +89,19 @@ pub enum Components {
 }
 
 impl Components {
-    /// Numbers named by axis (`axes`, `A1..A6`) or Cartesian names.
-    pub fn named(axes: bool, v: [Option<f64>; 6]) -> Components {
-        if axes {
-            Components::Axes(v)
-        } else {
-            Components::Pose(v)
+    /// Numbers named as `naming` says.
+    pub fn named(naming: Naming, v: [Option<f64>; 6]) -> Components {
+        match naming {
+            Naming::Axes => Components::Axes(v),
+            Naming::Cartesian => Components::Pose(v),
+        }
+    }
+
+    /// How the numbers are named.
+    pub fn naming(&self) -> Naming {
+        match self {
+            Components::Axes(_) => Naming::Axes,
+            Components::Pose(_) => Naming::Cartesian,
         }
     }
 
@@ -204,19 +211,46 @@ pub fn bits_value(text: &[u8]) -> Option<i64> {
     i64::from_str_radix(std::str::from_utf8(digits).ok()?, radix).ok()
 }
 
-/// Component index of an aggregate member name: Cartesian `X Y Z A B C`, or axis `A1..A6`.
-pub fn component(name: &[u8]) -> Option<(bool, usize)> {
+/// What the six components of a position are: axis angles `A1..A6` (degrees) or a Cartesian
+/// pose `X Y Z A B C` (mm and degrees).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Naming {
+    Axes,
+    Cartesian,
+}
+
+impl Naming {
+    /// The member names of the components.
+    pub fn names(self) -> [&'static str; 6] {
+        match self {
+            Naming::Axes => AXIS_NAMES,
+            Naming::Cartesian => CARTESIAN_NAMES,
+        }
+    }
+
+    /// Whether component `k` is an angle (degrees), else a length (mm).
+    pub fn is_angle(self, k: usize) -> bool {
+        self == Naming::Axes || k >= 3
+    }
+}
+
+/// The naming and index of an aggregate member's name: Cartesian `X Y Z A B C`, or axis
+/// `A1..A6`.
+pub fn component(name: &[u8]) -> Option<(Naming, usize)> {
+    let cartesian = |k| (Naming::Cartesian, k);
     Some(match name {
         [c] => match c.to_ascii_uppercase() {
-            b'X' => (false, 0),
-            b'Y' => (false, 1),
-            b'Z' => (false, 2),
-            b'A' => (false, 3),
-            b'B' => (false, 4),
-            b'C' => (false, 5),
+            b'X' => cartesian(0),
+            b'Y' => cartesian(1),
+            b'Z' => cartesian(2),
+            b'A' => cartesian(3),
+            b'B' => cartesian(4),
+            b'C' => cartesian(5),
             _ => return None,
         },
-        [a, d @ b'1'..=b'6'] if a.eq_ignore_ascii_case(&b'A') => (true, (d - b'1') as usize),
+        [a, d @ b'1'..=b'6'] if a.eq_ignore_ascii_case(&b'A') => {
+            (Naming::Axes, (d - b'1') as usize)
+        }
         _ => return None,
     })
 }
@@ -294,7 +328,7 @@ pub fn aggregate<'f>(
         let name = &src[raw.name().range()];
         // Position components first: nearly every member is one (no name is both a component
         // and one of the words below).
-        if let Some((is_axis, k)) = component(name) {
+        if let Some((naming, k)) = component(name) {
             // A plain `NAME number` (nearly every member of a CAM program) is read straight
             // from its bytes, no expression built.
             let plain = match raw {
@@ -340,10 +374,9 @@ pub fn aggregate<'f>(
                 }
             };
             pos.v.values_mut()[k] = Some(v);
-            if is_axis {
-                axis = true;
-            } else {
-                cartesian = true;
+            match naming {
+                Naming::Axes => axis = true,
+                Naming::Cartesian => cartesian = true,
             }
             continue;
         }
@@ -422,7 +455,12 @@ pub fn aggregate<'f>(
     if axis && cartesian {
         return Value::Unknown("an aggregate mixing axis angles and Cartesian values".into());
     }
-    pos.v = Components::named(axis, *pos.v.values());
+    let naming = if axis {
+        Naming::Axes
+    } else {
+        Naming::Cartesian
+    };
+    pos.v = Components::named(naming, *pos.v.values());
     if let Some(o) = &mut pos.origin {
         o.literals = literals;
         o.decimals = decimals;
@@ -444,9 +482,9 @@ mod tests {
 
     #[test]
     fn component_names() {
-        assert_eq!(component(b"x"), Some((false, 0)));
-        assert_eq!(component(b"C"), Some((false, 5)));
-        assert_eq!(component(b"A6"), Some((true, 5)));
+        assert_eq!(component(b"x"), Some((Naming::Cartesian, 0)));
+        assert_eq!(component(b"C"), Some((Naming::Cartesian, 5)));
+        assert_eq!(component(b"A6"), Some((Naming::Axes, 5)));
         assert_eq!(component(b"E1"), None);
         assert_eq!(component(b"A7"), None);
     }

@@ -3,7 +3,7 @@
 //! replacing the literals that change, inserting the components it lacks.
 
 use crate::krl::{self, number, Aggregate, Expr, RawMember, SourceFile, Span};
-use crate::motion::value::{self, Origin, AXIS_NAMES, CARTESIAN_NAMES};
+use crate::motion::value::{self, Naming, Origin};
 
 use super::super::edits::EditList;
 
@@ -12,8 +12,9 @@ pub const MIN_DECIMALS_MM: usize = 3;
 
 pub const MIN_DECIMALS_DEG: usize = 4;
 
-pub(super) fn min_decimals(axis: bool, k: usize) -> usize {
-    if axis || k >= 3 {
+/// Fewest decimals written for component `k` of a position named so.
+pub(super) fn min_decimals(naming: Naming, k: usize) -> usize {
+    if naming.is_angle(k) {
         MIN_DECIMALS_DEG
     } else {
         MIN_DECIMALS_MM
@@ -118,32 +119,32 @@ pub(super) struct Component {
     pub(super) value: Option<f64>,
 }
 
-/// The members of `agg` that are position components of its kind (`X..C`, or `A1..A6` for
-/// `axis`), with the component's index.
+/// The members of `agg` that are position components named as `naming` says, with the
+/// component's index.
 pub(super) fn position_members<'a>(
     file: &'a SourceFile,
     agg: &'a Aggregate,
-    axis: bool,
+    naming: Naming,
 ) -> impl Iterator<Item = (usize, RawMember<'a>)> + 'a {
     let src = file.source();
     file.raw_members(agg).filter_map(move |m| {
-        let (is_axis, k) = value::component(&src[m.name().range()])?;
-        (is_axis == axis).then_some((k, m))
+        let (named, k) = value::component(&src[m.name().range()])?;
+        (named == naming).then_some((k, m))
     })
 }
 
-/// The position components (`X..C`, or `A1..A6` for `axis`) of `agg`, in one pass over its
+/// The position components (named as `naming` says) of `agg`, in one pass over its
 /// members; a component written twice is the later one. `read`: values the walk read from
 /// the aggregate's literals (the components of `Origin::literals`), not read again.
 pub(super) fn components(
     file: &SourceFile,
     agg: &Aggregate,
-    axis: bool,
+    naming: Naming,
     read: Option<([f64; 6], u8)>,
 ) -> [Option<Component>; 6] {
     let src = file.source();
     let mut out = [None; 6];
-    for (k, m) in position_members(file, agg, axis) {
+    for (k, m) in position_members(file, agg, naming) {
         out[k] = Some(match m {
             // A plain number is its own literal (what `literal_span` and `value::literal`
             // give for an `Expr::Number`), read here without building the expression.
@@ -179,8 +180,8 @@ pub(super) fn components(
 pub(super) struct AggregateTarget<'f> {
     pub(super) file: &'f SourceFile,
     pub(super) agg: &'f Aggregate,
-    /// `A1..A6` (else `X..C`).
-    pub(super) axis: bool,
+    /// How its components are named.
+    pub(super) naming: Naming,
     /// A relative motion's (its missing components are zero, not the previous position's).
     pub(super) relative: bool,
     /// The file's separator between members when known (a window's is its file's).
@@ -197,7 +198,7 @@ pub(super) fn aggregate_edits(
     write: [bool; 6],
     out: &mut EditList,
 ) -> bool {
-    let (file, axis) = (target.file, target.axis);
+    let (file, naming) = (target.file, target.naming);
     let mark = out.mark();
     // Decimals of inserted numbers: as many as the aggregate's most precise number.
     let decimals = |k: usize| {
@@ -208,7 +209,7 @@ pub(super) fn aggregate_edits(
             .map(|(_, lit)| value::literal_decimals(file.text(lit)))
             .max()
             .unwrap_or(0);
-        most.max(min_decimals(axis, k))
+        most.max(min_decimals(naming, k))
     };
     for k in 0..6 {
         if !write[k] {
@@ -225,7 +226,7 @@ pub(super) fn aggregate_edits(
                         file.text(lit),
                         orig_value,
                         values[k],
-                        min_decimals(axis, k),
+                        min_decimals(naming, k),
                         text,
                     )
                 });
@@ -266,11 +267,7 @@ pub(super) fn insert_member(
     } else {
         &text
     };
-    let names = if target.axis {
-        AXIS_NAMES
-    } else {
-        CARTESIAN_NAMES
-    };
+    let names = target.naming.names();
     let mut entry = names[k].as_bytes().to_vec();
     entry.extend_from_slice(&nv);
     entry.extend_from_slice(text);
@@ -295,12 +292,12 @@ pub(super) fn insert_member(
 /// literal's (never fewer than 3 in mm and 4 in degrees), or for a missing one the
 /// aggregate's most precise. From what the walk read (`Origin::decimals`): where the origin is
 /// known every component given is a literal.
-pub fn decimals(origin: &Origin, axis: bool) -> [u8; 6] {
+pub fn decimals(origin: &Origin, naming: Naming) -> [u8; 6] {
     let own: [Option<usize>; 6] = std::array::from_fn(|k| {
         (origin.literals & (1 << k) != 0).then_some(usize::from(origin.decimals[k]))
     });
     let most = own.iter().flatten().copied().max().unwrap_or(0);
-    std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
+    std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(naming, k)).min(12) as u8)
 }
 
 #[cfg(test)]
@@ -320,9 +317,9 @@ mod tests {
 
     /// The decimals of `agg`'s components read from its text (what `decimals` took from the
     /// file before the walk kept them).
-    fn decimals_from_text(file: &SourceFile, agg: &Aggregate, axis: bool) -> [u8; 6] {
+    fn decimals_from_text(file: &SourceFile, agg: &Aggregate, naming: Naming) -> [u8; 6] {
         let mut own = [None; 6];
-        for (k, m) in position_members(file, agg, axis) {
+        for (k, m) in position_members(file, agg, naming) {
             let lit = match m {
                 RawMember::Plain { number, .. } => Some(number),
                 RawMember::Outline { value: e, .. } => literal_span(e).map(|(_, lit)| lit),
@@ -330,7 +327,7 @@ mod tests {
             own[k] = lit.map(|lit| value::literal_decimals(file.text(lit)));
         }
         let most = own.iter().flatten().copied().max().unwrap_or(0);
-        std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(axis, k)).min(12) as u8)
+        std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(naming, k)).min(12) as u8)
     }
 
     /// The rewrite takes an absolute target's literal values from the walk
@@ -359,16 +356,16 @@ mod tests {
                 };
                 let file = &ws.get(origin.file).file;
                 assert_eq!(
-                    decimals(&origin, stop.programmed.is_axes()),
-                    decimals_from_text(file, origin.agg, stop.programmed.is_axes()),
+                    decimals(&origin, stop.programmed.naming()),
+                    decimals_from_text(file, origin.agg, stop.programmed.naming()),
                     "{}",
                     path.display()
                 );
-                let axis = stop.programmed.is_axes();
-                let read = components(file, origin.agg, axis, None);
+                let naming = stop.programmed.naming();
+                let read = components(file, origin.agg, naming, None);
                 let values = stop.programmed.components();
                 let given = Some((values, origin.literals));
-                let taken_here = components(file, origin.agg, axis, given);
+                let taken_here = components(file, origin.agg, naming, given);
                 for k in 0..6 {
                     let bits = |c: &Option<Component>| c.and_then(|c| c.value).map(f64::to_bits);
                     assert_eq!(bits(&read[k]), bits(&taken_here[k]), "{}", path.display());

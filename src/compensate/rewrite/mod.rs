@@ -461,7 +461,7 @@ impl<'a> Writer<'a> {
             .rel
             .is_none()
             .then(|| (stop.programmed.components(), origin.literals));
-        let present = components(file, origin.agg, stop.programmed.is_axes(), read);
+        let present = components(file, origin.agg, stop.programmed.naming(), read);
         let original = present.map(|c| c.and_then(|c| c.value));
         let axes = &self.outcomes[i].axes_deg;
         let Some((values, left)) = self.new_values(stop, axes, &commanded, &original) else {
@@ -474,7 +474,7 @@ impl<'a> Writer<'a> {
         let target = AggregateTarget {
             file,
             agg: origin.agg,
-            axis: stop.programmed.is_axes(),
+            naming: stop.programmed.naming(),
             relative: stop.rel.is_some(),
             file_sep: self.separator,
         };

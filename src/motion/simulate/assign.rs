@@ -56,15 +56,15 @@ pub(super) fn with_member<'f>(
         Value::Pos(mut pos) if rest.is_empty() => {
             let component = value::component(field);
             match (component, field.as_slice()) {
-                (Some((axis, k)), _)
-                    if axis == pos.v.is_axes() || pos.v.values().iter().all(Option::is_none) =>
+                (Some((naming, k)), _)
+                    if naming == pos.v.naming() || pos.v.values().iter().all(Option::is_none) =>
                 {
                     let Some(x) = new.as_f64() else {
                         return Value::Unknown(format!(
                             "{place} was set from a value that is not a number"
                         ));
                     };
-                    pos.v = value::Components::named(axis, *pos.v.values());
+                    pos.v = value::Components::named(naming, *pos.v.values());
                     pos.v.values_mut()[k] = Some(x);
                 }
                 (_, b"S") | (_, b"T") => {

@@ -333,7 +333,7 @@ impl<'f> Simulator<'f> {
             let field = upper(src.text(*field));
             v = match v {
                 Value::Pos(pos) => match (value::component(&field), field.as_slice()) {
-                    (Some((axis, k)), _) if axis == pos.v.is_axes() => match pos.v.values()[k] {
+                    (Some((naming, k)), _) if naming == pos.v.naming() => match pos.v.values()[k] {
                         Some(x) => Value::Real(x),
                         None => Value::Unknown("a component not given".into()),
                     },

@@ -21,7 +21,7 @@ use crate::krl::{MotionKind, RoutineHeader, SourceFile, Span, Stmt, Symbols};
 use super::frame::Frame;
 use super::interpolate::{self, Cartesian, Path};
 use super::nominal::{Arm, Nominal};
-use super::value::{Fdat, Origin, Value};
+use super::value::{Fdat, Naming, Origin, Value};
 use super::workspace::{FileId, Workspace};
 
 mod assign;
@@ -112,6 +112,14 @@ impl Programmed {
     /// An axis target (`A1..A6`).
     pub fn is_axes(&self) -> bool {
         matches!(self, Programmed::Axes(_))
+    }
+
+    /// How the target's aggregate names its components.
+    pub fn naming(&self) -> Naming {
+        match self {
+            Programmed::Axes(_) => Naming::Axes,
+            Programmed::Pose(_) => Naming::Cartesian,
+        }
     }
 
     /// The six numbers in the order the target's aggregate names them: `A1..A6`, or
