@@ -207,13 +207,13 @@ pub struct E6Pos {
 /// An E6AXIS: the robot axes A1..A6 and the external axes E1..E6, degrees (or mm).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct E6Axis {
-    pub axes_deg: [f64; 6],
+    pub axes_deg: AxisAngles,
     pub external: [f64; 6],
 }
 
 impl E6Axis {
     /// Robot axes only, external axes at zero (a plain AXIS).
-    pub fn from_axes(axes_deg: [f64; 6]) -> E6Axis {
+    pub fn from_axes(axes_deg: AxisAngles) -> E6Axis {
         E6Axis {
             axes_deg,
             external: [0.0; 6],
