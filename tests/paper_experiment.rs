@@ -9,6 +9,8 @@
 //! Run with `cargo test --release --test paper_experiment -- --nocapture` to see the table.
 //! The same run on the command line is `robopost simulate program`, tested here too.
 
+#[path = "support/campaign_cli.rs"]
+mod campaign_cli;
 #[path = "support/readme.rs"]
 mod readme;
 #[path = "support/tooled.rs"]
@@ -376,20 +378,8 @@ fn recommended_campaign_on_the_command_line() {
     assert_eq!(file, Campaign::recommended());
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("recommended.csv");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_robopost"))
-        .args(["simulate", "campaign", "--truth"])
-        .arg(root().join("fixtures/measurements/kr30ha-truth.json"))
-        .arg("--campaign")
-        .arg(&path)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let truth = root().join("fixtures/measurements/kr30ha-truth.json");
+    campaign_cli::simulate_campaign(&truth, &path, None, &out);
     let plan = Campaign::recommended().plan().unwrap();
     let rows = read_csv(&out).unwrap().stops;
     let measured = |n: usize| assert_eq!(n, plan.iter().filter(|s| s.measured).count());

@@ -13,6 +13,8 @@
 //! walker's targets (`physical::from_program`) until the walker gives dense samples of each
 //! LIN segment.
 
+#[path = "support/campaign_cli.rs"]
+mod campaign_cli;
 #[path = "support/readme.rs"]
 mod readme;
 #[path = "support/tooled.rs"]
@@ -263,20 +265,7 @@ fn simulate_campaign_accepts_a_physical_truth() {
     .unwrap();
     let out = dir.path().join("m.csv");
     let truth_path = root().join("fixtures/measurements/kr30ha-physical.json");
-    let run = std::process::Command::new(exe)
-        .args(["simulate", "campaign", "--seed", "4", "--truth"])
-        .arg(&truth_path)
-        .arg("--campaign")
-        .arg(&campaign_json)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    campaign_cli::simulate_campaign(&truth_path, &campaign_json, Some(4), &out);
     let file = read_csv(&out).unwrap();
     let campaign: robopost::simulate::Campaign =
         serde_json::from_str(&std::fs::read_to_string(&campaign_json).unwrap()).unwrap();
