@@ -16,12 +16,19 @@ use crate::identify::pipeline;
 use crate::motion::{self, workspace::LoadError, Workspace};
 
 pub use crate::calibration::{CalError, Calibration};
+pub use crate::compensate::report::{CalibrationRef, MaxMean, PointReport, PoseStats, SplitReport};
 pub use crate::compensate::Report;
-pub use crate::diagnose::{DiagnoseOptions, Diagnosis};
-pub use crate::identify::pipeline::{Identified, PAPER_EFFECTS};
+pub use crate::diagnose::{
+    DiagnoseOptions, Diagnosis, Finding, LearnedDrivers, NoiseSource, ProgressSink, TestShare,
+};
+pub use crate::identify::direct::DirectResult;
+pub use crate::identify::pipeline::{GrossError, Identified, TargetSource, PAPER_EFFECTS};
+pub use crate::identify::refine::Fit;
+pub use crate::identify::thin::Thinning;
+pub use crate::identify::verdict::Verdict;
 pub use crate::kinematics::RobotDescription;
 pub use crate::measure::{Measurements, Stop as MeasuredStop};
-pub use crate::model::{NameError, RecordError};
+pub use crate::model::{EffectName, NameError, RecordError};
 pub use crate::stats::ErrorStats;
 
 /// Why a call could not do its job.
@@ -242,4 +249,12 @@ pub fn diagnose(
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, Error> {
     Ok(crate::diagnose::diagnose(calibration, files, options)?)
+}
+
+/// The `robopost` command itself (docs/cli.md): `args` as the process received them, the
+/// program's name first; prints as the command does and returns its exit status (0 done,
+/// 1 some input rejected, 2 usage error or unreadable input, nothing written). For a wrapper
+/// that embeds the command; the `robopost` binary is this call.
+pub fn run_command_line(args: Vec<String>) -> i32 {
+    crate::cli::main(args)
 }

@@ -32,44 +32,49 @@
 //! `bytes → krl (lossless syntax) → motion (targets, joints, axis histories) → model (error
 //! effects) → compensate → krl edits → bytes`, and `csv → identify → model`,
 //! `model + csv → report`. `krl` knows nothing of kinematics; `kinematics` knows nothing of
-//! KRL. Those modules are public for the `robopost` command (its command line lives in the
-//! binary, `src/cli/`) and the tests only (hidden from these docs, no stability promised); the
-//! API above is what other programs should call.
+//! KRL. Those modules are private: the API above and [`run_command_line`] (the `robopost`
+//! command itself, `src/cli/`) are all there is. robopost's own tests, benches and fuzz targets
+//! reach inside through the `internals` feature, which promises no stability.
 
 #![warn(missing_docs)]
+// Without `internals`, what only the tests, benches and fuzz targets call (the KRL dump, the
+// virtual robot's loaders, the single-program compensation entry points, …) is unused by the
+// library itself.
+#![cfg_attr(not(feature = "internals"), allow(dead_code, unused_imports))]
 
 mod api;
+mod cli;
 pub use api::*;
 
-#[doc(hidden)]
-pub mod atomic_file;
-#[doc(hidden)]
-pub mod calibration;
-#[doc(hidden)]
-pub mod compare;
-#[doc(hidden)]
-pub mod compensate;
-#[doc(hidden)]
-pub mod diagnose;
-#[doc(hidden)]
-pub mod diagnostic;
-#[doc(hidden)]
-pub mod identify;
-#[doc(hidden)]
-pub mod kinematics;
-#[doc(hidden)]
-pub mod krl;
-#[doc(hidden)]
-pub mod measure;
-#[doc(hidden)]
-pub mod model;
-#[doc(hidden)]
-pub mod motion;
-#[doc(hidden)]
-pub mod paths;
-#[doc(hidden)]
-pub mod report;
-#[doc(hidden)]
-pub mod simulate;
-#[doc(hidden)]
-pub mod stats;
+/// Declares the modules behind the API: private, unless the `internals` feature (robopost's own
+/// tests, benches and fuzz targets turn it on) opens them, hidden from the docs and unstable.
+macro_rules! rooms {
+    ($($room:ident),* $(,)?) => {
+        $(
+            #[cfg(feature = "internals")]
+            #[doc(hidden)]
+            pub mod $room;
+            #[cfg(not(feature = "internals"))]
+            mod $room;
+        )*
+    };
+}
+
+rooms!(
+    atomic_file,
+    calibration,
+    compare,
+    compensate,
+    diagnose,
+    diagnostic,
+    identify,
+    kinematics,
+    krl,
+    measure,
+    model,
+    motion,
+    paths,
+    report,
+    simulate,
+    stats,
+);

@@ -1,6 +1,5 @@
-//! The `robopost` command: the command line (`cli`) over the library.
-
-mod cli;
+//! The `robopost` command: the process's setup (signals, allocator, logging) around the
+//! library's command line.
 
 fn main() {
     // Rust ignores SIGPIPE, so a closed pipe (`robopost ik … | head`) makes println! panic.
@@ -12,7 +11,7 @@ fn main() {
     }
     keep_freed_memory();
     trace_if_asked();
-    std::process::exit(cli::main());
+    std::process::exit(robopost::run_command_line(std::env::args().collect()));
 }
 
 /// With `ROBOPOST_LOG` set (a `tracing` filter such as `robopost=info`, or `robopost=trace` for

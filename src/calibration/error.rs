@@ -4,38 +4,54 @@
 
 use std::path::PathBuf;
 
+/// Why a calibration file was refused; every variant names the file.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CalError {
+    /// The file could not be read.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The calibration file.
         path: PathBuf,
+        /// What the system said.
         source: std::io::Error,
     },
     /// Not JSON, or JSON that does not fit the format's types; `excerpt` is the offending
     /// source line with a caret under the column.
     #[error("{}:{line}:{column}: {message}\n{excerpt}", path.display())]
     Syntax {
+        /// The calibration file.
         path: PathBuf,
+        /// 1-based line of the offending character.
         line: usize,
+        /// 1-based column of the offending character.
         column: usize,
+        /// What the JSON reader expected there.
         message: String,
+        /// The source line with a caret under the column.
         excerpt: String,
     },
     /// Well-formed JSON with a bad value at `key` (a JSON path such as `effects[2].table`).
     #[error("{}: {key}: expected {expected}, found {found}", path.display())]
     Invalid {
+        /// The calibration file.
         path: PathBuf,
+        /// JSON path of the value, e.g. `robot.limits_deg[2]`.
         key: String,
+        /// What the format allows there.
         expected: String,
+        /// What the file holds there.
         found: String,
     },
     /// An effect record (at JSON path `at`, e.g. `effects[2]`) whose values do not describe
     /// a valid effect; `source` says which value and why.
     #[error("{}: {at}.{source}", path.display())]
     Effect {
+        /// The calibration file.
         path: PathBuf,
+        /// JSON path of the effect record, e.g. `effects[2]`.
         at: String,
+        /// Which value of the record is wrong, and why.
         source: crate::model::RecordError,
     },
 }

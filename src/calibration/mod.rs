@@ -99,6 +99,7 @@ impl Calibration {
         self.model.clone()
     }
 
+    /// The error model, borrowed (what compensation evaluates).
     pub fn model_ref(&self) -> &Model {
         &self.model
     }
@@ -145,7 +146,7 @@ impl Calibration {
             .map_err(|e| CalError::invalid(path, "", "serialisable data", e.to_string()))
     }
 
-    /// Writes the file atomically (see [`crate::atomic_file`]).
+    /// Writes the file atomically: a temporary file beside it, renamed over it once whole.
     pub fn save_atomic(&self, path: &Path) -> Result<(), CalError> {
         let json = self.to_json(path)?;
         let io = |source| CalError::Io {

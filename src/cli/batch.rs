@@ -13,9 +13,9 @@ use rayon::prelude::*;
 
 use super::compensate::{calibrated, cell_fitted, load_calibration, robot_label, ProgramArgs};
 use super::Exit;
-use robopost::compensate::batch::{self, Done};
-use robopost::compensate::files;
-use robopost::krl;
+use crate::compensate::batch::{self, Done};
+use crate::compensate::files;
+use crate::krl;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -44,7 +44,7 @@ pub fn run(args: Args) -> Exit {
         Ok(c) => c,
         Err(exit) => return exit,
     };
-    let mut guard = robopost::paths::Guard::new();
+    let mut guard = crate::paths::Guard::new();
     guard
         .read(&args.cal)
         .read_all(args.program.config.iter().map(PathBuf::as_path));
@@ -106,7 +106,7 @@ pub fn run(args: Args) -> Exit {
         .collect();
     let stale: Vec<PathBuf> = dirs
         .into_iter()
-        .flat_map(|d| robopost::atomic_file::remove_stale(d, started))
+        .flat_map(|d| crate::atomic_file::remove_stale(d, started))
         .collect();
     if !stale.is_empty() {
         eprintln!(
@@ -152,10 +152,10 @@ fn lock(out: &Path) -> Result<std::fs::File, Exit> {
 
 fn run_in_pool(
     args: &Args,
-    cal: &robopost::calibration::Calibration,
+    cal: &crate::calibration::Calibration,
     cal_bytes: &[u8],
     plan: &batch::Plan,
-    cell: Option<&robopost::motion::Cell>,
+    cell: Option<&crate::motion::Cell>,
 ) -> Exit {
     let calibrated = calibrated(cal, &args.cal, cal_bytes);
     let options = args.program.options(true, false);

@@ -6,8 +6,8 @@
 //! files accepted, 1 some file has errors, 2 a file could not be read.
 
 use super::Exit;
-use robopost::diagnostic::Severity;
-use robopost::krl::program::Program;
+use crate::diagnostic::Severity;
+use crate::krl::program::Program;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
@@ -88,16 +88,14 @@ pub fn run(args: Args) -> Exit {
 }
 
 /// The first file of `p` that is not KRL at all, as a located error (see `krl::sniff`).
-fn not_krl(p: &Program) -> Option<robopost::diagnostic::Diagnostic> {
+fn not_krl(p: &Program) -> Option<crate::diagnostic::Diagnostic> {
     let main = (&p.main, p.path.display().to_string());
     let dat = p.dat.as_ref().zip(p.dat_path.as_ref());
     let dat = dat.map(|(f, path)| (f, path.display().to_string()));
     [Some(main), dat]
         .into_iter()
         .flatten()
-        .find_map(|(f, name)| {
-            robopost::krl::not_krl(f).map(|problem| f.diagnostic(&problem, &name))
-        })
+        .find_map(|(f, name)| crate::krl::not_krl(f).map(|problem| f.diagnostic(&problem, &name)))
 }
 
 /// The one-line summary of a program and whether it is rejected.

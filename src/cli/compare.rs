@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 use serde_json::{json, Value};
 
 use super::Exit;
-use robopost::calibration::{self, Calibration};
-use robopost::compare::{self, table, Row, Summary};
-use robopost::measure::{self, Measurements};
-use robopost::report::{self, ReportInput, ReportModel};
+use crate::calibration::{self, Calibration};
+use crate::compare::{self, table, Row, Summary};
+use crate::measure::{self, Measurements};
+use crate::report::{self, ReportInput, ReportModel};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -93,7 +93,7 @@ pub fn run(args: Args) -> Exit {
     let mut cal_paths = vec![args.cal.as_path()];
     cal_paths.extend(args.against.as_deref());
     if let Some(dir) = &args.report {
-        let mut guard = robopost::paths::Guard::new();
+        let mut guard = crate::paths::Guard::new();
         guard
             .read_all(cal_paths.iter().copied())
             .read_all(args.measurements.iter().map(PathBuf::as_path));
@@ -124,7 +124,7 @@ pub fn run(args: Args) -> Exit {
 
     if let Some(dir) = &args.report {
         let labels: Vec<String> = cal_paths.iter().map(|p| short_name(p)).collect();
-        let learned = robopost::diagnose::learned_only(&cals[0], &data);
+        let learned = crate::diagnose::learned_only(&cals[0], &data);
         let input = ReportInput {
             models: cals
                 .iter()

@@ -5,11 +5,11 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use super::Exit;
-use robopost::calibration;
-use robopost::compensate::{self, files, program, Calibrated, Method};
-use robopost::diagnostic::Severity;
-use robopost::kinematics::{Pose, RobotDescription};
-use robopost::motion::{Cell, GivenFrame};
+use crate::calibration;
+use crate::compensate::{self, files, program, Calibrated, Method};
+use crate::diagnostic::Severity;
+use crate::kinematics::{Pose, RobotDescription};
+use crate::motion::{Cell, GivenFrame};
 
 /// How a program's frames and shared data are found: shared by the main job, `batch`,
 /// `check` and `simulate program` (which runs a program as the main job reads it).
@@ -135,7 +135,7 @@ pub struct StatedRobot {
 pub fn stated_robots(robot: Option<&str>, cell: Option<&Cell>) -> Result<Vec<StatedRobot>, Exit> {
     let mut out = Vec::new();
     if let Some(arg) = robot {
-        match robopost::calibration::robots::resolve(arg) {
+        match crate::calibration::robots::resolve(arg) {
             Ok(c) => out.push(StatedRobot {
                 name: c.robot_name.clone(),
                 robot: c.model_ref().robot,
@@ -149,7 +149,7 @@ pub fn stated_robots(robot: Option<&str>, cell: Option<&Cell>) -> Result<Vec<Sta
         }
     }
     if let Some(path) = cell.and_then(|c| c.machine.as_deref()) {
-        match robopost::motion::cell::machine_robot(path) {
+        match crate::motion::cell::machine_robot(path) {
             Ok((name, robot)) => out.push(StatedRobot {
                 name,
                 robot,
@@ -335,16 +335,16 @@ pub fn run(args: Args) -> Exit {
         }
     };
     let input = (!stdin).then_some(args.input.as_path());
-    let stream = Some(robopost::krl::StreamOptions::default());
+    let stream = Some(crate::krl::StreamOptions::default());
     let loaded = tracing::info_span!("load")
         .in_scope(|| files::load_program_in(input, bytes, cell.as_ref(), stream));
     let mut ws = match loaded {
         Ok(ws) => ws,
-        Err(e @ robopost::motion::workspace::LoadError::Io { .. }) => {
+        Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
             eprintln!("error: {e}");
             return Exit::Usage;
         }
-        Err(e @ robopost::motion::workspace::LoadError::NotKrl { .. }) => {
+        Err(e @ crate::motion::workspace::LoadError::NotKrl { .. }) => {
             eprint!("{e}");
             return Exit::Usage;
         }
@@ -360,7 +360,7 @@ pub fn run(args: Args) -> Exit {
         tracing::debug!(runs = runs.len(), windows, "streamed");
     }
     let to_stdout = is_dash(&args.out);
-    let mut guard = robopost::paths::Guard::new();
+    let mut guard = crate::paths::Guard::new();
     guard
         .read(&args.cal)
         .read_all(ws.files.iter().filter_map(|f| f.path.as_deref()));
@@ -495,7 +495,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
             let (name, robot, source) = match stated.first() {
                 Some(s) => (s.name.clone(), s.robot, s.source.clone()),
                 None => {
-                    let r = robopost::calibration::robots::ROBOTS[0];
+                    let r = crate::calibration::robots::ROBOTS[0];
                     eprintln!(
                         "note: no calibration, --robot or machine data: simulating a {}",
                         r.name
@@ -507,9 +507,9 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
                     )
                 }
             };
-            let model = robopost::model::Model::new(
+            let model = crate::model::Model::new(
                 robot,
-                robopost::kinematics::Payload::default(),
+                crate::kinematics::Payload::default(),
                 nalgebra::Vector3::zeros(),
             );
             let cal = calibration::Calibration::from_model(
@@ -530,7 +530,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
         {
             continue;
         }
-        let bytes = match robopost::krl::program::read_bytes(path) {
+        let bytes = match crate::krl::program::read_bytes(path) {
             Ok(b) => b,
             Err(e) => {
                 eprintln!("error: {e}");

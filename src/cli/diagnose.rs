@@ -9,9 +9,9 @@ use std::sync::Arc;
 
 use super::compare::load_inputs;
 use super::Exit;
-use robopost::diagnose::{self, DiagnoseOptions, Diagnosis, ProgressSink};
-use robopost::model::expand_list;
-use robopost::report::{self, ReportInput, ReportModel};
+use crate::diagnose::{self, DiagnoseOptions, Diagnosis, ProgressSink};
+use crate::model::expand_list;
+use crate::report::{self, ReportInput, ReportModel};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -85,7 +85,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     if let Some(dir) = &args.report {
-        let rows = robopost::compare::compare(&cals[0], &data);
+        let rows = crate::compare::compare(&cals[0], &data);
         let label = args.cal.file_name().map_or_else(
             || args.cal.display().to_string(),
             |n| n.to_string_lossy().into_owned(),

@@ -3,7 +3,7 @@
 //! identify a calibration from laser-tracker measurements and print the fit report.
 //! `--effects +NAME` with `-c OLD.json` adds an effect to an existing calibration and
 //! re-identifies. A fit that fails its check against the noise floor is refused (exit 1,
-//! nothing written) unless `--accept-poor-fit`. Thin over `robopost::identify::pipeline`: read
+//! nothing written) unless `--accept-poor-fit`. Thin over `crate::identify::pipeline`: read
 //! the files, identify, report, then write or refuse.
 
 use std::collections::BTreeMap;
@@ -12,16 +12,16 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use super::Exit;
-use robopost::identify::direct::TARGET_HINT_TOLERANCE_MM;
-use robopost::identify::pipeline::{
+use crate::identify::direct::TARGET_HINT_TOLERANCE_MM;
+use crate::identify::pipeline::{
     identify, Effects, Identified, Request, TargetSource, PAPER_EFFECTS,
 };
-use robopost::identify::setup::GridChoice;
-use robopost::identify::{Progress, Status};
-use robopost::kinematics::RobotDescription;
-use robopost::measure::read_csv_within;
-use robopost::model::expand_list;
-use robopost::stats::ErrorStats;
+use crate::identify::setup::GridChoice;
+use crate::identify::{Progress, Status};
+use crate::kinematics::RobotDescription;
+use crate::measure::read_csv_within;
+use crate::model::expand_list;
+use crate::stats::ErrorStats;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Frame {
@@ -67,7 +67,7 @@ pub struct Args {
     pub accept_poor_fit: bool,
     /// Most measured points the fit uses; denser data are thinned evenly (every point is
     /// still checked against the result). 0: use all.
-    #[arg(long = "max-points", default_value_t = robopost::identify::thin::DEFAULT_MAX_POINTS)]
+    #[arg(long = "max-points", default_value_t = crate::identify::thin::DEFAULT_MAX_POINTS)]
     pub max_points: usize,
     /// Measurement files kept out of the fit, on which `-c OLD --effects +NAME` compares the
     /// old and the new model (besides held-out folds of the fit's data).
@@ -83,14 +83,14 @@ fn usage(message: &str) -> Exit {
 }
 
 pub fn run(args: Args) -> Exit {
-    let finest = robopost::model::table::MIN_PITCH_DEG;
+    let finest = crate::model::table::MIN_PITCH_DEG;
     if !(args.map_pitch.is_finite() && args.map_pitch >= finest) {
         return usage(&format!(
             "--map-pitch {}: the table pitch must be at least {finest} degrees",
             args.map_pitch
         ));
     }
-    let mut guard = robopost::paths::Guard::new();
+    let mut guard = crate::paths::Guard::new();
     guard
         .read_all(args.files.iter().map(PathBuf::as_path))
         .read_all(args.cal.as_deref())
@@ -99,7 +99,7 @@ pub fn run(args: Args) -> Exit {
         return super::refuse(&clash);
     }
     let base = match &args.cal {
-        Some(path) => match robopost::calibration::load(path) {
+        Some(path) => match crate::calibration::load(path) {
             Ok(c) => Some(c),
             Err(e) => return usage(&e.to_string()),
         },
@@ -262,8 +262,8 @@ pub fn run(args: Args) -> Exit {
         // A value outside its physical range: the fit went astray (a failed fit written
         // with --accept-poor-fit); no command could read the file back.
         Err(
-            e @ (robopost::calibration::CalError::Invalid { .. }
-            | robopost::calibration::CalError::Effect { .. }),
+            e @ (crate::calibration::CalError::Invalid { .. }
+            | crate::calibration::CalError::Effect { .. }),
         ) => {
             eprintln!(
                 "robopost identify: the identified calibration is not physical ({e}); nothing \
@@ -275,7 +275,7 @@ pub fn run(args: Args) -> Exit {
     }
     println!("wrote {}", args.out.display());
     if let (Some(old), false) = (&old, added.is_empty()) {
-        let (text, worse) = robopost::identify::promise::run(
+        let (text, worse) = crate::identify::promise::run(
             old,
             &identified.calibration,
             &files,

@@ -8,12 +8,12 @@ use nalgebra::Vector3;
 use serde_json::json;
 
 use super::Exit;
-use robopost::calibration;
-use robopost::kinematics::{
+use crate::calibration;
+use crate::kinematics::{
     forward, inverse, inverse_all, singularity, status_turn, Frame, IkError, IkSolution, Pose,
     RobotDescription, Select,
 };
-use robopost::model::AxisState;
+use crate::model::AxisState;
 
 #[derive(clap::Args, Debug)]
 #[command(allow_negative_numbers = true)]

@@ -32,8 +32,8 @@ pub fn usage(message: impl std::fmt::Display) -> Exit {
     Exit::Usage
 }
 
-/// An output refused by the guard of [`robopost::paths`]: exit 2, nothing written.
-pub fn refuse(clash: &robopost::paths::Clash) -> Exit {
+/// An output refused by the guard of [`crate::paths`]: exit 2, nothing written.
+pub fn refuse(clash: &crate::paths::Clash) -> Exit {
     usage(clash)
 }
 
@@ -103,9 +103,9 @@ fn with_default_subcommand(mut args: Vec<String>) -> Vec<String> {
     args
 }
 
-/// Runs the CLI on the process arguments and returns the exit status.
-pub fn main() -> i32 {
-    let args = with_default_subcommand(std::env::args().collect());
+/// Runs the command line on `args` (the program's name first) and returns the exit status.
+pub fn main(args: Vec<String>) -> i32 {
+    let args = with_default_subcommand(args);
     let cli = match Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) => {

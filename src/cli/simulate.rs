@@ -1,19 +1,19 @@
 //! `robopost simulate`: the virtual robot on the command line — write the built-in truth,
 //! run a measurement campaign, a list of poses or a KRL program on a truth file and write the
-//! measurement CSV. Thin: everything is in `robopost::simulate`.
+//! measurement CSV. Thin: everything is in `crate::simulate`.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::compensate::FrameArgs;
 use super::Exit;
-use robopost::calibration::{KukaFrame, MeasurementFrame};
-use robopost::compensate::files;
-use robopost::diagnostic::Severity;
-use robopost::measure::{write_csv, Stop};
-use robopost::motion::workspace::LoadError;
-use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
-use robopost::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, Truth};
+use crate::calibration::{KukaFrame, MeasurementFrame};
+use crate::compensate::files;
+use crate::diagnostic::Severity;
+use crate::measure::{write_csv, Stop};
+use crate::motion::workspace::LoadError;
+use crate::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
+use crate::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, Truth};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -198,9 +198,9 @@ fn usage(message: &str) -> Exit {
     super::usage(message)
 }
 
-/// The guard of a run that reads `inputs` and writes `out` (see [`robopost::paths`]).
+/// The guard of a run that reads `inputs` and writes `out` (see [`crate::paths`]).
 fn guard_output<'a>(inputs: impl IntoIterator<Item = &'a Path>, out: &Path) -> Result<(), Exit> {
-    let mut guard = robopost::paths::Guard::new();
+    let mut guard = crate::paths::Guard::new();
     guard.read_all(inputs);
     guard.write(out).map_err(|clash| super::refuse(&clash))
 }
@@ -262,7 +262,7 @@ fn run_program(
         Ok(r) => r,
         Err(exit) => return exit,
     };
-    let bytes = match robopost::krl::program::read_bytes(path) {
+    let bytes = match crate::krl::program::read_bytes(path) {
         Ok(b) => b,
         Err(e) => return usage(&e.to_string()),
     };
@@ -289,7 +289,7 @@ fn run_program(
         return exit;
     }
     ws.robot = format!("the truth {}", truth.display());
-    let sim = robopost::motion::simulate(&ws, robot.robot(), &frames.given());
+    let sim = crate::motion::simulate(&ws, robot.robot(), &frames.given());
     for d in &sim.diagnostics {
         eprintln!("{}", d.render());
     }
@@ -360,12 +360,12 @@ fn finish(result: std::io::Result<()>, out: &Path) -> Exit {
     }
 }
 
-/// Writes `bytes` to `path` atomically (see [`robopost::atomic_file`]), or to stdout for `-`.
+/// Writes `bytes` to `path` atomically (see [`crate::atomic_file`]), or to stdout for `-`.
 pub(crate) fn write_output(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     if path.as_os_str() == "-" {
         let mut stdout = std::io::stdout().lock();
         stdout.write_all(bytes)?;
         return stdout.flush();
     }
-    robopost::atomic_file::write(path, bytes)
+    crate::atomic_file::write(path, bytes)
 }

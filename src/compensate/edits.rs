@@ -201,11 +201,6 @@ impl EditList {
             .collect()
     }
 
-    /// Bytes of replacement text.
-    pub fn text_len(&self) -> usize {
-        self.segments.iter().map(|s| s.text.len()).sum()
-    }
-
     /// Moves the edits of `other` to the end of this list (its segments, not copied).
     pub fn append(&mut self, other: &mut EditList) {
         self.segments

@@ -15,29 +15,42 @@ use super::sequence::{Command, Outcome, Resolution};
 /// Statistics of one quantity over the targets.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct MaxMean {
+    /// The largest value.
     pub max: f64,
+    /// The mean value.
     pub mean: f64,
 }
 
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+/// A pose difference over the targets: its position and orientation parts.
 pub struct PoseStats {
+    /// Position part, µm.
     pub position_um: MaxMean,
+    /// Orientation part (rotation angle), mdeg.
     pub orientation_mdeg: MaxMean,
 }
 
 /// One target in the report.
 #[derive(Clone, Debug, Serialize)]
 pub struct PointReport {
+    /// The file the target's numbers are written in.
     pub file: String,
+    /// 1-based line of the motion statement.
     pub line: u32,
+    /// The motion's keyword (`PTP`, `LIN`, `CIRC`, `SPL`, …).
     pub motion: &'static str,
+    /// `target`; `aux` for a CIRC's auxiliary point; `end` for where a CIRC with `CA` ends
+    /// when that is not its programmed target (not written).
     pub role: &'static str,
     /// Command change at the TCP: µm and mdeg.
     pub correction_um: f64,
+    /// The orientation part of the command change, mdeg.
     pub correction_mdeg: f64,
     /// Predicted TCP error of the original command, and left at the new one.
     pub before_um: f64,
+    /// Predicted TCP position error left at the new command, µm.
     pub residual_um: f64,
+    /// Predicted TCP orientation error left at the new command, mdeg.
     pub residual_mdeg: f64,
     /// Steps to the tolerance after the nominal command, each one evaluation of the model:
     /// 0 when the nominal command already met it, usually 1 or 2, whether the target was
@@ -49,7 +62,9 @@ pub struct PointReport {
     pub flipped: Vec<String>,
     /// `consistent`, `rebranched`, `held:A1,A4`, `branch`.
     pub resolution: String,
+    /// Whether the target's numbers were rewritten.
     pub compensated: bool,
+    /// Why the target was left as written, when it was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
 }
@@ -57,8 +72,12 @@ pub struct PointReport {
 /// The per-program report (`--report FILE.json`).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Report {
+    /// The program's name (its path, or `-` for standard input).
     pub program: String,
+    /// The calibration applied: its file, robot and digest.
     pub calibration: CalibrationRef,
+    /// `iterate` (the model inverted to the tolerance) or `one-step` (equation (3) applied
+    /// once, `--one-step`).
     pub method: &'static str,
     /// Motion targets simulated (auxiliary points included).
     pub targets: usize,
@@ -74,8 +93,11 @@ pub struct Report {
     pub unresolved: usize,
     /// What the program needs that was found nowhere (`routine SetFrames`, `BASE_DATA[3]`).
     pub needs: Vec<String>,
+    /// The command change at the TCP over the compensated targets.
     pub correction: PoseStats,
+    /// The model's predicted TCP error of the original commands.
     pub predicted_before: PoseStats,
+    /// The model's predicted TCP error left at the new commands.
     pub predicted_after: PoseStats,
     /// Targets where an axis's compensated direction differs from the nominal one.
     pub direction_flips: usize,
@@ -85,9 +107,13 @@ pub struct Report {
     /// Targets whose output moves back by less than an axis's gear play: the command travels
     /// the play before the output follows.
     pub reversals_inside_play: usize,
+    /// `.dat` points reached with different corrections, split into one point per use.
     pub split_points: Vec<SplitReport>,
+    /// Warnings, rendered as the command line prints them.
     pub warnings: Vec<String>,
+    /// Per-target and per-program errors, rendered as the command line prints them.
     pub errors: Vec<String>,
+    /// Every target, in execution order.
     pub points: Vec<PointReport>,
 }
 
@@ -136,14 +162,21 @@ impl Report {
 }
 
 #[derive(Clone, Debug, Default, Serialize)]
+/// The calibration a program was compensated with.
 pub struct CalibrationRef {
+    /// The calibration file's name as given.
     pub file: String,
+    /// SHA-256 of its bytes (hex).
     pub sha256: String,
 }
 
 #[derive(Clone, Debug, Serialize)]
+/// A `.dat` point reached by several targets that need different corrections: each use gets
+/// a copy of its own.
 pub struct SplitReport {
+    /// The point's name in the `.dat`.
     pub point: String,
+    /// The names of its copies, in order of use.
     pub copies: Vec<String>,
 }
 

@@ -84,12 +84,17 @@ pub struct LearnedDrivers {
     pub shape: String,
     /// On held-out stretches of every test, fitted together with the model.
     pub explained: f64,
+    /// RMS 3-D residual of the held-out predictions with it, µm.
     pub rms_after_um: f64,
+    /// t statistic of its gain over the held-out stretches.
     pub t_statistic: f64,
+    /// Parameters it adds to the model.
     pub parameters: usize,
+    /// The gain holds in every fold but at most one.
     pub stable: bool,
     /// It passes what a finding must pass (see `diagnose`).
     pub significant: bool,
+    /// The further checks it went through (whole tests held out, the latest data).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub checks: Vec<Score>,
     /// Why it is not a finding although it explains part of the residual.
@@ -97,6 +102,7 @@ pub struct LearnedDrivers {
     pub vetoed: Option<String>,
     /// The best definitions of the screening, best first.
     pub screened: Vec<Screened>,
+    /// The residual along the learned correction against its main driver (the report's plot).
     #[serde(skip)]
     pub curve: Curve,
 }

@@ -67,8 +67,9 @@ pub struct DiagnoseOptions {
     pub only: Option<Vec<EffectName>>,
     /// Learn the drivers of the residual (a `learned:` effect).
     pub learn: bool,
-    /// Most points the candidates are screened on ([`sample::MAX_SCREENED`]).
+    /// Most points the candidates are screened on (default 6,000).
     pub max_screened: usize,
+    /// Called as the work goes on (the command line's progress bar); `None`: silent.
     pub progress: Option<ProgressSink>,
 }
 
@@ -111,16 +112,21 @@ const WHERE_SHARE: f64 = 0.5;
 /// One evaluated effect (CONTRACTS.md keys first).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Finding {
+    /// The effect (contract name, e.g. `crosstalk:A3>A2`).
     pub effect: String,
     /// Fraction of the held-out residual sum of squares it removes (0..1; negative: worse).
     pub explained: f64,
     /// RMS 3-D residual of the held-out predictions with it, µm.
     pub rms_after_um: f64,
+    /// What in the residual points to it, in words (the effect's own evidence sentence).
     pub evidence: String,
     /// The `identify` option that adds it.
     pub add: String,
+    /// It passes every test a finding must pass (gain, t statistic, stability, checks).
     pub significant: bool,
+    /// t statistic of its gain over the held-out stretches.
     pub t_statistic: f64,
+    /// Parameters it adds to the model.
     pub parameters: usize,
     /// The gain holds in every fold but at most one, no fold carrying most of it.
     pub stable: bool,
@@ -144,21 +150,26 @@ pub struct Finding {
 /// One test's part of the residual.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TestShare {
+    /// The test's label (the CSV's `test` column).
     pub test: String,
+    /// Its measured points.
     pub points: usize,
+    /// Its RMS 3-D residual, µm.
     pub rms_um: f64,
     /// Its share of the residual sum of squares.
     pub share: f64,
 }
 
-/// The result of [`diagnose`] (`diagnose --json`).
+/// The result of [`crate::diagnose()`] (`diagnose --json`).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Diagnosis {
     /// RMS 3-D residual of the current model, µm.
     pub rms_um: f64,
     /// The noise floor as an RMS 3-D residual, µm.
     pub noise_um: f64,
+    /// Where the noise floor comes from (repeated points, or the tracker's stated noise).
     pub noise_source: NoiseSource,
+    /// Measured points diagnosed (duplicates left out).
     pub points: usize,
     /// Rows left out as exact copies of another row (not repeated measurements).
     pub duplicates: usize,
@@ -175,6 +186,7 @@ pub struct Diagnosis {
     pub learned: Option<LearnedDrivers>,
     /// The tests by their share of the residual, largest first.
     pub residual_by_test: Vec<TestShare>,
+    /// The conclusion in one sentence, as the command line prints it.
     pub verdict: String,
 }
 

@@ -40,10 +40,15 @@ const MIN_REPEAT_DOF: usize = 10;
 #[serde(rename_all = "snake_case", tag = "kind")]
 pub enum NoiseSource {
     /// The scatter of repeated points (degrees of freedom of the pooled estimate).
-    Repeats { dof: usize },
+    Repeats {
+        /// Degrees of freedom of the pooled estimate.
+        dof: usize,
+    },
     /// The tracker specification at the mean distance of the points from the tracker.
     TrackerSpec {
+        /// Mean distance of the points from the tracker, m.
         mean_distance_m: f64,
+        /// The tracker's station was not in the data and was assumed.
         station_assumed: bool,
     },
 }

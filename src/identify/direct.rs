@@ -81,7 +81,9 @@ pub struct DeviationSample {
 /// What the direct method found.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DirectResult {
+    /// The measured average line of each axis in each indexing test.
     pub lines: Vec<AxisLine>,
+    /// Every measured angular positioning deviation.
     pub samples: Vec<DeviationSample>,
 }
 

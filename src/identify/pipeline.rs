@@ -84,10 +84,13 @@ pub struct GrossError {
     pub row: usize,
     /// Its file (as named in the request) and line.
     pub file: String,
+    /// Its 1-based line in that file.
     pub line: usize,
+    /// Its test's label.
     pub test: String,
     /// Its residual against the model fitted without it, µm.
     pub size_um: f64,
+    /// Why it was judged gross, in words.
     pub why: String,
 }
 
@@ -96,12 +99,17 @@ pub struct GrossError {
 pub enum TargetSource {
     /// The A5 and A6 circles (A6 frame, mm); `hint_off_mm`: how far a given hint was.
     Circles {
+        /// The target in the A6 frame, mm.
         target_a6: [f64; 3],
+        /// How far a given hint was from it, mm.
         hint_off_mm: Option<f64>,
     },
     /// A least-squares fit of the target to every point with the nominal model (no A5/A6
     /// indexing tests), from the hint or the flange origin.
-    LeastSquares { hint: Option<[f64; 3]> },
+    LeastSquares {
+        /// The hint it started from (A6 frame, mm), if one was given.
+        hint: Option<[f64; 3]>,
+    },
     /// The base calibration's.
     Calibration,
 }
@@ -109,9 +117,11 @@ pub enum TargetSource {
 /// The outcome: the new calibration, the fit, and what was found on the way.
 #[derive(Clone, Debug)]
 pub struct Identified {
+    /// The identified calibration (`Calibration::save_atomic` writes it).
     pub calibration: Calibration,
     /// The last refinement (over the points of the fit, gross errors left out).
     pub fit: Fit,
+    /// The direct method's result (per-axis tables read off the indexing tests), when it ran.
     pub direct: Option<DirectResult>,
     /// The effects identified (canonical names).
     pub effects: Vec<String>,
@@ -120,11 +130,15 @@ pub struct Identified {
     pub physical: Vec<String>,
     /// The gross errors, in data order.
     pub gross: Vec<GrossError>,
+    /// How the points were thinned to the fit's budget, when they were.
     pub thinning: Option<Thinning>,
+    /// Where the tracker's target (the TCP offset) came from.
     pub target: TargetSource,
     /// The residual of every measured point without gross errors (in the fit or thinned out).
     pub stats: ErrorStats,
+    /// The same per indexing test (the CSV's `test` column).
     pub per_test: BTreeMap<String, ErrorStats>,
+    /// Whether the fit is good enough to use, and why.
     pub verdict: Verdict,
     /// Fit-and-screen rounds before the set of gross errors settled.
     pub rounds: usize,

@@ -225,11 +225,13 @@ pub enum Status {
     Unidentifiable,
 }
 
-/// The result of [`refine`]. Residuals are `measured − predicted`, in the base frame, mm.
+/// The result of the refinement (`identify`'s fit). Residuals are `measured − predicted`, in
+/// the base frame, mm.
 #[derive(Clone, Debug)]
 pub struct Fit {
     /// Index into the data of each measured stop, in order.
     pub points: Vec<usize>,
+    /// The residual of each of those stops, mm.
     pub residuals_mm: Vec<Vector3<f64>>,
     /// Table 1 statistics of the residual (all points).
     pub stats: ErrorStats,
@@ -241,7 +243,9 @@ pub struct Fit {
     pub sigma_mm: f64,
     /// Every model parameter, flat order.
     pub parameter_names: Vec<String>,
+    /// The unit of each parameter (`mm`, `deg`, …).
     pub units: Vec<&'static str>,
+    /// What the fit did with each parameter.
     pub status: Vec<Status>,
     /// One standard error per model parameter, in its unit; `None` unless identified.
     pub standard_errors: Vec<Option<f64>>,
@@ -251,12 +255,16 @@ pub struct Fit {
     /// Standard errors of the frame: translation x, y, z (mm), rotation about the base x, y,
     /// z axes (degrees).
     pub tracker_frame_standard_errors: Option<[f64; 6]>,
-    /// Every identified tracker frame, by index ([`RefineOptions::frame_of`]).
+    /// Every identified tracker frame, by index (the tracker station of each point).
     pub tracker_frames: Vec<Frame>,
     /// Their standard errors (as [`Self::tracker_frame_standard_errors`]).
     pub tracker_frames_standard_errors: Vec<[f64; 6]>,
+    /// Parameters the data do not determine, effects they do not observe.
     pub warnings: Vec<Warning>,
+    /// Levenberg–Marquardt iterations run.
     pub iterations: usize,
+    /// The cost stopped falling: the last accepted step lowered it by less than the
+    /// tolerance, or no step lowered it at all.
     pub converged: bool,
 }
 

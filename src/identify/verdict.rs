@@ -54,7 +54,9 @@ pub struct Clues {
 /// The verdict of a fit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Verdict {
+    /// The measurement noise the residual is judged against.
     pub noise: NoiseFloor,
+    /// Each test's residual against that floor.
     pub tests: Vec<TestResidual>,
     /// When the fit failed: what to tell the user (several lines).
     pub failure: Option<String>,
@@ -63,6 +65,7 @@ pub struct Verdict {
 }
 
 impl Verdict {
+    /// The fit is not good enough to use (`identify` writes nothing, unless asked to).
     pub fn failed(&self) -> bool {
         self.failure.is_some()
     }

@@ -211,16 +211,6 @@ pub struct E6Axis {
     pub external: [f64; 6],
 }
 
-impl E6Axis {
-    /// Robot axes only, external axes at zero (a plain AXIS).
-    pub fn from_axes(axes_deg: AxisAngles) -> E6Axis {
-        E6Axis {
-            axes_deg,
-            external: [0.0; 6],
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

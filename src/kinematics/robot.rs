@@ -85,6 +85,7 @@ impl Default for Payload {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RobotDescription {
+    /// The link lengths and offsets of the nominal kinematics, mm.
     pub links: Links,
     /// Software limits per axis, [min, max] in degrees (KUKA command angles), min < max.
     #[schemars(inner(inner(range(min = -720, max = 720))))]

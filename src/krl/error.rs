@@ -88,9 +88,6 @@ impl ParseError {
         &self.file
     }
 
-    pub fn into_partial(self) -> SourceFile {
-        *self.file
-    }
 }
 
 impl fmt::Display for ParseError {

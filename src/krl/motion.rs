@@ -89,14 +89,6 @@ impl MotionKind {
         )
     }
 
-    /// A spline motion (`SPTP SLIN SCIRC SPL` and their `_REL` forms).
-    pub fn is_spline(self) -> bool {
-        use MotionKind::*;
-        matches!(
-            self,
-            Sptp | Slin | Scirc | Spl | SptpRel | SlinRel | ScircRel
-        )
-    }
 }
 
 /// A motion statement. Packed into 40 bytes (a CAM program holds a million): the keyword and

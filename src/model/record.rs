@@ -50,17 +50,24 @@ pub enum RecordError {
     /// is not what the effect needs.
     #[error("{key}: expected {expected}, found {found}")]
     Invalid {
+        /// JSON path relative to the record.
         key: String,
+        /// What the effect allows there.
         expected: String,
+        /// What the record holds there.
         found: String,
     },
     /// The gear play of axis `axis` has width `width_deg` at grid point `index`, outside
     /// `[0, max_deg]`.
     #[error("table.values_deg[{index}]: expected a play width in [0, {max_deg}]° (the output lags the command by half of it), found {width_deg}")]
     PlayWidth {
+        /// The axis, 1..=6.
         axis: u8,
+        /// The grid point of the play table.
         index: usize,
+        /// The width found there, degrees.
         width_deg: f64,
+        /// The widest play robopost accepts, degrees.
         max_deg: f64,
     },
 }

@@ -292,7 +292,9 @@ pub fn kinds() -> Vec<&'static Kind> {
 /// A parsed effect name.
 #[derive(Clone, Copy)]
 pub struct EffectName {
+    /// The kind of effect (its prefix, arity, meaning and constructor).
     pub kind: &'static Kind,
+    /// The axis or axes it is of (none, one, or a pair for crosstalk).
     pub axes: Axes,
 }
 
@@ -324,7 +326,9 @@ impl fmt::Display for EffectName {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("expected {expected}, found `{found}`")]
 pub struct NameError {
+    /// The names (or the syntax) allowed there.
     pub expected: String,
+    /// What was given.
     pub found: String,
 }
 

@@ -118,13 +118,6 @@ impl PhysicalRobot {
         self
     }
 
-    /// The same robot measured by another tracker.
-    pub fn with_tracker(mut self, tracker: Tracker) -> PhysicalRobot {
-        self.file.tracker = tracker;
-        self.head = Head::new(&tracker);
-        self
-    }
-
     /// A robot built without any error (nominal joint frames, perfect gears without play, rigid,
     /// no growth), with the same target, payload and tracker (frame, scale, noise, seed): the
     /// "tracker alone" reference of an experiment.
