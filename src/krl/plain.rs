@@ -352,15 +352,27 @@ mod tests {
         /// parser does (and a good share it takes).
         #[test]
         fn the_direct_reader_is_the_parser(
-            kw in "(LIN|PTP|lin|Ptp_Rel|LIN_REL|CIRC|LINX)",
+            kw in prop_oneof![8 => "(LIN|PTP|lin|Ptp_Rel|LIN_REL)", 1 => "(CIRC|LINX|SLIN)"],
             gap in "[ \t]{0,2}",
             ty in "(E6POS[ ]?:[ ]?|POS:|)",
             members in prop::collection::vec(
-                ("[A-Za-z][A-Za-z0-9_]{0,2}", "[ \t]{0,2}", "[-+]?[0-9]{0,4}(\\.[0-9]{0,4})?(E[0-9])?|[-+]?[0-9]{1,21}|A|\\(1\\)", "[ ]{0,1}"),
+                (
+                    "[A-Za-z][A-Za-z0-9_]{0,2}",
+                    prop_oneof![9 => "[ \t]{1,2}", 1 => ""],
+                    prop_oneof![
+                        8 => "[-+]?[0-9]{1,4}(\\.[0-9]{0,4})?",
+                        1 => "[-+]?\\.[0-9]{0,3}",
+                        1 => "([-+]?[0-9]{15,21}|A|\\(1\\)|1E3|1\\.5e2|-)",
+                    ],
+                    "[ ]{0,1}",
+                ),
                 0..8,
             ),
-            sep in "(,|, | ,|,,)",
-            tail in "(| C_DIS| c_ptp C_ORI| C_DIS C_DIS C_DIS|C_VEL| C_FOO| #TOOL| :P1| AND 1)",
+            sep in prop_oneof![8 => "(,|, | ,)", 1 => "(,,|;)"],
+            tail in prop_oneof![
+                6 => "(| C_DIS| c_ptp C_ORI|C_VEL| C_SPL)",
+                1 => "( C_DIS C_DIS C_DIS| C_FOO| #TOOL| :P1| AND 1| C_DISX)",
+            ],
             keep in any::<bool>(),
         ) {
             let body: Vec<String> = members
