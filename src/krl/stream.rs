@@ -420,7 +420,7 @@ impl Scan<'_> {
                 return false;
             }
             p += 1;
-            while p < b.len() && (b[p].is_ascii_alphanumeric() || b[p] == b'_') {
+            while p < b.len() && is_word(b[p]) {
                 p += 1;
             }
             let at = blanks(p);
@@ -482,6 +482,24 @@ impl Scan<'_> {
     }
 }
 
+/// Bytes of a name: `A-Z a-z 0-9 _`.
+static WORD: [bool; 256] = {
+    let mut t = [false; 256];
+    let mut b = 0;
+    while b < 256 {
+        let c = b as u8;
+        t[b] = c.is_ascii_alphanumeric() || c == b'_';
+        b += 1;
+    }
+    t
+};
+
+/// A byte of a name (one table lookup in the look's loops).
+#[inline]
+fn is_word(c: u8) -> bool {
+    WORD[usize::from(c)]
+}
+
 /// Where the number [`Scan::number`] takes at `p` ends: `[+-] d+ [. d+]` or `[+-] . d+`, at
 /// most 15 digits, not followed by a name character or a dot.
 fn number_end(b: &[u8], mut p: usize) -> Option<usize> {
@@ -507,7 +525,7 @@ fn number_end(b: &[u8], mut p: usize) -> Option<usize> {
         0
     };
     let ok = (int > 0 || frac > 0) && int + frac <= 15 && (frac > 0 || !dot);
-    let glued = p < b.len() && (b[p].is_ascii_alphanumeric() || b[p] == b'_' || b[p] == b'.');
+    let glued = p < b.len() && (is_word(b[p]) || b[p] == b'.');
     (ok && !glued).then_some(p)
 }
 
