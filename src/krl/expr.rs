@@ -366,6 +366,19 @@ impl Aggregate {
     pub(crate) fn range(&self) -> std::ops::Range<usize> {
         self.first as usize..self.first as usize + self.len()
     }
+
+    /// An outermost aggregate whose `len` members start at `first` in the members pool (as
+    /// `close_aggregate` records one).
+    pub(crate) fn outermost(span: Span, type_name: Option<Span>, first: u32, len: u32) -> Self {
+        let ty = type_name.unwrap_or_default();
+        Aggregate {
+            span,
+            type_start: ty.start,
+            type_len: ty.len() as u32,
+            first,
+            len_nested: len,
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------------

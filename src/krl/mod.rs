@@ -89,6 +89,7 @@ mod memory;
 pub mod motion;
 mod nodes;
 pub mod number;
+mod plain;
 pub mod program;
 pub mod sniff;
 pub mod span;

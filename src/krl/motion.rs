@@ -153,6 +153,23 @@ impl Motion {
     pub(crate) fn owns_heap(&self) -> bool {
         self.extra.is_some() || self.target.owns_heap()
     }
+
+    /// A motion with only a target and approximation keywords (no auxiliary point, `CA`,
+    /// `WITH` nor relative frame), its keyword starting at `keyword_start`.
+    pub(crate) fn simple(
+        kind: MotionKind,
+        target: Expr,
+        keyword_start: u32,
+        approx: Approxes,
+    ) -> Motion {
+        Motion {
+            kind,
+            target,
+            keyword_start,
+            approx,
+            extra: None,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -223,7 +240,8 @@ impl Approxes {
         (0..self.len()).filter_map(|i| self.get(i))
     }
 
-    fn push(&mut self, a: Approx) -> bool {
+    /// Adds a keyword; `false` when two are there already.
+    pub(crate) fn push(&mut self, a: Approx) -> bool {
         let n = self.len();
         if n == 2 {
             return false;

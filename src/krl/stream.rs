@@ -382,16 +382,13 @@ impl Scan<'_> {
 
     /// `[+-] d+ [. d+]` or `[+-] . d+`, at most 15 digits, not followed by a name character.
     fn number(&mut self) -> bool {
-        if matches!(self.peek(), Some(b'+' | b'-')) {
-            self.p += 1;
+        match number_end(self.b, self.p) {
+            Some(end) => {
+                self.p = end;
+                true
+            }
+            None => false,
         }
-        let int = self.digits();
-        let frac = if self.eat(b'.') { self.digits() } else { 0 };
-        let ok =
-            (int > 0 || frac > 0) && int + frac <= 15 && (frac > 0 || self.b[self.p - 1] != b'.');
-        ok && !self
-            .peek()
-            .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_' || c == b'.')
     }
 
     /// `{ [TYPE:] NAME number {, NAME number} }`.
@@ -409,18 +406,39 @@ impl Scan<'_> {
                 self.p = save;
             }
         }
+        // The members on a local index: the look's hot loop (a CAM program is made of them).
+        let b = self.b;
+        let blanks = |mut p: usize| {
+            while p < b.len() && matches!(b[p], b' ' | b'\t') {
+                p += 1;
+            }
+            p
+        };
+        let mut p = self.p;
         loop {
-            if self.word().is_empty() || !self.blanks() || !self.number() {
+            if p >= b.len() || !(b[p].is_ascii_alphabetic() || b[p] == b'_') {
                 return false;
             }
-            self.blanks();
-            if self.eat(b'}') {
-                return true;
+            p += 1;
+            while p < b.len() && is_word(b[p]) {
+                p += 1;
             }
-            if !self.eat(b',') {
+            let at = blanks(p);
+            if at == p {
                 return false;
             }
-            self.blanks();
+            let Some(end) = number_end(b, at) else {
+                return false;
+            };
+            p = blanks(end);
+            match b.get(p) {
+                Some(b'}') => {
+                    self.p = p + 1;
+                    return true;
+                }
+                Some(b',') => p = blanks(p + 1),
+                _ => return false,
+            }
         }
     }
 
@@ -462,6 +480,53 @@ impl Scan<'_> {
         self.p = save;
         self.number() && self.end()
     }
+}
+
+/// Bytes of a name: `A-Z a-z 0-9 _`.
+static WORD: [bool; 256] = {
+    let mut t = [false; 256];
+    let mut b = 0;
+    while b < 256 {
+        let c = b as u8;
+        t[b] = c.is_ascii_alphanumeric() || c == b'_';
+        b += 1;
+    }
+    t
+};
+
+/// A byte of a name (one table lookup in the look's loops).
+#[inline]
+fn is_word(c: u8) -> bool {
+    WORD[usize::from(c)]
+}
+
+/// Where the number [`Scan::number`] takes at `p` ends: `[+-] d+ [. d+]` or `[+-] . d+`, at
+/// most 15 digits, not followed by a name character or a dot.
+fn number_end(b: &[u8], mut p: usize) -> Option<usize> {
+    if p < b.len() && matches!(b[p], b'+' | b'-') {
+        p += 1;
+    }
+    let digits = |mut p: usize| {
+        while p < b.len() && b[p].is_ascii_digit() {
+            p += 1;
+        }
+        p
+    };
+    let int_end = digits(p);
+    let int = int_end - p;
+    p = int_end;
+    let dot = p < b.len() && b[p] == b'.';
+    let frac = if dot {
+        let end = digits(p + 1);
+        let frac = end - (p + 1);
+        p = end;
+        frac
+    } else {
+        0
+    };
+    let ok = (int > 0 || frac > 0) && int + frac <= 15 && (frac > 0 || !dot);
+    let glued = p < b.len() && (is_word(b[p]) || b[p] == b'.');
+    (ok && !glued).then_some(p)
 }
 
 #[cfg(test)]
@@ -549,6 +614,126 @@ mod tests {
             "SLIN {X 1}",
         ] {
             assert!(!looks_plain(no.as_bytes()), "{no}");
+        }
+    }
+
+    /// The look's aggregate and number as first written (a cursor stepped byte by byte),
+    /// which the scan on a local index must agree with.
+    struct Stepped<'a> {
+        b: &'a [u8],
+        p: usize,
+    }
+
+    impl Stepped<'_> {
+        fn peek(&self) -> Option<u8> {
+            self.b.get(self.p).copied()
+        }
+
+        fn eat(&mut self, c: u8) -> bool {
+            let yes = self.peek() == Some(c);
+            self.p += usize::from(yes);
+            yes
+        }
+
+        fn blanks(&mut self) -> bool {
+            let at = self.p;
+            while matches!(self.peek(), Some(b' ' | b'\t')) {
+                self.p += 1;
+            }
+            self.p > at
+        }
+
+        fn word(&mut self) -> bool {
+            let at = self.p;
+            if self
+                .peek()
+                .is_some_and(|c| c.is_ascii_alphabetic() || c == b'_')
+            {
+                self.p += 1;
+                while self
+                    .peek()
+                    .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_')
+                {
+                    self.p += 1;
+                }
+            }
+            self.p > at
+        }
+
+        fn digits(&mut self) -> usize {
+            let at = self.p;
+            while self.peek().is_some_and(|c| c.is_ascii_digit()) {
+                self.p += 1;
+            }
+            self.p - at
+        }
+
+        fn number(&mut self) -> bool {
+            if matches!(self.peek(), Some(b'+' | b'-')) {
+                self.p += 1;
+            }
+            let int = self.digits();
+            let frac = if self.eat(b'.') { self.digits() } else { 0 };
+            let ok = (int > 0 || frac > 0)
+                && int + frac <= 15
+                && (frac > 0 || self.b[self.p - 1] != b'.');
+            ok && !self
+                .peek()
+                .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_' || c == b'.')
+        }
+
+        fn aggregate(&mut self) -> bool {
+            if !self.eat(b'{') {
+                return false;
+            }
+            self.blanks();
+            let save = self.p;
+            if self.word() {
+                self.blanks();
+                if self.eat(b':') {
+                    self.blanks();
+                } else {
+                    self.p = save;
+                }
+            }
+            loop {
+                if !self.word() || !self.blanks() || !self.number() {
+                    return false;
+                }
+                self.blanks();
+                if self.eat(b'}') {
+                    return true;
+                }
+                if !self.eat(b',') {
+                    return false;
+                }
+                self.blanks();
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// The look's aggregate and number take what the byte-stepped cursor takes, and stop
+        /// where it stops.
+        #[test]
+        fn the_scan_is_the_stepped_cursor(
+            text in "\\{[ \t]{0,2}([A-Za-z_][A-Za-z0-9_]{0,3}[ ]?:[ ]?)?([A-Za-z_0-9][A-Za-z0-9_]{0,2}[ \t]{0,2}[-+]?[0-9]{0,9}\\.?[0-9]{0,9}[A-Za-z_.]?[ \t]{0,2}[,}]?[ ]?){0,7}[} ]?[A-Z ]{0,3}",
+            number in "[ ]?[-+]?[0-9]{0,10}\\.?[0-9]{0,9}[.A-Za-z_ ,}]?",
+        ) {
+            for (t, is_number) in [(&text, false), (&number, true)] {
+                let mut old = Stepped { b: t.as_bytes(), p: 0 };
+                let mut new = Scan { b: t.as_bytes(), p: 0 };
+                let (a, b) = if is_number {
+                    (old.number(), new.number())
+                } else {
+                    (old.aggregate(), new.aggregate())
+                };
+                prop_assert_eq!(a, b, "{}", t);
+                if a {
+                    prop_assert_eq!(old.p, new.p, "{}", t);
+                }
+            }
         }
     }
 

@@ -23,15 +23,6 @@ pub(crate) struct RawLine {
 
 const BOM: &[u8] = b"\xEF\xBB\xBF";
 
-/// Non-zero when some byte of `x` equals `b` (the classic SWAR zero-byte test on `x ^ b…b`;
-/// exact: no false positives for the "has a zero byte" form used here).
-fn has_byte(x: u64, b: u8) -> u64 {
-    const LO: u64 = 0x0101_0101_0101_0101;
-    const HI: u64 = 0x8080_8080_8080_8080;
-    let y = x ^ (LO * u64::from(b));
-    y.wrapping_sub(LO) & !y & HI
-}
-
 /// Cuts the line starting at `start`.
 pub(crate) fn split_line(src: &[u8], start: usize) -> RawLine {
     let mut p = start;
@@ -44,18 +35,8 @@ pub(crate) fn split_line(src: &[u8], start: usize) -> RawLine {
     let code_start = p;
     let mut in_string = false;
     let mut comment_at = None;
-    // Skip eight bytes at a time while none of them is `\n`, `;` or `"`.
-    while p + 8 <= src.len() {
-        let chunk = u64::from_le_bytes(src[p..p + 8].try_into().expect("eight bytes"));
-        let found = has_byte(chunk, b'\n') | has_byte(chunk, b';') | has_byte(chunk, b'"');
-        if found != 0 {
-            // On to the first of them: the lowest flagged byte (the test can flag a byte
-            // wrongly only above a true one, by the borrow).
-            p += (found.trailing_zeros() / 8) as usize;
-            break;
-        }
-        p += 8;
-    }
+    // On to the first `\n`, `;` or `"` (a vector search: a CAM line has none before its end).
+    p = memchr::memchr3(b'\n', b';', b'"', &src[p..]).map_or(src.len(), |n| p + n);
     while p < src.len() {
         match src[p] {
             b'\n' => break,
@@ -69,10 +50,7 @@ pub(crate) fn split_line(src: &[u8], start: usize) -> RawLine {
         p += 1;
     }
     let newline = match comment_at {
-        Some(c) => src[c..]
-            .iter()
-            .position(|&b| b == b'\n')
-            .map_or(src.len(), |n| c + n),
+        Some(c) => memchr::memchr(b'\n', &src[c..]).map_or(src.len(), |n| c + n),
         None => p,
     };
     let code_limit = comment_at.unwrap_or(newline);
@@ -132,7 +110,7 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The eight-byte skip lands where the byte-by-byte scan does: lines of the bytes
+        /// The skip to the first byte looked for lands where the byte-by-byte scan does: lines of the bytes
         /// it looks for (and look-alikes: `:`, `#`, `\r`, bytes above 127) at any place.
         #[test]
         fn the_skip_finds_what_a_byte_scan_finds(
@@ -151,15 +129,7 @@ mod tests {
     }
 
     #[test]
-    fn byte_search_matches_a_plain_scan() {
-        for b in 0..=255u8 {
-            for pos in 0..8 {
-                let mut x = [0x41u8; 8];
-                x[pos] = b;
-                let found = has_byte(u64::from_le_bytes(x), b'"') != 0;
-                assert_eq!(found, x.contains(&b'"'));
-            }
-        }
+    fn a_long_line_is_cut_at_its_comment() {
         let long = b"LIN {X 1.000,Y 2.000,Z 3.000,A 0.000,B 90.000,C 0.000} C_DIS ; here\r\nEND";
         let l = split_line(long, 0);
         assert_eq!(&long[l.code_start..l.code_end], &long[..60]);

@@ -550,9 +550,25 @@ pub fn arrival_and_end(
     tool: &Frame,
     cart: &Cartesian,
     u_end: f64,
-    (q0, start): (&[f64; 6], Option<&ArmAt>),
+    from: (&[f64; 6], Option<&ArmAt>),
     q1: &[f64; 6],
 ) -> Result<(Arrival, ArmAt), PathError> {
+    let mut end = None;
+    let arrival = arrival_into(robot, tool, cart, u_end, from, q1, &mut end)?;
+    Ok((arrival, end.expect("an arrival sets its end")))
+}
+
+/// [`arrival_and_end`], the arm at the end put in `end` (a 430-byte record: a walker that
+/// keeps the last one for the next start fills it in place rather than moving it out).
+pub fn arrival_into(
+    robot: &RobotDescription,
+    tool: &Frame,
+    cart: &Cartesian,
+    u_end: f64,
+    (q0, start): (&[f64; 6], Option<&ArmAt>),
+    q1: &[f64; 6],
+    end: &mut Option<ArmAt>,
+) -> Result<Arrival, PathError> {
     let mut q1 = *q1;
     let (length, turn) = cart.extent();
     let n = ((length * u_end / PITCH_MM)
@@ -602,7 +618,7 @@ pub fn arrival_and_end(
         }
     }
     // The exact rate at the end, where the Jacobian is regular.
-    let end = ArmAt::new(robot, tool, q1);
+    let end = end.insert(ArmAt::new(robot, tool, q1));
     let rate = end.rates(&(cart.twist(u_end) * u_end));
     let rate: [f64; 6] = std::array::from_fn(|i| {
         let r = rate.map_or(0.0, |r| r[i]);
@@ -634,12 +650,11 @@ pub fn arrival_and_end(
             turns.at[i] = u;
         }
     }
-    let arrival = Arrival {
+    Ok(Arrival {
         rate,
         end: *q1,
         turns,
-    };
-    Ok((arrival, end))
+    })
 }
 
 /// The last turning point of one axis along `points` (`(angle, u)` from the start at u = 0 to

@@ -292,6 +292,19 @@ pub fn aggregate<'f>(
     file: &'f SourceFile,
     id: FileId,
     agg: &'f Aggregate,
+    eval: impl FnMut(&'f Expr) -> Value<'f>,
+) -> Value<'f> {
+    match kept_position(file, id, agg) {
+        Some(pos) => Value::Pos(pos),
+        None => decoded(file, id, agg, eval),
+    }
+}
+
+/// [`aggregate`], each member decoded (any aggregate).
+fn decoded<'f>(
+    file: &'f SourceFile,
+    id: FileId,
+    agg: &'f Aggregate,
     mut eval: impl FnMut(&'f Expr) -> Value<'f>,
 ) -> Value<'f> {
     let src = file.source();
@@ -468,6 +481,48 @@ pub fn aggregate<'f>(
     Value::Pos(pos)
 }
 
+/// The position of an aggregate whose members all name components of one naming and are
+/// plain numbers whose values the tree kept (a streamed CAM line's): what [`aggregate`] makes
+/// of it, read without decoding a member; `None` for any other aggregate.
+fn kept_position<'f>(file: &'f SourceFile, id: FileId, agg: &'f Aggregate) -> Option<Pos<'f>> {
+    let src = file.source();
+    let mut v = [None; 6];
+    let (mut literals, mut decimals) = (0u8, [0u8; 6]);
+    let mut naming = None;
+    for raw in file.raw_members(agg) {
+        let crate::krl::RawMember::Plain {
+            name,
+            number,
+            kept: Some(value),
+        } = raw
+        else {
+            return None;
+        };
+        let (named, k) = component(&src[name.range()])?;
+        if *naming.get_or_insert(named) != named {
+            return None;
+        }
+        v[k] = Some(value);
+        literals |= 1 << k;
+        decimals[k] = literal_decimals(&src[number.range()]).min(255) as u8;
+    }
+    Some(Pos {
+        v: Components::named(naming?, v),
+        s: None,
+        t: None,
+        origin: Some(Origin {
+            file: id,
+            agg,
+            var: None,
+            prefix: None,
+            suffix: None,
+            literals,
+            decimals,
+            external: false,
+        }),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -478,6 +533,60 @@ mod tests {
         assert_eq!(bits_value(b"'B110101'"), Some(53));
         assert_eq!(bits_value(b"'H1F'"), Some(31));
         assert_eq!(bits_value(b"'x'"), None);
+    }
+
+    /// The kept values of a streamed window's aggregates give the position decoding its
+    /// members gives: Cartesian and axis positions, a type, a repeated member, and (declined,
+    /// decoded) mixed namings, external axes, S and T, an empty aggregate.
+    #[test]
+    fn kept_positions_are_the_decoded_ones() {
+        let lines = [
+            "LIN {X 1.5,Y -2,Z 0.000,A 0,B 90.25,C -180} C_DIS",
+            "PTP {A1 -12.500,A2 -85,A3 105.5,A4 0,A5 70,A6 -12.5}",
+            "LIN {E6POS: X 1, Y 2}",
+            "LIN {X 1, X -3.25, z 7.}",
+            "LIN {X 1, A1 2}",
+            "PTP {A1 1, E1 0}",
+            "PTP {A1 1, E1 5.5}",
+            "PTP {X 1, Y 2, Z 3, A 0, B 0, C 0, S 6, T 27}",
+            "LIN {}",
+        ];
+        let mut text = String::from("DEF p( )\n");
+        for i in 0..40 {
+            text.push_str(lines[i % lines.len()]);
+            text.push('\n');
+        }
+        text.push_str("END\n");
+        let opts = crate::krl::StreamOptions {
+            min_run: 3,
+            window: 7,
+        };
+        let file = crate::krl::parse_streaming(text.into_bytes(), crate::krl::FileKind::Src, opts)
+            .expect("parses");
+        let (mut kept, mut declined) = (0, 0);
+        for run in file.streamed_runs() {
+            for w in run.windows() {
+                let window = file.window(w);
+                for (_, m) in window.motions() {
+                    let Expr::Aggregate(_, a) = m.target else {
+                        panic!("a literal target");
+                    };
+                    let agg = window.aggregate(a);
+                    let want = format!("{:?}", decoded(&window, 3, agg, |_| Value::Int(0)));
+                    match kept_position(&window, 3, agg) {
+                        Some(pos) => {
+                            assert_eq!(format!("{:?}", Value::Pos(pos)), want);
+                            kept += 1;
+                        }
+                        None => declined += 1,
+                    }
+                }
+            }
+        }
+        assert!(
+            kept >= 15 && declined >= 15,
+            "{kept} kept, {declined} declined"
+        );
     }
 
     #[test]

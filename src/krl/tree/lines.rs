@@ -9,6 +9,7 @@ use crate::krl::error::Problem;
 use crate::krl::fold::{Fold, FoldId, FoldTracker};
 use crate::krl::lex::Cx;
 use crate::krl::nodes::Nodes;
+use crate::krl::plain;
 use crate::krl::span::Span;
 use crate::krl::stmt::{self, Line, Stmt, StmtKind};
 use crate::krl::stream::{
@@ -143,7 +144,11 @@ impl<'s> LineParse<'s> {
     /// A line of code into the tree (parsed; an unreadable line recorded as a problem).
     fn feed(&mut self, code: Span, leading: Span, line: u32, fold: Option<FoldId>) {
         let src = self.src;
-        let parsed = match stmt::line(self.cx, self.kind, &src[code.range()]) {
+        let text = &src[code.range()];
+        // A CAM motion line is read directly (the nodes the parser would build).
+        let read = plain::motion_line(self.cx, text)
+            .map_or_else(|| stmt::line(self.cx, self.kind, text), Ok);
+        let parsed = match read {
             Ok(parsed) => parsed,
             Err(Some(e)) => {
                 let at = self.cx.off(e.at).min(code.end as usize);

@@ -318,10 +318,13 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
         .par_chunks_mut(CHUNK)
         .enumerate()
         .for_each(|(c, out)| {
-            // The arm at the end of the stop just done, with its index and tool: the next
-            // stop's start when it starts there (a CAM path), its TCP bit for bit what
-            // `interpolate::end_tcp` of the previous axes gives.
-            let mut carry: Option<(u32, u32, interpolate::ArmAt)> = None;
+            // The arm at the end of the stop just done (`arms[live]`), with its index and
+            // tool: the next stop's start when it starts there (a CAM path), its TCP bit for
+            // bit what `interpolate::end_tcp` of the previous axes gives. The next end is
+            // written in the other slot, so the 430-byte records are never moved.
+            let mut carry: Option<(u32, u32)> = None;
+            let mut arms: [Option<interpolate::ArmAt>; 2] = [None, None];
+            let mut live = 0;
             for (j, slot) in out.iter_mut().enumerate() {
                 let k = c * CHUNK + j;
                 let stop = &sim.stops[k];
@@ -331,9 +334,14 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                 let Some(p) = stop.prev else { continue };
                 let prev = &sim.stops[p as usize];
                 let tool = &sim.frames[stop.tool as usize];
-                // Borrowed, not moved out: the arm state is a 430-byte record.
-                let carried = match &carry {
-                    Some((i, t, at)) if *i == p && *t == stop.tool => Some(at),
+                let (first, second) = arms.split_at_mut(1);
+                let (held, spare) = if live == 0 {
+                    (&first[0], &mut second[0])
+                } else {
+                    (&second[0], &mut first[0])
+                };
+                let carried = match carry {
+                    Some((i, t)) if i == p && t == stop.tool => held.as_ref(),
                     _ => None,
                 };
                 let start = match carried {
@@ -344,17 +352,22 @@ fn finish(sim: &mut Simulation, robot: &RobotDescription) {
                     carry = None;
                     continue;
                 };
-                let a = interpolate::arrival_and_end(
+                let a = interpolate::arrival_into(
                     robot,
                     tool,
                     &cart,
                     1.0,
                     (&*prev.nominal_axes, carried),
                     &stop.nominal_axes,
+                    spare,
                 );
                 *slot = Some(match a {
-                    Ok((a, end)) => {
-                        carry = (a.end == stop.nominal_axes).then_some((k as u32, stop.tool, end));
+                    Ok(a) => {
+                        carry = None;
+                        if a.end == stop.nominal_axes {
+                            carry = Some((k as u32, stop.tool));
+                            live = 1 - live;
+                        }
                         (a.rate, a.turns)
                     }
                     Err(_) => {
