@@ -191,6 +191,28 @@ pub fn a6_frame_near(
     walk(robot, axes_deg, errors, trig, |_, _| {})
 }
 
+/// [`a6_frame`] of the nominal chain (every slot zero): the controller's forward kinematics,
+/// evaluated for every command written. The same sums as the error chain's, to the bit (the
+/// zero slots are still added, so that a `-0.0` becomes what the error chain makes it), without
+/// looking the eighteen zero tilts up or keeping a reference for [`JointTrig`].
+pub fn a6_frame_nominal(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+) -> (Matrix3<f64>, Vector3<f64>) {
+    let links = link_vectors(robot);
+    let mut r = Matrix3::identity();
+    let mut p = Vector3::zeros();
+    for n in 0..6 {
+        p += r * (links[n] + Vector3::zeros());
+        let axis = AXIS_COORD[n];
+        let sense = robot.senses[n];
+        let theta = sense * (axes_deg[n].to_radians() + 0.0) + robot.offsets_deg[n].to_radians();
+        let (sin, cos) = trig::sin_cos(theta);
+        rotate_sc(&mut r, axis, sin, cos);
+    }
+    (r, p)
+}
+
 /// The part of the chain that a model keeps fixed while only the axes' angle slots vary (the
 /// paper's model: the geometric errors are constant, the maps, backlash and crosstalk move
 /// `dθ_n` alone): per axis the link vector with its offsets and the product of its three tilt
