@@ -80,20 +80,16 @@ impl<'a> Predicted<'a> {
         }
     }
 
-    /// [`Self::tool`] with the fixed errors, kept for the next evaluation.
-    fn fixed_tool(&self, tool: &Frame) -> Frame {
+    /// The position of [`Self::tool`] with the fixed errors, kept for the next evaluation.
+    fn fixed_tool_position(&self, tool: &Frame) -> Vector3<f64> {
         let key = tool.position.map(f64::to_bits).into();
-        let position = match self.fixed_tool.get() {
+        match self.fixed_tool.get() {
             Some((k, position)) if k == key => position,
             _ => {
                 let position = self.model.tool_as_identified(&tool.position, self.fixed);
                 self.fixed_tool.set(Some((key, position)));
                 position
             }
-        };
-        Frame {
-            rotation: tool.rotation,
-            position,
         }
     }
 
@@ -180,7 +176,8 @@ impl Arm for Predicted<'_> {
             let robot = &self.model.robot;
             let mut trig = self.trig.borrow_mut();
             let (r6, p6) = chain::a6_frame_blocks(robot, axes, blocks, &angles, &mut trig);
-            return nominal::tcp_at_a6(&r6, &p6, &self.fixed_tool(tool));
+            let position = self.fixed_tool_position(tool);
+            return nominal::tcp_at_a6_of(&r6, &p6, &tool.rotation, &position);
         }
         let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);

@@ -143,10 +143,22 @@ pub fn tcp_of(
 
 /// The TCP carried by the A6 frame `(r6, p6)`.
 pub fn tcp_at_a6(r6: &Matrix3<f64>, p6: &Vector3<f64>, tool: &Frame) -> Frame {
+    tcp_at_a6_of(r6, p6, &tool.rotation, &tool.position)
+}
+
+/// [`tcp_at_a6`] of the tool `(rotation, position)` (a solver's tool position is the
+/// model's, its rotation the programmed one's: no tool frame is put together per evaluation).
+#[inline]
+pub fn tcp_at_a6_of(
+    r6: &Matrix3<f64>,
+    p6: &Vector3<f64>,
+    rotation: &Matrix3<f64>,
+    position: &Vector3<f64>,
+) -> Frame {
     let rf = r6 * a6_to_flange();
     Frame {
-        rotation: rf * tool.rotation,
-        position: p6 + rf * tool.position,
+        rotation: rf * rotation,
+        position: p6 + rf * position,
     }
 }
 
