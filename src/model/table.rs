@@ -398,5 +398,24 @@ mod tests {
                 (plain.lo, plain.hi, plain.w.to_bits(), plain.clamped));
             prop_assert_eq!(h, plain.lo);
         }
+
+        /// A 2-D lookup from any hints gives [`Table2::eval`]'s value to the bit, inside the
+        /// grid, on its lines and beyond its edges.
+        #[test]
+        fn eval_near_is_eval(
+            rows in 1usize..6,
+            columns in 1usize..6,
+            values in proptest::collection::vec(-1.0f64..1.0, 36),
+            r in -30.0f64..80.0,
+            c in prop_oneof![-40.0f64..100.0, (0i32..5).prop_map(|k| f64::from(k) * 15.0)],
+            hints in proptest::array::uniform2(0usize..7),
+        ) {
+            let rows = Grid::from_range(0.0, 10.0 * (rows - 1) as f64, 10.0).unwrap();
+            let columns = Grid::from_range(0.0, 15.0 * (columns - 1) as f64, 15.0).unwrap();
+            let n = rows.len() * columns.len();
+            let table = Table2 { rows, columns, values: values[..n].to_vec() };
+            let mut h = hints;
+            prop_assert_eq!(table.eval_near(r, c, &mut h).to_bits(), table.eval(r, c).0.to_bits());
+        }
     }
 }
