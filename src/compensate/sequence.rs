@@ -1183,25 +1183,39 @@ fn settle_one(
     outcomes: &mut [Outcome],
     resolved: &mut bool,
 ) -> AxisState {
-    let mut o = outcomes[k];
+    // The outcome solved again, once it is (until then the slice's, read in place).
+    let mut again: Option<Outcome> = None;
     let mut best: Option<Outcome> = None;
     let mut settled = None;
     for _ in 0..SETTLE_ROUNDS {
-        if let Settling::Settled(turns) = settle_target(ctx, k, rest, previous, (&mut o, outcomes))
-        {
-            settled = Some(turns);
-            break;
-        }
-        *resolved = true;
-        let error = |o: &Outcome| solve::weighted_norm(&o.residual);
-        if best.map_or(true, |b| error(&o) < error(&b)) {
-            best = Some(o);
+        let o = again.as_ref().unwrap_or(&outcomes[k]);
+        let mut travels_play = o.travels_play;
+        match settle_target(ctx, k, rest, previous, (o, outcomes), &mut travels_play) {
+            Settling::Settled(turns) => {
+                again.as_mut().unwrap_or(&mut outcomes[k]).travels_play = travels_play;
+                settled = Some(turns);
+                break;
+            }
+            Settling::Again(how) => {
+                let mut o = again.unwrap_or(outcomes[k]);
+                o.travels_play = travels_play;
+                solve_again(ctx, k, previous, (&mut o, outcomes), how);
+                *resolved = true;
+                let error = |o: &Outcome| solve::weighted_norm(&o.residual);
+                if best.map_or(true, |b| error(&o) < error(&b)) {
+                    best = Some(o);
+                }
+                again = Some(o);
+            }
         }
     }
-    if let (None, Some(b)) = (settled, best) {
-        o = b;
+    if let Some(o) = again {
+        outcomes[k] = match (settled, best) {
+            (None, Some(b)) => b,
+            _ => o,
+        };
     }
-    outcomes[k] = o;
+    let o = &outcomes[k];
     let axes_deg = o.axes_deg.into();
     let mut state = match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
@@ -1212,7 +1226,7 @@ fn settle_one(
         }
         _ => AxisState {
             axes_deg,
-            history: arrival_histories(ctx, k, previous, &o, outcomes),
+            history: arrival_histories(ctx, k, previous, o, outcomes),
             time_s: 0.0,
         },
     };
@@ -1557,13 +1571,13 @@ impl Segment {
     }
 }
 
-/// What [`settle_target`] did.
+/// What [`settle_target`] found.
 enum Settling {
     /// The plays stand where the solve assumed; the turning points of the compensated motion
     /// into the target when they were worked out (the target's history needs them again).
     Settled(Option<interpolate::Turns>),
-    /// Solved again.
-    Resolved,
+    /// To be solved again so.
+    Again(Again),
 }
 
 /// How a command puts the play's output where it must be.
@@ -1575,20 +1589,23 @@ enum Reach {
     Stuck,
 }
 
-/// Settles target `k` (its first-pass outcome in `out`) against where the compensated motion
+/// Settles target `k` (its outcome so far in `out`) against where the compensated motion
 /// leaves each gear play: every axis's command is the one whose arrival puts the play's output
-/// where the pose needs it ([`Segment::command_for`]); the target is solved again where that
-/// is not the first pass's flank — on the flank it drives, or, where the output stays inside
-/// the play, with that axis held at its command (the program's held axes at their command
-/// before) — and the axes whose output moves back by less than their play are marked.
-/// Returns whether it was solved again, and if not the turns of its compensated motion where
-/// they were worked out. `rest[n]`: the nominal motion holds axis n still.
+/// where the pose needs it ([`Segment::command_for`]); the target is to be solved again where
+/// that is not the first pass's flank — on the flank it drives, or, where the output stays
+/// inside the play, with that axis held at its command (the program's held axes at their
+/// command before) — and the axes whose output moves back by less than their play are marked
+/// in `travels_play` (`out`'s on entry). Returns how to solve it again, or the turns of its
+/// compensated motion where they were worked out. `rest[n]`: the nominal motion holds axis n
+/// still. (It reads `out` in place: most targets settle at once, and their outcome is not
+/// copied out of the slice and back.)
 fn settle_target(
     ctx: &Recheck,
     k: usize,
     rest: &[bool; 6],
     previous: Option<&AxisState>,
-    (out, outcomes): (&mut Outcome, &[Outcome]),
+    (out, outcomes): (&Outcome, &[Outcome]),
+    travels_play: &mut [bool; 6],
 ) -> Settling {
     let Some(p) = previous.filter(|_| ctx.target(k).arrival.is_some()) else {
         return Settling::Settled(None);
@@ -1611,7 +1628,7 @@ fn settle_target(
     let mut differs = false;
     let mut turns: Option<interpolate::Turns> = None;
     for (n, &rest) in rest.iter().enumerate() {
-        match axes.settle(n, rest, &mut turns, &mut out.travels_play[n]) {
+        match axes.settle(n, rest, &mut turns, &mut travels_play[n]) {
             AxisSettled::Kept => continue,
             AxisSettled::Reflanked(d) => again.flanks[n] = d,
             AxisSettled::Held { command, driven } => {
@@ -1625,8 +1642,7 @@ fn settle_target(
     if !differs {
         return Settling::Settled(turns);
     }
-    solve_again(ctx, k, previous, (out, outcomes), again);
-    Settling::Resolved
+    Settling::Again(again)
 }
 
 /// What [`settle_target`] works an axis out from: the target, the state the motion arrives

@@ -24,12 +24,13 @@
 
 use std::cell::{Cell, RefCell};
 
-use nalgebra::{Matrix6, Vector6};
+use nalgebra::{Matrix6, Vector3, Vector6};
 
 use std::ops::AddAssign;
 
 use crate::kinematics::AxisAngles;
 use crate::model::chain::{self, axis_lines, ChainFrames, JointTrig, LinkBlocks};
+use crate::model::merged::Cells;
 use crate::model::{AxisHistory, AxisSlopes, AxisState, ChainErrors, Model, Slot};
 use crate::motion::frame::{self as pose, Frame};
 use crate::motion::lu6::Lu6;
@@ -52,10 +53,14 @@ pub struct Predicted<'a> {
     /// millidegrees away (see [`JointTrig`]). Borrowed in place: each evaluation updates it
     /// where it stands.
     trig: RefCell<JointTrig>,
-    /// The merged tables' cells of the last lookup, likewise (see `Grid::locate_near`).
-    cells: Cell<[usize; 6]>,
+    /// The tables' cells of the last lookup, likewise (see `Grid::locate_near`); borrowed in
+    /// place as `trig` is.
+    cells: RefCell<Cells>,
     /// The chain's fixed part, when only the angle slots vary (see [`LinkBlocks`]).
     blocks: Option<&'a LinkBlocks>,
+    /// The last tool position (its bits) with the fixed errors' tool (see [`Self::tool`]):
+    /// a solve evaluates one tool at every command.
+    fixed_tool: Cell<Option<([u64; 3], Vector3<f64>)>>,
 }
 
 impl<'a> Predicted<'a> {
@@ -69,8 +74,22 @@ impl<'a> Predicted<'a> {
             }),
             fixed: model.fixed_errors_at_time_zero(),
             trig: RefCell::default(),
-            cells: Cell::new([0; 6]),
+            cells: RefCell::default(),
             blocks: model.link_blocks(),
+            fixed_tool: Cell::new(None),
+        }
+    }
+
+    /// The position of [`Self::tool`] with the fixed errors, kept for the next evaluation.
+    fn fixed_tool_position(&self, tool: &Frame) -> Vector3<f64> {
+        let key = tool.position.map(f64::to_bits).into();
+        match self.fixed_tool.get() {
+            Some((k, position)) if k == key => position,
+            _ => {
+                let position = self.model.tool_as_identified(&tool.position, self.fixed);
+                self.fixed_tool.set(Some((key, position)));
+                position
+            }
         }
     }
 
@@ -90,10 +109,9 @@ impl<'a> Predicted<'a> {
 
     fn errors(&self, axes: &[f64; 6]) -> ChainErrors {
         let mut errors = *self.fixed;
-        let mut cells = self.cells.get();
+        let cells = &mut self.cells.borrow_mut().axes;
         self.model
-            .add_varying_errors_near(&self.state(axes), &mut errors, &mut cells);
-        self.cells.set(cells);
+            .add_varying_errors_near(&self.state(axes), &mut errors, cells);
         errors
     }
 
@@ -106,14 +124,9 @@ impl<'a> Predicted<'a> {
         errors: &mut ChainErrors,
         slopes: &mut AxisSlopes,
     ) {
-        let mut cells = self.cells.get();
-        self.model.add_varying_errors_with_slopes_near(
-            &self.state(axes),
-            errors,
-            slopes,
-            &mut cells,
-        );
-        self.cells.set(cells);
+        let cells = &mut self.cells.borrow_mut().axes;
+        self.model
+            .add_varying_errors_with_slopes_near(&self.state(axes), errors, slopes, cells);
     }
 }
 
@@ -158,13 +171,13 @@ impl Arm for Predicted<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
         if let Some(blocks) = self.blocks {
             // Only the angle slots vary: six sums instead of the whole error vector.
-            let mut cells = self.cells.get();
-            let angles = self.model.angle_errors_near(&self.state(axes), &mut cells);
-            self.cells.set(cells);
+            let cells = &mut self.cells.borrow_mut();
+            let angles = self.model.angle_errors_near(&self.state(axes), cells);
             let robot = &self.model.robot;
             let mut trig = self.trig.borrow_mut();
             let (r6, p6) = chain::a6_frame_blocks(robot, axes, blocks, &angles, &mut trig);
-            return nominal::tcp_at_a6(&r6, &p6, &self.tool(tool, self.fixed));
+            let position = self.fixed_tool_position(tool);
+            return nominal::tcp_at_a6_of(&r6, &p6, &tool.rotation, &position);
         }
         let errors = self.errors(axes);
         let tool = self.tool(tool, &errors);
@@ -318,10 +331,10 @@ pub struct Chain {
     recent: [Option<Solved>; 2],
     /// The tool of the targets (another tool moves the TCP elsewhere: the chain starts over).
     tool: Option<u32>,
-    /// The merged tables' cells of the last target's last evaluation: the next target is
+    /// The tables' cells of the last target's last evaluation: the next target is
     /// nearby, its first lookup starts from them (a hint only: `Grid::locate_near` finds the
     /// same cell from any).
-    cells: [usize; 6],
+    cells: Cells,
 }
 
 /// A target solved along a [`Chain`].
@@ -387,9 +400,9 @@ pub fn solve_in_chain(
     chain: &mut Chain,
 ) -> Result<Solution, SolveError> {
     let arm = Predicted::new(model, problem.histories);
-    arm.cells.set(chain.cells);
+    *arm.cells.borrow_mut() = chain.cells;
     let solved = solve_warm_or_afresh(&arm, problem, chain);
-    chain.cells = arm.cells.get();
+    chain.cells = *arm.cells.borrow();
     solved
 }
 

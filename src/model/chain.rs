@@ -191,6 +191,41 @@ pub fn a6_frame_near(
     walk(robot, axes_deg, errors, trig, |_, _| {})
 }
 
+/// [`a6_frame`] of the nominal chain (every slot zero): the controller's forward kinematics,
+/// evaluated for every command written. The same sums as the error chain's, to the bit (the
+/// zero slots are still added, so that a `-0.0` becomes what the error chain makes it), without
+/// looking the eighteen zero tilts up or keeping a reference for [`JointTrig`].
+pub fn a6_frame_nominal(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+) -> (Matrix3<f64>, Vector3<f64>) {
+    let links = link_vectors(robot);
+    let mut r = Matrix3::identity();
+    let mut p = Vector3::zeros();
+    nominal_joint::<0>(robot, axes_deg, &links, (&mut r, &mut p));
+    nominal_joint::<1>(robot, axes_deg, &links, (&mut r, &mut p));
+    nominal_joint::<2>(robot, axes_deg, &links, (&mut r, &mut p));
+    nominal_joint::<3>(robot, axes_deg, &links, (&mut r, &mut p));
+    nominal_joint::<4>(robot, axes_deg, &links, (&mut r, &mut p));
+    nominal_joint::<5>(robot, axes_deg, &links, (&mut r, &mut p));
+    (r, p)
+}
+
+/// Joint `N` of [`a6_frame_nominal`], its index a constant (see [`block_joint`]).
+#[inline(always)]
+fn nominal_joint<const N: usize>(
+    robot: &RobotDescription,
+    axes_deg: &[f64; 6],
+    links: &[Vector3<f64>; 6],
+    (r, p): (&mut Matrix3<f64>, &mut Vector3<f64>),
+) {
+    *p += *r * (links[N] + Vector3::zeros());
+    let sense = robot.senses[N];
+    let theta = sense * (axes_deg[N].to_radians() + 0.0) + robot.offsets_deg[N].to_radians();
+    let (sin, cos) = trig::sin_cos(theta);
+    rotate_sc(r, AXIS_COORD[N], sin, cos);
+}
+
 /// The part of the chain that a model keeps fixed while only the axes' angle slots vary (the
 /// paper's model: the geometric errors are constant, the maps, backlash and crosstalk move
 /// `dθ_n` alone): per axis the link vector with its offsets and the product of its three tilt
@@ -275,20 +310,37 @@ fn walk_blocks(
 ) -> (Matrix3<f64>, Vector3<f64>) {
     let mut r = Matrix3::identity();
     let mut p = Vector3::zeros();
-    for n in 0..6 {
-        p += r * blocks.link[n];
-        if blocks.tilted[n] {
-            r *= blocks.tilt[n];
-        }
-        let axis = AXIS_COORD[n];
-        let sense = robot.senses[n];
-        visit(n, &p, sense * r.column(axis));
-        let theta =
-            sense * (axes_deg[n].to_radians() + angles[n]) + robot.offsets_deg[n].to_radians();
-        let (sin, cos) = trig.sin_cos(n, theta);
-        rotate_sc(&mut r, axis, sin, cos);
-    }
+    let chain = (robot, axes_deg, blocks, angles);
+    block_joint::<0>(chain, trig, (&mut r, &mut p), &mut visit);
+    block_joint::<1>(chain, trig, (&mut r, &mut p), &mut visit);
+    block_joint::<2>(chain, trig, (&mut r, &mut p), &mut visit);
+    block_joint::<3>(chain, trig, (&mut r, &mut p), &mut visit);
+    block_joint::<4>(chain, trig, (&mut r, &mut p), &mut visit);
+    block_joint::<5>(chain, trig, (&mut r, &mut p), &mut visit);
     (r, p)
+}
+
+/// Joint `N` of [`walk_blocks`] on the frame `(r, p)` so far. The index is a constant, so
+/// that the joint's coordinate — which columns turn, which one is visited — is known where it
+/// is compiled: looped over, each joint went through a runtime match and a bounds-checked
+/// column (kept for its panic even where the visit is a no-op).
+#[inline(always)]
+fn block_joint<const N: usize>(
+    (robot, axes_deg, blocks, angles): (&RobotDescription, &[f64; 6], &LinkBlocks, &[f64; 6]),
+    trig: &mut JointTrig,
+    (r, p): (&mut Matrix3<f64>, &mut Vector3<f64>),
+    visit: &mut impl FnMut(usize, &Vector3<f64>, Vector3<f64>),
+) {
+    *p += *r * blocks.link[N];
+    if blocks.tilted[N] {
+        *r *= blocks.tilt[N];
+    }
+    let axis = AXIS_COORD[N];
+    let sense = robot.senses[N];
+    visit(N, p, sense * r.column(axis));
+    let theta = sense * (axes_deg[N].to_radians() + angles[N]) + robot.offsets_deg[N].to_radians();
+    let (sin, cos) = trig.sin_cos(N, theta);
+    rotate_sc(r, axis, sin, cos);
 }
 
 /// The A6 frame with every axis's world line (direction of a positive KUKA rotation, centre):

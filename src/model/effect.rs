@@ -226,6 +226,19 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
             *a += errors.get(Slot::Angle { axis: n as u8 + 1 });
         }
     }
+    /// [`Self::add_angles`] of an effect that looks a table up, starting from the cells in
+    /// `hints` (a hint only, see [`Grid::locate_near`](super::table::Grid::locate_near)),
+    /// which then hold the cells used: a solver's commands lie millidegrees apart. The same
+    /// sums, to the bit; by default the hint is not used.
+    fn add_angles_near(
+        &self,
+        state: &AxisState,
+        ctx: &Context,
+        angles: &mut [f64; 6],
+        _hints: &mut [usize; 2],
+    ) {
+        self.add_angles(state, ctx, angles);
+    }
     /// `Some((n, table, factor))` when the whole contribution is `factor · table(A_n)` degrees
     /// added to axis n's own angle slot (`map`, `backlash`): a model merges such tables of one
     /// axis that share a grid into one lookup ([`Merged`](super::merged::Merged)).

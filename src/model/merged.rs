@@ -67,6 +67,19 @@ impl AxisSum {
     }
 }
 
+/// Where a solver's last evaluation found its table cells, for the next to try first (hints
+/// only: a lookup finds the same cell from any): the merged table of each axis, and those of
+/// the first [`REST_HINTS`] effects left to evaluate one by one (`Merged::rest`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Cells {
+    pub axes: [usize; 6],
+    pub rest: [[usize; 2]; REST_HINTS],
+}
+
+/// Effects outside the merged tables whose cells a [`Cells`] keeps (a model has a crosstalk
+/// or two; any further ones look their tables up afresh).
+pub const REST_HINTS: usize = 4;
+
 /// The merged tables of a model and the varying effects left to evaluate one by one.
 #[derive(Clone, Debug, Default)]
 pub struct Merged {

@@ -11,7 +11,7 @@ use nalgebra::{Vector3, Vector6};
 use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
 use super::effect::{AxisSlopes, ChainErrors, Context, Parameter, Partial, Slot};
 use super::effects::{EffectError, GridOptions, ModelEffect};
-use super::merged::Merged;
+use super::merged::{Cells, Merged};
 use super::registry::EffectName;
 use super::AxisState;
 use crate::kinematics::{Frame, Payload, RobotDescription};
@@ -174,14 +174,22 @@ impl Model {
     /// The angle slots of `chain_errors(state)` at time 0 (`angles[n]`: axis n+1's, rad), for
     /// a model with [`Self::link_blocks`]: the fixed angles plus the varying effects', summed
     /// in the order of [`Self::add_varying_errors_near`], so to the same bits.
-    pub fn angle_errors_near(&self, state: &AxisState, cells: &mut [usize; 6]) -> [f64; 6] {
+    pub fn angle_errors_near(&self, state: &AxisState, cells: &mut Cells) -> [f64; 6] {
         let merged = self.merged();
         let fixed = &merged.fixed_at_time_zero;
         let mut angles = std::array::from_fn(|n| fixed.get(Slot::Angle { axis: n as u8 + 1 }));
-        merged.add_angles_near(&state.axes_deg, &state.history, &mut angles, cells);
+        merged.add_angles_near(
+            &state.axes_deg,
+            &state.history,
+            &mut angles,
+            &mut cells.axes,
+        );
         let ctx = self.context();
-        for &i in &merged.rest {
-            self.effects[i].add_angles(state, &ctx, &mut angles);
+        for (j, &i) in merged.rest.iter().enumerate() {
+            match cells.rest.get_mut(j) {
+                Some(hints) => self.effects[i].add_angles_near(state, &ctx, &mut angles, hints),
+                None => self.effects[i].add_angles(state, &ctx, &mut angles),
+            }
         }
         angles
     }

@@ -183,18 +183,21 @@ impl Grid {
 impl Grid {
     /// [`Self::locate`] trying the cell `hint` first, which then holds the cell found: a
     /// solver evaluating commands millidegrees apart finds them in the cell of the first.
-    /// The same cell as [`Self::locate`]'s, since an inner abscissa lies in exactly one.
+    /// The same cell as [`Self::locate`]'s, since an inner abscissa lies in exactly one (a
+    /// cell that holds `x` lies inside the grid: only `x` on the first point is not inner,
+    /// and there both give cell 0 at weight 0).
     #[inline]
     pub fn locate_near(&self, x: f64, hint: &mut usize) -> Cell {
-        let p = &self.points;
-        let (n, lo) = (p.len(), *hint);
-        if lo + 1 < n && p[0] < x && x < p[n - 1] && p[lo] <= x && x < p[lo + 1] {
-            return Cell {
-                lo,
-                hi: lo + 1,
-                w: ((x - p[lo]) * self.inv_width[lo]).clamp(0.0, 1.0),
-                clamped: false,
-            };
+        let lo = *hint;
+        if let Some(&[a, b]) = self.points.get(lo..lo + 2) {
+            if a <= x && x < b {
+                return Cell {
+                    lo,
+                    hi: lo + 1,
+                    w: ((x - a) * self.inv_width[lo]).clamp(0.0, 1.0),
+                    clamped: false,
+                };
+            }
         }
         let cell = self.locate(x);
         *hint = cell.lo;
@@ -288,7 +291,22 @@ impl Table2 {
 
     /// The bilinear value at `(r, c)`, its four weighted corners, and whether it was clamped.
     pub fn eval(&self, r: f64, c: f64) -> (f64, Corners, bool) {
-        let (cr, cc) = (self.rows.locate(r), self.columns.locate(c));
+        self.eval_in(&self.rows.locate(r), &self.columns.locate(c))
+    }
+
+    /// [`Self::eval`]'s value, looking the cells up from `hints` (row, column; see
+    /// [`Grid::locate_near`]), which then hold the cells used.
+    #[inline]
+    pub fn eval_near(&self, r: f64, c: f64, hints: &mut [usize; 2]) -> f64 {
+        let (cr, cc) = (
+            self.rows.locate_near(r, &mut hints[0]),
+            self.columns.locate_near(c, &mut hints[1]),
+        );
+        self.eval_in(&cr, &cc).0
+    }
+
+    #[inline]
+    fn eval_in(&self, cr: &Cell, cc: &Cell) -> (f64, Corners, bool) {
         let width = self.columns.len();
         let corners = [
             (cr.lo * width + cc.lo, (1.0 - cr.w) * (1.0 - cc.w)),
@@ -345,5 +363,59 @@ mod tests {
         let most = Grid::from_range(0.0, (MAX_POINTS - 1) as f64 * 0.01, 0.01).unwrap();
         assert_eq!(most.len(), MAX_POINTS);
         assert!(Grid::from_range(0.0, MAX_POINTS as f64 * 0.01, 0.01).is_err());
+    }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        /// A lookup from any hint finds [`Grid::locate`]'s cell, bit for bit, and leaves it
+        /// as the hint: abscissae inside cells, on grid points (the first and last too),
+        /// outside the grid; grids of one point, uneven ones.
+        #[test]
+        fn locate_near_is_locate(
+            steps in proptest::collection::vec(0.01f64..20.0, 0..12),
+            first in -200.0f64..200.0,
+            at in prop_oneof![-250.0f64..250.0, (0usize..13).prop_map(|i| -1000.0 - i as f64)],
+            hint in 0usize..15,
+        ) {
+            let points: Vec<f64> = std::iter::once(first)
+                .chain(steps.iter().scan(first, |x, d| {
+                    *x += d;
+                    Some(*x)
+                }))
+                .collect();
+            let grid = Grid::new(points.clone()).unwrap();
+            // A negative `at` below -999 names a grid point (clamped to the last).
+            let x = if at <= -1000.0 {
+                points[((-1000.0 - at) as usize).min(points.len() - 1)]
+            } else {
+                at
+            };
+            let mut h = hint;
+            let near = grid.locate_near(x, &mut h);
+            let plain = grid.locate(x);
+            prop_assert_eq!((near.lo, near.hi, near.w.to_bits(), near.clamped),
+                (plain.lo, plain.hi, plain.w.to_bits(), plain.clamped));
+            prop_assert_eq!(h, plain.lo);
+        }
+
+        /// A 2-D lookup from any hints gives [`Table2::eval`]'s value to the bit, inside the
+        /// grid, on its lines and beyond its edges.
+        #[test]
+        fn eval_near_is_eval(
+            rows in 1usize..6,
+            columns in 1usize..6,
+            values in proptest::collection::vec(-1.0f64..1.0, 36),
+            r in -30.0f64..80.0,
+            c in prop_oneof![-40.0f64..100.0, (0i32..5).prop_map(|k| f64::from(k) * 15.0)],
+            hints in proptest::array::uniform2(0usize..7),
+        ) {
+            let rows = Grid::from_range(0.0, 10.0 * (rows - 1) as f64, 10.0).unwrap();
+            let columns = Grid::from_range(0.0, 15.0 * (columns - 1) as f64, 15.0).unwrap();
+            let n = rows.len() * columns.len();
+            let table = Table2 { rows, columns, values: values[..n].to_vec() };
+            let mut h = hints;
+            prop_assert_eq!(table.eval_near(r, c, &mut h).to_bits(), table.eval(r, c).0.to_bits());
+        }
     }
 }

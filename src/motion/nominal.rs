@@ -143,10 +143,22 @@ pub fn tcp_of(
 
 /// The TCP carried by the A6 frame `(r6, p6)`.
 pub fn tcp_at_a6(r6: &Matrix3<f64>, p6: &Vector3<f64>, tool: &Frame) -> Frame {
+    tcp_at_a6_of(r6, p6, &tool.rotation, &tool.position)
+}
+
+/// [`tcp_at_a6`] of the tool `(rotation, position)` (a solver's tool position is the
+/// model's, its rotation the programmed one's: no tool frame is put together per evaluation).
+#[inline]
+pub fn tcp_at_a6_of(
+    r6: &Matrix3<f64>,
+    p6: &Vector3<f64>,
+    rotation: &Matrix3<f64>,
+    position: &Vector3<f64>,
+) -> Frame {
     let rf = r6 * a6_to_flange();
     Frame {
-        rotation: rf * tool.rotation,
-        position: p6 + rf * tool.position,
+        rotation: rf * rotation,
+        position: p6 + rf * position,
     }
 }
 
@@ -275,7 +287,8 @@ pub struct Nominal<'a>(pub &'a RobotDescription);
 
 impl Arm for Nominal<'_> {
     fn tcp(&self, axes: &[f64; 6], tool: &Frame) -> Frame {
-        tcp_of(self.0, axes, &NO_ERRORS, tool, &mut JointTrig::default())
+        let (r6, p6) = chain::a6_frame_nominal(self.0, axes);
+        tcp_at_a6(&r6, &p6, tool)
     }
     fn tcp_jacobian(&self, axes: &[f64; 6], tool: &Frame) -> (Frame, Matrix6<f64>) {
         tcp_jacobian_of(self.0, axes, &NO_ERRORS, tool, &mut JointTrig::default())
@@ -671,6 +684,27 @@ mod tests {
             let tool = Frame::from_kuka(&crate::kinematics::Pose::from_array(tool));
             let arm = Nominal(&robot);
             prop_assert_eq!(arm.tcp_jacobian(&axes, &tool).0, arm.tcp(&axes, &tool));
+        }
+
+        /// The nominal chain's own walk is the error chain's with every slot zero, bit for
+        /// bit (signed zeros included: whole-degree and zero axes are common in programs).
+        #[test]
+        fn nominal_tcp_is_the_error_chain_at_zero(
+            axes in proptest::array::uniform6(prop_oneof![
+                -350.0f64..350.0,
+                (-4i32..=4).prop_map(|k| f64::from(k) * 90.0),
+                Just(-0.0f64),
+            ]),
+            tool in proptest::array::uniform6(-200.0f64..200.0),
+        ) {
+            let robot = RobotDescription::kr30ha();
+            let tool = Frame::from_kuka(&crate::kinematics::Pose::from_array(tool));
+            let slow = tcp_of(&robot, &axes, &NO_ERRORS, &tool, &mut JointTrig::default());
+            let fast = Nominal(&robot).tcp(&axes, &tool);
+            let bits = |f: &Frame| {
+                f.rotation.iter().chain(f.position.iter()).map(|x| x.to_bits()).collect::<Vec<_>>()
+            };
+            prop_assert_eq!(bits(&fast), bits(&slow));
         }
     }
 }

@@ -135,6 +135,19 @@ impl Effect for Crosstalk {
     fn add_angles(&self, state: &AxisState, _ctx: &Context, angles: &mut [f64; 6]) {
         angles[self.to as usize - 1] += self.lookup(state).0.to_radians();
     }
+    fn add_angles_near(
+        &self,
+        state: &AxisState,
+        _ctx: &Context,
+        angles: &mut [f64; 6],
+        hints: &mut [usize; 2],
+    ) {
+        let (own, other) = (
+            state.axes_deg[self.to as usize - 1],
+            state.axes_deg[self.from as usize - 1],
+        );
+        angles[self.to as usize - 1] += self.table.eval_near(own, other, hints).to_radians();
+    }
     fn add_with_axis_slopes(
         &self,
         state: &AxisState,
