@@ -101,23 +101,42 @@ impl Reader<'_> {
         }
         self.p += 1;
         self.blanks();
-        // `TYPE :`, or nothing (the members start where the name did).
-        let mut type_name = None;
-        if let Some(end) = ident_end(self.b, self.p) {
-            let (name, at) = (self.p, self.p);
-            self.p = end;
-            self.blanks();
-            if self.b.get(self.p) == Some(&b':') {
-                self.p += 1;
-                self.blanks();
-                type_name = Some(self.span(name, end));
-            } else {
-                self.p = at;
-            }
-        }
+        let type_name = self.type_prefix();
         let first = nodes.members.len();
+        self.members(nodes)?;
+        let span = self.span(open, self.p);
+        let len = (nodes.members.len() - first) as u32;
+        let id = AggregateId(nodes.aggregates.len() as u32);
+        nodes.push_aggregate(Aggregate::outermost(span, type_name, first as u32, len));
+        let approx = self.approximations()?;
+        Some(Motion::simple(
+            kind,
+            Expr::Aggregate(span, id),
+            self.base as u32,
+            approx,
+        ))
+    }
+
+    /// `TYPE :` before the members, or nothing (the members start where the name did).
+    fn type_prefix(&mut self) -> Option<Span> {
+        let end = ident_end(self.b, self.p)?;
+        let (name, at) = (self.p, self.p);
+        self.p = end;
+        self.blanks();
+        if self.b.get(self.p) == Some(&b':') {
+            self.p += 1;
+            self.blanks();
+            Some(self.span(name, end))
+        } else {
+            self.p = at;
+            None
+        }
+    }
+
+    /// The `NAME number` members up to and including the closing brace, pushed to `nodes`; on
+    /// a local index, as this is the hot loop of a CAM program's parse.
+    fn members(&mut self, nodes: &mut super::nodes::Nodes) -> Option<()> {
         let keep = nodes.keep_values;
-        // The members, on a local index (the hot loop of a CAM program's parse).
         let (b, base) = (self.b, self.base);
         let blanks = |mut p: usize| {
             while p < b.len() && is_blank(b[p]) {
@@ -162,15 +181,16 @@ impl Reader<'_> {
             p = blanks(p);
         }
         self.p = p;
-        let span = self.span(open, self.p);
-        let len = (nodes.members.len() - first) as u32;
-        let id = AggregateId(nodes.aggregates.len() as u32);
-        nodes.push_aggregate(Aggregate::outermost(span, type_name, first as u32, len));
+        Some(())
+    }
+
+    /// The approximation keywords (`C_DIS`, `C_PTP`, `C_VEL`, `C_ORI`) to the end of the line.
+    fn approximations(&mut self) -> Option<Approxes> {
         let mut approx = Approxes::default();
         loop {
             self.blanks();
             if self.p == self.b.len() {
-                break;
+                return Some(approx);
             }
             let end = ident_end(self.b, self.p)?;
             let which = match &self.b[self.p..end] {
@@ -187,12 +207,6 @@ impl Reader<'_> {
             }
             self.p = end;
         }
-        Some(Motion::simple(
-            kind,
-            Expr::Aggregate(span, id),
-            self.base as u32,
-            approx,
-        ))
     }
 }
 
