@@ -34,29 +34,27 @@ impl<'f> Simulator<'f> {
         rel: Option<Rel>,
         (base, tool): (&Frame, &Frame),
     ) -> Stop<'f> {
-        Stop {
-            file,
-            stmt: s,
-            kind,
-            role: Role::Target,
-            goal: Frame::identity(),
-            tool: self.frames_index(tool),
-            base: self.frames_index(base),
-            nominal_axes: AxisAngles::default(),
-            arrival: None,
-            turns: interpolate::NO_TURNS,
-            programmed: Programmed::Pose(Pose::IDENTITY),
-            keep_s: true,
-            keep_t: false,
-            rel,
-            origin: None,
-            reference: None,
-            prev: None,
-            compensable: false,
-            deferred: false,
-            spline: None,
-            ghost: false,
-        }
+        let tool = self.frames_index(tool);
+        let base = self.frames_index(base);
+        blank_stop(file, s, kind, rel, (base, tool))
+    }
+
+    /// [`Self::stop_of`] pushed ([`Self::push_stop`]), for the caller to fill in where it
+    /// lies: a stop is 430 bytes, built in its place rather than moved there twice.
+    fn push_stop_of(
+        &mut self,
+        file: FileId,
+        s: &'f Stmt,
+        kind: MotionKind,
+        rel: Option<Rel>,
+        (base, tool): (&Frame, &Frame),
+    ) -> u32 {
+        let tool = self.frames_index(tool);
+        let base = self.frames_index(base);
+        self.reserve_stop();
+        let stops = &mut self.out.stops;
+        stops.push(blank_stop(file, s, kind, rel, (base, tool)));
+        (stops.len() - 1) as u32
     }
 
     /// The position `e` of motion `s`, or `None` (the motion lost, saying why) when it is not
@@ -84,6 +82,14 @@ impl<'f> Simulator<'f> {
     }
 
     fn push_stop(&mut self, stop: Stop<'f>) -> u32 {
+        self.reserve_stop();
+        self.out.stops.push(stop);
+        (self.out.stops.len() - 1) as u32
+    }
+
+    /// Room for the next stop.
+    #[inline]
+    fn reserve_stop(&mut self) {
         if self.out.stops.len() == self.out.stops.capacity() && self.out.stops.capacity() < 64 {
             // A streamed window's walker starts with room for its history only: one stop per
             // top-level statement (a window is a flat list of them) saves regrowing a few MB
@@ -91,8 +97,6 @@ impl<'f> Simulator<'f> {
             let statements: usize = self.ws.files.iter().map(|f| f.file.body().len()).sum();
             self.out.stops.reserve(statements);
         }
-        self.out.stops.push(stop);
-        (self.out.stops.len() - 1) as u32
     }
 
     /// The base and tool for a Cartesian motion, or an error naming where the frame was lost.
@@ -610,22 +614,20 @@ impl<'f> Simulator<'f> {
             .filter(|_| in_config && !localizable)
             .map(|o| o.file);
         self.warn_unwritable(file, s, pos.origin.is_none(), shared);
-        let stop = Stop {
-            goal,
-            nominal_axes: q.into(),
-            arrival,
-            turns,
-            programmed,
-            keep_s: !pos.v.is_axes(),
-            keep_t: !pos.v.is_axes() && m.kind.is_joint() && s_t.1.is_some(),
-            origin: pos.origin,
-            reference,
-            prev: aux_stop.or(current.and_then(|c| c.stop)),
-            compensable,
-            deferred,
-            ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
-        };
-        let idx = self.push_stop(stop);
+        let idx = self.push_stop_of(file, s, m.kind, rel, (&base, &tool));
+        let stop = &mut self.out.stops[idx as usize];
+        stop.goal = goal;
+        stop.nominal_axes = q.into();
+        stop.arrival = arrival;
+        stop.turns = turns;
+        stop.programmed = programmed;
+        stop.keep_s = !pos.v.is_axes();
+        stop.keep_t = !pos.v.is_axes() && m.kind.is_joint() && s_t.1.is_some();
+        stop.origin = pos.origin;
+        stop.reference = reference;
+        stop.prev = aux_stop.or(current.and_then(|c| c.stop));
+        stop.compensable = compensable;
+        stop.deferred = deferred;
         if let (None, Programmed::Pose(p)) = (rel, programmed) {
             self.state.last_abc = [p.a, p.b, p.c];
         }
@@ -859,5 +861,40 @@ impl ArcMode {
         } else {
             ArcMode::Construct
         }
+    }
+}
+
+/// A stop of motion statement `s` in the interned base and tool `(base, tool)`, as a target
+/// left unchanged until the caller says otherwise.
+#[inline]
+fn blank_stop<'f>(
+    file: FileId,
+    s: &'f Stmt,
+    kind: MotionKind,
+    rel: Option<Rel>,
+    (base, tool): (u32, u32),
+) -> Stop<'f> {
+    Stop {
+        file,
+        stmt: s,
+        kind,
+        role: Role::Target,
+        goal: Frame::identity(),
+        tool,
+        base,
+        nominal_axes: AxisAngles::default(),
+        arrival: None,
+        turns: interpolate::NO_TURNS,
+        programmed: Programmed::Pose(Pose::IDENTITY),
+        keep_s: true,
+        keep_t: false,
+        rel,
+        origin: None,
+        reference: None,
+        prev: None,
+        compensable: false,
+        deferred: false,
+        spline: None,
+        ghost: false,
     }
 }
