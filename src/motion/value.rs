@@ -237,16 +237,11 @@ impl Naming {
 /// The naming and index of an aggregate member's name: Cartesian `X Y Z A B C`, or axis
 /// `A1..A6`.
 pub fn component(name: &[u8]) -> Option<(Naming, usize)> {
-    let cartesian = |k| (Naming::Cartesian, k);
     Some(match name {
-        [c] => match c.to_ascii_uppercase() {
-            b'X' => cartesian(0),
-            b'Y' => cartesian(1),
-            b'Z' => cartesian(2),
-            b'A' => cartesian(3),
-            b'B' => cartesian(4),
-            b'C' => cartesian(5),
-            _ => return None,
+        // One lookup: the walk asks this of every member of a million positions.
+        [c] => match CARTESIAN_COMPONENT[usize::from(*c)] {
+            0 => return None,
+            k => (Naming::Cartesian, usize::from(k - 1)),
         },
         [a, d @ b'1'..=b'6'] if a.eq_ignore_ascii_case(&b'A') => {
             (Naming::Axes, (d - b'1') as usize)
@@ -254,6 +249,19 @@ pub fn component(name: &[u8]) -> Option<(Naming, usize)> {
         _ => return None,
     })
 }
+
+/// Per byte, 1 + the index of the Cartesian component that letter names (either case), or 0.
+static CARTESIAN_COMPONENT: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut k = 0;
+    while k < 6 {
+        let c = CARTESIAN_NAMES[k].as_bytes()[0];
+        t[c as usize] = k as u8 + 1;
+        t[c.to_ascii_lowercase() as usize] = k as u8 + 1;
+        k += 1;
+    }
+    t
+};
 
 /// The member names of a position's components.
 pub const CARTESIAN_NAMES: [&str; 6] = ["X", "Y", "Z", "A", "B", "C"];
@@ -610,6 +618,13 @@ mod tests {
 
     #[test]
     fn component_names() {
+        for b in 0..=255u8 {
+            let want = b"XYZABC"
+                .iter()
+                .position(|c| c.eq_ignore_ascii_case(&b))
+                .map(|k| (Naming::Cartesian, k));
+            assert_eq!(component(&[b]), want, "{b}");
+        }
         assert_eq!(component(b"x"), Some((Naming::Cartesian, 0)));
         assert_eq!(component(b"C"), Some((Naming::Cartesian, 5)));
         assert_eq!(component(b"A6"), Some((Naming::Axes, 5)));
