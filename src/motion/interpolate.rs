@@ -575,8 +575,8 @@ pub fn arrival_into(
         .max(turn * u_end / PITCH_DEG)
         .ceil() as usize)
         .clamp(1, MAX_SAMPLES);
-    // Walk the path; keep the last sample at which each axis still differed from its end.
-    // (The start is a sample too; a short segment has no other and allocates nothing.)
+    // Walk the path, keeping the samples. (The start is a sample too; a short segment has no
+    // other and allocates nothing.)
     let mut q = *q0;
     let mut samples = Vec::with_capacity(n - 1);
     for j in 1..n {
@@ -609,14 +609,15 @@ pub fn arrival_into(
         }
     }
     let q1 = &q1;
-    let mut last_moving: [Option<([f64; 6], f64)>; 6] = [None; 6];
-    for (qs, u) in samples.iter().rev().chain([(*q0, 0.0)].iter()) {
-        for i in 0..6 {
-            if last_moving[i].is_none() && (q1[i] - qs[i]).abs() >= REST_DEG {
-                last_moving[i] = Some((*qs, *u));
-            }
+    // Axis `i` at the last sample at which it still differed from its end (the start last of
+    // all), and where: asked only for an axis whose exact rate is not used.
+    let last_moving = |i: usize| {
+        let moved = |q: f64| (q1[i] - q).abs() >= REST_DEG;
+        match samples.iter().rev().find(|(qs, _)| moved(qs[i])) {
+            Some((qs, u)) => Some((qs[i], *u)),
+            None => moved(q0[i]).then_some((q0[i], 0.0)),
         }
-    }
+    };
     // The exact rate at the end, where the Jacobian is regular.
     let end = end.insert(ArmAt::new(robot, tool, q1));
     let rate = end.rates(&(cart.twist(u_end) * u_end));
@@ -625,8 +626,8 @@ pub fn arrival_into(
         if r.is_finite() && r.abs() >= REST_DEG && r.abs() < 1e6 {
             return r;
         }
-        match last_moving[i] {
-            Some((qs, u)) => rest((q1[i] - qs[i]) / (1.0 - u)),
+        match last_moving(i) {
+            Some((q, u)) => rest((q1[i] - q) / (1.0 - u)),
             None => 0.0,
         }
     });
