@@ -263,7 +263,6 @@ impl<'f> Simulator<'f> {
             );
             return;
         };
-        let robot = self.robot;
         // Circular motions: the auxiliary point first.
         let mut aux_stop = None;
         let mut circle = None;
@@ -299,9 +298,9 @@ impl<'f> Simulator<'f> {
                 rotation: cart.pose(u_aux).rotation,
                 position: aux_goal.position,
             };
-            let s_cur = status_turn(&robot, &cur.axes).0;
+            let s_cur = status_turn(&self.robot, &cur.axes).0;
             let q_aux = match kinematics::inverse(
-                &robot,
+                &self.robot,
                 &aux_pose.compose(&tool.inverse()),
                 Select::StatusNearest {
                     s: s_cur,
@@ -321,7 +320,7 @@ impl<'f> Simulator<'f> {
             let mut q_aux = q_aux;
             let mut turns = interpolate::NO_TURNS;
             let arrival =
-                match interpolate::arrival_along(&robot, &tool, &cart, u_aux, &cur.axes, &q_aux) {
+                match interpolate::arrival_along(&self.robot, &tool, &cart, u_aux, &cur.axes, &q_aux) {
                     Ok(a) => {
                         q_aux = a.end;
                         turns = a.turns;
@@ -364,7 +363,7 @@ impl<'f> Simulator<'f> {
                     t: t_given,
                 },
                 (true, Some(c)) => Select::StatusNearest {
-                    s: s_given.unwrap_or_else(|| status_turn(&robot, &c.axes).0),
+                    s: s_given.unwrap_or_else(|| status_turn(&self.robot, &c.axes).0),
                     near: c.axes,
                 },
                 (true, None) => match s_given {
@@ -372,7 +371,7 @@ impl<'f> Simulator<'f> {
                     None => Select::Nearest(HOME),
                 },
                 (false, Some(c)) => Select::StatusNearest {
-                    s: status_turn(&robot, &c.axes).0,
+                    s: status_turn(&self.robot, &c.axes).0,
                     near: c.axes,
                 },
                 (false, None) => match s_given {
@@ -381,7 +380,7 @@ impl<'f> Simulator<'f> {
                 },
             };
             let flange = goal.compose(&tool.inverse());
-            match kinematics::inverse(&robot, &flange, select) {
+            match kinematics::inverse(&self.robot, &flange, select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
                     self.unreachable(file, s, format!("the target cannot be reached: {e}"));
@@ -389,17 +388,17 @@ impl<'f> Simulator<'f> {
                 }
             }
         };
-        if pos.v.is_axes() && !robot.within_limits(&q) {
+        if pos.v.is_axes() && !self.robot.within_limits(&q) {
             // The controller refuses it: an error of this target, as an unreachable one.
             let beyond = (0..6)
-                .find(|&i| q[i] < robot.limits_deg[i][0] || q[i] > robot.limits_deg[i][1])
+                .find(|&i| q[i] < self.robot.limits_deg[i][0] || q[i] > self.robot.limits_deg[i][1])
                 .map(|i| {
                     format!(
                         "A{} = {}° is outside its limits [{}, {}]°",
                         i + 1,
                         q[i],
-                        robot.limits_deg[i][0],
-                        robot.limits_deg[i][1]
+                        self.robot.limits_deg[i][0],
+                        self.robot.limits_deg[i][1]
                     )
                 })
                 .unwrap_or_default();
@@ -411,7 +410,7 @@ impl<'f> Simulator<'f> {
             return;
         }
         let goal = if pos.v.is_axes() {
-            Nominal(&robot).tcp(&q, &tool)
+            Nominal(&self.robot).tcp(&q, &tool)
         } else {
             goal
         };
@@ -444,13 +443,13 @@ impl<'f> Simulator<'f> {
                 return;
             };
             let end = arc.pose(1.0);
-            let s_cur = status_turn(&robot, &cur.axes).0;
+            let s_cur = status_turn(&self.robot, &cur.axes).0;
             let flange = end.compose(&tool.inverse());
             let select = Select::StatusNearest {
                 s: s_cur,
                 near: cur.axes,
             };
-            let q_end = match kinematics::inverse(&robot, &flange, select) {
+            let q_end = match kinematics::inverse(&self.robot, &flange, select) {
                 Ok(sol) => sol.axes_deg,
                 Err(e) => {
                     self.unreachable(
@@ -461,7 +460,7 @@ impl<'f> Simulator<'f> {
                     return;
                 }
             };
-            let walked = interpolate::arrival_along(&robot, &tool, &arc, 1.0, &cur.axes, &q_end);
+            let walked = interpolate::arrival_along(&self.robot, &tool, &arc, 1.0, &cur.axes, &q_end);
             let (q_end, arrival, turns) = match walked {
                 Ok(a) => (a.end, Some(a.rate), a.turns),
                 Err(e) => {
@@ -574,7 +573,7 @@ impl<'f> Simulator<'f> {
                 None
             }
             (Some(cur), Some(start)) => {
-                match interpolate::arrival(&robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
+                match interpolate::arrival(&self.robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
                     Ok(a) => {
                         q = a.end;
                         // A circle's end: the turns before its auxiliary point are that
