@@ -534,6 +534,13 @@ impl ArmAt {
         }
     }
 
+    /// Becomes [`ArmAt::new`]'s arm, written where it lies (a 500-byte record, which a walk
+    /// refills once per segment).
+    fn set(&mut self, robot: &RobotDescription, tool: &Frame, q: &[f64; 6]) {
+        self.arm = crate::kinematics::ArmState::new(robot, q);
+        self.tcp = tcp_of_arm(&self.arm, tool);
+    }
+
     /// The axis rates `J(q)⁻¹·twist` (`None` where the Jacobian is singular).
     fn rates(&self, twist: &Vector6<f64>) -> Option<[f64; 6]> {
         let v = Vector3::new(twist[0], twist[1], twist[2]);
@@ -619,7 +626,13 @@ pub fn arrival_into(
         }
     };
     // The exact rate at the end, where the Jacobian is regular.
-    let end = end.insert(ArmAt::new(robot, tool, q1));
+    let end = match end {
+        Some(at) => {
+            at.set(robot, tool, q1);
+            at
+        }
+        None => end.insert(ArmAt::new(robot, tool, q1)),
+    };
     let rate = end.rates(&(cart.twist(u_end) * u_end));
     let rate: [f64; 6] = std::array::from_fn(|i| {
         let r = rate.map_or(0.0, |r| r[i]);
