@@ -140,7 +140,7 @@ pub(super) fn components(
     file: &SourceFile,
     agg: &Aggregate,
     naming: Naming,
-    read: Option<([f64; 6], u8)>,
+    read: Option<(&[f64; 6], u8)>,
 ) -> [Option<Component>; 6] {
     let src = file.source();
     let mut out = [None; 6];
@@ -364,7 +364,7 @@ mod tests {
                 let naming = stop.programmed.naming();
                 let read = components(file, origin.agg, naming, None);
                 let values = stop.programmed.components();
-                let given = Some((values, origin.literals));
+                let given = Some((&values, origin.literals));
                 let taken_here = components(file, origin.agg, naming, given);
                 for k in 0..6 {
                     let bits = |c: &Option<Component>| c.and_then(|c| c.value).map(f64::to_bits);
