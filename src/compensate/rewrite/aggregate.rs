@@ -5,7 +5,7 @@
 use crate::krl::{self, number, Aggregate, Expr, RawMember, SourceFile, Span};
 use crate::motion::value::{self, Naming, Origin};
 
-use super::super::edits::EditList;
+use super::super::edits::{append_range, EditList};
 
 /// Fewest decimals written for millimetres and degrees.
 pub const MIN_DECIMALS_MM: usize = 3;
@@ -189,8 +189,9 @@ pub(super) struct AggregateTarget<'f> {
 }
 
 /// Appends to `out` the edits of `target` (components `present`) writing `values` for the
-/// components in `write`, sorted by position; false (and nothing added) when a number to
-/// replace is not a literal.
+/// components in `write`, sorted by position (one joined edit where every number is replaced
+/// in place, see [`joined_edit`]); false (and nothing added) when a number to replace is not
+/// a literal.
 pub(super) fn aggregate_edits(
     target: &AggregateTarget,
     present: &[Option<Component>; 6],
@@ -198,6 +199,10 @@ pub(super) fn aggregate_edits(
     write: [bool; 6],
     out: &mut EditList,
 ) -> bool {
+    if literals_in_order(present, write) {
+        joined_edit(target, present, values, write, out);
+        return true;
+    }
     let (file, naming) = (target.file, target.naming);
     let mark = out.mark();
     // Decimals of inserted numbers: as many as the aggregate's most precise number.
@@ -242,6 +247,62 @@ pub(super) fn aggregate_edits(
     // Insertions at one offset must keep X..C order: they were pushed in that order.
     out.sort_since(mark);
     true
+}
+
+/// Whether the components to write are all present as literals, in X..C order in the text
+/// (nearly every target's): [`joined_edit`] writes them.
+fn literals_in_order(present: &[Option<Component>; 6], write: [bool; 6]) -> bool {
+    let mut end = 0;
+    for k in (0..6).filter(|&k| write[k]) {
+        match present[k] {
+            Some(Component {
+                literal: Some((replace, _)),
+                value: Some(_),
+                ..
+            }) if replace.start >= end => end = replace.end,
+            _ => return false,
+        }
+    }
+    true
+}
+
+/// [`aggregate_edits`] of components all replaced in place, in order ([`literals_in_order`]):
+/// one edit from the first number that changes to the last, the text between them kept —
+/// one piece for the applying to copy in place of one per number.
+fn joined_edit(
+    target: &AggregateTarget,
+    present: &[Option<Component>; 6],
+    values: &[f64; 6],
+    write: [bool; 6],
+    out: &mut EditList,
+) {
+    let (file, src) = (target.file, target.file.source());
+    out.replace_written(|text| {
+        // The source range replaced so far: from the first number changed to the last.
+        let mut changed: Option<(u32, u32)> = None;
+        for k in (0..6).filter(|&k| write[k]) {
+            let Some(Component {
+                literal: Some((replace, lit)),
+                value: Some(old),
+                ..
+            }) = present[k]
+            else {
+                continue;
+            };
+            let at = text.len();
+            if let Some((_, end)) = changed {
+                append_range(text, src, end as usize..replace.start as usize);
+            }
+            let min = min_decimals(target.naming, k);
+            if number::write_like(file.text(lit), old, values[k], min, text) {
+                let start = changed.map_or(replace.start, |(start, _)| start);
+                changed = Some((start, replace.end));
+            } else {
+                text.truncate(at);
+            }
+        }
+        changed.map(|(start, end)| start as usize..end as usize)
+    });
 }
 
 /// Adds missing component `k` with `value` to the aggregate (`present` its components), in
