@@ -203,6 +203,18 @@ pub(super) fn aggregate_edits(
         joined_edit(target, present, values, write, out);
         return true;
     }
+    number_edits(target, present, values, write, out)
+}
+
+/// [`aggregate_edits`] number by number: an edit for each number replaced, an insertion for
+/// each component missing (the way for any aggregate; [`joined_edit`] where it can).
+fn number_edits(
+    target: &AggregateTarget,
+    present: &[Option<Component>; 6],
+    values: &[f64; 6],
+    write: [bool; 6],
+    out: &mut EditList,
+) -> bool {
     let (file, naming) = (target.file, target.naming);
     let mark = out.mark();
     // Decimals of inserted numbers: as many as the aggregate's most precise number.
@@ -441,5 +453,76 @@ mod tests {
             files >= 20 && taken > 100_000,
             "{files} files, {taken} values"
         );
+    }
+
+    /// The first aggregate of the one-motion program `text`, its file loaded.
+    fn first_aggregate(ws: &crate::motion::Workspace) -> &Aggregate {
+        let file = &ws.get(0).file;
+        file.statements()
+            .find_map(|st| match &st.kind {
+                krl::StmtKind::Motion(m) => file.aggregate_of(&file.motion(*m).target),
+                _ => None,
+            })
+            .expect("the motion's aggregate")
+    }
+
+    proptest::proptest! {
+        /// The joined edit of a target whose numbers are replaced in place writes the bytes
+        /// the edits number by number write, for literals of any length and decimals and
+        /// new values moved by nothing, by less than a last decimal, or by units (most
+        /// numbers changed, some kept), orientation written or not (an auxiliary point's).
+        #[test]
+        fn joined_edit_writes_what_the_edits_number_by_number_write(
+            units in proptest::array::uniform6(-2_000_000i64..2_000_000),
+            decimals in proptest::array::uniform6(0usize..5),
+            moves in proptest::array::uniform6(proptest::prop_oneof![
+                proptest::strategy::Just(0.0),
+                -1e-5f64..1e-5,
+                -3.0f64..3.0,
+            ]),
+            orientation: bool,
+        ) {
+            let texts: Vec<String> = (0..6)
+                .map(|k| {
+                    let scale = 10i64.pow(decimals[k] as u32);
+                    let (int, frac) = (units[k].abs() / scale, units[k].abs() % scale);
+                    let sign = if units[k] < 0 { "-" } else { "" };
+                    match decimals[k] {
+                        0 => format!("{sign}{int}"),
+                        d => format!("{sign}{int}.{frac:0d$}"),
+                    }
+                })
+                .collect();
+            let program = format!(
+                "DEF t ( )\nLIN {{X {},Y {},Z {},A {},B {},C {}}} C_DIS\nEND\n",
+                texts[0], texts[1], texts[2], texts[3], texts[4], texts[5]
+            );
+            let ws = crate::compensate::files::load_program(None, program.as_bytes(), None)
+                .expect("the program loads");
+            let file = &ws.get(0).file;
+            let agg = first_aggregate(&ws);
+            let present = components(file, agg, Naming::Cartesian, None);
+            let values: [f64; 6] =
+                std::array::from_fn(|k| present[k].and_then(|c| c.value).expect("a literal") + moves[k]);
+            let write: [bool; 6] = std::array::from_fn(|k| orientation || k < 3);
+            proptest::prop_assert!(literals_in_order(&present, write));
+            let target = AggregateTarget {
+                file,
+                agg,
+                naming: Naming::Cartesian,
+                relative: false,
+                file_sep: None,
+            };
+            let (mut joined, mut each) = (EditList::new(), EditList::new());
+            joined_edit(&target, &present, &values, write, &mut joined);
+            proptest::prop_assert!(number_edits(&target, &present, &values, write, &mut each));
+            let src = file.source();
+            let apply = |l: &EditList| l.apply_in(src, 0..src.len(), None).expect("applies");
+            proptest::prop_assert_eq!(
+                String::from_utf8(apply(&joined)).expect("text"),
+                String::from_utf8(apply(&each)).expect("text")
+            );
+            proptest::prop_assert!(joined.len() <= 1);
+        }
     }
 }
