@@ -1,11 +1,13 @@
 //! The byte edits of one rewritten file, stored compactly: a million-target program makes
-//! six million small replacements, and a `krl::Edit` each (range plus its own heap buffer,
-//! ~70 bytes with the allocation) would cost more memory than the source itself. Here every
-//! edit is 24 bytes of range and offset into a shared buffer of replacement text, in segments:
-//! lists built in parallel are joined by moving their segments, not by copying hundreds of
-//! megabytes. Applying follows `krl::apply` exactly — sorted by position, insertions at one
-//! offset in the order given, overlaps and out-of-range edits rejected — and writes straight
-//! into the output; edits already in order (a CAM program's) are streamed without sorting.
+//! a million small replacements or more (one per target whose numbers are replaced in place,
+//! `rewrite`'s joined edits; else one per number), and a `krl::Edit` each (range plus its own
+//! heap buffer, ~70 bytes with the allocation) would cost more memory than the source itself.
+//! Here every edit is 24 bytes of range and offset into a shared buffer of replacement text,
+//! in segments: lists built in parallel are joined by moving their segments, not by copying
+//! hundreds of megabytes. Applying follows `krl::apply` exactly — sorted by position,
+//! insertions at one offset in the order given, overlaps and out-of-range edits rejected — and
+//! writes straight into the output; edits already in order (a CAM program's) are streamed
+//! without sorting.
 
 use std::ops::Range;
 
@@ -161,6 +163,22 @@ impl EditList {
             at,
         });
         true
+    }
+
+    /// One edit whose bytes `write` appends to the list's text and whose range it returns,
+    /// known only once written (`None`: nothing added).
+    pub fn replace_written(&mut self, write: impl FnOnce(&mut Vec<u8>) -> Option<Range<usize>>) {
+        let seg = self.last();
+        let at = seg.text.len();
+        match write(&mut seg.text) {
+            Some(range) => seg.pieces.push(Piece {
+                start: range.start as u32,
+                end: range.end as u32,
+                len: (seg.text.len() - at) as u32,
+                at,
+            }),
+            None => seg.text.truncate(at),
+        }
     }
 
     /// Where the list ends now: to drop or reorder what is added after it.

@@ -16,7 +16,7 @@ pub(super) use super::report::Tally;
 pub use super::report::{CalibrationRef, MaxMean, PointReport, PoseStats, Report, SplitReport};
 use super::rewrite;
 use super::segments::Segments;
-use super::sequence::{ArcAngle, Interp, Keep, Quantum, Target};
+use super::sequence::{ArcAngle, Interp, Keep, Target};
 use super::solve::Method;
 
 /// The first words of the header comment robopost writes; a file carrying it was compensated.
@@ -121,16 +121,10 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
                 },
             },
             compensate: s.compensable,
-            quantum: s.origin.filter(|_| s.compensable).map(|o| {
-                let decimals = rewrite::decimals(&o, s.programmed.naming());
-                match s.programmed {
-                    Programmed::Axes(_) => Quantum::Axes { decimals },
-                    Programmed::Pose(_) => Quantum::Pose {
-                        base: s.base,
-                        decimals,
-                    },
-                }
-            }),
+            written_base: match s.programmed {
+                Programmed::Pose(_) if s.compensable && s.origin.is_some() => Some(s.base),
+                _ => None,
+            },
             keep: Keep {
                 s: s.keep_s,
                 t: s.keep_t,

@@ -20,7 +20,7 @@ use super::solve::{self, Method, Problem, SolveError};
 use crate::kinematics::{status_turn, AxisAngles, Pose, RobotDescription};
 use crate::model::table::Table1;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
-use crate::motion::frame::{kuka_near, Frame};
+use crate::motion::frame::Frame;
 use crate::motion::interpolate;
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 use nalgebra::{Vector3, Vector6};
@@ -56,30 +56,13 @@ pub struct Target {
     pub turns: interpolate::Turns,
     /// How the controller interpolates the motion reaching it.
     pub interp: Interp,
-    /// How its command will be written (rounded), when it is written: the directions of the
-    /// compensated motion are those of the rounded commands.
-    pub quantum: Option<Quantum>,
+    /// For a Cartesian target whose numbers are written, the base they are written in (index
+    /// into the frame table): the rewrite writes the command's TCP there.
+    pub written_base: Option<u32>,
     /// Whether to compensate (false: the target still moves the robot, its command stays).
     pub compensate: bool,
     pub keep: Keep,
 }
-
-/// The rounding of a written command: the decimals of each of its numbers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Quantum {
-    /// Of `A1..A6`.
-    Axes { decimals: [u8; 6] },
-    /// Of `X Y Z A B C` in the base `base` (index into the frame table).
-    Pose { base: u32, decimals: [u8; 6] },
-}
-
-fn round_to(v: f64, decimals: u8) -> f64 {
-    let scale = ten_to(decimals as usize);
-    (v * scale).round() / scale
-}
-
-// Powers of ten as the written literals round by (`krl::number`).
-use crate::krl::number::ten_to;
 
 /// How the controller interpolates the motion reaching a target (from the previous one).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -650,9 +633,8 @@ fn place_commands(ctx: &Ctx, solved: &[Outcome], run: Executor) -> Vec<Command> 
         for (j, placing) in placings.iter_mut().enumerate() {
             let k = c * PLACE_CHUNK + j;
             let axes = &solved[k].axes_deg;
-            let raw = arm.tcp(axes, ctx.tool(k));
-            placing.tcp = raw;
-            placing.unchosen = ctx.written_keeping(k, axes, || raw).1;
+            placing.tcp = arm.tcp(axes, ctx.tool(k));
+            placing.unchosen = ctx.unchosen(k, &placing.tcp);
         }
     });
     commands
@@ -1062,35 +1044,12 @@ impl<'a> Ctx<'a> {
         &self.tools[self.target(k).tool as usize]
     }
 
-    /// The TCP commanded at target `k` with `axes` as written (rounded), given its unrounded
-    /// TCP `raw`, and for a Cartesian target the unrounded pose in its base frame before the
-    /// choice of Euler triple ([`Frame::to_kuka_unchosen`]), which the rewrite writes near the
+    /// For a Cartesian target whose numbers are written, `tcp` in its base frame before the
+    /// choice of Euler triple ([`Frame::to_kuka_unchosen`]): the rewrite writes it near the
     /// original numbers.
-    fn written_keeping(
-        &self,
-        k: usize,
-        axes: &[f64; 6],
-        raw: impl FnOnce() -> Frame,
-    ) -> (Frame, Option<Pose>) {
-        match self.target(k).quantum {
-            Some(Quantum::Axes { decimals }) => {
-                let r: [f64; 6] = std::array::from_fn(|i| round_to(axes[i], decimals[i]));
-                (Nominal(&self.model.robot).tcp(&r, self.tool(k)), None)
-            }
-            Some(Quantum::Pose { base, decimals }) => {
-                let base = &self.tools[base as usize];
-                let in_base = base.inverse().compose(&raw());
-                let unchosen = in_base.to_kuka_unchosen();
-                let p = match &unchosen {
-                    Some(u) => kuka_near(u, &[0.0; 3]),
-                    None => in_base.to_kuka_near(&[0.0; 3]),
-                };
-                let p = p.to_array();
-                let r = Pose::from_array(std::array::from_fn(|i| round_to(p[i], decimals[i])));
-                (base.compose(&Frame::from_kuka(&r)), unchosen)
-            }
-            None => (raw(), None),
-        }
+    fn unchosen(&self, k: usize, tcp: &Frame) -> Option<Pose> {
+        let base = &self.tools[self.target(k).written_base? as usize];
+        base.inverse().compose(tcp).to_kuka_unchosen()
     }
 }
 

@@ -123,6 +123,19 @@ const NEAR_LOCK_DEG: f64 = 3.0;
 /// The Euler triple jumping by more than this (degrees, A or C) is not written there.
 const JUMP_DEG: f64 = 1.0;
 
+/// Whether the Euler triple `chosen` jumps from the written `near` near B = ±90°: where
+/// [`abc_continuous`] looks for a continuous one (it needs the rotation only then).
+pub fn abc_jumps(chosen: [f64; 3], near: &[f64; 3]) -> bool {
+    if (near[1].abs() - 90.0).abs() > NEAR_LOCK_DEG {
+        return false;
+    }
+    let jump = (chosen[0] - near[0]).abs().max((chosen[2] - near[2]).abs());
+    if jump <= JUMP_DEG {
+        return false;
+    }
+    true
+}
+
 /// Near B = ±90° (gimbal lock) the Euler triple of a rotation a hundredth of a degree away
 /// from the written one can be tens of degrees from it in A and C (`A 0, B 90, C 0` →
 /// `A -37.3, B 89.988, C -37.3`): exact, but not what the program wrote. There the angles
@@ -136,11 +149,7 @@ pub fn abc_continuous(
     chosen: [f64; 3],
     near: &[f64; 3],
 ) -> Option<([f64; 3], f64)> {
-    if (near[1].abs() - 90.0).abs() > NEAR_LOCK_DEG {
-        return None;
-    }
-    let jump = (chosen[0] - near[0]).abs().max((chosen[2] - near[2]).abs());
-    if jump <= JUMP_DEG {
+    if !abc_jumps(chosen, near) {
         return None;
     }
     // Damping in rad per rad: directions the angles turn about by more than it are solved

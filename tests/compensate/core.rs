@@ -48,7 +48,7 @@ fn target(model: &Model, axes: [f64; 6], arrival: Option<[f64; 6]>) -> Target {
         arrival,
         turns: robopost::motion::interpolate::NO_TURNS,
         interp: Interp::Joint,
-        quantum: None,
+        written_base: None,
         compensate: true,
         keep: Keep::default(),
     }

@@ -5,7 +5,7 @@
 use crate::krl::{self, number, Aggregate, Expr, RawMember, SourceFile, Span};
 use crate::motion::value::{self, Naming, Origin};
 
-use super::super::edits::EditList;
+use super::super::edits::{append_range, EditList};
 
 /// Fewest decimals written for millimetres and degrees.
 pub const MIN_DECIMALS_MM: usize = 3;
@@ -140,7 +140,7 @@ pub(super) fn components(
     file: &SourceFile,
     agg: &Aggregate,
     naming: Naming,
-    read: Option<([f64; 6], u8)>,
+    read: Option<(&[f64; 6], u8)>,
 ) -> [Option<Component>; 6] {
     let src = file.source();
     let mut out = [None; 6];
@@ -189,9 +189,26 @@ pub(super) struct AggregateTarget<'f> {
 }
 
 /// Appends to `out` the edits of `target` (components `present`) writing `values` for the
-/// components in `write`, sorted by position; false (and nothing added) when a number to
-/// replace is not a literal.
+/// components in `write`, sorted by position (one joined edit where every number is replaced
+/// in place, see [`joined_edit`]); false (and nothing added) when a number to replace is not
+/// a literal.
 pub(super) fn aggregate_edits(
+    target: &AggregateTarget,
+    present: &[Option<Component>; 6],
+    values: &[f64; 6],
+    write: [bool; 6],
+    out: &mut EditList,
+) -> bool {
+    if literals_in_order(present, write) {
+        joined_edit(target, present, values, write, out);
+        return true;
+    }
+    number_edits(target, present, values, write, out)
+}
+
+/// [`aggregate_edits`] number by number: an edit for each number replaced, an insertion for
+/// each component missing (the way for any aggregate; [`joined_edit`] where it can).
+fn number_edits(
     target: &AggregateTarget,
     present: &[Option<Component>; 6],
     values: &[f64; 6],
@@ -242,6 +259,62 @@ pub(super) fn aggregate_edits(
     // Insertions at one offset must keep X..C order: they were pushed in that order.
     out.sort_since(mark);
     true
+}
+
+/// Whether the components to write are all present as literals, in X..C order in the text
+/// (nearly every target's): [`joined_edit`] writes them.
+fn literals_in_order(present: &[Option<Component>; 6], write: [bool; 6]) -> bool {
+    let mut end = 0;
+    for k in (0..6).filter(|&k| write[k]) {
+        match present[k] {
+            Some(Component {
+                literal: Some((replace, _)),
+                value: Some(_),
+                ..
+            }) if replace.start >= end => end = replace.end,
+            _ => return false,
+        }
+    }
+    true
+}
+
+/// [`aggregate_edits`] of components all replaced in place, in order ([`literals_in_order`]):
+/// one edit from the first number that changes to the last, the text between them kept —
+/// one piece for the applying to copy in place of one per number.
+fn joined_edit(
+    target: &AggregateTarget,
+    present: &[Option<Component>; 6],
+    values: &[f64; 6],
+    write: [bool; 6],
+    out: &mut EditList,
+) {
+    let (file, src) = (target.file, target.file.source());
+    out.replace_written(|text| {
+        // The source range replaced so far: from the first number changed to the last.
+        let mut changed: Option<(u32, u32)> = None;
+        for k in (0..6).filter(|&k| write[k]) {
+            let Some(Component {
+                literal: Some((replace, lit)),
+                value: Some(old),
+                ..
+            }) = present[k]
+            else {
+                continue;
+            };
+            let at = text.len();
+            if let Some((_, end)) = changed {
+                append_range(text, src, end as usize..replace.start as usize);
+            }
+            let min = min_decimals(target.naming, k);
+            if number::write_like(file.text(lit), old, values[k], min, text) {
+                let start = changed.map_or(replace.start, |(start, _)| start);
+                changed = Some((start, replace.end));
+            } else {
+                text.truncate(at);
+            }
+        }
+        changed.map(|(start, end)| start as usize..end as usize)
+    });
 }
 
 /// Adds missing component `k` with `value` to the aggregate (`present` its components), in
@@ -364,7 +437,7 @@ mod tests {
                 let naming = stop.programmed.naming();
                 let read = components(file, origin.agg, naming, None);
                 let values = stop.programmed.components();
-                let given = Some((values, origin.literals));
+                let given = Some((&values, origin.literals));
                 let taken_here = components(file, origin.agg, naming, given);
                 for k in 0..6 {
                     let bits = |c: &Option<Component>| c.and_then(|c| c.value).map(f64::to_bits);
@@ -380,5 +453,76 @@ mod tests {
             files >= 20 && taken > 100_000,
             "{files} files, {taken} values"
         );
+    }
+
+    /// The first aggregate of the one-motion program `text`, its file loaded.
+    fn first_aggregate(ws: &crate::motion::Workspace) -> &Aggregate {
+        let file = &ws.get(0).file;
+        file.statements()
+            .find_map(|st| match &st.kind {
+                krl::StmtKind::Motion(m) => file.aggregate_of(&file.motion(*m).target),
+                _ => None,
+            })
+            .expect("the motion's aggregate")
+    }
+
+    proptest::proptest! {
+        /// The joined edit of a target whose numbers are replaced in place writes the bytes
+        /// the edits number by number write, for literals of any length and decimals and
+        /// new values moved by nothing, by less than a last decimal, or by units (most
+        /// numbers changed, some kept), orientation written or not (an auxiliary point's).
+        #[test]
+        fn joined_edit_writes_what_the_edits_number_by_number_write(
+            units in proptest::array::uniform6(-2_000_000i64..2_000_000),
+            decimals in proptest::array::uniform6(0usize..5),
+            moves in proptest::array::uniform6(proptest::prop_oneof![
+                proptest::strategy::Just(0.0),
+                -1e-5f64..1e-5,
+                -3.0f64..3.0,
+            ]),
+            orientation: bool,
+        ) {
+            let texts: Vec<String> = (0..6)
+                .map(|k| {
+                    let scale = 10i64.pow(decimals[k] as u32);
+                    let (int, frac) = (units[k].abs() / scale, units[k].abs() % scale);
+                    let sign = if units[k] < 0 { "-" } else { "" };
+                    match decimals[k] {
+                        0 => format!("{sign}{int}"),
+                        d => format!("{sign}{int}.{frac:0d$}"),
+                    }
+                })
+                .collect();
+            let program = format!(
+                "DEF t ( )\nLIN {{X {},Y {},Z {},A {},B {},C {}}} C_DIS\nEND\n",
+                texts[0], texts[1], texts[2], texts[3], texts[4], texts[5]
+            );
+            let ws = crate::compensate::files::load_program(None, program.as_bytes(), None)
+                .expect("the program loads");
+            let file = &ws.get(0).file;
+            let agg = first_aggregate(&ws);
+            let present = components(file, agg, Naming::Cartesian, None);
+            let values: [f64; 6] =
+                std::array::from_fn(|k| present[k].and_then(|c| c.value).expect("a literal") + moves[k]);
+            let write: [bool; 6] = std::array::from_fn(|k| orientation || k < 3);
+            proptest::prop_assert!(literals_in_order(&present, write));
+            let target = AggregateTarget {
+                file,
+                agg,
+                naming: Naming::Cartesian,
+                relative: false,
+                file_sep: None,
+            };
+            let (mut joined, mut each) = (EditList::new(), EditList::new());
+            joined_edit(&target, &present, &values, write, &mut joined);
+            proptest::prop_assert!(number_edits(&target, &present, &values, write, &mut each));
+            let src = file.source();
+            let apply = |l: &EditList| l.apply_in(src, 0..src.len(), None).expect("applies");
+            proptest::prop_assert_eq!(
+                String::from_utf8(apply(&joined)).expect("text"),
+                String::from_utf8(apply(&each)).expect("text")
+            );
+            proptest::prop_assert!(joined.len() <= 1);
+        }
     }
 }

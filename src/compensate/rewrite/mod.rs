@@ -327,7 +327,7 @@ impl<'a> Writer<'a> {
             .into_par_iter()
             .with_min_len(1024)
             .filter_map(|i| {
-                let origin = sim.stops[i].origin?;
+                let origin = sim.stops[i].origin.as_ref()?;
                 written(sim, outcomes, i).then_some(UseKey {
                     file: origin.file,
                     agg_start: origin.agg.span.start,
@@ -444,7 +444,7 @@ impl<'a> Writer<'a> {
     /// Appends to `list` the edits writing target `i`'s command into its aggregate.
     fn target_edits(&self, i: usize, list: &mut EditList) -> TargetWrite {
         let (sim, stop) = (self.sim, &self.sim.stops[i]);
-        let Some(origin) = stop.origin.filter(|_| written(sim, self.outcomes, i)) else {
+        let Some(origin) = stop.origin.as_ref().filter(|_| written(sim, self.outcomes, i)) else {
             return TargetWrite::Unwritten;
         };
         let commanded = match self.circular_angle(i) {
@@ -457,10 +457,8 @@ impl<'a> Writer<'a> {
         };
         let file = &self.ws.get(origin.file).file;
         // An absolute target's programmed values are its position's (`motion::simulate`).
-        let read = stop
-            .rel
-            .is_none()
-            .then(|| (stop.programmed.components(), origin.literals));
+        let programmed = stop.programmed.components();
+        let read = stop.rel.is_none().then_some((&programmed, origin.literals));
         let present = components(file, origin.agg, stop.programmed.naming(), read);
         let original = present.map(|c| c.and_then(|c| c.value));
         let axes = &self.outcomes[i].axes_deg;

@@ -3,7 +3,7 @@
 //! the auxiliary point and end of a `CA` circle written by construction.
 
 use crate::kinematics::{AxisAngles, Pose};
-use crate::motion::frame::{abc_continuous, kuka_near, Frame};
+use crate::motion::frame::{abc_continuous, abc_jumps, kuka_near, Frame};
 use crate::motion::nominal::{Arm, Nominal};
 use crate::motion::{Programmed, Rel, Role, Simulation, Stop};
 
@@ -50,15 +50,14 @@ impl Writer<'_> {
         };
         let tool = &sim.frames[stop.tool as usize];
         let base = &sim.frames[stop.base as usize];
-        let in_base = base.inverse().compose(&command.tcp);
         let abc_near = [3, 4, 5].map(|k| original[k].unwrap_or(0.0));
         match stop.rel {
             None => {
-                let (pose, left) =
-                    self.absolute_values(stop, programmed, &in_base, command, original);
+                let (pose, left) = self.absolute_values(stop, programmed, base, command, original);
                 Some((Programmed::Pose(pose), left))
             }
             Some(rel) => {
+                let in_base = base.inverse().compose(&command.tcp);
                 let start = base
                     .inverse()
                     .compose(&Nominal(self.robot).tcp(&*prev_cmd?, tool));
@@ -74,13 +73,13 @@ impl Writer<'_> {
         }
     }
 
-    /// [`Self::new_values`] of an absolute Cartesian target `programmed` whose command in its
-    /// base is `in_base`.
+    /// [`Self::new_values`] of an absolute Cartesian target `programmed` in `base`. The
+    /// command in the base is worked out only where its [`Commanded::unchosen`] does not do.
     fn absolute_values(
         &self,
         stop: &Stop,
         programmed: &Pose,
-        in_base: &Frame,
+        base: &Frame,
         command: &Commanded,
         original: &[Option<f64>; 6],
     ) -> (Pose, Option<f64>) {
@@ -89,33 +88,48 @@ impl Writer<'_> {
             original[4].unwrap_or(programmed.b),
             original[5].unwrap_or(programmed.c),
         ];
-        let (prefix, suffix) = match stop.origin {
-            Some(o) => (o.prefix, o.suffix),
-            None => (None, None),
-        };
-        // The pose written: in the base, or before a geometric operator's prefix frame or
-        // after its suffix (`P : offset`: the point is what puts the TCP there once offset).
-        let written = match (prefix, suffix) {
-            (Some(i), _) => self.sim.prefixes[i as usize].inverse().compose(in_base),
-            (None, Some(i)) => in_base.compose(&self.sim.prefixes[i as usize].inverse()),
-            (None, None) => *in_base,
-        };
-        let mut v = match (prefix, suffix, &command.unchosen) {
-            (None, None, Some(u)) => kuka_near(u, &near_abc),
-            _ => written.to_kuka_near(&near_abc),
+        let operators = stop
+            .origin
+            .as_ref()
+            .map_or((None, None), |o| (o.prefix, o.suffix));
+        let mut v = match (operators, &command.unchosen) {
+            ((None, None), Some(u)) => kuka_near(u, &near_abc),
+            _ => self
+                .written_frame(operators, base, &command.tcp)
+                .to_kuka_near(&near_abc),
         };
         // Near B = ±90° the angles stay continuous with the program's (`abc_continuous`)
         // where that costs no more than the written decimals; beyond, the exact triple is
         // written (A and C turn together there, A ∓ C stays continuous): an orientation
         // correction left out would leave the TCP off by it times the tool's lever.
         let mut euler_left = None;
-        if let Some(([a, b, c], left)) = abc_continuous(&written.rotation, v.abc(), &near_abc)
-            .filter(|(_, left)| stop.role == Role::Target && *left <= CONTINUITY_LEFT_RAD)
-        {
-            (v.a, v.b, v.c) = (a, b, c);
-            euler_left = Some(left);
+        if stop.role == Role::Target && abc_jumps(v.abc(), &near_abc) {
+            let written = self.written_frame(operators, base, &command.tcp);
+            if let Some(([a, b, c], left)) = abc_continuous(&written.rotation, v.abc(), &near_abc)
+                .filter(|(_, left)| *left <= CONTINUITY_LEFT_RAD)
+            {
+                (v.a, v.b, v.c) = (a, b, c);
+                euler_left = Some(left);
+            }
         }
         (v, euler_left)
+    }
+
+    /// The pose written for the command `tcp` of a target in `base` whose geometric operators
+    /// are `(prefix, suffix)`: the command in the base, or before the prefix frame, or after
+    /// the suffix (`P : offset`: the point is what puts the TCP there once offset).
+    fn written_frame(
+        &self,
+        (prefix, suffix): (Option<u32>, Option<u32>),
+        base: &Frame,
+        tcp: &Frame,
+    ) -> Frame {
+        let in_base = base.inverse().compose(tcp);
+        match (prefix, suffix) {
+            (Some(i), _) => self.sim.prefixes[i as usize].inverse().compose(&in_base),
+            (None, Some(i)) => in_base.compose(&self.sim.prefixes[i as usize].inverse()),
+            (None, None) => in_base,
+        }
     }
 }
 
