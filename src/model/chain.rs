@@ -102,6 +102,9 @@ pub struct JointTrig {
 }
 
 impl JointTrig {
+    /// Inlined into the chain's joints, which call it at every evaluation; the library's
+    /// path, taken once per solve and axis, is kept out of line.
+    #[inline(always)]
     fn sin_cos(&mut self, n: usize, theta: f64) -> (f64, f64) {
         if self.set[n] {
             let d = theta - self.theta[n];
@@ -111,6 +114,12 @@ impl JointTrig {
                 return (s0 * cd + c0 * sd, c0 * cd - s0 * sd);
             }
         }
+        self.set_reference(n, theta)
+    }
+
+    /// Makes `theta` axis n's reference.
+    #[inline(never)]
+    fn set_reference(&mut self, n: usize, theta: f64) -> (f64, f64) {
         let (s, c) = trig::sin_cos(theta);
         self.set[n] = true;
         self.theta[n] = theta;
@@ -236,6 +245,9 @@ pub struct LinkBlocks {
     tilt: [Matrix3<f64>; 6],
     /// Whether axis n has a tilt at all (most do not in a nominal model: no product).
     tilted: [bool; 6],
+    /// The frame after A1's link and tilts: they act on the identity, so their products are
+    /// made here once (the same operations as in [`block_joint`], so the same bits).
+    base: (Matrix3<f64>, Vector3<f64>),
 }
 
 impl LinkBlocks {
@@ -247,6 +259,7 @@ impl LinkBlocks {
             link: [Vector3::zeros(); 6],
             tilt: [Matrix3::identity(); 6],
             tilted: [false; 6],
+            base: (Matrix3::identity(), Vector3::zeros()),
         };
         for n in 0..6 {
             let s = &e[n * JOINT_SLOTS..(n + 1) * JOINT_SLOTS];
@@ -256,6 +269,8 @@ impl LinkBlocks {
             }
             blocks.tilted[n] = s[3..6].iter().any(|&a| a != 0.0);
         }
+        let (r, p) = &mut blocks.base;
+        blocks_link::<0>(&blocks.link, &blocks.tilt, &blocks.tilted, (r, p));
         blocks
     }
 }
@@ -308,8 +323,7 @@ fn walk_blocks(
     trig: &mut JointTrig,
     mut visit: impl FnMut(usize, &Vector3<f64>, Vector3<f64>),
 ) -> (Matrix3<f64>, Vector3<f64>) {
-    let mut r = Matrix3::identity();
-    let mut p = Vector3::zeros();
+    let (mut r, mut p) = blocks.base;
     let chain = (robot, axes_deg, blocks, angles);
     block_joint::<0>(chain, trig, (&mut r, &mut p), &mut visit);
     block_joint::<1>(chain, trig, (&mut r, &mut p), &mut visit);
@@ -320,10 +334,11 @@ fn walk_blocks(
     (r, p)
 }
 
-/// Joint `N` of [`walk_blocks`] on the frame `(r, p)` so far. The index is a constant, so
-/// that the joint's coordinate — which columns turn, which one is visited — is known where it
-/// is compiled: looped over, each joint went through a runtime match and a bounds-checked
-/// column (kept for its panic even where the visit is a no-op).
+/// Joint `N` of [`walk_blocks`] on the frame `(r, p)` so far (A1's link and tilts are the
+/// blocks' `base`). The index is a constant, so that the joint's coordinate — which columns
+/// turn, which one is visited — is known where it is compiled: looped over, each joint went
+/// through a runtime match and a bounds-checked column (kept for its panic even where the
+/// visit is a no-op).
 #[inline(always)]
 fn block_joint<const N: usize>(
     (robot, axes_deg, blocks, angles): (&RobotDescription, &[f64; 6], &LinkBlocks, &[f64; 6]),
@@ -331,9 +346,8 @@ fn block_joint<const N: usize>(
     (r, p): (&mut Matrix3<f64>, &mut Vector3<f64>),
     visit: &mut impl FnMut(usize, &Vector3<f64>, Vector3<f64>),
 ) {
-    *p += *r * blocks.link[N];
-    if blocks.tilted[N] {
-        *r *= blocks.tilt[N];
+    if N > 0 {
+        blocks_link::<N>(&blocks.link, &blocks.tilt, &blocks.tilted, (r, p));
     }
     let axis = AXIS_COORD[N];
     let sense = robot.senses[N];
@@ -341,6 +355,20 @@ fn block_joint<const N: usize>(
     let theta = sense * (axes_deg[N].to_radians() + angles[N]) + robot.offsets_deg[N].to_radians();
     let (sin, cos) = trig.sin_cos(N, theta);
     rotate_sc(r, axis, sin, cos);
+}
+
+/// Axis `N`'s link vector and tilts of [`LinkBlocks`] on the frame `(r, p)` so far.
+#[inline(always)]
+fn blocks_link<const N: usize>(
+    link: &[Vector3<f64>; 6],
+    tilt: &[Matrix3<f64>; 6],
+    tilted: &[bool; 6],
+    (r, p): (&mut Matrix3<f64>, &mut Vector3<f64>),
+) {
+    *p += *r * link[N];
+    if tilted[N] {
+        *r *= tilt[N];
+    }
 }
 
 /// The A6 frame with every axis's world line (direction of a positive KUKA rotation, centre):

@@ -15,7 +15,7 @@ use super::effect::{AxisSlopes, ChainErrors, Slot};
 use super::effects::ModelEffect;
 use super::history::AxisHistory;
 use super::state::Direction;
-use super::table::{Grid, Table1};
+use super::table::{Grid, Piece, Table1};
 
 /// How an own-axis table's contribution scales with the axis's state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,6 +59,31 @@ impl AxisSum {
         table.value_in(&cell) + self.lag_rad(x, history)
     }
 
+    /// [`Self::value_near`] from `piece` where it holds `x` (a history without memory),
+    /// which otherwise becomes the cell looked up.
+    #[inline(always)]
+    fn value_in_piece(
+        &self,
+        x: f64,
+        history: &AxisHistory,
+        hint: &mut usize,
+        piece: &mut Piece,
+    ) -> f64 {
+        if history.is_simple() {
+            let flank = direction_index(history.simple_direction());
+            // Keys from 1: a default piece is none.
+            let key = flank as u8 + 1;
+            if let Some(value) = piece.value(key, x) {
+                return value;
+            }
+            let table = &self.tables[flank];
+            let cell = table.grid.locate_near(x, hint);
+            *piece = table.piece(key, cell.lo);
+            return table.value_in(&cell);
+        }
+        self.value_near(x, history, hint)
+    }
+
     fn lag_rad(&self, x: f64, history: &AxisHistory) -> f64 {
         match &self.play {
             Some(width) => history.play(x, |a| width.eval(a).0).lag_deg.to_radians(),
@@ -74,6 +99,8 @@ impl AxisSum {
 pub struct Cells {
     pub axes: [usize; 6],
     pub rest: [[usize; 2]; REST_HINTS],
+    /// The merged tables' cells of the last [`Merged::add_angles_near`], with their values.
+    pub pieces: [Piece; 6],
 }
 
 /// Effects outside the merged tables whose cells a [`Cells`] keeps (a model has a crosstalk
@@ -189,15 +216,20 @@ impl Merged {
         });
     }
 
-    /// [`Self::add_near`] into the angle slots alone (`angles[n]`: axis n+1's, rad).
+    /// [`Self::add_near`] into the angle slots alone (`angles[n]`: axis n+1's, rad), from the
+    /// pieces of `cells` where they hold the axes (see [`Piece`]).
     pub fn add_angles_near(
         &self,
         axes_deg: &[f64; 6],
         histories: &[AxisHistory; 6],
         angles: &mut [f64; 6],
-        cells: &mut [usize; 6],
+        cells: &mut Cells,
     ) {
-        self.each_near(axes_deg, histories, cells, |n, value| angles[n] += value);
+        for sum in &self.axes {
+            let n = sum.axis as usize - 1;
+            let (hint, piece) = (&mut cells.axes[n], &mut cells.pieces[n]);
+            angles[n] += sum.value_in_piece(axes_deg[n], &histories[n], hint, piece);
+        }
     }
 
     /// Each merged axis's table value at `axes_deg`, as `(n, rad)` for axis n+1.

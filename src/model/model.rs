@@ -178,12 +178,7 @@ impl Model {
         let merged = self.merged();
         let fixed = &merged.fixed_at_time_zero;
         let mut angles = std::array::from_fn(|n| fixed.get(Slot::Angle { axis: n as u8 + 1 }));
-        merged.add_angles_near(
-            &state.axes_deg,
-            &state.history,
-            &mut angles,
-            &mut cells.axes,
-        );
+        merged.add_angles_near(&state.axes_deg, &state.history, &mut angles, cells);
         let ctx = self.context();
         for (j, &i) in merged.rest.iter().enumerate() {
             match cells.rest.get_mut(j) {

@@ -214,6 +214,35 @@ fn mean_spacing(points: &[f64]) -> (f64, f64) {
     (points[0], 1.0 / pitch)
 }
 
+/// One cell of a [`Table1`] with what an interpolation inside it needs: a solver whose
+/// evaluations stay in one cell interpolates from it without indexing the table (no bounds
+/// checks, no loads through the grid's and the values' vectors). Inside the cell the value is
+/// [`Table1::value_in`]'s of the cell [`Grid::locate`] finds, to the bit: the same operations
+/// on the same numbers.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Piece {
+    /// Which table the piece is of (its owner's numbering, from 1); 0: none.
+    key: u8,
+    a: f64,
+    b: f64,
+    inv_width: f64,
+    at_a: f64,
+    at_b: f64,
+}
+
+impl Piece {
+    /// The value at `x` if the piece is of table `key` and holds `x`.
+    #[inline(always)]
+    pub fn value(&self, key: u8, x: f64) -> Option<f64> {
+        if self.key == key && self.a <= x && x < self.b {
+            let w = ((x - self.a) * self.inv_width).clamp(0.0, 1.0);
+            Some((1.0 - w) * self.at_a + w * self.at_b)
+        } else {
+            None
+        }
+    }
+}
+
 /// A 1-D table: one value per grid point, linearly interpolated.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Table1 {
@@ -232,6 +261,22 @@ impl Table1 {
     pub fn eval(&self, x: f64) -> (f64, Cell) {
         let cell = self.grid.locate(x);
         (self.value_in(&cell), cell)
+    }
+
+    /// Cell `lo` as a [`Piece`] of table `key` (none for a grid of one point, which has no
+    /// cell).
+    pub fn piece(&self, key: u8, lo: usize) -> Piece {
+        match self.grid.points.get(lo..lo + 2) {
+            Some(&[a, b]) => Piece {
+                key,
+                a,
+                b,
+                inv_width: self.grid.inv_width[lo],
+                at_a: self.values[lo],
+                at_b: self.values[lo + 1],
+            },
+            _ => Piece::default(),
+        }
     }
 
     /// The interpolated value in a located cell.
@@ -397,6 +442,44 @@ mod tests {
             prop_assert_eq!((near.lo, near.hi, near.w.to_bits(), near.clamped),
                 (plain.lo, plain.hi, plain.w.to_bits(), plain.clamped));
             prop_assert_eq!(h, plain.lo);
+        }
+
+        /// A piece gives the value of the table's lookup wherever it answers (inside its
+        /// cell, on its first point), to the bit, and answers inside its cell: pieces of every
+        /// cell, abscissae inside, on and beyond the grid.
+        #[test]
+        fn piece_is_the_lookup(
+            steps in proptest::collection::vec(0.01f64..20.0, 0..12),
+            values in proptest::collection::vec(-1.0f64..1.0, 13),
+            first in -200.0f64..200.0,
+            at in prop_oneof![-250.0f64..250.0, (0usize..13).prop_map(|i| -1000.0 - i as f64)],
+            lo in 0usize..13,
+        ) {
+            let points: Vec<f64> = std::iter::once(first)
+                .chain(steps.iter().scan(first, |x, d| {
+                    *x += d;
+                    Some(*x)
+                }))
+                .collect();
+            let x = if at <= -1000.0 {
+                points[((-1000.0 - at) as usize).min(points.len() - 1)]
+            } else {
+                at
+            };
+            let n = points.len();
+            let table = Table1 { grid: Grid::new(points.clone()).unwrap(), values: values[..n].to_vec() };
+            let lo = lo.min(n - 1);
+            let piece = table.piece(7, lo);
+            let inside = lo + 1 < n && points[lo] <= x && x < points[lo + 1];
+            match piece.value(7, x) {
+                Some(v) => {
+                    let cell = table.grid.locate(x);
+                    prop_assert_eq!(v.to_bits(), table.value_in(&cell).to_bits());
+                }
+                None => prop_assert!(!inside),
+            }
+            prop_assert_eq!(piece.value(7, x).is_some(), inside);
+            prop_assert!(piece.value(6, x).is_none(), "another table's");
         }
 
         /// A 2-D lookup from any hints gives [`Table2::eval`]'s value to the bit, inside the
