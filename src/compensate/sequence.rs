@@ -19,13 +19,13 @@
 use super::solve::{self, Method, Problem, SolveError};
 use crate::kinematics::{status_turn, AxisAngles, Pose, RobotDescription};
 use crate::model::table::Table1;
+use crate::model::history::PlayBefore;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::{kuka_near, Frame};
 use crate::motion::interpolate;
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 use nalgebra::{Vector3, Vector6};
-use std::cell::Cell;
-use std::collections::VecDeque;
+use std::cell::{Cell, RefCell};
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -933,6 +933,8 @@ struct Ctx<'a> {
 struct Recheck<'a> {
     ctx: Ctx<'a>,
     plays: [Option<WidthTable<'a>>; 6],
+    /// Per axis, the play's output before the last point of the history evaluated last.
+    before: [RefCell<PlayBefore>; 6],
 }
 
 impl<'a> std::ops::Deref for Recheck<'a> {
@@ -1059,7 +1061,11 @@ impl<'a> WidthTable<'a> {
 impl<'a> Recheck<'a> {
     fn new(ctx: Ctx<'a>) -> Recheck<'a> {
         let plays = std::array::from_fn(|n| ctx.model.play_width_table(n).map(WidthTable::new));
-        Recheck { ctx, plays }
+        Recheck {
+            ctx,
+            plays,
+            before: Default::default(),
+        }
     }
 
     /// The width (degrees) of axis n's play at command `angle` ([`Model::play_width_deg`]).
@@ -1076,8 +1082,11 @@ impl<'a> Recheck<'a> {
         if self.plays[n].is_none() {
             return 0.0;
         }
+        // Along a path the history of an axis changes mostly in its last point from one target
+        // to the next: the clamps before it are kept.
+        let before = &mut self.before[n].borrow_mut();
         state.history[n]
-            .play(state.axes_deg[n], |a| self.play_width(n, a))
+            .play_keeping(state.axes_deg[n], |a| self.play_width(n, a), before)
             .lag_deg
     }
 }
@@ -1169,10 +1178,7 @@ fn recheck(
     resolved: &mut [bool],
 ) -> (Counts, Vec<AxisState>) {
     let mut counts = Counts::default();
-    // The states of the targets settled so far (the history's last), oldest first; the last
-    // is the state the next target's motion starts from. A ring: states are 400-byte records.
-    let mut states: VecDeque<AxisState> = VecDeque::with_capacity(LOOK_BACK + 1);
-    states.extend(previous);
+    let mut states = States::new(previous);
     for k in from..ctx.len() {
         let rest = |k: usize| -> [bool; 6] {
             let turns = ctx.target(k).turns.angle_deg;
@@ -1181,22 +1187,17 @@ fn recheck(
                 None => [false; 6],
             }
         };
-        let mut state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
+        let (last, state) = states.last_and_next();
+        settle_one(ctx, k, &rest(k), last, outcomes, &mut resolved[k], state);
         // A circle's auxiliary point and end shape one arc: the end settled, its auxiliary
         // point (settled with the end's first-pass command) is settled again, then the end.
         if ctx.target(k).interp == Interp::CircEnd && k > from && states.len() >= 2 {
             for _ in 0..2 {
-                let before_aux = Some(&states[states.len() - 2]);
-                let aux = settle_one(
-                    ctx,
-                    k - 1,
-                    &rest(k - 1),
-                    before_aux,
-                    outcomes,
-                    &mut resolved[k - 1],
-                );
-                *states.back_mut().expect("the auxiliary point's state") = aux;
-                state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
+                let (before_aux, aux) = states.before_last_and_last();
+                let (aux_rest, aux_resolved) = (&rest(k - 1), &mut resolved[k - 1]);
+                settle_one(ctx, k - 1, aux_rest, Some(before_aux), outcomes, aux_resolved, aux);
+                let (last, state) = states.last_and_next();
+                settle_one(ctx, k, &rest(k), last, outcomes, &mut resolved[k], state);
             }
         }
         let o = &outcomes[k];
@@ -1208,26 +1209,91 @@ fn recheck(
         // The auxiliary point of a circle written by construction is not visited: the circle
         // starts from the stop before it.
         if ctx.target(k).interp == Interp::CircAngleAux {
-            if let Some(before) = states.back() {
-                state = *before;
+            if let (Some(before), state) = states.last_and_next() {
+                *state = *before;
             }
         }
-        states.push_back(state);
-        if states.len() > LOOK_BACK {
-            states.pop_front();
-        }
+        states.push_next();
     }
     // The segment's own (the history's state may still be among them).
     let keep = (ctx.len() - from).min(states.len());
-    let older = states.len() - keep;
-    (counts, states.into_iter().skip(older).collect())
+    (counts, states.oldest_first().skip(states.len() - keep).copied().collect())
+}
+
+/// The states of the last (up to [`LOOK_BACK`]) targets settled, in a ring with a slot for
+/// the next: the next target's state is written in place beside the ones it needs (they are
+/// 400-byte records).
+struct States {
+    slots: [AxisState; LOOK_BACK + 1],
+    /// The slot of the last state.
+    last: usize,
+    /// States held (up to [`LOOK_BACK`]).
+    len: usize,
+}
+
+impl States {
+    /// The states after `previous` (the history's last), when there is one.
+    fn new(previous: Option<AxisState>) -> States {
+        let mut slots = [AxisState::default(); LOOK_BACK + 1];
+        slots[0] = previous.unwrap_or_default();
+        States {
+            slots,
+            last: 0,
+            len: previous.is_some() as usize,
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The slot `back` places before the last.
+    fn slot(&self, back: usize) -> usize {
+        (self.last + self.slots.len() - back) % self.slots.len()
+    }
+
+    /// The state in slot `from` and the one in slot `into` (another), to write.
+    fn pair(&mut self, from: usize, into: usize) -> (&AxisState, &mut AxisState) {
+        debug_assert_ne!(from, into);
+        if from < into {
+            let (a, b) = self.slots.split_at_mut(into);
+            (&a[from], &mut b[0])
+        } else {
+            let (a, b) = self.slots.split_at_mut(from);
+            (&b[0], &mut a[into])
+        }
+    }
+
+    /// The last state (none before the first target) and the next one's slot.
+    fn last_and_next(&mut self) -> (Option<&AxisState>, &mut AxisState) {
+        let (held, next) = (self.len > 0, self.slot(self.slots.len() - 1));
+        let (last, next) = self.pair(self.last, next);
+        (held.then_some(last), next)
+    }
+
+    /// The state before the last and the last, to write (at least two held).
+    fn before_last_and_last(&mut self) -> (&AxisState, &mut AxisState) {
+        debug_assert!(self.len >= 2);
+        self.pair(self.slot(1), self.last)
+    }
+
+    /// Takes the next slot's state as the last (the oldest beyond [`LOOK_BACK`] let go).
+    fn push_next(&mut self) {
+        self.last = self.slot(self.slots.len() - 1);
+        self.len = (self.len + 1).min(LOOK_BACK);
+    }
+
+    /// The states held, oldest first.
+    fn oldest_first(&self) -> impl Iterator<Item = &AxisState> {
+        (0..self.len).rev().map(|back| &self.slots[self.slot(back)])
+    }
 }
 
 /// Settles target `k` in `outcomes`, arriving from `previous` (see [`settle_target`]): solving
 /// again moves the compensated path, which may turn an axis round elsewhere, so it is settled
 /// until the plays stand where the solve assumed (a few rounds at most), else the round that
-/// predicts the smallest error is kept. Returns the state it leaves; `resolved` is set when it
-/// was solved again.
+/// predicts the smallest error is kept. Writes the state it leaves into `state`; `resolved`
+/// is set when it was solved again.
 fn settle_one(
     ctx: &Recheck,
     k: usize,
@@ -1235,7 +1301,8 @@ fn settle_one(
     previous: Option<&AxisState>,
     outcomes: &mut [Outcome],
     resolved: &mut bool,
-) -> AxisState {
+    state: &mut AxisState,
+) {
     // The outcome solved again, once it is (until then the slice's, read in place).
     let mut again: Option<Outcome> = None;
     let mut best: Option<Outcome> = None;
@@ -1270,21 +1337,18 @@ fn settle_one(
     }
     let o = &outcomes[k];
     let axes_deg = o.axes_deg.into();
-    let mut state = match (settled.flatten(), previous) {
+    match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
         (Some(turns), Some(p)) => {
-            let mut state = *p;
+            *state = *p;
             state.advance_through(&turns.angle_deg, axes_deg);
-            state
         }
-        _ => AxisState {
-            axes_deg,
-            history: arrival_histories(ctx, k, previous, o, outcomes),
-            time_s: 0.0,
-        },
+        _ => {
+            state.axes_deg = axes_deg;
+            state.history = arrival_histories(ctx, k, previous, o, outcomes);
+        }
     };
     state.time_s = 0.0;
-    state
 }
 
 /// Each axis's history on arrival at target `k` commanded as in `out`: the compensated
@@ -1335,7 +1399,7 @@ fn compensated_turns(
     // An axis can turn round inside the compensated motion where the nominal one does, or
     // where the correction changes along the motion by a fair part of the nominal move (a
     // resting axis, a slow one): only there does the walk decide anything.
-    let nominal_prev = (k > 0).then(|| ctx.target(k - 1).nominal_axes);
+    let nominal_prev = (k > 0).then(|| &ctx.target(k - 1).nominal_axes);
     let sensitive = (0..6).any(|n| {
         let b = widths[n];
         if !(b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3) {
@@ -1354,21 +1418,28 @@ fn compensated_turns(
     }
     let mut turns = target.turns;
     for n in 0..6 {
-        turns.angle_deg[n] = nominal_turn_moved(ctx, k, prev[n], n, c[n]);
+        turns.angle_deg[n] = nominal_turn_moved(target, nominal_prev, prev[n], n, c[n]);
     }
     turns
 }
 
-/// Axis n's last nominal turning point inside the motion into target `k` (NaN: none), moved by
-/// the corrections interpolated to it: the command before at `c0`, target k's at `c`.
-fn nominal_turn_moved(ctx: &Ctx, k: usize, c0: f64, n: usize, c: f64) -> f64 {
-    let target = ctx.target(k);
+/// Axis n's last nominal turning point inside the motion into `target` (NaN: none), moved by
+/// the corrections interpolated to it: the command before at `c0` (the nominal one
+/// `nominal_prev`, none for the first target), the target's at `c`.
+fn nominal_turn_moved(
+    target: &Target,
+    nominal_prev: Option<&AxisAngles>,
+    c0: f64,
+    n: usize,
+    c: f64,
+) -> f64 {
     let (t, u) = (target.turns.angle_deg[n], target.turns.at[n]);
-    let (turn, at) = if t.is_finite() && k > 0 {
-        let before = c0 - ctx.target(k - 1).nominal_axes[n];
-        (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
-    } else {
-        (f64::NAN, 0.0)
+    let (turn, at) = match nominal_prev.filter(|_| t.is_finite()) {
+        Some(np) => {
+            let before = c0 - np[n];
+            (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
+        }
+        None => (f64::NAN, 0.0),
     };
     turn + at * c
 }
@@ -1464,11 +1535,11 @@ struct Segment {
 }
 
 impl Segment {
-    /// Axis n's motion into target `k` from `previous`, with `turns` those of the compensated
+    /// Axis n's motion into `target` from `previous`, with `turns` those of the compensated
     /// motion commanded at `c` ([`compensated_turns`]).
     fn of(
         ctx: &Recheck,
-        k: usize,
+        target: &Target,
         previous: &AxisState,
         n: usize,
         (turns, c): (&interpolate::Turns, &[f64; 6]),
@@ -1485,7 +1556,7 @@ impl Segment {
             start_output: c0 + ctx.play_lag(previous, n),
             turn,
             at,
-            half: 0.5 * ctx.play_width(n, ctx.target(k).nominal_axes[n]),
+            half: 0.5 * ctx.play_width(n, target.nominal_axes[n]),
         }
     }
 
@@ -1667,6 +1738,7 @@ fn settle_target(
     let axes = AxesOf {
         ctx,
         k,
+        target: ctx.target(k),
         p,
         c,
         widths: std::array::from_fn(|n| ctx.play_width(n, c[n])),
@@ -1703,6 +1775,7 @@ fn settle_target(
 struct AxesOf<'x, 'a> {
     ctx: &'x Recheck<'a>,
     k: usize,
+    target: &'x Target,
     p: &'x AxisState,
     c: [f64; 6],
     widths: [f64; 6],
@@ -1750,13 +1823,13 @@ impl AxesOf<'_, '_> {
         // more than the compensated path could turn it round by.
         let engaged = p.history[n].engaged_at(p.axes_deg[n]) == Some(assumed)
             && assumed.sign() * moved >= SENSITIVE_PLAYS * b + 1e-3
-            && !ctx.target(k).turns.angle_deg[n].is_finite();
+            && !self.target.turns.angle_deg[n].is_finite();
         if engaged && !jitter {
             return AxisSettled::Kept;
         }
         let turns = turns
             .get_or_insert_with(|| compensated_turns(ctx, k, p, (c, &self.widths), self.outcomes));
-        let segment = Segment::of(ctx, k, p, n, (turns, c));
+        let segment = Segment::of(ctx, self.target, p, n, (turns, c));
         let wanted = c[n] - assumed.sign() * 0.5 * b;
         // The output moves back by less than the play: the command travels it.
         let driven = p.history[n].direction(p.axes_deg[n]);
