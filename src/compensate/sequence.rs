@@ -19,13 +19,13 @@
 use super::solve::{self, Method, Problem, SolveError};
 use crate::kinematics::{status_turn, AxisAngles, Pose, RobotDescription};
 use crate::model::table::Table1;
+use crate::model::history::PlayBefore;
 use crate::model::{AxisHistory, AxisState, Direction, Model};
 use crate::motion::frame::Frame;
 use crate::motion::interpolate;
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 use nalgebra::{Vector3, Vector6};
-use std::cell::Cell;
-use std::collections::VecDeque;
+use std::cell::{Cell, RefCell};
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -910,12 +910,13 @@ struct Ctx<'a> {
     method: Method,
 }
 
-/// The re-check's [`Ctx`], with each axis's play width table and the widths looked up last
-/// (the re-check runs on one thread).
+/// The re-check's [`Ctx`], with each axis's play width table and the cells of it looked up
+/// recently (the re-check runs on one thread).
 struct Recheck<'a> {
     ctx: Ctx<'a>,
-    plays: [Option<&'a Table1>; 6],
-    widths: WidthMemo,
+    plays: [Option<WidthTable<'a>>; 6],
+    /// Per axis, the play's output before the last point of the history evaluated last.
+    before: [RefCell<PlayBefore>; 6],
 }
 
 impl<'a> std::ops::Deref for Recheck<'a> {
@@ -925,79 +926,137 @@ impl<'a> std::ops::Deref for Recheck<'a> {
     }
 }
 
-/// Lookups of each axis's play width kept per axis: a command the re-check looks the width up
-/// at comes back as the next target's command before and the one after's run start, so the
-/// recent angles of an axis answer most lookups (the same angle's bits, the same width).
-struct WidthMemo {
-    /// Per axis, `(angle bits, width)` of recent lookups, each in the slot its bits hash to.
-    slots: [[Cell<(u64, f64)>; WIDTH_MEMO]; 6],
-    /// Per axis, the width table's cell of the last lookup: the next command is a few
-    /// millidegrees away, nearly always in the same cell (see `Grid::locate_near`).
-    cells: [Cell<usize>; 6],
+/// An axis's play width table with the cells of it looked up recently: the re-check asks an
+/// axis's width at its commands, a few millidegrees apart along a path, and at the turning
+/// points of its history (a rippled path turns an axis round every few targets, within a
+/// degree or two), so nearly every lookup falls in a cell looked up just before, where it
+/// is the interpolation between two values kept at hand. The arithmetic is the table's own
+/// ([`Grid::locate`](crate::model::table::Grid::locate), [`Table1::value_in`]), so a width is
+/// the one [`Model::play_width_deg`] gives, to the bit.
+struct WidthTable<'a> {
+    table: &'a Table1,
+    /// Cells looked up, each in the slot of its place on the grid (neighbouring cells in
+    /// different slots).
+    cells: [Cell<WidthCell>; WIDTH_SLOTS],
+    /// Cells per degree, about (a slot's index only: any value is correct).
+    per_deg: f64,
+    /// The grid's ends and the widths held beyond them (an axis may work outside the grid
+    /// the play was identified on).
+    ends: (f64, f64),
+    held: (f64, f64),
 }
 
-/// Slots per axis of [`WidthMemo`] (a power of two).
-const WIDTH_MEMO: usize = 64;
+/// Slots of [`WidthTable::cells`] (a power of two).
+const WIDTH_SLOTS: usize = 8;
 
-/// The width of a play whose table is `play` (0 without one) at command `angle`, as
-/// [`Model::play_width_deg`] gives it.
-fn width_in(play: Option<&Table1>, angle: f64) -> f64 {
-    play.map_or(0.0, |w| w.eval(angle).0)
+/// A cell of a width table: the angles `[lo, hi)` it answers and the values at its ends.
+#[derive(Clone, Copy, Debug)]
+struct WidthCell {
+    lo: f64,
+    hi: f64,
+    /// `1 / (hi − lo)`, as the grid computes it for the cell's weight.
+    inv_width: f64,
+    at_lo: f64,
+    at_hi: f64,
 }
 
-impl WidthMemo {
-    fn new(plays: &[Option<&Table1>; 6]) -> WidthMemo {
-        // Every slot starts as a true lookup (at 0°), so a slot never answers wrongly.
-        WidthMemo {
-            slots: std::array::from_fn(|n| {
-                std::array::from_fn(|_| Cell::new((0f64.to_bits(), width_in(plays[n], 0.0))))
-            }),
-            cells: Default::default(),
+impl WidthCell {
+    /// A cell that answers no angle.
+    const NONE: WidthCell = WidthCell {
+        lo: f64::NAN,
+        hi: f64::NAN,
+        inv_width: f64::NAN,
+        at_lo: f64::NAN,
+        at_hi: f64::NAN,
+    };
+}
+
+impl<'a> WidthTable<'a> {
+    fn new(table: &'a Table1) -> WidthTable<'a> {
+        let p = table.grid.points();
+        let ends = (p[0], p[p.len() - 1]);
+        let at = |x: f64| table.value_in(&table.grid.locate(x));
+        WidthTable {
+            table,
+            cells: std::array::from_fn(|_| Cell::new(WidthCell::NONE)),
+            per_deg: (p.len() - 1) as f64 / (ends.1 - ends.0),
+            ends,
+            held: (at(ends.0), at(ends.1)),
         }
     }
 
-    /// The slot of an angle's bits (Fibonacci hashing: neighbouring angles spread out).
-    fn slot(bits: u64) -> usize {
-        (bits.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - WIDTH_MEMO.trailing_zeros())) as usize
+    /// The slot of the cells about `angle`.
+    #[inline(always)]
+    fn slot(&self, angle: f64) -> &Cell<WidthCell> {
+        // Any slot is correct (an angle off the grid, or NaN, misses in any): the cheaper
+        // conversion of the two.
+        let place = ((angle - self.ends.0) * self.per_deg) as i32;
+        &self.cells[place as usize % WIDTH_SLOTS]
+    }
+
+    /// The width at `angle` (`table.eval(angle).0`). Inlined where it is asked: most lookups
+    /// are answered by a cell kept.
+    #[inline(always)]
+    fn width(&self, angle: f64) -> f64 {
+        let slot = self.slot(angle);
+        let c = slot.get();
+        if c.lo <= angle && angle < c.hi {
+            let w = ((angle - c.lo) * c.inv_width).clamp(0.0, 1.0);
+            (1.0 - w) * c.at_lo + w * c.at_hi
+        } else {
+            self.outside_cells(angle, slot)
+        }
+    }
+
+    /// [`Self::width`] where `slot` does not hold the cell.
+    #[inline(always)]
+    fn outside_cells(&self, angle: f64, slot: &Cell<WidthCell>) -> f64 {
+        if angle <= self.ends.0 {
+            self.held.0
+        } else if angle >= self.ends.1 {
+            self.held.1
+        } else {
+            self.look_up(angle, slot)
+        }
+    }
+
+    /// [`Self::width`] inside the grid where `slot` does not hold the cell: looked up in the
+    /// table, its cell kept in `slot`.
+    #[inline(never)]
+    fn look_up(&self, angle: f64, slot: &Cell<WidthCell>) -> f64 {
+        let (table, cell) = (self.table, self.table.grid.locate(angle));
+        if !cell.clamped && cell.hi == cell.lo + 1 {
+            let p = table.grid.points();
+            let (lo, hi) = (p[cell.lo], p[cell.hi]);
+            slot.set(WidthCell {
+                lo,
+                hi,
+                inv_width: 1.0 / (hi - lo),
+                at_lo: table.values[cell.lo],
+                at_hi: table.values[cell.hi],
+            });
+        }
+        table.value_in(&cell)
     }
 }
 
 impl<'a> Recheck<'a> {
     fn new(ctx: Ctx<'a>) -> Recheck<'a> {
-        let plays = std::array::from_fn(|n| ctx.model.play_width_table(n));
+        let plays = std::array::from_fn(|n| ctx.model.play_width_table(n).map(WidthTable::new));
         Recheck {
             ctx,
             plays,
-            widths: WidthMemo::new(&plays),
+            before: Default::default(),
         }
     }
 
     /// The width (degrees) of axis n's play at command `angle` ([`Model::play_width_deg`]).
-    /// Inlined where it is asked: most lookups are answered by the memo.
     #[inline(always)]
     fn play_width(&self, n: usize, angle: f64) -> f64 {
-        let Some(table) = self.plays[n] else {
-            return 0.0;
-        };
-        let bits = angle.to_bits();
-        let slot = &self.widths.slots[n][WidthMemo::slot(bits)];
-        let (held, width) = slot.get();
-        if held == bits {
-            return width;
+        match &self.plays[n] {
+            Some(play) => play.width(angle),
+            None => 0.0,
         }
-        self.look_width_up(n, table, angle, slot)
-    }
-
-    /// [`Self::play_width`] not in the memo: looked up in the table and kept in `slot`.
-    #[inline(never)]
-    fn look_width_up(&self, n: usize, table: &Table1, angle: f64, slot: &Cell<(u64, f64)>) -> f64 {
-        // The cell `eval` would locate, found from the last one.
-        let hint = &self.widths.cells[n];
-        let mut cell = hint.get();
-        let width = table.value_in(&table.grid.locate_near(angle, &mut cell));
-        hint.set(cell);
-        slot.set((angle.to_bits(), width));
-        width
     }
 
     /// Where axis n's play output stands against the command at `state` (0 without a play).
@@ -1005,8 +1064,11 @@ impl<'a> Recheck<'a> {
         if self.plays[n].is_none() {
             return 0.0;
         }
+        // Along a path the history of an axis changes mostly in its last point from one target
+        // to the next: the clamps before it are kept.
+        let before = &mut self.before[n].borrow_mut();
         state.history[n]
-            .play(state.axes_deg[n], |a| self.play_width(n, a))
+            .play_keeping(state.axes_deg[n], |a| self.play_width(n, a), before)
             .lag_deg
     }
 }
@@ -1075,10 +1137,7 @@ fn recheck(
     resolved: &mut [bool],
 ) -> (Counts, Vec<AxisState>) {
     let mut counts = Counts::default();
-    // The states of the targets settled so far (the history's last), oldest first; the last
-    // is the state the next target's motion starts from. A ring: states are 400-byte records.
-    let mut states: VecDeque<AxisState> = VecDeque::with_capacity(LOOK_BACK + 1);
-    states.extend(previous);
+    let mut states = States::new(previous);
     for k in from..ctx.len() {
         let rest = |k: usize| -> [bool; 6] {
             let turns = ctx.target(k).turns.angle_deg;
@@ -1087,22 +1146,17 @@ fn recheck(
                 None => [false; 6],
             }
         };
-        let mut state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
+        let (last, state) = states.last_and_next();
+        settle_one(ctx, k, &rest(k), last, outcomes, &mut resolved[k], state);
         // A circle's auxiliary point and end shape one arc: the end settled, its auxiliary
         // point (settled with the end's first-pass command) is settled again, then the end.
         if ctx.target(k).interp == Interp::CircEnd && k > from && states.len() >= 2 {
             for _ in 0..2 {
-                let before_aux = Some(&states[states.len() - 2]);
-                let aux = settle_one(
-                    ctx,
-                    k - 1,
-                    &rest(k - 1),
-                    before_aux,
-                    outcomes,
-                    &mut resolved[k - 1],
-                );
-                *states.back_mut().expect("the auxiliary point's state") = aux;
-                state = settle_one(ctx, k, &rest(k), states.back(), outcomes, &mut resolved[k]);
+                let (before_aux, aux) = states.before_last_and_last();
+                let (aux_rest, aux_resolved) = (&rest(k - 1), &mut resolved[k - 1]);
+                settle_one(ctx, k - 1, aux_rest, Some(before_aux), outcomes, aux_resolved, aux);
+                let (last, state) = states.last_and_next();
+                settle_one(ctx, k, &rest(k), last, outcomes, &mut resolved[k], state);
             }
         }
         let o = &outcomes[k];
@@ -1114,26 +1168,91 @@ fn recheck(
         // The auxiliary point of a circle written by construction is not visited: the circle
         // starts from the stop before it.
         if ctx.target(k).interp == Interp::CircAngleAux {
-            if let Some(before) = states.back() {
-                state = *before;
+            if let (Some(before), state) = states.last_and_next() {
+                *state = *before;
             }
         }
-        states.push_back(state);
-        if states.len() > LOOK_BACK {
-            states.pop_front();
-        }
+        states.push_next();
     }
     // The segment's own (the history's state may still be among them).
     let keep = (ctx.len() - from).min(states.len());
-    let older = states.len() - keep;
-    (counts, states.into_iter().skip(older).collect())
+    (counts, states.oldest_first().skip(states.len() - keep).copied().collect())
+}
+
+/// The states of the last (up to [`LOOK_BACK`]) targets settled, in a ring with a slot for
+/// the next: the next target's state is written in place beside the ones it needs (they are
+/// 400-byte records).
+struct States {
+    slots: [AxisState; LOOK_BACK + 1],
+    /// The slot of the last state.
+    last: usize,
+    /// States held (up to [`LOOK_BACK`]).
+    len: usize,
+}
+
+impl States {
+    /// The states after `previous` (the history's last), when there is one.
+    fn new(previous: Option<AxisState>) -> States {
+        let mut slots = [AxisState::default(); LOOK_BACK + 1];
+        slots[0] = previous.unwrap_or_default();
+        States {
+            slots,
+            last: 0,
+            len: previous.is_some() as usize,
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The slot `back` places before the last.
+    fn slot(&self, back: usize) -> usize {
+        (self.last + self.slots.len() - back) % self.slots.len()
+    }
+
+    /// The state in slot `from` and the one in slot `into` (another), to write.
+    fn pair(&mut self, from: usize, into: usize) -> (&AxisState, &mut AxisState) {
+        debug_assert_ne!(from, into);
+        if from < into {
+            let (a, b) = self.slots.split_at_mut(into);
+            (&a[from], &mut b[0])
+        } else {
+            let (a, b) = self.slots.split_at_mut(from);
+            (&b[0], &mut a[into])
+        }
+    }
+
+    /// The last state (none before the first target) and the next one's slot.
+    fn last_and_next(&mut self) -> (Option<&AxisState>, &mut AxisState) {
+        let (held, next) = (self.len > 0, self.slot(self.slots.len() - 1));
+        let (last, next) = self.pair(self.last, next);
+        (held.then_some(last), next)
+    }
+
+    /// The state before the last and the last, to write (at least two held).
+    fn before_last_and_last(&mut self) -> (&AxisState, &mut AxisState) {
+        debug_assert!(self.len >= 2);
+        self.pair(self.slot(1), self.last)
+    }
+
+    /// Takes the next slot's state as the last (the oldest beyond [`LOOK_BACK`] let go).
+    fn push_next(&mut self) {
+        self.last = self.slot(self.slots.len() - 1);
+        self.len = (self.len + 1).min(LOOK_BACK);
+    }
+
+    /// The states held, oldest first.
+    fn oldest_first(&self) -> impl Iterator<Item = &AxisState> {
+        (0..self.len).rev().map(|back| &self.slots[self.slot(back)])
+    }
 }
 
 /// Settles target `k` in `outcomes`, arriving from `previous` (see [`settle_target`]): solving
 /// again moves the compensated path, which may turn an axis round elsewhere, so it is settled
 /// until the plays stand where the solve assumed (a few rounds at most), else the round that
-/// predicts the smallest error is kept. Returns the state it leaves; `resolved` is set when it
-/// was solved again.
+/// predicts the smallest error is kept. Writes the state it leaves into `state`; `resolved`
+/// is set when it was solved again.
 fn settle_one(
     ctx: &Recheck,
     k: usize,
@@ -1141,7 +1260,8 @@ fn settle_one(
     previous: Option<&AxisState>,
     outcomes: &mut [Outcome],
     resolved: &mut bool,
-) -> AxisState {
+    state: &mut AxisState,
+) {
     // The outcome solved again, once it is (until then the slice's, read in place).
     let mut again: Option<Outcome> = None;
     let mut best: Option<Outcome> = None;
@@ -1176,21 +1296,18 @@ fn settle_one(
     }
     let o = &outcomes[k];
     let axes_deg = o.axes_deg.into();
-    let mut state = match (settled.flatten(), previous) {
+    match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
         (Some(turns), Some(p)) => {
-            let mut state = *p;
+            *state = *p;
             state.advance_through(&turns.angle_deg, axes_deg);
-            state
         }
-        _ => AxisState {
-            axes_deg,
-            history: arrival_histories(ctx, k, previous, o, outcomes),
-            time_s: 0.0,
-        },
+        _ => {
+            state.axes_deg = axes_deg;
+            state.history = arrival_histories(ctx, k, previous, o, outcomes);
+        }
     };
     state.time_s = 0.0;
-    state
 }
 
 /// Each axis's history on arrival at target `k` commanded as in `out`: the compensated
@@ -1241,7 +1358,7 @@ fn compensated_turns(
     // An axis can turn round inside the compensated motion where the nominal one does, or
     // where the correction changes along the motion by a fair part of the nominal move (a
     // resting axis, a slow one): only there does the walk decide anything.
-    let nominal_prev = (k > 0).then(|| ctx.target(k - 1).nominal_axes);
+    let nominal_prev = (k > 0).then(|| &ctx.target(k - 1).nominal_axes);
     let sensitive = (0..6).any(|n| {
         let b = widths[n];
         if !(b > 0.0 && (c[n] - prev[n]).abs() < SENSITIVE_PLAYS * b + 1e-3) {
@@ -1260,21 +1377,28 @@ fn compensated_turns(
     }
     let mut turns = target.turns;
     for n in 0..6 {
-        turns.angle_deg[n] = nominal_turn_moved(ctx, k, prev[n], n, c[n]);
+        turns.angle_deg[n] = nominal_turn_moved(target, nominal_prev, prev[n], n, c[n]);
     }
     turns
 }
 
-/// Axis n's last nominal turning point inside the motion into target `k` (NaN: none), moved by
-/// the corrections interpolated to it: the command before at `c0`, target k's at `c`.
-fn nominal_turn_moved(ctx: &Ctx, k: usize, c0: f64, n: usize, c: f64) -> f64 {
-    let target = ctx.target(k);
+/// Axis n's last nominal turning point inside the motion into `target` (NaN: none), moved by
+/// the corrections interpolated to it: the command before at `c0` (the nominal one
+/// `nominal_prev`, none for the first target), the target's at `c`.
+fn nominal_turn_moved(
+    target: &Target,
+    nominal_prev: Option<&AxisAngles>,
+    c0: f64,
+    n: usize,
+    c: f64,
+) -> f64 {
     let (t, u) = (target.turns.angle_deg[n], target.turns.at[n]);
-    let (turn, at) = if t.is_finite() && k > 0 {
-        let before = c0 - ctx.target(k - 1).nominal_axes[n];
-        (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
-    } else {
-        (f64::NAN, 0.0)
+    let (turn, at) = match nominal_prev.filter(|_| t.is_finite()) {
+        Some(np) => {
+            let before = c0 - np[n];
+            (t + (1.0 - u) * before - u * target.nominal_axes[n], u)
+        }
+        None => (f64::NAN, 0.0),
     };
     turn + at * c
 }
@@ -1370,11 +1494,11 @@ struct Segment {
 }
 
 impl Segment {
-    /// Axis n's motion into target `k` from `previous`, with `turns` those of the compensated
+    /// Axis n's motion into `target` from `previous`, with `turns` those of the compensated
     /// motion commanded at `c` ([`compensated_turns`]).
     fn of(
         ctx: &Recheck,
-        k: usize,
+        target: &Target,
         previous: &AxisState,
         n: usize,
         (turns, c): (&interpolate::Turns, &[f64; 6]),
@@ -1391,7 +1515,7 @@ impl Segment {
             start_output: c0 + ctx.play_lag(previous, n),
             turn,
             at,
-            half: 0.5 * ctx.play_width(n, ctx.target(k).nominal_axes[n]),
+            half: 0.5 * ctx.play_width(n, target.nominal_axes[n]),
         }
     }
 
@@ -1573,6 +1697,7 @@ fn settle_target(
     let axes = AxesOf {
         ctx,
         k,
+        target: ctx.target(k),
         p,
         c,
         widths: std::array::from_fn(|n| ctx.play_width(n, c[n])),
@@ -1609,6 +1734,7 @@ fn settle_target(
 struct AxesOf<'x, 'a> {
     ctx: &'x Recheck<'a>,
     k: usize,
+    target: &'x Target,
     p: &'x AxisState,
     c: [f64; 6],
     widths: [f64; 6],
@@ -1656,13 +1782,13 @@ impl AxesOf<'_, '_> {
         // more than the compensated path could turn it round by.
         let engaged = p.history[n].engaged_at(p.axes_deg[n]) == Some(assumed)
             && assumed.sign() * moved >= SENSITIVE_PLAYS * b + 1e-3
-            && !ctx.target(k).turns.angle_deg[n].is_finite();
+            && !self.target.turns.angle_deg[n].is_finite();
         if engaged && !jitter {
             return AxisSettled::Kept;
         }
         let turns = turns
             .get_or_insert_with(|| compensated_turns(ctx, k, p, (c, &self.widths), self.outcomes));
-        let segment = Segment::of(ctx, k, p, n, (turns, c));
+        let segment = Segment::of(ctx, self.target, p, n, (turns, c));
         let wanted = c[n] - assumed.sign() * 0.5 * b;
         // The output moves back by less than the play: the command travels it.
         let driven = p.history[n].direction(p.axes_deg[n]);
@@ -1766,6 +1892,49 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
+        /// A width from a kept cell is the table's own, to the bit: along a path of small
+        /// steps (inside a cell, onto and across its edges), jumps, and angles off the grid,
+        /// on grids of uneven spacing.
+        #[test]
+        fn a_width_from_a_kept_cell_is_the_tables(
+            first in -200.0f64..0.0,
+            steps in prop::collection::vec(0.05f64..3.0, 1..8),
+            values in prop::collection::vec(0.0f64..0.05, 8),
+            start in -210.0f64..30.0,
+            moves in prop::collection::vec(
+                prop_oneof![
+                    -1e-3f64..1e-3,
+                    -0.7f64..0.7,
+                    -40.0f64..40.0,
+                    (0usize..8).prop_map(|i| i as f64 * 1e9),
+                ],
+                1..40,
+            ),
+        ) {
+            let points: Vec<f64> = std::iter::once(first)
+                .chain(steps.iter().scan(first, |x, d| {
+                    *x += d;
+                    Some(*x)
+                }))
+                .collect();
+            let table = Table1 {
+                values: values[..points.len()].to_vec(),
+                grid: crate::model::table::Grid::new(points.clone()).unwrap(),
+            };
+            let play = WidthTable::new(&table);
+            let mut angle = start;
+            for m in moves {
+                // Large moves land on a grid point (the edges of the cells).
+                angle = if m >= 1e9 {
+                    points[(m / 1e9) as usize % points.len()]
+                } else {
+                    angle + m
+                };
+                let (got, expected) = (play.width(angle), table.eval(angle).0);
+                prop_assert_eq!(got.to_bits(), expected.to_bits(), "at {}", angle);
+            }
+        }
+
         /// Where [`Segment::sure_flank`] answers, the search answers the same: a motion
         /// without a turning point, its output starting anywhere near the command, the wanted
         /// output near it too (down to the rounding of the breakpoints).

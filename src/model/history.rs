@@ -175,6 +175,7 @@ impl AxisHistory {
 
     /// The history after the command moved monotonically from the memory's last point (if
     /// any) to `to_deg`, where the next run begins.
+    #[inline]
     pub fn push(&mut self, to_deg: f64) {
         if !to_deg.is_finite() {
             return;
@@ -269,55 +270,123 @@ impl AxisHistory {
         // engaged flanks continue linearly (a leading difference) and the fit stays smooth.
         let half = |x: f64| 0.5 * width(x);
         let n = self.len as usize;
-        let (mut o, mut edge) = match (self.start, n) {
-            (Start::Unmoved | Start::Centred, 0) => {
-                return PlayAt {
-                    lag_deg: 0.0,
-                    edge: None,
-                    engaged: false,
-                }
-            }
-            (Start::Engaged(d), 0) => {
-                return PlayAt {
-                    lag_deg: -d.sign() * half(at_deg),
-                    edge: Some((at_deg, -d.sign())),
-                    engaged: true,
-                };
-            }
-            (Start::Engaged(d), _) => {
-                let x = self.points[0];
-                (x - d.sign() * half(x), Some((x, -d.sign())))
-            }
-            (_, _) => (self.points[0], None),
-        };
-        // Each point's band, the current command's last: returns whether it moved the output.
-        // A negative width (only met inside an identification) has no band: the output is
-        // dragged to the signed edge whenever it is off the command, so the flanks continue
-        // linearly through zero and a state inside the band stays as it is.
-        let mut clamp = |x: f64, o: &mut f64| -> bool {
-            let h = half(x);
-            let band = h.max(0.0);
-            let side = if *o < x - band {
-                -1.0
-            } else if *o > x + band {
-                1.0
-            } else {
-                return false;
-            };
-            *o = x + side * h;
-            edge = Some((x, side));
-            true
+        let Some((mut o, mut edge)) = self.first_output(&half) else {
+            return self.play_unmoved(at_deg, &half);
         };
         for &x in &self.points[1..n] {
-            clamp(x, &mut o);
+            clamp_to_band(x, half(x), &mut o, &mut edge);
         }
-        let engaged = clamp(at_deg, &mut o);
+        let engaged = clamp_to_band(at_deg, half(at_deg), &mut o, &mut edge);
         PlayAt {
             lag_deg: o - at_deg,
             edge,
             engaged,
         }
     }
+
+    /// [`Self::play`], taking the output before the memory's last point from `before` where it
+    /// holds this memory's, and keeping it there for the next evaluation: along a path an
+    /// axis's memory changes mostly in its last point (the run goes on), so the clamps before
+    /// it are the same, done once. The same play to the bit (the same clamps in the same
+    /// order).
+    pub fn play_keeping(
+        &self,
+        at_deg: f64,
+        width: impl Fn(f64) -> f64,
+        before: &mut PlayBefore,
+    ) -> PlayAt {
+        let n = self.len as usize;
+        if n < 2 {
+            return self.play(at_deg, width);
+        }
+        let half = |x: f64| 0.5 * width(x);
+        let held = before.len == self.len
+            && before.start == self.start
+            && (0..n - 1).all(|i| before.points[i].to_bits() == self.points[i].to_bits());
+        let (mut o, mut edge) = if held {
+            (before.output, before.edge)
+        } else {
+            let (mut o, mut edge) = self.first_output(&half).expect("a memory with points");
+            for &x in &self.points[1..n - 1] {
+                clamp_to_band(x, half(x), &mut o, &mut edge);
+            }
+            *before = PlayBefore {
+                start: self.start,
+                len: self.len,
+                points: self.points,
+                output: o,
+                edge,
+            };
+            (o, edge)
+        };
+        let last = self.points[n - 1];
+        clamp_to_band(last, half(last), &mut o, &mut edge);
+        let engaged = clamp_to_band(at_deg, half(at_deg), &mut o, &mut edge);
+        PlayAt {
+            lag_deg: o - at_deg,
+            edge,
+            engaged,
+        }
+    }
+
+    /// The output at the memory's first point and the edge holding it; `None` without points.
+    #[inline]
+    fn first_output(&self, half: &impl Fn(f64) -> f64) -> Option<(f64, Option<(f64, f64)>)> {
+        let x = *self.points.first().filter(|_| self.len > 0)?;
+        Some(match self.start {
+            Start::Engaged(d) => (x - d.sign() * half(x), Some((x, -d.sign()))),
+            _ => (x, None),
+        })
+    }
+
+    /// The play of a memory without points, at `at_deg`.
+    #[inline]
+    fn play_unmoved(&self, at_deg: f64, half: &impl Fn(f64) -> f64) -> PlayAt {
+        match self.start {
+            Start::Engaged(d) => PlayAt {
+                lag_deg: -d.sign() * half(at_deg),
+                edge: Some((at_deg, -d.sign())),
+                engaged: true,
+            },
+            _ => PlayAt {
+                lag_deg: 0.0,
+                edge: None,
+                engaged: false,
+            },
+        }
+    }
+}
+
+/// The output `o` through the band of point `x` (half-width `h`), the edge holding it moved to
+/// `edge` when the band drags it: returns whether it did. A negative width (only met inside
+/// an identification) has no band: the output is dragged to the signed edge whenever it is
+/// off the command, so the flanks continue linearly through zero and a state inside the
+/// band stays as it is.
+#[inline(always)]
+fn clamp_to_band(x: f64, h: f64, o: &mut f64, edge: &mut Option<(f64, f64)>) -> bool {
+    let band = h.max(0.0);
+    let side = if *o < x - band {
+        -1.0
+    } else if *o > x + band {
+        1.0
+    } else {
+        return false;
+    };
+    *o = x + side * h;
+    *edge = Some((x, side));
+    true
+}
+
+/// The output of a play before the last point of a memory, kept for the memory's next
+/// evaluation ([`AxisHistory::play_keeping`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PlayBefore {
+    /// The memory whose output this is (its last point aside); none while `len` is 0.
+    start: Start,
+    len: u8,
+    points: [f64; MEMORY],
+    output: f64,
+    edge: Option<(f64, f64)>,
 }
 
 #[cfg(test)]
@@ -441,6 +510,36 @@ mod tests {
     }
 
     proptest! {
+        /// A play evaluated with the output before the last point kept from the evaluation
+        /// before is the play evaluated afresh, to the bit, at every step of a wandering
+        /// command (runs going on, reversals, loops wiped out, memories full).
+        #[test]
+        fn a_kept_play_is_the_play(
+            start in -10.0f64..10.0,
+            engaged in prop::option::of(prop::bool::ANY),
+            moves in prop::collection::vec(
+                prop_oneof![-3.0f64..3.0, -0.05f64..0.05, -0.005f64..0.005, Just(0.0)], 1..40),
+        ) {
+            let width = |a: f64| 0.02 + 0.002 * (a * 0.3).sin();
+            let mut h = match engaged {
+                Some(true) => AxisHistory::engaged(Direction::Positive),
+                Some(false) => AxisHistory::engaged(Direction::Negative),
+                None => AxisHistory::unmoved(),
+            };
+            let mut before = PlayBefore::default();
+            let mut c = start;
+            for m in moves {
+                let at = c + m;
+                let (kept, fresh) = (h.play_keeping(at, width, &mut before), h.play(at, width));
+                prop_assert_eq!(kept.lag_deg.to_bits(), fresh.lag_deg.to_bits());
+                let bits = |e: Option<(f64, f64)>| e.map(|(x, s)| (x.to_bits(), s.to_bits()));
+                prop_assert_eq!(bits(kept.edge), bits(fresh.edge));
+                prop_assert_eq!(kept.engaged, fresh.engaged);
+                h.push(c);
+                c = at;
+            }
+        }
+
         /// The memory reproduces the play operator stepped densely along the same command,
         /// for nested and wiped loops alike, with a width that varies with the angle.
         #[test]
