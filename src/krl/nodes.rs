@@ -31,10 +31,6 @@ pub(crate) struct Nodes {
     /// for the others): a streamed window, walked as soon as it is parsed, then needs not
     /// read its numbers again. Empty otherwise (a whole file's tree keeps spans only).
     pub member_values: Vec<f64>,
-    /// In step with `member_values`: the digits after the dot of each plain member read by
-    /// the direct reader ([`NOT_COUNTED`] for the others), so that the walk need not scan
-    /// the numbers' text for them either.
-    pub member_places: Vec<u8>,
     pub keep_values: bool,
     /// Members of aggregates nested in another one (each run moved here from `scratch` when
     /// its aggregate closes, so runs stay contiguous while the parent's run grows).
@@ -72,10 +68,6 @@ impl Drop for Nodes {
     }
 }
 
-/// A member's decimals not recorded at parse time (`Nodes::member_places`): count them in
-/// its text.
-pub(crate) const NOT_COUNTED: u8 = u8::MAX;
-
 /// Pool sizes before a line was parsed, to drop what a failed line left behind.
 #[derive(Clone, Copy)]
 pub(crate) struct Mark {
@@ -102,7 +94,6 @@ impl Nodes {
         self.aggregates.truncate(m.aggregates);
         self.members.truncate(m.members);
         self.member_values.truncate(m.members);
-        self.member_places.truncate(m.members);
         self.nested_members.truncate(m.nested_members);
         self.outline.truncate(m.outline);
         self.scratch.clear();
@@ -198,15 +189,6 @@ impl Nodes {
         &self.member_values[a.range()]
     }
 
-    /// The kept decimals of the members of `a`, in step with [`Nodes::kept_values_of`]
-    /// ([`NOT_COUNTED`] where not recorded; empty when none are kept).
-    pub fn kept_places_of(&self, a: &Aggregate) -> &[u8] {
-        if a.nested() || self.member_places.len() != self.members.len() {
-            return &[];
-        }
-        &self.member_places[a.range()]
-    }
-
     /// The record of member `name` = `value` in `src`: packed when the value is a number
     /// `read_plain` gives back bit for bit, else out of line.
     pub fn pack(&mut self, src: &[u8], name: Span, value: Expr) -> Packed {
@@ -247,17 +229,10 @@ impl Nodes {
     /// `member_values`).
     #[inline]
     pub fn push_member(&mut self, m: Packed, value: f64) {
-        self.push_member_places(m, value, NOT_COUNTED);
-    }
-
-    /// [`Nodes::push_member`] with the digits after the number's dot (`member_places`).
-    #[inline]
-    pub fn push_member_places(&mut self, m: Packed, value: f64, places: u8) {
         self.ahead.members.before_push(&self.members);
         self.members.push(m);
         if self.keep_values {
             self.member_values.push(value);
-            self.member_places.push(places);
         }
     }
 
@@ -281,7 +256,6 @@ impl Nodes {
         self.aggregates.shrink_to_fit();
         self.members.shrink_to_fit();
         self.member_values.shrink_to_fit();
-        self.member_places.shrink_to_fit();
         self.nested_members.shrink_to_fit();
         self.outline.shrink_to_fit();
     }

@@ -157,12 +157,11 @@ impl Reader<'_> {
             let name_end = p;
             let at = blanks(p);
             let rest = &b[at..];
-            let (len, value, places) = if keep {
-                let (len, value, _, places) = number::read_plain_places(rest)?;
-                // At most 19 digits: `NOT_COUNTED` is never a count.
-                (len, value, places as u8)
+            let (len, value) = if keep {
+                let (len, value, _) = number::read_plain(rest)?;
+                (len, value)
             } else {
-                (number::plain_len(rest)?, 0.0, 0)
+                (number::plain_len(rest)?, 0.0)
             };
             p = blanks(at + len);
             let close = match b.get(p) {
@@ -174,7 +173,7 @@ impl Reader<'_> {
                 Span::new(base + name, base + name_end),
                 Span::new(base + at, base + at + len),
             )?;
-            nodes.push_member_places(packed, value, places);
+            nodes.push_member(packed, value);
             p += 1;
             if close {
                 break;

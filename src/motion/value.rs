@@ -497,9 +497,6 @@ fn kept_position<'f>(file: &'f SourceFile, id: FileId, agg: &'f Aggregate) -> Op
     let mut v = [None; 6];
     let (mut literals, mut decimals) = (0u8, [0u8; 6]);
     let mut naming = None;
-    // The decimals the parse counted (none for a tree that keeps no values, which has no
-    // kept value either).
-    let mut places = file.kept_places(agg).iter();
     for raw in file.raw_members(agg) {
         let crate::krl::RawMember::Plain {
             name,
@@ -515,10 +512,7 @@ fn kept_position<'f>(file: &'f SourceFile, id: FileId, agg: &'f Aggregate) -> Op
         }
         v[k] = Some(value);
         literals |= 1 << k;
-        decimals[k] = match places.next() {
-            Some(&p) if p != u8::MAX => p,
-            _ => literal_decimals(&src[number.range()]).min(255) as u8,
-        };
+        decimals[k] = literal_decimals(&src[number.range()]).min(255) as u8;
     }
     Some(Pos {
         v: Components::named(naming?, v),
@@ -601,19 +595,6 @@ mod tests {
             kept >= 15 && declined >= 15,
             "{kept} kept, {declined} declined"
         );
-    }
-
-    proptest::proptest! {
-        /// The decimals the direct reader counts while reading a plain number (kept with a
-        /// streamed window's values) are the ones counted in its text.
-        #[test]
-        fn counted_places_are_the_literal_decimals(
-            t in "[-+]?[0-9]{0,12}(\\.[0-9]{0,12})?[,} ]?",
-        ) {
-            if let Some((len, _, _, places)) = crate::krl::number::read_plain_places(t.as_bytes()) {
-                proptest::prop_assert_eq!(places, literal_decimals(&t.as_bytes()[..len]));
-            }
-        }
     }
 
     #[test]

@@ -13,7 +13,7 @@
 mod read;
 mod write;
 
-pub(crate) use read::{plain_len, read_plain, read_plain_places, scan, value, Literal};
+pub(crate) use read::{plain_len, read_plain, scan, value, Literal};
 pub use write::{format_like, units, write_fixed, write_like};
 
 /// Exact powers of ten representable in f64: 10^22 = 2^22·5^22 and 5^22 < 2^53, so every

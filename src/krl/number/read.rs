@@ -155,16 +155,9 @@ fn exact(negative: bool, m: u64, e10: i64) -> Option<f64> {
 /// [`scan`] and [`value`] read it; both give the same answer where both apply).
 #[inline]
 pub(crate) fn read_plain(i: &[u8]) -> Option<(usize, f64, bool)> {
-    read_plain_places(i).map(|(len, v, integer, _)| (len, v, integer))
-}
-
-/// [`read_plain`] with the digits after the dot (what `motion::value::literal_decimals`
-/// counts in the literal's text): a streamed window keeps them with the value.
-#[inline]
-pub(crate) fn read_plain_places(i: &[u8]) -> Option<(usize, f64, bool, usize)> {
     let p = scan_plain(i)?;
     let v = exact(p.negative, p.m, -(p.frac_digits as i64))?;
-    Some((p.len, v, !p.dot, p.frac_digits))
+    Some((p.len, v, !p.dot))
 }
 
 /// A plain literal's parts as [`scan_plain`] reads them.

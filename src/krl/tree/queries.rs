@@ -171,13 +171,6 @@ impl SourceFile {
         }
     }
 
-    /// The digits after the dot of the plain members of `a` as the window's parse counted
-    /// them, in step with [`SourceFile::raw_members`]: `u8::MAX` where not counted (count
-    /// them in the text), empty when the tree keeps no values.
-    pub fn kept_places(&self, a: &Aggregate) -> &[u8] {
-        self.nodes.kept_places_of(a)
-    }
-
     /// A raw member with its value (see [`SourceFile::members`]).
     pub fn member_of<'a>(&'a self, raw: crate::krl::nodes::RawMember<'a>) -> Member<'a> {
         self.nodes.member_of_raw(&self.src, raw)
