@@ -28,9 +28,6 @@ pub struct Origin<'f> {
     /// Bit `k` set: the position's component `k` is the value of the aggregate's own literal
     /// (read once by the walk; the rewrite need not read the number again).
     pub literals: u8,
-    /// The decimals each of those literals is written with ([`literal_decimals`], at most
-    /// 255), for the components of `literals`.
-    pub decimals: [u8; 6],
     /// The aggregate gives external axes (`E1`…`E6`) other than zero.
     pub external: bool,
 }
@@ -327,13 +324,10 @@ fn decoded<'f>(
             prefix: None,
             suffix: None,
             literals: 0,
-            decimals: [0; 6],
             external: false,
         }),
     };
     let mut literals = 0u8;
-    let mut decimals = [0u8; 6];
-    let places = |text: &[u8]| literal_decimals(text).min(255) as u8;
     let mut fdat = Fdat::default();
     let (mut cartesian, mut axis, mut is_fdat) = (false, false, false);
     let mut ldat: Option<Option<Vec<u8>>> = None;
@@ -361,9 +355,6 @@ fn decoded<'f>(
             let v = match plain {
                 Some(v) => {
                     literals |= 1 << k;
-                    if let crate::krl::RawMember::Plain { number, .. } = raw {
-                        decimals[k] = places(&src[number.range()]);
-                    }
                     v
                 }
                 None => {
@@ -371,7 +362,6 @@ fn decoded<'f>(
                     match literal_number(&m.value) {
                         Some((negative, n)) => {
                             literals |= 1 << k;
-                            decimals[k] = places(file.text(n.span()));
                             if negative {
                                 -n.value
                             } else {
@@ -484,7 +474,6 @@ fn decoded<'f>(
     pos.v = Components::named(naming, *pos.v.values());
     if let Some(o) = &mut pos.origin {
         o.literals = literals;
-        o.decimals = decimals;
     }
     Value::Pos(pos)
 }
@@ -495,12 +484,12 @@ fn decoded<'f>(
 fn kept_position<'f>(file: &'f SourceFile, id: FileId, agg: &'f Aggregate) -> Option<Pos<'f>> {
     let src = file.source();
     let mut v = [None; 6];
-    let (mut literals, mut decimals) = (0u8, [0u8; 6]);
+    let mut literals = 0u8;
     let mut naming = None;
     for raw in file.raw_members(agg) {
         let crate::krl::RawMember::Plain {
             name,
-            number,
+            number: _,
             kept: Some(value),
         } = raw
         else {
@@ -512,7 +501,6 @@ fn kept_position<'f>(file: &'f SourceFile, id: FileId, agg: &'f Aggregate) -> Op
         }
         v[k] = Some(value);
         literals |= 1 << k;
-        decimals[k] = literal_decimals(&src[number.range()]).min(255) as u8;
     }
     Some(Pos {
         v: Components::named(naming?, v),
@@ -525,7 +513,6 @@ fn kept_position<'f>(file: &'f SourceFile, id: FileId, agg: &'f Aggregate) -> Op
             prefix: None,
             suffix: None,
             literals,
-            decimals,
             external: false,
         }),
     })

@@ -3,7 +3,7 @@
 //! replacing the literals that change, inserting the components it lacks.
 
 use crate::krl::{self, number, Aggregate, Expr, RawMember, SourceFile, Span};
-use crate::motion::value::{self, Naming, Origin};
+use crate::motion::value::{self, Naming};
 
 use super::super::edits::{append_range, EditList};
 
@@ -361,18 +361,6 @@ pub(super) fn insert_member(
     true
 }
 
-/// The decimals each component of the aggregate at `origin` will be written with: its own
-/// literal's (never fewer than 3 in mm and 4 in degrees), or for a missing one the
-/// aggregate's most precise. From what the walk read (`Origin::decimals`): where the origin is
-/// known every component given is a literal.
-pub fn decimals(origin: &Origin, naming: Naming) -> [u8; 6] {
-    let own: [Option<usize>; 6] = std::array::from_fn(|k| {
-        (origin.literals & (1 << k) != 0).then_some(usize::from(origin.decimals[k]))
-    });
-    let most = own.iter().flatten().copied().max().unwrap_or(0);
-    std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(naming, k)).min(12) as u8)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -388,27 +376,11 @@ mod tests {
         }
     }
 
-    /// The decimals of `agg`'s components read from its text (what `decimals` took from the
-    /// file before the walk kept them).
-    fn decimals_from_text(file: &SourceFile, agg: &Aggregate, naming: Naming) -> [u8; 6] {
-        let mut own = [None; 6];
-        for (k, m) in position_members(file, agg, naming) {
-            let lit = match m {
-                RawMember::Plain { number, .. } => Some(number),
-                RawMember::Outline { value: e, .. } => literal_span(e).map(|(_, lit)| lit),
-            };
-            own[k] = lit.map(|lit| value::literal_decimals(file.text(lit)));
-        }
-        let most = own.iter().flatten().copied().max().unwrap_or(0);
-        std::array::from_fn(|k| own[k].unwrap_or(most).max(min_decimals(naming, k)).min(12) as u8)
-    }
-
     /// The rewrite takes an absolute target's literal values from the walk
-    /// (`Origin::literals`) instead of reading the numbers again, and the compensation its
-    /// decimals (`Origin::decimals`): on every fixture program, every component so taken must
-    /// be the number read from the file, to the bit, and the decimals those of its text.
+    /// (`Origin::literals`) instead of reading the numbers again: on every fixture program,
+    /// every component so taken must be the number read from the file, to the bit.
     #[test]
-    fn values_and_decimals_taken_from_the_walk_are_the_files() {
+    fn values_taken_from_the_walk_are_the_files() {
         let mut programs = Vec::new();
         sources_under(
             &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/programs"),
@@ -428,12 +400,6 @@ mod tests {
                     continue;
                 };
                 let file = &ws.get(origin.file).file;
-                assert_eq!(
-                    decimals(&origin, stop.programmed.naming()),
-                    decimals_from_text(file, origin.agg, stop.programmed.naming()),
-                    "{}",
-                    path.display()
-                );
                 let naming = stop.programmed.naming();
                 let read = components(file, origin.agg, naming, None);
                 let values = stop.programmed.components();

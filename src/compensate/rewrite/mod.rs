@@ -39,7 +39,7 @@ use super::edits::EditList;
 pub use super::sequence::correction;
 use super::sequence::{Command, Outcome};
 use aggregate::{aggregate_edits, components, AggregateTarget};
-pub use aggregate::{decimals, file_separator, MIN_DECIMALS_DEG, MIN_DECIMALS_MM};
+pub use aggregate::{file_separator, MIN_DECIMALS_DEG, MIN_DECIMALS_MM};
 use shared::{keep_pinned, write_shared};
 use target::written;
 
