@@ -366,14 +366,14 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
         let pending = seg.pending.take();
         let prepared = walked.with_dependent(|_, sim| {
             rayon::join(
-                || preparer.prepare(sim, 0, &mut nominal, &mut chains),
                 || {
                     if let Some((w, p)) = pending {
                         w.with_dependent(|ws, sim| seg.window_done(ws, sim, p));
                     }
                 },
+                || preparer.prepare(sim, 0, &mut nominal, &mut chains),
             )
-            .0
+            .1
         });
         seg.nominal_end = nominal;
         seg.chains = chains;

@@ -16,17 +16,9 @@
 use super::*;
 use crate::krl::StreamedRun;
 
-/// Windows walked ahead of the compensation (the walker goes on while the compensation is in
-/// its sequential parts; each waiting window holds its tree and stops, ~0.3 MB at 512 lines;
-/// 8 or 16 ahead measured alike).
-const WALKED_AHEAD: usize = 3;
-
-/// Windows parsed at a time (in parallel) by the walker thread.
-const PARSED_AHEAD: usize = 4;
-
 self_cell::self_cell!(
     /// A window's workspace with the simulation of its stops, which borrows it: one value,
-    /// sent from the walker thread to the compensation.
+    /// handed from the walk to the compensation.
     pub struct Walked {
         owner: Workspace,
         #[covariant]
@@ -171,13 +163,12 @@ impl<'f> Simulator<'f> {
         Flow::Next
     }
 
-    /// Walks run `run` window by window: one thread parses the windows (a few at a time, in
-    /// parallel) and walks them in order, handing each walked window (its files and stops, one
-    /// self-referential value) to a thread of rayon's pool (this thread when the pool has but
-    /// one), which hands it to the sink (compensating it on the pool): the walk, sequential by
-    /// nature, overlaps the compensation, and only the windows in flight are held.
+    /// Walks run `run` window by window on rayon's pool, as a pipeline of steps: each step
+    /// walks window k (parsed in the step before) while window k+1 is parsed and the sink takes
+    /// window k-1 (compensating it on the pool). The walk, sequential by nature, overlaps the
+    /// compensation on the pool's own threads, so no thread waits on one the system has put
+    /// aside, and only the windows in flight are held.
     fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut (dyn RunSink<'f> + Send)) {
-        use rayon::prelude::*;
         self.finish_segment();
         sink.skeleton(&self.out, self.handed);
         self.handed = self.out.stops.len();
@@ -187,53 +178,52 @@ impl<'f> Simulator<'f> {
         let mut moved = false;
         let (all, file_tree) = (self.ws, &self.ws.get(file).file);
         let windows: Vec<(Span, u32)> = run.windows().collect();
-        let walked_all = std::thread::scope(|scope| {
-            let (tx, rx) = std::sync::mpsc::sync_channel::<Walked>(WALKED_AHEAD);
-            let (this, history, moved, windows) = (&mut *self, &mut history, &mut moved, &windows);
-            let walker = scope.spawn(move || {
-                for batch in windows.chunks(PARSED_AHEAD) {
-                    let parsed: Vec<Workspace> = {
-                        let _span = tracing::trace_span!("parse windows").entered();
-                        batch
-                            .par_iter()
-                            .map(|&w| all.window_of(file, file_tree.window(w)))
-                            .collect()
-                    };
-                    for ws in parsed {
-                        let walked = {
-                            let _span = tracing::trace_span!("walk window").entered();
-                            Walked::new(ws, |ws| this.walk_window(ws, history))
-                        };
-                        *moved |= walked.borrow_dependent().stops.iter().any(|s| !s.ghost);
-                        let stop = this.steps >= MAX_STEPS || this.out.fatal;
-                        if tx.send(walked).is_err() || stop {
-                            return false;
+        let parse = |w: &(Span, u32)| {
+            let _span = tracing::trace_span!("parse window").entered();
+            all.window_of(file, file_tree.window(*w))
+        };
+        let (this, carried, any_moved) = (&mut *self, &mut history, &mut moved);
+        let mut pipeline = move || {
+            let mut parsed = windows.first().map(parse);
+            let mut walked: Option<Walked> = None;
+            let mut walking = true;
+            for k in 0..=windows.len() {
+                let ws = parsed.take().filter(|_| walking);
+                let next = windows.get(k + 1).filter(|_| walking);
+                let taken = walked.take();
+                let ((now_walked, now_parsed), ()) = rayon::join(
+                    || {
+                        rayon::join(
+                            || {
+                                let _span = tracing::trace_span!("walk window").entered();
+                                ws.map(|ws| Walked::new(ws, |ws| this.walk_window(ws, carried)))
+                            },
+                            || next.map(parse),
+                        )
+                    },
+                    || {
+                        if let Some(w) = taken {
+                            let _span = tracing::trace_span!("compensate window").entered();
+                            sink.window(w);
                         }
-                    }
+                    },
+                );
+                if let Some(w) = &now_walked {
+                    *any_moved |= w.borrow_dependent().stops.iter().any(|s| !s.ghost);
+                    walking = this.steps < MAX_STEPS && !this.out.fatal;
                 }
-                true
-            });
-            let take_windows = move || {
-                for walked in rx {
-                    let _span = tracing::trace_span!("compensate window").entered();
-                    sink.window(walked);
+                (walked, parsed) = (now_walked, now_parsed);
+                if walked.is_none() && !walking {
+                    break;
                 }
-                let _span = tracing::trace_span!("compensate run end").entered();
-                sink.run_end();
-            };
-            // Taken on a thread of the pool, each window's `rayon::join` starts where it is
-            // called instead of being handed over and waited for from outside. Not with a pool
-            // of one thread: waiting for the walker there would leave no thread for the
-            // walker's parsing.
-            if rayon::current_num_threads() >= 2 {
-                rayon::scope(move |_| take_windows());
-            } else {
-                take_windows();
             }
-            walker
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-        });
+            let _span = tracing::trace_span!("compensate run end").entered();
+            sink.run_end();
+            walking
+        };
+        // Taken on a thread of the pool, each step's `rayon::join` starts where it is called
+        // instead of being handed over and waited for from outside.
+        let walked_all = rayon::scope(move |_| pipeline());
         if !walked_all {
             return;
         }
