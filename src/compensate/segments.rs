@@ -357,7 +357,9 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
 
     /// Prepares this window while the one before is settled and rewritten (which needs the
     /// history up to it): the two overlap on rayon's pool, so the sequential parts of the one
-    /// fill the gaps of the other's parallel parts.
+    /// fill the gaps of the other's parallel parts. The settling, sequential, starts at once;
+    /// the first passes, in parallel, are taken up by the other thread as soon as it is free
+    /// (in the walk's pipeline, when it has walked the next window).
     fn window(&mut self, walked: Walked) {
         let seg = &mut *self.1;
         let preparer = seg.preparer();

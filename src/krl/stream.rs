@@ -27,13 +27,14 @@ pub struct StreamOptions {
 
 impl Default for StreamOptions {
     fn default() -> StreamOptions {
-        // A run of a few thousand lines is already worth not holding as a tree. Windows of
-        // 512 motions (~130 kB of tree, a few hundred of stops and results) stay in the
-        // caches and keep the pipeline's start and end short (the sweep of window sizes is
-        // in BENCH.md).
+        // A run of a few thousand lines is already worth not holding as a tree. A window is
+        // one step of the walk-and-compensate pipeline, and each step waits for its slowest
+        // part: windows of 2,048 motions (~0.5 MB of tree, ~1 MB of stops and results) make
+        // that wait a small share of the step and still keep the pipeline's start and end
+        // short (the sweep of window sizes is in BENCH.md).
         StreamOptions {
             min_run: 2_048,
-            window: 512,
+            window: 2_048,
         }
     }
 }

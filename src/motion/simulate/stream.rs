@@ -129,6 +129,54 @@ impl<'f> Simulator<'f> {
         out
     }
 
+    /// The pipeline of a run's windows on rayon's pool, one step per window: step k walks
+    /// window k (parsed in the step before) while window k+1 is parsed and the sink takes window
+    /// k-1 (compensating it on the pool). The walk, sequential by nature, overlaps the
+    /// compensation on the pool's own threads, so no thread waits for one the system has put
+    /// aside, and only the windows in flight are held. `history` and `moved` as in
+    /// [`Simulator::walk_window`] and `stream_run`; false when the walk stopped early (the step
+    /// limit, a fatal error), after the sink took the windows walked.
+    fn walk_windows<'w>(
+        &mut self,
+        windows: &'w [(Span, u32)],
+        parse: impl Fn(&'w (Span, u32)) -> Workspace + Sync,
+        (history, moved): (&mut Vec<Stop<'static>>, &mut bool),
+        sink: &mut (dyn RunSink<'f> + Send),
+    ) -> bool {
+        let mut parsed = windows.first().map(&parse);
+        let mut walked: Option<Walked> = None;
+        let mut walking = true;
+        for k in 0..=windows.len() {
+            let ws = parsed.take().filter(|_| walking);
+            let next = windows.get(k + 1).filter(|_| walking);
+            let taken = walked.take();
+            let walk = |ws: Workspace| {
+                let _span = tracing::trace_span!("walk window").entered();
+                Walked::new(ws, |ws| self.walk_window(ws, history))
+            };
+            let ((now_walked, now_parsed), ()) = rayon::join(
+                || rayon::join(|| ws.map(walk), || next.map(&parse)),
+                || {
+                    if let Some(w) = taken {
+                        let _span = tracing::trace_span!("compensate window").entered();
+                        sink.window(w);
+                    }
+                },
+            );
+            if let Some(w) = &now_walked {
+                *moved |= w.borrow_dependent().stops.iter().any(|s| !s.ghost);
+                walking = self.steps < MAX_STEPS && !self.out.fatal;
+            }
+            (walked, parsed) = (now_walked, now_parsed);
+            if walked.is_none() && !walking {
+                break;
+            }
+        }
+        let _span = tracing::trace_span!("compensate run end").entered();
+        sink.run_end();
+        walking
+    }
+
     /// Arrivals of the stops recorded since the last cut made final.
     pub(super) fn finish_segment(&mut self) {
         finish(&mut self.out, &self.robot);
@@ -163,11 +211,8 @@ impl<'f> Simulator<'f> {
         Flow::Next
     }
 
-    /// Walks run `run` window by window on rayon's pool, as a pipeline of steps: each step
-    /// walks window k (parsed in the step before) while window k+1 is parsed and the sink takes
-    /// window k-1 (compensating it on the pool). The walk, sequential by nature, overlaps the
-    /// compensation on the pool's own threads, so no thread waits on one the system has put
-    /// aside, and only the windows in flight are held.
+    /// Walks run `run` window by window, each window's stops handed to `sink` (see
+    /// [`Simulator::walk_windows`]).
     fn stream_run(&mut self, file: FileId, run: &StreamedRun, sink: &mut (dyn RunSink<'f> + Send)) {
         self.finish_segment();
         sink.skeleton(&self.out, self.handed);
@@ -182,48 +227,11 @@ impl<'f> Simulator<'f> {
             let _span = tracing::trace_span!("parse window").entered();
             all.window_of(file, file_tree.window(*w))
         };
-        let (this, carried, any_moved) = (&mut *self, &mut history, &mut moved);
-        let mut pipeline = move || {
-            let mut parsed = windows.first().map(parse);
-            let mut walked: Option<Walked> = None;
-            let mut walking = true;
-            for k in 0..=windows.len() {
-                let ws = parsed.take().filter(|_| walking);
-                let next = windows.get(k + 1).filter(|_| walking);
-                let taken = walked.take();
-                let ((now_walked, now_parsed), ()) = rayon::join(
-                    || {
-                        rayon::join(
-                            || {
-                                let _span = tracing::trace_span!("walk window").entered();
-                                ws.map(|ws| Walked::new(ws, |ws| this.walk_window(ws, carried)))
-                            },
-                            || next.map(parse),
-                        )
-                    },
-                    || {
-                        if let Some(w) = taken {
-                            let _span = tracing::trace_span!("compensate window").entered();
-                            sink.window(w);
-                        }
-                    },
-                );
-                if let Some(w) = &now_walked {
-                    *any_moved |= w.borrow_dependent().stops.iter().any(|s| !s.ghost);
-                    walking = this.steps < MAX_STEPS && !this.out.fatal;
-                }
-                (walked, parsed) = (now_walked, now_parsed);
-                if walked.is_none() && !walking {
-                    break;
-                }
-            }
-            let _span = tracing::trace_span!("compensate run end").entered();
-            sink.run_end();
-            walking
-        };
         // Taken on a thread of the pool, each step's `rayon::join` starts where it is called
         // instead of being handed over and waited for from outside.
-        let walked_all = rayon::scope(move |_| pipeline());
+        let walked_all = rayon::scope(|_| {
+            self.walk_windows(&windows, parse, (&mut history, &mut moved), sink)
+        });
         if !walked_all {
             return;
         }
