@@ -551,7 +551,13 @@ impl<'f> Simulator<'f> {
         } else {
             Path::Lin
         };
-        if let (Some(start), false) = (start_tcp, path == Path::Ptp) {
+        // A short straight segment: its arrival rate is computed after the walk, in parallel
+        // with all the others (`finish`). It turns by 5° at most, so never by the half turn
+        // warned of below.
+        let short_lin = current.is_some()
+            && path == Path::Lin
+            && start_tcp.is_some_and(|start| interpolate::lin_needs_no_samples(&start, &goal));
+        if let (Some(start), false, false) = (start_tcp, path == Path::Ptp, short_lin) {
             if crate::motion::frame::half_turn_apart(&start.rotation, &goal.rotation) {
                 self.warn(
                     file,
@@ -564,11 +570,7 @@ impl<'f> Simulator<'f> {
         let mut deferred = false;
         let mut turns = interpolate::NO_TURNS;
         let arrival = match (current, start_tcp) {
-            // A short straight segment: its arrival rate is computed after the walk, in
-            // parallel with all the others (`finish`).
-            (Some(_), Some(start))
-                if path == Path::Lin && interpolate::lin_needs_no_samples(&start, &goal) =>
-            {
+            (Some(_), Some(_)) if short_lin => {
                 deferred = true;
                 None
             }
