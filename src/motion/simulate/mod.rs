@@ -306,86 +306,117 @@ pub fn simulate<'f>(
     sim.into_simulation()
 }
 
+/// A deferred arrival: the rate and turns, `None` where the segment has no start or path.
+type Deferred = Option<([f64; 6], interpolate::Turns)>;
+
 /// The deferred arrival rates of short LIN segments, in parallel: each needs only its own end
-/// and the start the walk recorded (the previous stop's axes).
+/// and the start the walk recorded (the previous stop's axes). A streamed window's stops fit
+/// in one task: they are written in place, without a table of rates.
 fn finish(sim: &mut Simulation, robot: &RobotDescription) {
-    use rayon::prelude::*;
-    /// Stops per task: consecutive stops share a chain evaluation (below).
+    /// Stops per task: consecutive stops share a chain evaluation (see [`Deferrer`]).
     const CHUNK: usize = 2048;
-    type Deferred = Option<([f64; 6], interpolate::Turns)>;
+    finish_in(sim, robot, CHUNK);
+}
+
+/// [`finish`] in tasks of `chunk` stops.
+fn finish_in(sim: &mut Simulation, robot: &RobotDescription, chunk: usize) {
+    use rayon::prelude::*;
+    if sim.stops.len() <= chunk {
+        let mut deferrer = Deferrer::default();
+        for k in 0..sim.stops.len() {
+            if sim.stops[k].deferred {
+                let rate = deferrer.arrival(sim, robot, k);
+                settle(&mut sim.stops[k], rate);
+            }
+        }
+        return;
+    }
     let mut rates: Vec<Deferred> = vec![None; sim.stops.len()];
     rates
-        .par_chunks_mut(CHUNK)
+        .par_chunks_mut(chunk)
         .enumerate()
         .for_each(|(c, out)| {
-            // The arm at the end of the stop just done (`arms[live]`), with its index and
-            // tool: the next stop's start when it starts there (a CAM path), its TCP bit for
-            // bit what `interpolate::end_tcp` of the previous axes gives. The next end is
-            // written in the other slot, so the 430-byte records are never moved.
-            let mut carry: Option<(u32, u32)> = None;
-            let mut arms: [Option<interpolate::ArmAt>; 2] = [None, None];
-            let mut live = 0;
+            let mut deferrer = Deferrer::default();
             for (j, slot) in out.iter_mut().enumerate() {
-                let k = c * CHUNK + j;
-                let stop = &sim.stops[k];
-                if !stop.deferred {
-                    continue;
+                let k = c * chunk + j;
+                if sim.stops[k].deferred {
+                    *slot = deferrer.arrival(sim, robot, k);
                 }
-                let Some(p) = stop.prev else { continue };
-                let prev = &sim.stops[p as usize];
-                let tool = &sim.frames[stop.tool as usize];
-                let (first, second) = arms.split_at_mut(1);
-                let (held, spare) = if live == 0 {
-                    (&first[0], &mut second[0])
-                } else {
-                    (&second[0], &mut first[0])
-                };
-                let carried = match carry {
-                    Some((i, t)) if i == p && t == stop.tool => held.as_ref(),
-                    _ => None,
-                };
-                let start = match carried {
-                    Some(at) => at.tcp,
-                    None => interpolate::end_tcp(robot, &prev.nominal_axes, tool),
-                };
-                let Ok(cart) = Cartesian::new(&start, &stop.goal, &Path::Lin) else {
-                    carry = None;
-                    continue;
-                };
-                let a = interpolate::arrival_into(
-                    robot,
-                    tool,
-                    &cart,
-                    1.0,
-                    (&*prev.nominal_axes, carried),
-                    &stop.nominal_axes,
-                    spare,
-                );
-                *slot = Some(match a {
-                    Ok(a) => {
-                        carry = None;
-                        if a.end == stop.nominal_axes {
-                            carry = Some((k as u32, stop.tool));
-                            live = 1 - live;
-                        }
-                        (a.rate, a.turns)
-                    }
-                    Err(_) => {
-                        carry = None;
-                        (
-                            std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
-                            interpolate::NO_TURNS,
-                        )
-                    }
-                });
             }
         });
     for (stop, rate) in sim.stops.iter_mut().zip(rates) {
         if stop.deferred {
-            stop.arrival = rate.map(|r| r.0);
-            stop.turns = rate.map_or(interpolate::NO_TURNS, |r| r.1);
-            stop.deferred = false;
+            settle(stop, rate);
         }
+    }
+}
+
+/// A deferred stop's arrival made final.
+fn settle(stop: &mut Stop, rate: Deferred) {
+    stop.arrival = rate.map(|r| r.0);
+    stop.turns = rate.map_or(interpolate::NO_TURNS, |r| r.1);
+    stop.deferred = false;
+}
+
+/// The deferred arrivals of consecutive stops, in order. The arm at the end of the stop just
+/// done (`arms[live]`), with its index and tool, is the next stop's start when it starts
+/// there (a CAM path), its TCP bit for bit what `interpolate::end_tcp` of the previous axes
+/// gives. The next end is written in the other slot, so the 430-byte records are never moved.
+#[derive(Default)]
+struct Deferrer {
+    carry: Option<(u32, u32)>,
+    arms: [Option<interpolate::ArmAt>; 2],
+    live: usize,
+}
+
+impl Deferrer {
+    /// The arrival of deferred stop `k` (see [`finish`]).
+    fn arrival(&mut self, sim: &Simulation, robot: &RobotDescription, k: usize) -> Deferred {
+        let stop = &sim.stops[k];
+        let p = stop.prev?;
+        let prev = &sim.stops[p as usize];
+        let tool = &sim.frames[stop.tool as usize];
+        let (first, second) = self.arms.split_at_mut(1);
+        let (held, spare) = if self.live == 0 {
+            (&first[0], &mut second[0])
+        } else {
+            (&second[0], &mut first[0])
+        };
+        let carried = match self.carry {
+            Some((i, t)) if i == p && t == stop.tool => held.as_ref(),
+            _ => None,
+        };
+        let start = match carried {
+            Some(at) => at.tcp,
+            None => interpolate::end_tcp(robot, &prev.nominal_axes, tool),
+        };
+        let Ok(cart) = Cartesian::new(&start, &stop.goal, &Path::Lin) else {
+            self.carry = None;
+            return None;
+        };
+        let a = interpolate::arrival_into(
+            robot,
+            tool,
+            &cart,
+            1.0,
+            (&*prev.nominal_axes, carried),
+            &stop.nominal_axes,
+            spare,
+        );
+        self.carry = None;
+        Some(match a {
+            Ok(a) => {
+                if a.end == stop.nominal_axes {
+                    self.carry = Some((k as u32, stop.tool));
+                    self.live = 1 - self.live;
+                }
+                (a.rate, a.turns)
+            }
+            Err(_) => (
+                std::array::from_fn(|i| stop.nominal_axes[i] - prev.nominal_axes[i]),
+                interpolate::NO_TURNS,
+            ),
+        })
     }
 }
 
@@ -672,5 +703,55 @@ impl<'f> Simulator<'f> {
             }
         }
         Flow::Next
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    proptest::proptest! {
+        /// A window's arrivals, written in place in one pass, are those of the parallel tasks
+        /// of a whole program, to the bit, wherever the tasks are cut.
+        #[test]
+        fn deferred_arrivals_in_place_are_the_tasks(
+            steps in proptest::collection::vec(proptest::array::uniform6(-3.0f64..3.0), 2..40),
+            chunk in 1usize..8,
+        ) {
+            let mut src = String::from(
+                "DEF prog( )\n$BASE = {X 900, Y -300, Z 500}\n$TOOL = {X 0, Y 0, Z 200}\nPTP {A1 0, A2 -80, A3 100, A4 0, A5 60, A6 0}\nLIN {X 100, Y 200, Z 0, A 0, B 0, C 180}\n",
+            );
+            let mut at = [100.0, 200.0, 0.0, 0.0, 0.0, 180.0];
+            for step in &steps {
+                for (a, d) in at.iter_mut().zip(step) {
+                    *a += d;
+                }
+                let [x, y, z, a, b, c] = at;
+                src += &format!("LIN {{X {x}, Y {y}, Z {z}, A {a}, B {b}, C {c}}}\n");
+            }
+            src += "END\n";
+            let ws = Workspace::load((src.as_bytes(), None, "prog.src"), None, None).unwrap();
+            let robot = RobotDescription::kr30ha();
+            let mut sim = Simulator::new(&ws, &robot, &[]);
+            sim.run(None);
+            let out = &sim.out;
+            let walked = || Simulation {
+                stops: out.stops.clone(),
+                frames: out.frames.clone(),
+                ..Simulation::default()
+            };
+            let (mut one, mut tasks) = (walked(), walked());
+            proptest::prop_assert!(one.stops.iter().filter(|s| s.deferred).count() > steps.len() / 2);
+            finish_in(&mut one, &robot, usize::MAX);
+            finish_in(&mut tasks, &robot, chunk);
+            let bits = |s: &Stop| {
+                let arrival = s.arrival.map(|r| r.map(f64::to_bits));
+                let turns = [s.turns.angle_deg, s.turns.at].map(|t| t.map(f64::to_bits));
+                (arrival, turns, s.deferred)
+            };
+            for (a, b) in one.stops.iter().zip(&tasks.stops) {
+                proptest::prop_assert_eq!(bits(a), bits(b));
+            }
+        }
     }
 }

@@ -158,6 +158,9 @@ impl<'f> Simulator<'f> {
         self.state.current = None;
     }
 
+    /// Executes motion statement `s` (`m`). Not inlined into [`Self::stmt`]: every statement
+    /// enters that frame, only motions need this one's (a few kB of poses and records).
+    #[inline(never)]
     pub(super) fn motion(
         &mut self,
         file: FileId,
@@ -264,94 +267,17 @@ impl<'f> Simulator<'f> {
             return;
         };
         // Circular motions: the auxiliary point first.
-        let mut aux_stop = None;
-        let mut circle = None;
-        if let Some(aux_expr) = m.aux() {
-            let Some(aux) = self.position(file, s, aux_expr, scope, "the auxiliary point") else {
-                return;
-            };
-            let (Some(cur), Some(start)) = (current, start_tcp) else {
-                self.lost(file, s, "a circular motion whose start is unknown".into());
-                return;
-            };
-            let Some((aux_prog, aux_goal, _)) =
-                self.complete(&aux, rel, current, &base, &tool, start_tcp.as_ref())
+        let (aux_stop, circle) = if m.aux().is_some() {
+            let frames = (&base, &tool);
+            let start = (current, start_tcp);
+            let Some((i, cart)) = self.aux_point((file, s, m), scope, start, rel, frames, &goal)
             else {
-                self.lost(file, s, "an auxiliary point whose start is unknown".into());
                 return;
             };
-            let cart = match Cartesian::new(
-                &start,
-                &goal,
-                &Path::Circ {
-                    aux: aux_goal.position,
-                },
-            ) {
-                Ok(c) => c,
-                Err(e) => {
-                    self.lost(file, s, e.to_string());
-                    return;
-                }
-            };
-            let u_aux = cart.fraction_at(&aux_goal.position);
-            let aux_pose = Frame {
-                rotation: cart.pose(u_aux).rotation,
-                position: aux_goal.position,
-            };
-            let s_cur = status_turn(&self.robot, &cur.axes).0;
-            let q_aux = match kinematics::inverse(
-                &self.robot,
-                &aux_pose.compose(&tool.inverse()),
-                Select::StatusNearest {
-                    s: s_cur,
-                    near: cur.axes,
-                },
-            ) {
-                Ok(sol) => sol.axes_deg,
-                Err(e) => {
-                    self.unreachable(
-                        file,
-                        s,
-                        format!("the auxiliary point cannot be reached: {e}"),
-                    );
-                    return;
-                }
-            };
-            let mut q_aux = q_aux;
-            let mut turns = interpolate::NO_TURNS;
-            let arrival =
-                match interpolate::arrival_along(&self.robot, &tool, &cart, u_aux, &cur.axes, &q_aux) {
-                    Ok(a) => {
-                        q_aux = a.end;
-                        turns = a.turns;
-                        Some(a.rate)
-                    }
-                    Err(e) => {
-                        self.warn(
-                            file,
-                            s.head,
-                            format!("auxiliary point: {e}; directions from the axis steps"),
-                        );
-                        Some(std::array::from_fn(|i| q_aux[i] - cur.axes[i]))
-                    }
-                };
-            let aux_ref = aux_expr.as_path().filter(|p| p.is_simple()).map(|p| p.root);
-            let stop = Stop {
-                role: Role::Aux,
-                goal: aux_pose,
-                nominal_axes: q_aux.into(),
-                arrival,
-                turns,
-                programmed: aux_prog,
-                origin: aux.origin,
-                reference: aux_ref,
-                prev: cur.stop,
-                compensable: aux.origin.is_some(),
-                ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
-            };
-            aux_stop = Some(self.push_stop(stop));
-            circle = Some(cart);
-        }
+            (Some(i), Some(cart))
+        } else {
+            (None, None)
+        };
         // The controller's axes for the target.
         let q = if let Programmed::Axes(q) = programmed {
             q.into()
@@ -432,114 +358,11 @@ impl<'f> Simulator<'f> {
         if let (Some(ca), Some(cart), Some(cur), Some(aux_i)) =
             (m.angle(), &circle, current, aux_stop)
         {
-            let angle = self.eval(file, &ca.value, scope).as_f64();
-            let ended = angle.and_then(|a| Some((a, cart.with_arc_angle(a, &goal.rotation)?)));
-            let Some((angle, arc)) = ended else {
-                self.lost(
-                    file,
-                    s,
-                    "a circular angle CA not known before run time".into(),
-                );
-                return;
-            };
-            let end = arc.pose(1.0);
-            let s_cur = status_turn(&self.robot, &cur.axes).0;
-            let flange = end.compose(&tool.inverse());
-            let select = Select::StatusNearest {
-                s: s_cur,
-                near: cur.axes,
-            };
-            let q_end = match kinematics::inverse(&self.robot, &flange, select) {
-                Ok(sol) => sol.axes_deg,
-                Err(e) => {
-                    self.unreachable(
-                        file,
-                        s,
-                        format!("the end of the circle (CA) cannot be reached: {e}"),
-                    );
-                    return;
-                }
-            };
-            let walked = interpolate::arrival_along(&self.robot, &tool, &arc, 1.0, &cur.axes, &q_end);
-            let (q_end, arrival, turns) = match walked {
-                Ok(a) => (a.end, Some(a.rate), a.turns),
-                Err(e) => {
-                    self.warn(file, s.head, format!("{e}; directions from the axis steps"));
-                    let steps = std::array::from_fn(|i| q_end[i] - cur.axes[i]);
-                    (q_end, Some(steps), interpolate::NO_TURNS)
-                }
-            };
-            let end_stop = Stop {
-                goal: end,
-                nominal_axes: q_end.into(),
-                arrival,
-                turns,
-                programmed,
-                prev: aux_stop,
-                ..self.stop_of(file, s, m.kind, rel, (&base, &tool))
-            };
-            match ArcMode::of(angle) {
-                ArcMode::Through { whole } => {
-                    let why = if whole {
-                        format!("a whole circle (CA {angle}) ends where it starts: its auxiliary point and target are compensated as a plain circle's, its end keeps the start's command (compensated for the motion into the start, not for the circle's own rotation directions)")
-                    } else {
-                        format!("CA {angle} is within {THROUGH_DEG}° of a whole turn: compensated through the circle's points (auxiliary point and target as a plain circle's), its end only as closely as that circle passes it")
-                    };
-                    self.warn(file, s.head, why);
-                    through = Some(Stop {
-                        role: Role::End,
-                        ..end_stop
-                    });
-                }
-                ArcMode::Construct => {
-                    let (normal, turn) = cart.arc_turn().expect("a circle");
-                    let aux_at = self.out.stops[aux_i as usize].goal.position;
-                    let start = start_tcp.expect("a circle has a start").position;
-                    let sense = interpolate::plane_normal(&start, &aux_at, &end.position, 1.0)
-                        .map_or(1.0, |n| n.dot(&normal).signum());
-                    let in_config = pos.origin.is_some_and(|o| {
-                        self.ws.get(o.file).role == crate::motion::workspace::Role::Config
-                    });
-                    let shared = pos.origin.filter(|_| in_config).map(|o| o.file);
-                    self.warn_unwritable(file, s, pos.origin.is_none(), shared);
-                    // The written circle needs its auxiliary point moved onto it.
-                    let aux_written = self.out.stops[aux_i as usize].compensable;
-                    if !aux_written {
-                        self.warn(
-                            file,
-                            s.head,
-                            "the auxiliary point of this circle (CA) cannot be rewritten, and the circle's end cannot move without it: left unchanged",
-                        );
-                    }
-                    let stop = Stop {
-                        origin: pos.origin,
-                        reference,
-                        compensable: pos.origin.is_some() && !in_config && aux_written,
-                        ..end_stop
-                    };
-                    let idx = self.push_stop(stop);
-                    self.out.arcs.push(crate::motion::CircularAngle {
-                        end: idx,
-                        angle_deg: angle,
-                        aux_deg: (cart.fraction_at(&aux_at) * turn).to_degrees(),
-                        target_deg: turn.to_degrees(),
-                        normal,
-                        sense,
-                        from_points: interpolate::plane_well_defined(
-                            &start,
-                            &aux_at,
-                            &end.position,
-                        ),
-                    });
-                    if let (None, Programmed::Pose(p)) = (rel, programmed) {
-                        self.state.last_abc = [p.a, p.b, p.c];
-                    }
-                    self.state.current = Some(Current {
-                        axes: q_end,
-                        stop: Some(idx),
-                    });
-                    return;
-                }
+            let circle = (&ca.value, cart, start_tcp, cur, aux_i);
+            let target = (&goal, programmed, &pos, reference);
+            match self.arc_end((file, s, m), scope, circle, target, rel, (&base, &tool)) {
+                ArcEnd::Done => return,
+                ArcEnd::Through(end) => through = Some(end),
             }
         }
         let path = if m.kind.is_joint() {
@@ -551,7 +374,13 @@ impl<'f> Simulator<'f> {
         } else {
             Path::Lin
         };
-        if let (Some(start), false) = (start_tcp, path == Path::Ptp) {
+        // A short straight segment: its arrival rate is computed after the walk, in parallel
+        // with all the others (`finish`). It turns by 5° at most, so never by the half turn
+        // warned of below.
+        let short_lin = current.is_some()
+            && path == Path::Lin
+            && start_tcp.is_some_and(|start| interpolate::lin_needs_no_samples(&start, &goal));
+        if let (Some(start), false, false) = (start_tcp, path == Path::Ptp, short_lin) {
             if crate::motion::frame::half_turn_apart(&start.rotation, &goal.rotation) {
                 self.warn(
                     file,
@@ -564,32 +393,15 @@ impl<'f> Simulator<'f> {
         let mut deferred = false;
         let mut turns = interpolate::NO_TURNS;
         let arrival = match (current, start_tcp) {
-            // A short straight segment: its arrival rate is computed after the walk, in
-            // parallel with all the others (`finish`).
-            (Some(_), Some(start))
-                if path == Path::Lin && interpolate::lin_needs_no_samples(&start, &goal) =>
-            {
+            (Some(_), Some(_)) if short_lin => {
                 deferred = true;
                 None
             }
             (Some(cur), Some(start)) => {
-                match interpolate::arrival(&self.robot, &tool, &path, (&start, &cur.axes), (&goal, &q)) {
-                    Ok(a) => {
-                        q = a.end;
-                        // A circle's end: the turns before its auxiliary point are that
-                        // point's (the robot passes it on the arc).
-                        turns = match path {
-                            Path::Circ { aux } => Cartesian::new(&start, &goal, &path)
-                                .map_or(a.turns, |arc| a.turns.after(arc.fraction_at(&aux))),
-                            _ => a.turns,
-                        };
-                        Some(a.rate)
-                    }
-                    Err(e) => {
-                        self.warn(file, s.head, format!("{e}; directions from the axis steps"));
-                        Some(std::array::from_fn(|i| q[i] - cur.axes[i]))
-                    }
-                }
+                let (rate, end, arrived) =
+                    self.sampled_arrival((file, s), &path, &tool, (&start, &cur.axes), (&goal, &q));
+                (q, turns) = (end, arrived);
+                Some(rate)
             }
             _ => None,
         };
@@ -635,16 +447,268 @@ impl<'f> Simulator<'f> {
             stop: Some(idx),
         });
         // A circle compensated through its points ends after its target.
-        if let Some(end) = through {
+        if let Some(mut end) = through {
             let axes = end.nominal_axes.into();
-            let idx = self.push_stop(Stop {
-                prev: Some(idx),
-                ..end
-            });
+            end.prev = Some(idx);
+            let idx = self.push_stop(*end);
             self.state.current = Some(Current {
                 axes,
                 stop: Some(idx),
             });
+        }
+    }
+
+    /// The auxiliary point of circular motion `m` recorded as a stop before its target `goal`,
+    /// with the circle; `None` when `m` is not a circle or (the motion lost, saying why) the
+    /// point is not known. Apart from the motion's body, whose frame every motion enters: its records
+    /// (a stop, the circle) are there only for the rare circle.
+    #[inline(never)]
+    fn aux_point(
+        &mut self,
+        (file, s, m): (FileId, &'f Stmt, &'f Motion),
+        scope: &Scope<'f>,
+        (current, start_tcp): (Option<Current>, Option<Frame>),
+        rel: Option<Rel>,
+        (base, tool): (&Frame, &Frame),
+        goal: &Frame,
+    ) -> Option<(u32, Cartesian)> {
+        let aux_expr = m.aux()?;
+        let aux = self.position(file, s, aux_expr, scope, "the auxiliary point")?;
+        let (Some(cur), Some(start)) = (current, start_tcp) else {
+            self.lost(file, s, "a circular motion whose start is unknown".into());
+            return None;
+        };
+        let Some((aux_prog, aux_goal, _)) =
+            self.complete(&aux, rel, current, base, tool, start_tcp.as_ref())
+        else {
+            self.lost(file, s, "an auxiliary point whose start is unknown".into());
+            return None;
+        };
+        let cart = match Cartesian::new(
+            &start,
+            goal,
+            &Path::Circ {
+                aux: aux_goal.position,
+            },
+        ) {
+            Ok(c) => c,
+            Err(e) => {
+                self.lost(file, s, e.to_string());
+                return None;
+            }
+        };
+        let u_aux = cart.fraction_at(&aux_goal.position);
+        let aux_pose = Frame {
+            rotation: cart.pose(u_aux).rotation,
+            position: aux_goal.position,
+        };
+        let s_cur = status_turn(&self.robot, &cur.axes).0;
+        let q_aux = match kinematics::inverse(
+            &self.robot,
+            &aux_pose.compose(&tool.inverse()),
+            Select::StatusNearest {
+                s: s_cur,
+                near: cur.axes,
+            },
+        ) {
+            Ok(sol) => sol.axes_deg,
+            Err(e) => {
+                self.unreachable(
+                    file,
+                    s,
+                    format!("the auxiliary point cannot be reached: {e}"),
+                );
+                return None;
+            }
+        };
+        let mut q_aux = q_aux;
+        let mut turns = interpolate::NO_TURNS;
+        let arrival =
+            match interpolate::arrival_along(&self.robot, tool, &cart, u_aux, &cur.axes, &q_aux) {
+                Ok(a) => {
+                    q_aux = a.end;
+                    turns = a.turns;
+                    Some(a.rate)
+                }
+                Err(e) => {
+                    self.warn(
+                        file,
+                        s.head,
+                        format!("auxiliary point: {e}; directions from the axis steps"),
+                    );
+                    Some(std::array::from_fn(|i| q_aux[i] - cur.axes[i]))
+                }
+            };
+        let aux_ref = aux_expr.as_path().filter(|p| p.is_simple()).map(|p| p.root);
+        let stop = Stop {
+            role: Role::Aux,
+            goal: aux_pose,
+            nominal_axes: q_aux.into(),
+            arrival,
+            turns,
+            programmed: aux_prog,
+            origin: aux.origin,
+            reference: aux_ref,
+            prev: cur.stop,
+            compensable: aux.origin.is_some(),
+            ..self.stop_of(file, s, m.kind, rel, (base, tool))
+        };
+        Some((self.push_stop(stop), cart))
+    }
+
+    /// Where circular motion `m` with `CA` (`angle_expr`) ends: recorded as a target of its
+    /// own, or, compensated through the circle's points, the end stop to record after the
+    /// target (see [`ArcMode`]). Apart from the motion's body, like [`Self::aux_point`].
+    #[inline(never)]
+    fn arc_end(
+        &mut self,
+        (file, s, m): (FileId, &'f Stmt, &'f Motion),
+        scope: &Scope<'f>,
+        (angle_expr, cart, start_tcp, cur, aux_i): (&'f Expr, &Cartesian, Option<Frame>, Current, u32),
+        (goal, programmed, pos, reference): (&Frame, Programmed, &Pos<'f>, Option<Span>),
+        rel: Option<Rel>,
+        (base, tool): (&Frame, &Frame),
+    ) -> ArcEnd<'f> {
+        let angle = self.eval(file, angle_expr, scope).as_f64();
+        let ended = angle.and_then(|a| Some((a, cart.with_arc_angle(a, &goal.rotation)?)));
+        let Some((angle, arc)) = ended else {
+            self.lost(
+                file,
+                s,
+                "a circular angle CA not known before run time".into(),
+            );
+            return ArcEnd::Done;
+        };
+        let end = arc.pose(1.0);
+        let s_cur = status_turn(&self.robot, &cur.axes).0;
+        let flange = end.compose(&tool.inverse());
+        let select = Select::StatusNearest {
+            s: s_cur,
+            near: cur.axes,
+        };
+        let q_end = match kinematics::inverse(&self.robot, &flange, select) {
+            Ok(sol) => sol.axes_deg,
+            Err(e) => {
+                self.unreachable(
+                    file,
+                    s,
+                    format!("the end of the circle (CA) cannot be reached: {e}"),
+                );
+                return ArcEnd::Done;
+            }
+        };
+        let walked = interpolate::arrival_along(&self.robot, tool, &arc, 1.0, &cur.axes, &q_end);
+        let (q_end, arrival, turns) = match walked {
+            Ok(a) => (a.end, Some(a.rate), a.turns),
+            Err(e) => {
+                self.warn(file, s.head, format!("{e}; directions from the axis steps"));
+                let steps = std::array::from_fn(|i| q_end[i] - cur.axes[i]);
+                (q_end, Some(steps), interpolate::NO_TURNS)
+            }
+        };
+        let end_stop = Stop {
+            goal: end,
+            nominal_axes: q_end.into(),
+            arrival,
+            turns,
+            programmed,
+            prev: Some(aux_i),
+            ..self.stop_of(file, s, m.kind, rel, (base, tool))
+        };
+        match ArcMode::of(angle) {
+            ArcMode::Through { whole } => {
+                let why = if whole {
+                    format!("a whole circle (CA {angle}) ends where it starts: its auxiliary point and target are compensated as a plain circle's, its end keeps the start's command (compensated for the motion into the start, not for the circle's own rotation directions)")
+                } else {
+                    format!("CA {angle} is within {THROUGH_DEG}° of a whole turn: compensated through the circle's points (auxiliary point and target as a plain circle's), its end only as closely as that circle passes it")
+                };
+                self.warn(file, s.head, why);
+                ArcEnd::Through(Box::new(Stop {
+                    role: Role::End,
+                    ..end_stop
+                }))
+            }
+            ArcMode::Construct => {
+                let (normal, turn) = cart.arc_turn().expect("a circle");
+                let aux_at = self.out.stops[aux_i as usize].goal.position;
+                let start = start_tcp.expect("a circle has a start").position;
+                let sense = interpolate::plane_normal(&start, &aux_at, &end.position, 1.0)
+                    .map_or(1.0, |n| n.dot(&normal).signum());
+                let in_config = pos.origin.is_some_and(|o| {
+                    self.ws.get(o.file).role == crate::motion::workspace::Role::Config
+                });
+                let shared = pos.origin.filter(|_| in_config).map(|o| o.file);
+                self.warn_unwritable(file, s, pos.origin.is_none(), shared);
+                // The written circle needs its auxiliary point moved onto it.
+                let aux_written = self.out.stops[aux_i as usize].compensable;
+                if !aux_written {
+                    self.warn(
+                        file,
+                        s.head,
+                        "the auxiliary point of this circle (CA) cannot be rewritten, and the circle's end cannot move without it: left unchanged",
+                    );
+                }
+                let stop = Stop {
+                    origin: pos.origin,
+                    reference,
+                    compensable: pos.origin.is_some() && !in_config && aux_written,
+                    ..end_stop
+                };
+                let idx = self.push_stop(stop);
+                self.out.arcs.push(crate::motion::CircularAngle {
+                    end: idx,
+                    angle_deg: angle,
+                    aux_deg: (cart.fraction_at(&aux_at) * turn).to_degrees(),
+                    target_deg: turn.to_degrees(),
+                    normal,
+                    sense,
+                    from_points: interpolate::plane_well_defined(
+                        &start,
+                        &aux_at,
+                        &end.position,
+                    ),
+                });
+                if let (None, Programmed::Pose(p)) = (rel, programmed) {
+                    self.state.last_abc = [p.a, p.b, p.c];
+                }
+                self.state.current = Some(Current {
+                    axes: q_end,
+                    stop: Some(idx),
+                });
+                ArcEnd::Done
+            }
+        }
+    }
+
+    /// How the axes arrive at `goal` along `path` from `start` (TCP, axes): the rates, the
+    /// end axes reached by following the path and the turns inside; from the axis steps
+    /// (saying so) where the path cannot be followed. Apart from the motion's body, like
+    /// [`Self::aux_point`]: most path segments are short and take their arrival after the walk.
+    #[inline(never)]
+    fn sampled_arrival(
+        &mut self,
+        (file, s): (FileId, &Stmt),
+        path: &Path,
+        tool: &Frame,
+        start: (&Frame, &[f64; 6]),
+        (goal, q): (&Frame, &[f64; 6]),
+    ) -> ([f64; 6], [f64; 6], interpolate::Turns) {
+        match interpolate::arrival(&self.robot, tool, path, start, (goal, q)) {
+            Ok(a) => {
+                // A circle's end: the turns before its auxiliary point are that point's (the
+                // robot passes it on the arc).
+                let turns = match *path {
+                    Path::Circ { aux } => Cartesian::new(start.0, goal, path)
+                        .map_or(a.turns, |arc| a.turns.after(arc.fraction_at(&aux))),
+                    _ => a.turns,
+                };
+                (a.rate, a.end, turns)
+            }
+            Err(e) => {
+                self.warn(file, s.head, format!("{e}; directions from the axis steps"));
+                let steps = std::array::from_fn(|i| q[i] - start.1[i]);
+                (steps, *q, interpolate::NO_TURNS)
+            }
         }
     }
 
@@ -838,6 +902,15 @@ fn geometric_operand(e: &Expr) -> Option<Span> {
 /// `2|sin(CA/2)|` — more than 10 times it, there (sin 2.866° = 0.05) — and at a whole turn
 /// the chord vanishes and fixes nothing.
 pub const THROUGH_DEG: f64 = 5.73;
+
+/// How a circular motion with `CA` ends (see `Simulator::arc_end`).
+enum ArcEnd<'f> {
+    /// Recorded, or the motion lost: nothing more to record for it.
+    Done,
+    /// Compensated through the circle's points: the end, recorded after the target (boxed:
+    /// a rare record kept off the motion's frame).
+    Through(Box<Stop<'f>>),
+}
 
 /// How a circular motion with `CA` is compensated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
