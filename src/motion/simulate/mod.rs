@@ -313,8 +313,9 @@ type Deferred = Option<([f64; 6], interpolate::Turns)>;
 /// and the start the walk recorded (the previous stop's axes). A streamed window's stops fit
 /// in one task: they are written in place, without a table of rates.
 fn finish(sim: &mut Simulation, robot: &RobotDescription) {
-    /// Stops per task: consecutive stops share a chain evaluation (see [`Deferrer`]).
-    const CHUNK: usize = 2048;
+    /// Stops per task: consecutive stops share a chain evaluation (see [`Deferrer`]); a
+    /// streamed window's (`krl::StreamOptions::window` and the ghosts before them) fit in one.
+    const CHUNK: usize = 4096;
     finish_in(sim, robot, CHUNK);
 }
 
