@@ -593,17 +593,18 @@ fn solve_chains(
     let n = slots.len();
     let head = ((CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN).min(n);
     let (head_slots, rest) = slots.split_at_mut(head);
-    let work = |from: usize, slots: &mut [Outcome], mut chain: solve::Chain| -> solve::Chain {
+    let work = |from: usize, slots: &mut [Outcome], chain: solve::Chain| -> solve::Chain {
+        let mut along = solve::Along::new(ctx.model, chain);
         for (k, slot) in slots.iter_mut().enumerate() {
             let i = from + k;
             let engaged = nominal[i].map(AxisHistory::engaged);
             let target = &ctx.targets[i];
-            let chain = Some(&mut chain);
+            let chain = Some(&mut along);
             first_pass(
                 ctx.model, ctx.tools, target, &engaged, ctx.method, chain, slot,
             );
         }
-        chain
+        along.chain
     };
     // The chain continued from the segment before runs beside the fresh ones.
     let continued = chains.open;
@@ -721,7 +722,7 @@ fn solve_target(
     start: [f64; 6],
     hold: [bool; 6],
     method: Method,
-    chain: Option<&mut solve::Chain>,
+    chain: Option<&mut solve::Along>,
 ) -> Result<(solve::Solution, [bool; 6]), TargetError> {
     // Equation (3) is taken at the programmed (nominal) command, whatever the start.
     let start = if method == Method::OneStep && !hold.iter().any(|&h| h) {
@@ -733,7 +734,7 @@ fn solve_target(
         goal: target.goal,
         tool,
         start: start.into(),
-        histories: *histories,
+        histories,
         hold,
     };
     let robot = &model.robot;
@@ -748,7 +749,7 @@ fn solve_target(
     };
     let mut sol = match chain {
         Some(chain) if method == Method::Iterate && !hold.contains(&true) => {
-            match solve::solve_in_chain(model, &problem, chain) {
+            match chain.solve(&problem) {
                 Ok(s) => s,
                 Err(e) if near_singular() => *e.best,
                 Err(e) => return Err(e.into()),
@@ -841,18 +842,18 @@ fn first_pass(
     target: &Target,
     histories: &[AxisHistory; 6],
     method: Method,
-    mut chain: Option<&mut solve::Chain>,
+    mut chain: Option<&mut solve::Along>,
     out: &mut Outcome,
 ) {
     let tool = &tools[target.tool as usize];
     if let Some(c) = chain.as_deref_mut() {
-        c.follow_tool(target.tool);
+        c.chain.follow_tool(target.tool);
     }
     let directions = histories.map(|h| h.simple_direction());
     *out = Outcome::unsolved(*target.nominal_axes, directions);
     if !target.compensate {
         if let Some(c) = chain {
-            c.forget();
+            c.chain.forget();
         }
         out.before = tcp_error(model, tool, &target.nominal_axes, histories, &target.goal);
         out.residual = out.before;
@@ -868,7 +869,7 @@ fn first_pass(
         method,
         chain.as_deref_mut(),
     );
-    if let Some(c) = chain {
+    if let Some(c) = chain.map(|c| &mut c.chain) {
         match &solved {
             Ok((sol, held)) if !held.contains(&true) => c.record(
                 std::array::from_fn(|i| sol.axes_deg[i] - target.nominal_axes[i]),
@@ -1298,10 +1299,7 @@ fn settle_one(
     let axes_deg = o.axes_deg.into();
     match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
-        (Some(turns), Some(p)) => {
-            *state = *p;
-            state.advance_through(&turns.angle_deg, axes_deg);
-        }
+        (Some(turns), Some(p)) => state.advance_from(p, &turns.angle_deg, axes_deg),
         _ => {
             state.axes_deg = axes_deg;
             state.history = arrival_histories(ctx, k, previous, o, outcomes);
