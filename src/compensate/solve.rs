@@ -22,7 +22,7 @@
 //! `--one-step` is the paper's equation (3) literally: `p_c = p* − (p̂(p*) − p*)` (orientation
 //! likewise, as a world-frame rotation) followed by an exact (iterated) nominal IK.
 
-use std::cell::{Cell, RefCell};
+use std::cell::RefCell;
 
 use nalgebra::{Matrix6, Vector3, Vector6};
 
@@ -59,8 +59,9 @@ pub struct Predicted<'a> {
     /// The chain's fixed part, when only the angle slots vary (see [`LinkBlocks`]).
     blocks: Option<&'a LinkBlocks>,
     /// The last tool position (its bits) with the fixed errors' tool (see [`Self::tool`]):
-    /// a solve evaluates one tool at every command.
-    fixed_tool: Cell<Option<([u64; 3], Vector3<f64>)>>,
+    /// a solve evaluates one tool at every command. Compared where it is kept: a `Cell`'s
+    /// copy of it, read back in wider loads than it was stored with, stalled every evaluation.
+    fixed_tool: RefCell<Option<([u64; 3], Vector3<f64>)>>,
 }
 
 impl<'a> Predicted<'a> {
@@ -81,7 +82,7 @@ impl<'a> Predicted<'a> {
             trig: RefCell::default(),
             cells: RefCell::default(),
             blocks: model.link_blocks(),
-            fixed_tool: Cell::new(None),
+            fixed_tool: RefCell::new(None),
         }
     }
 
@@ -96,12 +97,15 @@ impl<'a> Predicted<'a> {
 
     /// The position of [`Self::tool`] with the fixed errors, kept for the next evaluation.
     fn fixed_tool_position(&self, tool: &Frame) -> Vector3<f64> {
-        let key = tool.position.map(f64::to_bits).into();
-        match self.fixed_tool.get() {
-            Some((k, position)) if k == key => position,
+        // Bit by bit against the tool's own numbers (a key array built here stalled likewise).
+        let same = |k: &[u64; 3]| (0..3).all(|i| k[i] == tool.position[i].to_bits());
+        let mut kept = self.fixed_tool.borrow_mut();
+        match &*kept {
+            Some((k, position)) if same(k) => *position,
             _ => {
                 let position = self.model.tool_as_identified(&tool.position, self.fixed);
-                self.fixed_tool.set(Some((key, position)));
+                let key = tool.position.map(f64::to_bits).into();
+                *kept = Some((key, position));
                 position
             }
         }
