@@ -479,6 +479,9 @@ fn solve_warm_or_afresh(
 }
 
 /// The solution at the start when the start already meets the goal, else the error there.
+/// Inlined: returned through memory, the error was read back in wider loads than the
+/// callee stored it with (a store-forwarding stall at every warm start).
+#[inline(always)]
 fn at_start(arm: &Predicted, problem: &Problem) -> Result<Solution, Vector6<f64>> {
     let e0 = pose::error(&arm.tcp(&problem.start, problem.tool), &problem.goal);
     if converged(&e0) {
