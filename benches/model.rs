@@ -80,14 +80,15 @@ fn solve_one_target(c: &mut Criterion<ThreadCpuTime>) {
     ]));
     let nominal = Nominal(&model.robot);
     // Away from the wrist singularity (|A5| ≥ 10°), as CAM paths are.
-    let problems: Vec<Problem> = states()
-        .into_iter()
+    let states = states();
+    let problems: Vec<Problem> = states
+        .iter()
         .filter(|s| s.axes_deg[4].abs() >= 10.0)
         .map(|s| Problem {
             goal: nominal.tcp(&s.axes_deg, &tool),
             tool: &tool,
             start: s.axes_deg.into(),
-            histories: s.history,
+            histories: &s.history,
             hold: [false; 6],
         })
         .collect();

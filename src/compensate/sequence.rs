@@ -26,6 +26,7 @@ use crate::motion::interpolate;
 use crate::motion::nominal::{status_turns, Arm, Nominal};
 use nalgebra::{Vector3, Vector6};
 use std::cell::{Cell, RefCell};
+use std::mem::MaybeUninit;
 
 pub use crate::motion::interpolate::REST_DEG;
 
@@ -455,7 +456,7 @@ impl FirstPasses {
 /// A segment's outcomes with [`LOOK_BACK`] slots in front of the targets' for the history's:
 /// the re-check reads the history and the targets as one slice, and the targets' outcomes
 /// (200-byte records, a million in a CAM program) are written once, in place, by the first
-/// passes, never copied behind the history's.
+/// passes, never copied behind the history's, nor filled with a placeholder first.
 struct Timeline {
     slots: Vec<Outcome>,
     /// Where the history's outcomes begin (`LOOK_BACK` until [`Self::behind`] puts them in).
@@ -463,19 +464,25 @@ struct Timeline {
 }
 
 impl Timeline {
-    fn for_targets(n: usize) -> Timeline {
+    /// The outcomes of `n` targets, which `solve` writes, every one of them, into the slots it
+    /// is given (its panic leaves them unread).
+    fn solved(n: usize, solve: impl FnOnce(&mut [MaybeUninit<Outcome>])) -> Timeline {
+        let mut slots = Vec::with_capacity(LOOK_BACK + n);
+        slots.resize(LOOK_BACK, Outcome::placeholder());
+        solve(&mut slots.spare_capacity_mut()[..n]);
+        // SAFETY: the capacity is LOOK_BACK + n, and `solve` wrote the n slots after the first
+        // LOOK_BACK (`solve_chains` visits every slot, and `first_pass` writes its slot before
+        // anything else). Filled with a placeholder first instead, every slot cost a 200-byte
+        // copy, a percent of a CAM program's CPU time (measured in the commit making this).
+        unsafe { slots.set_len(LOOK_BACK + n) };
         Timeline {
-            slots: vec![Outcome::placeholder(); LOOK_BACK + n],
+            slots,
             first: LOOK_BACK,
         }
     }
 
     fn targets(&self) -> &[Outcome] {
         &self.slots[LOOK_BACK..]
-    }
-
-    fn targets_mut(&mut self) -> &mut [Outcome] {
-        &mut self.slots[LOOK_BACK..]
     }
 
     /// Puts the outcomes of `history` (at most [`LOOK_BACK`]) just before the targets': the
@@ -570,9 +577,10 @@ pub fn first_passes(
     let nominal_signs: Vec<Signs> = targets.iter().map(|t| signs(t.arrival)).collect();
     let nominal = directions_after(&nominal_signs, nominal_start);
     // Pass 2: every target solved with the plays engaged on the nominal flanks.
-    let mut outcomes = Timeline::for_targets(targets.len());
     let ctx = Ctx::new(model, tools, &[], targets, options.method);
-    solve_chains(&ctx, &nominal, chains, run, outcomes.targets_mut());
+    let outcomes = Timeline::solved(targets.len(), |slots| {
+        solve_chains(&ctx, &nominal, chains, run, slots)
+    });
     let commands = place_commands(&ctx, outcomes.targets(), run);
     FirstPasses {
         outcomes,
@@ -581,29 +589,32 @@ pub fn first_passes(
     }
 }
 
-/// Solves `targets` (outcomes into `slots`) in their chains of warm starts, each worked in
-/// order, the first continuing the open one of `chains`, which then moves on past them.
+/// Solves `targets` (outcomes into `slots`, every one written) in their chains of warm
+/// starts, each worked in order, the first continuing the open one of `chains`, which then
+/// moves on past them.
 fn solve_chains(
     ctx: &Ctx,
     nominal: &[[Direction; 6]],
     chains: &mut Chains,
     run: Executor,
-    slots: &mut [Outcome],
+    slots: &mut [MaybeUninit<Outcome>],
 ) {
     let n = slots.len();
     let head = ((CHAIN - (chains.ordinal % CHAIN as u64) as usize) % CHAIN).min(n);
     let (head_slots, rest) = slots.split_at_mut(head);
-    let work = |from: usize, slots: &mut [Outcome], mut chain: solve::Chain| -> solve::Chain {
+    type Slots<'s> = &'s mut [MaybeUninit<Outcome>];
+    let work = |from: usize, slots: Slots, chain: solve::Chain| -> solve::Chain {
+        let mut along = solve::Along::new(ctx.model, chain);
         for (k, slot) in slots.iter_mut().enumerate() {
             let i = from + k;
             let engaged = nominal[i].map(AxisHistory::engaged);
             let target = &ctx.targets[i];
-            let chain = Some(&mut chain);
+            let chain = Some(&mut along);
             first_pass(
                 ctx.model, ctx.tools, target, &engaged, ctx.method, chain, slot,
             );
         }
-        chain
+        along.chain
     };
     // The chain continued from the segment before runs beside the fresh ones.
     let continued = chains.open;
@@ -721,7 +732,7 @@ fn solve_target(
     start: [f64; 6],
     hold: [bool; 6],
     method: Method,
-    chain: Option<&mut solve::Chain>,
+    chain: Option<&mut solve::Along>,
 ) -> Result<(solve::Solution, [bool; 6]), TargetError> {
     // Equation (3) is taken at the programmed (nominal) command, whatever the start.
     let start = if method == Method::OneStep && !hold.iter().any(|&h| h) {
@@ -733,7 +744,7 @@ fn solve_target(
         goal: target.goal,
         tool,
         start: start.into(),
-        histories: *histories,
+        histories,
         hold,
     };
     let robot = &model.robot;
@@ -748,7 +759,7 @@ fn solve_target(
     };
     let mut sol = match chain {
         Some(chain) if method == Method::Iterate && !hold.contains(&true) => {
-            match solve::solve_in_chain(model, &problem, chain) {
+            match chain.solve(&problem) {
                 Ok(s) => s,
                 Err(e) if near_singular() => *e.best,
                 Err(e) => return Err(e.into()),
@@ -841,18 +852,19 @@ fn first_pass(
     target: &Target,
     histories: &[AxisHistory; 6],
     method: Method,
-    mut chain: Option<&mut solve::Chain>,
-    out: &mut Outcome,
+    mut chain: Option<&mut solve::Along>,
+    out: &mut MaybeUninit<Outcome>,
 ) {
+    let directions = histories.map(|h| h.simple_direction());
+    // Written first, whatever follows (`Timeline::solved` relies on it).
+    let out = out.write(Outcome::unsolved(*target.nominal_axes, directions));
     let tool = &tools[target.tool as usize];
     if let Some(c) = chain.as_deref_mut() {
-        c.follow_tool(target.tool);
+        c.chain.follow_tool(target.tool);
     }
-    let directions = histories.map(|h| h.simple_direction());
-    *out = Outcome::unsolved(*target.nominal_axes, directions);
     if !target.compensate {
         if let Some(c) = chain {
-            c.forget();
+            c.chain.forget();
         }
         out.before = tcp_error(model, tool, &target.nominal_axes, histories, &target.goal);
         out.residual = out.before;
@@ -868,7 +880,7 @@ fn first_pass(
         method,
         chain.as_deref_mut(),
     );
-    if let Some(c) = chain {
+    if let Some(c) = chain.map(|c| &mut c.chain) {
         match &solved {
             Ok((sol, held)) if !held.contains(&true) => c.record(
                 std::array::from_fn(|i| sol.axes_deg[i] - target.nominal_axes[i]),
@@ -1298,10 +1310,7 @@ fn settle_one(
     let axes_deg = o.axes_deg.into();
     match (settled.flatten(), previous) {
         // The turns the settling worked out for this very command.
-        (Some(turns), Some(p)) => {
-            *state = *p;
-            state.advance_through(&turns.angle_deg, axes_deg);
-        }
+        (Some(turns), Some(p)) => state.advance_from(p, &turns.angle_deg, axes_deg),
         _ => {
             state.axes_deg = axes_deg;
             state.history = arrival_histories(ctx, k, previous, o, outcomes);

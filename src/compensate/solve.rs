@@ -22,7 +22,7 @@
 //! `--one-step` is the paper's equation (3) literally: `p_c = p* − (p̂(p*) − p*)` (orientation
 //! likewise, as a world-frame rotation) followed by an exact (iterated) nominal IK.
 
-use std::cell::{Cell, RefCell};
+use std::cell::RefCell;
 
 use nalgebra::{Matrix6, Vector3, Vector6};
 
@@ -59,35 +59,53 @@ pub struct Predicted<'a> {
     /// The chain's fixed part, when only the angle slots vary (see [`LinkBlocks`]).
     blocks: Option<&'a LinkBlocks>,
     /// The last tool position (its bits) with the fixed errors' tool (see [`Self::tool`]):
-    /// a solve evaluates one tool at every command.
-    fixed_tool: Cell<Option<([u64; 3], Vector3<f64>)>>,
+    /// a solve evaluates one tool at every command. Compared where it is kept: a `Cell`'s
+    /// copy of it, read back in wider loads than it was stored with, stalled every evaluation.
+    fixed_tool: RefCell<Option<([u64; 3], Vector3<f64>)>>,
 }
 
 impl<'a> Predicted<'a> {
     pub fn new(model: &'a Model, histories: [AxisHistory; 6]) -> Self {
+        Predicted::at(model, &histories)
+    }
+
+    /// [`Self::new`] from borrowed histories (copied once, into the state).
+    fn at(model: &'a Model, histories: &[AxisHistory; 6]) -> Self {
         Predicted {
             model,
             state: RefCell::new(AxisState {
                 axes_deg: [0.0; 6],
-                history: histories,
+                history: *histories,
                 time_s: 0.0,
             }),
             fixed: model.fixed_errors_at_time_zero(),
             trig: RefCell::default(),
             cells: RefCell::default(),
             blocks: model.link_blocks(),
-            fixed_tool: Cell::new(None),
+            fixed_tool: RefCell::new(None),
         }
+    }
+
+    /// The model at the histories of the next target of a chain, as a new one would be but
+    /// for what only speeds it up (the tables' cells, the tool's position): the joint sines
+    /// and cosines are set again at its first evaluation, as a new one's are, so that its
+    /// results are a new one's to the bit.
+    fn renew(&self, histories: &[AxisHistory; 6]) {
+        self.state.borrow_mut().history = *histories;
+        *self.trig.borrow_mut() = JointTrig::default();
     }
 
     /// The position of [`Self::tool`] with the fixed errors, kept for the next evaluation.
     fn fixed_tool_position(&self, tool: &Frame) -> Vector3<f64> {
-        let key = tool.position.map(f64::to_bits).into();
-        match self.fixed_tool.get() {
-            Some((k, position)) if k == key => position,
+        // Bit by bit against the tool's own numbers (a key array built here stalled likewise).
+        let same = |k: &[u64; 3]| (0..3).all(|i| k[i] == tool.position[i].to_bits());
+        let mut kept = self.fixed_tool.borrow_mut();
+        match &*kept {
+            Some((k, position)) if same(k) => *position,
             _ => {
                 let position = self.model.tool_as_identified(&tool.position, self.fixed);
-                self.fixed_tool.set(Some((key, position)));
+                let key = tool.position.map(f64::to_bits).into();
+                *kept = Some((key, position));
                 position
             }
         }
@@ -243,7 +261,7 @@ pub struct Problem<'a> {
     pub start: AxisAngles,
     /// Each axis's history on arrival: the flank its gear play is engaged on
     /// ([`AxisHistory::engaged`]), or, for an axis held still, where its play stands.
-    pub histories: [AxisHistory; 6],
+    pub histories: &'a [AxisHistory; 6],
     /// Axes kept at their `start` value.
     pub hold: [bool; 6],
 }
@@ -296,13 +314,13 @@ pub fn predicted_error(
     tool: &Frame,
     goal: &Frame,
 ) -> Vector6<f64> {
-    let arm = Predicted::new(model, *histories);
+    let arm = Predicted::at(model, histories);
     pose::error(&arm.tcp(axes, tool), goal)
 }
 
 /// Solves `problem` with the calibrated model.
 pub fn solve(model: &Model, problem: &Problem, method: Method) -> Result<Solution, SolveError> {
-    let arm = Predicted::new(model, problem.histories);
+    let arm = Predicted::at(model, problem.histories);
     if method == Method::OneStep && !problem.hold.iter().any(|&h| h) {
         return one_step(&arm, problem);
     }
@@ -327,14 +345,12 @@ const WARM_EVALUATIONS: u32 = 3;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Chain {
     jacobian: Option<Lu6>,
-    /// The last two targets solved, newest first.
+    /// The last two targets solved, the newest at `newest` (each recorded in place: they
+    /// are 150-byte records).
     recent: [Option<Solved>; 2],
+    newest: usize,
     /// The tool of the targets (another tool moves the TCP elsewhere: the chain starts over).
     tool: Option<u32>,
-    /// The tables' cells of the last target's last evaluation: the next target is
-    /// nearby, its first lookup starts from them (a hint only: `Grid::locate_near` finds the
-    /// same cell from any).
-    cells: Cells,
 }
 
 /// A target solved along a [`Chain`].
@@ -362,12 +378,18 @@ impl Chain {
     /// Records the target just solved, `correction` its `q − q_nominal`, `initial` its error
     /// at the nominal command and `residual` at the solution.
     pub fn record(&mut self, correction: [f64; 6], initial: Vector6<f64>, residual: Vector6<f64>) {
-        let solved = Solved {
+        self.newest ^= 1;
+        self.recent[self.newest] = Some(Solved {
             correction,
             initial,
             residual,
-        };
-        self.recent = [Some(solved), self.recent[0]];
+        });
+    }
+
+    /// The last two targets solved, newest first.
+    fn last_two(&self) -> (Option<&Solved>, Option<&Solved>) {
+        let (a, b) = (&self.recent[self.newest], &self.recent[self.newest ^ 1]);
+        (a.as_ref(), b.as_ref())
     }
 
     /// A target not solved plainly: the next prediction starts over (the Jacobian stays).
@@ -380,8 +402,9 @@ impl Chain {
     /// anywhere within the tolerance would otherwise pass its 0.1 µm on, tripled by the
     /// extrapolation. All of the Jacobian's shares are taken in one solve.
     fn predict(&self, lu: &Lu6, nominal: &[f64; 6], e0: &Vector6<f64>) -> Option<[f64; 6]> {
-        let a = self.recent[0]?;
-        let (dq, de): ([f64; 6], Vector6<f64>) = match self.recent[1] {
+        let (a, b) = self.last_two();
+        let a = a?;
+        let (dq, de): ([f64; 6], Vector6<f64>) = match b {
             Some(b) => (
                 std::array::from_fn(|i| 2.0 * a.correction[i] - b.correction[i]),
                 e0 - 2.0 * a.initial + b.initial + 2.0 * a.residual - b.residual,
@@ -399,11 +422,33 @@ pub fn solve_in_chain(
     problem: &Problem,
     chain: &mut Chain,
 ) -> Result<Solution, SolveError> {
-    let arm = Predicted::new(model, problem.histories);
-    *arm.cells.borrow_mut() = chain.cells;
-    let solved = solve_warm_or_afresh(&arm, problem, chain);
-    chain.cells = *arm.cells.borrow();
-    solved
+    let arm = Predicted::at(model, problem.histories);
+    solve_warm_or_afresh(&arm, problem, chain)
+}
+
+/// A [`Chain`] worked in order on one model evaluator, which carries from one target to the
+/// next the tables' cells of the last evaluation (the next target is nearby, its first
+/// lookup starts from them; a hint only: `Grid::locate_near` finds the same cell from any):
+/// [`solve_in_chain`] target after target, without a new evaluator for each.
+pub struct Along<'a> {
+    pub chain: Chain,
+    arm: Predicted<'a>,
+}
+
+impl<'a> Along<'a> {
+    /// `chain` continued on `model`.
+    pub fn new(model: &'a Model, chain: Chain) -> Along<'a> {
+        Along {
+            chain,
+            arm: Predicted::new(model, [AxisHistory::unmoved(); 6]),
+        }
+    }
+
+    /// [`solve_in_chain`] of the chain's next target.
+    pub fn solve(&mut self, problem: &Problem) -> Result<Solution, SolveError> {
+        self.arm.renew(problem.histories);
+        solve_warm_or_afresh(&self.arm, problem, &mut self.chain)
+    }
 }
 
 /// [`solve_in_chain`] with the model at the target's histories.
@@ -413,7 +458,7 @@ fn solve_warm_or_afresh(
     chain: &mut Chain,
 ) -> Result<Solution, SolveError> {
     let goal = problem.newton_goal();
-    let warm = chain.recent[0].is_some() && !problem.hold.contains(&true);
+    let warm = chain.last_two().0.is_some() && !problem.hold.contains(&true);
     if let Some(lu) = chain.jacobian.as_ref().filter(|_| warm) {
         let e0 = match at_start(arm, problem) {
             Ok(there) => return Ok(there),
@@ -434,6 +479,9 @@ fn solve_warm_or_afresh(
 }
 
 /// The solution at the start when the start already meets the goal, else the error there.
+/// Inlined: returned through memory, the error was read back in wider loads than the
+/// callee stored it with (a store-forwarding stall at every warm start).
+#[inline(always)]
 fn at_start(arm: &Predicted, problem: &Problem) -> Result<Solution, Vector6<f64>> {
     let e0 = pose::error(&arm.tcp(&problem.start, problem.tool), &problem.goal);
     if converged(&e0) {

@@ -93,6 +93,20 @@ impl AxisState {
         next
     }
 
+    /// [`Self::then_through`] of `previous`, written into `self` (its old value unread): axis
+    /// by axis, not by a copy of the whole 400-byte record first.
+    pub fn advance_from(&mut self, previous: &AxisState, turns: &[f64; 6], axes_deg: [f64; 6]) {
+        for (n, &turn) in turns.iter().enumerate() {
+            self.history[n] = previous.history[n];
+            self.history[n].push(previous.axes_deg[n]);
+            if turn.is_finite() {
+                self.history[n].push(turn);
+            }
+        }
+        self.axes_deg = axes_deg;
+        self.time_s = previous.time_s;
+    }
+
     /// [`Self::then_through`] in place (the state is a 400-byte record).
     pub fn advance_through(&mut self, turns: &[f64; 6], axes_deg: [f64; 6]) {
         for (n, &turn) in turns.iter().enumerate() {
@@ -102,5 +116,33 @@ impl AxisState {
             }
         }
         self.axes_deg = axes_deg;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// [`AxisState::advance_from`] writes the state [`AxisState::then_through`] returns,
+        /// whatever the slot held before: histories of any memory, turns or none (NaN).
+        #[test]
+        fn advancing_from_a_state_is_then_through(
+            path in prop::collection::vec(prop::array::uniform6(-3.0f64..3.0), 1..9),
+            turns in prop::array::uniform6(prop_oneof![Just(f64::NAN), -3.0f64..3.0]),
+            to in prop::array::uniform6(-3.0f64..3.0),
+            time_s in 0.0f64..10.0,
+            stale in prop::array::uniform6(-3.0f64..3.0),
+        ) {
+            let mut previous = AxisState::new(path[0]);
+            for axes in &path[1..] {
+                previous.advance_through(&[f64::NAN; 6], *axes);
+            }
+            previous.time_s = time_s;
+            let mut slot = AxisState::with_directions(stale, [Direction::Negative; 6]);
+            slot.advance_from(&previous, &turns, to);
+            prop_assert_eq!(slot, previous.then_through(&turns, to));
+        }
     }
 }

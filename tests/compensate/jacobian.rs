@@ -186,7 +186,7 @@ fn one_step_reaches_the_tolerance() {
                 goal: nominal.tcp(&axes, &tool),
                 tool: &tool,
                 start: axes.into(),
-                histories: dirs,
+                histories: &dirs,
                 hold: [false; 6],
             };
             let sol = solve::solve(&model, &problem, Method::Iterate).unwrap();
@@ -273,11 +273,12 @@ fn warm_starts_along_a_path_meet_the_tolerance() {
         if k >= 100 {
             dirs[0] = Negative;
         }
+        let histories = dirs.map(AxisHistory::engaged);
         let problem = Problem {
             goal,
             tool: &tool,
             start: axes.into(),
-            histories: dirs.map(AxisHistory::engaged),
+            histories: &histories,
             hold: [false; 6],
         };
         let warm = solve::solve_in_chain(&model, &problem, &mut chain).unwrap();
@@ -287,7 +288,7 @@ fn warm_starts_along_a_path_meet_the_tolerance() {
             warm.initial,
             warm.residual,
         );
-        let left = solve::predicted_error(&model, &problem.histories, &warm.axes_deg, &tool, &goal);
+        let left = solve::predicted_error(&model, &histories, &warm.axes_deg, &tool, &goal);
         assert!(solve::converged(&left), "target {k}: {left:?}");
         assert!(
             (left - warm.residual).norm() < 1e-9,
@@ -345,4 +346,69 @@ fn the_angle_only_fast_path_predicts_the_whole_model() {
         smooth_model().link_blocks().is_none(),
         "a tilt effect moves tilt slots"
     );
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config::with_cases(24))]
+    /// A chain worked on one evaluator ([`solve::Along`], which keeps its table cells and tool
+    /// from one target to the next) solves every target as a new evaluator per target does
+    /// ([`solve::solve_in_chain`]), to the bit: along a random path, with the backlash
+    /// branches switching, the tool changing and targets forgotten, on the paper's model
+    /// (its fast path) and on a model with a tilt and compliance (the general path).
+    #[test]
+    fn one_evaluator_along_a_chain_solves_as_new_ones(
+        pose in 0usize..3,
+        step in proptest::array::uniform3(-3.0f64..3.0),
+        turn in 0.0f64..2e-3,
+        events in proptest::collection::vec(0u8..8, 40),
+        full in proptest::bool::ANY,
+    ) {
+        use Direction::{Negative, Positive};
+        let model = if full { full_model() } else { handset() };
+        let tools = [tool(), Frame { position: Vector3::new(30.0, 10.0, 250.0), ..tool() }];
+        let origin = Nominal(&model.robot).tcp(&POSES[pose], &tools[0]);
+        let (mut fresh, mut along) = (solve::Chain::default(), solve::Along::new(&model, solve::Chain::default()));
+        let (mut axes, mut dirs, mut t) = (POSES[pose], [Positive; 6], 0usize);
+        for (k, &event) in events.iter().enumerate() {
+            match event {
+                0 => dirs[k % 6] = if dirs[k % 6] == Positive { Negative } else { Positive },
+                1 => t = 1 - t,
+                _ => {}
+            }
+            let goal = Frame {
+                rotation: origin.rotation * nalgebra::Rotation3::from_euler_angles(turn * k as f64, 0.0, 0.0).into_inner(),
+                position: origin.position + Vector3::from(step) * k as f64,
+            };
+            let Ok(ik) = nominal::local_ik(&model.robot, &goal, &tools[t], &axes) else { break };
+            axes = ik.axes_deg;
+            let histories = dirs.map(AxisHistory::engaged);
+            let problem = Problem { goal, tool: &tools[t], start: axes.into(), histories: &histories, hold: [false; 6] };
+            fresh.follow_tool(t as u32);
+            along.chain.follow_tool(t as u32);
+            let a = solve::solve_in_chain(&model, &problem, &mut fresh);
+            let b = along.solve(&problem);
+            let (a, b) = match (a, b) {
+                (Ok(a), Ok(b)) => (a, b),
+                (a, b) => {
+                    proptest::prop_assert_eq!(a.is_ok(), b.is_ok(), "target {}", k);
+                    fresh.forget();
+                    along.chain.forget();
+                    continue;
+                }
+            };
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            proptest::prop_assert_eq!(bits(&a.axes_deg), bits(&b.axes_deg), "target {}", k);
+            proptest::prop_assert_eq!(bits(a.residual.as_slice()), bits(b.residual.as_slice()));
+            proptest::prop_assert_eq!(bits(a.initial.as_slice()), bits(b.initial.as_slice()));
+            proptest::prop_assert_eq!(a.iterations, b.iterations);
+            if event == 2 {
+                fresh.forget();
+                along.chain.forget();
+            } else {
+                let dq: [f64; 6] = std::array::from_fn(|i| a.axes_deg[i] - axes[i]);
+                fresh.record(dq, a.initial, a.residual);
+                along.chain.record(dq, b.initial, b.residual);
+            }
+        }
+    }
 }
