@@ -362,7 +362,7 @@ impl Scan<'_> {
             .is_some_and(|&c| c.is_ascii_alphabetic() || c == b'_')
         {
             let mut p = at + 1;
-            while p < b.len() && (b[p].is_ascii_alphanumeric() || b[p] == b'_') {
+            while p < b.len() && is_word(b[p]) {
                 p += 1;
             }
             self.p = p;
@@ -431,6 +431,11 @@ impl Scan<'_> {
             let Some(end) = number_end(b, at) else {
                 return false;
             };
+            // The usual next member, right after the number's `,`.
+            if b.get(end) == Some(&b',') {
+                p = blanks(end + 1);
+                continue;
+            }
             p = blanks(end);
             match b.get(p) {
                 Some(b'}') => {
