@@ -276,12 +276,7 @@ impl AxisHistory {
         for &x in &self.points[1..n] {
             clamp_to_band(x, half(x), &mut o, &mut edge);
         }
-        let engaged = clamp_to_band(at_deg, half(at_deg), &mut o, &mut edge);
-        PlayAt {
-            lag_deg: o - at_deg,
-            edge,
-            engaged,
-        }
+        play_at(at_deg, half(at_deg), o, edge)
     }
 
     /// [`Self::play`], taking the output before the memory's last point from `before` where it
@@ -321,12 +316,7 @@ impl AxisHistory {
         };
         let last = self.points[n - 1];
         clamp_to_band(last, half(last), &mut o, &mut edge);
-        let engaged = clamp_to_band(at_deg, half(at_deg), &mut o, &mut edge);
-        PlayAt {
-            lag_deg: o - at_deg,
-            edge,
-            engaged,
-        }
+        play_at(at_deg, half(at_deg), o, edge)
     }
 
     /// The output at the memory's first point and the edge holding it; `None` without points.
@@ -375,6 +365,18 @@ fn clamp_to_band(x: f64, h: f64, o: &mut f64, edge: &mut Option<(f64, f64)>) -> 
     *o = x + side * h;
     *edge = Some((x, side));
     true
+}
+
+/// The play at command `at_deg` (half width `h`) from the output `o` and flank `edge` the
+/// memory's points left: the last clamp, and the lag it leaves.
+#[inline(always)]
+fn play_at(at_deg: f64, h: f64, mut o: f64, mut edge: Option<(f64, f64)>) -> PlayAt {
+    let engaged = clamp_to_band(at_deg, h, &mut o, &mut edge);
+    PlayAt {
+        lag_deg: o - at_deg,
+        edge,
+        engaged,
+    }
 }
 
 /// The output of a play before the last point of a memory, kept for the memory's next

@@ -412,6 +412,16 @@ mod tests {
 
     use proptest::prelude::*;
 
+    /// Grid points from `first` on, `steps` apart.
+    fn grid_points(first: f64, steps: &[f64]) -> Vec<f64> {
+        std::iter::once(first)
+            .chain(steps.iter().scan(first, |x, d| {
+                *x += d;
+                Some(*x)
+            }))
+            .collect()
+    }
+
     proptest! {
         /// A lookup from any hint finds [`Grid::locate`]'s cell, bit for bit, and leaves it
         /// as the hint: abscissae inside cells, on grid points (the first and last too),
@@ -423,12 +433,7 @@ mod tests {
             at in prop_oneof![-250.0f64..250.0, (0usize..13).prop_map(|i| -1000.0 - i as f64)],
             hint in 0usize..15,
         ) {
-            let points: Vec<f64> = std::iter::once(first)
-                .chain(steps.iter().scan(first, |x, d| {
-                    *x += d;
-                    Some(*x)
-                }))
-                .collect();
+            let points = grid_points(first, &steps);
             let grid = Grid::new(points.clone()).unwrap();
             // A negative `at` below -999 names a grid point (clamped to the last).
             let x = if at <= -1000.0 {
@@ -455,12 +460,7 @@ mod tests {
             at in prop_oneof![-250.0f64..250.0, (0usize..13).prop_map(|i| -1000.0 - i as f64)],
             lo in 0usize..13,
         ) {
-            let points: Vec<f64> = std::iter::once(first)
-                .chain(steps.iter().scan(first, |x, d| {
-                    *x += d;
-                    Some(*x)
-                }))
-                .collect();
+            let points = grid_points(first, &steps);
             let x = if at <= -1000.0 {
                 points[((-1000.0 - at) as usize).min(points.len() - 1)]
             } else {
