@@ -27,9 +27,11 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
     let serial = compensate::Options {
         method: compensate::Method::Iterate,
         parallel: false,
+        stretching: robopost::compensate::sequence::Stretching::DEFAULT,
     };
     let options = program::Options {
         parallel: false,
+        stretching: robopost::compensate::sequence::Stretching::DEFAULT,
         ..Default::default()
     };
     let mut g = c.benchmark_group(format!("pocket_milling ({n} targets)"));

@@ -10,8 +10,8 @@ cd "$(dirname "$0")/.."
 W=${1:-/tmp/robopost-bench}
 CAL=calibrations/kr30ha-handset.json
 IDENTIFIED=calibrations/kr30ha-example.json
-BIN=target/release/robopost
-[ -n "${NO_BUILD:-}" ] || cargo build --release --quiet
+BIN=target/dist/robopost  # the packaged build (Cargo.toml: profile.dist)
+[ -n "${NO_BUILD:-}" ] || cargo build --profile dist --quiet
 mkdir -p "$W"
 if [ ! -f "$W/cam1m.src" ]; then
   python3 fixtures/gen/cam_program.py milling "$W/cam1m.src" --points 1000000 >/dev/null

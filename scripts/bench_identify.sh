@@ -9,8 +9,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 W=${1:-/tmp/robopost-bench-identify}
-BIN=target/release/robopost
-[ -n "${NO_BUILD:-}" ] || cargo build --release --quiet
+BIN=target/dist/robopost  # the packaged build (Cargo.toml: profile.dist)
+[ -n "${NO_BUILD:-}" ] || cargo build --profile dist --quiet
 mkdir -p "$W"
 if [ ! -f "$W/dense.csv" ]; then
   $BIN simulate truth --seed 19 --tracker 2800,1200,-300,-140,0.3,0.5 -o "$W/truth-tracker.json"

@@ -279,8 +279,9 @@ fn bad_measurement_file_is_located_and_nothing_is_written() {
 }
 
 /// Opens the report in headless Chromium: every plot is in the DOM, the page paints, the
-/// browser logs no console error. Set ROBOPOST_SKIP_BROWSER=1 only where Chromium cannot be
-/// installed (`.ci/run` installs it).
+/// browser logs no console error. Without a browser the check is skipped with a note, unless
+/// ROBOPOST_REQUIRE_BROWSER is set (`.ci/run` installs Chromium and sets it);
+/// ROBOPOST_SKIP_BROWSER=1 skips it outright.
 #[test]
 fn report_renders_in_headless_chromium() {
     let (dir, nominal, truth, csv) = workspace();
@@ -315,10 +316,24 @@ fn report_renders_in_headless_chromium() {
         eprintln!("ROBOPOST_SKIP_BROWSER set: not opening the report in a browser");
         return;
     }
-    let chromium = ["chromium", "chromium-browser", "google-chrome"]
+    let found = ["chromium", "chromium-browser", "google-chrome"]
         .into_iter()
-        .find(|c| Command::new(c).arg("--version").output().is_ok())
-        .expect("headless Chromium is needed (apt-get install -y chromium; .ci/run does it)");
+        .find(|c| {
+            Command::new(c)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        });
+    let Some(chromium) = found else {
+        // `.ci/run` sets ROBOPOST_REQUIRE_BROWSER where it installed one: there a missing
+        // browser is a failure, elsewhere (a developer's machine without it) a skip.
+        assert!(
+            std::env::var_os("ROBOPOST_REQUIRE_BROWSER").is_none(),
+            "ROBOPOST_REQUIRE_BROWSER is set but no headless Chromium runs"
+        );
+        eprintln!("no headless Chromium (apt-get install -y chromium): browser check skipped");
+        return;
+    };
     let url = format!("file://{}", page.display());
     let browser = |extra: &[&str]| {
         Command::new(chromium)

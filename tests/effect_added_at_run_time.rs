@@ -317,6 +317,7 @@ fn compensation_moves_each_target_against_the_bearing_motion() {
     let options = program::Options {
         method: Method::Iterate,
         parallel: false,
+        stretching: robopost::compensate::sequence::Stretching::DEFAULT,
         frames: Vec::new(),
         points: false,
     };

@@ -91,6 +91,7 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> Workspace {
         &cal,
         &program::Options {
             parallel: true,
+            stretching: robopost::compensate::sequence::Stretching::DEFAULT,
             ..program::Options::default()
         },
     );

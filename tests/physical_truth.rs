@@ -113,6 +113,7 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> (Workspace, usize) {
         &cal,
         &program::Options {
             parallel: true,
+            stretching: robopost::compensate::sequence::Stretching::DEFAULT,
             ..program::Options::default()
         },
     );

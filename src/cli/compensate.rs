@@ -115,6 +115,7 @@ impl ProgramArgs {
             parallel,
             frames,
             points,
+            stretching: Default::default(),
         }
     }
 }

@@ -54,6 +54,8 @@ pub struct Options {
     pub frames: Vec<GivenFrame>,
     /// List every target in the report (`--report`); the summary is always filled.
     pub points: bool,
+    /// How the re-check cuts a long sequence to walk it on the pool.
+    pub stretching: super::sequence::Stretching,
 }
 
 impl Options {
@@ -62,6 +64,7 @@ impl Options {
         super::sequence::Options {
             method: self.method,
             parallel: self.parallel,
+            stretching: self.stretching,
         }
     }
 }

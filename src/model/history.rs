@@ -83,6 +83,15 @@ impl AxisHistory {
         }
     }
 
+    /// Whether `other` is the same history to the bit: the same start and the same points held
+    /// (what lies in the memory beyond them is never read).
+    pub fn same_bits(&self, other: &AxisHistory) -> bool {
+        let n = self.len as usize;
+        self.start == other.start
+            && self.len == other.len
+            && (0..n).all(|i| self.points[i].to_bits() == other.points[i].to_bits())
+    }
+
     /// Whether this is [`Self::engaged`] (or [`Self::unmoved`]) with no memory: the play is on
     /// the flank of [`Self::simple_direction`] at any command, so the model may look it up
     /// merged with the axis's other tables.

@@ -107,6 +107,15 @@ impl AxisState {
         self.time_s = previous.time_s;
     }
 
+    /// Whether `other` is the same state to the bit (every axis's history as
+    /// [`AxisHistory::same_bits`] holds it).
+    pub fn same_bits(&self, other: &AxisState) -> bool {
+        let bits = |a: &[f64; 6], b: &[f64; 6]| (0..6).all(|n| a[n].to_bits() == b[n].to_bits());
+        bits(&self.axes_deg, &other.axes_deg)
+            && self.time_s.to_bits() == other.time_s.to_bits()
+            && (0..6).all(|n| self.history[n].same_bits(&other.history[n]))
+    }
+
     /// [`Self::then_through`] in place (the state is a 400-byte record).
     pub fn advance_through(&mut self, turns: &[f64; 6], axes_deg: [f64; 6]) {
         for (n, &turn) in turns.iter().enumerate() {

@@ -74,6 +74,7 @@ fn compensate_with(ws: &Workspace, model: &Model, bytes: &[u8]) -> ProgramResult
         &program::Options {
             method: compensate::Method::Iterate,
             parallel: true,
+            stretching: robopost::compensate::sequence::Stretching::DEFAULT,
             frames: Vec::new(),
             points: true,
         },

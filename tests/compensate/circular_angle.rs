@@ -137,6 +137,7 @@ fn compensated(text: &[u8], stream: Option<robopost::krl::StreamOptions>) -> Vec
     let options = program::Options {
         method: Method::Iterate,
         parallel: true,
+        stretching: robopost::compensate::sequence::Stretching::DEFAULT,
         frames: Vec::new(),
         points: false,
     };

@@ -65,6 +65,7 @@ fn dir(positive: bool) -> Direction {
 const ITERATE: Options = Options {
     method: Method::Iterate,
     parallel: false,
+    stretching: robopost::compensate::sequence::Stretching::DEFAULT,
 };
 
 proptest! {
@@ -115,6 +116,7 @@ fn one_step_is_equation_3() {
         &Options {
             method: Method::OneStep,
             parallel: false,
+            stretching: robopost::compensate::sequence::Stretching::DEFAULT,
         },
     )[0];
     let goal = nominal_tcp(&model, axes);

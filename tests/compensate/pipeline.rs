@@ -54,6 +54,7 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
         &program::Options {
             method,
             parallel: true,
+            stretching: robopost::compensate::sequence::Stretching::DEFAULT,
             frames: Vec::new(),
             points: true,
         },
@@ -953,5 +954,71 @@ fn one_step_versus_iteration() {
                 p.residual_um
             );
         }
+    }
+}
+
+/// A rippled LIN path for the stretches' proptest: along X, Z stepping by `ripple` (µm, signed,
+/// per point), so that the arm's axes turn round inside and outside their plays at random.
+fn rippled_program(ripple: &[i32], reach: f64) -> String {
+    let mut src = String::from(
+        "DEF ripple( )\n$BASE = {X 900, Y -200, Z 500}\n$TOOL = {X 0, Y 0, Z 200, A 0, B -90, C 0}\n\
+         PTP {A1 -10, A2 -80, A3 100, A4 0, A5 60, A6 0}\n",
+    );
+    let mut z = 0.0;
+    for (k, dz) in ripple.iter().enumerate() {
+        z += *dz as f64 * 1e-3;
+        let x = reach * k as f64;
+        src.push_str(&format!(
+            "LIN {{X {x:.3},Y 0.000,Z {z:.3},A 0.000,B 90.000,C 0.000}} C_DIS\n"
+        ));
+    }
+    src.push_str("END\n");
+    src
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// The re-check walked in stretches beside each other (guessed walks, adopted where they
+    /// meet the real one) gives, to the bit, what one sequential walk gives: the written
+    /// program and the report — for random ripples inside and outside the plays, random
+    /// stretch lengths, warm-ups and rounds, with the identified and the hand-set calibration.
+    #[test]
+    fn stretches_give_the_sequential_walk_to_the_bit(
+        ripple in prop::collection::vec(prop_oneof![
+            -60i32..60,            // inside the play, mostly
+            -2000i32..2000,        // outside it
+        ], 40..240),
+        reach in prop_oneof![Just(0.02f64), Just(0.1), Just(1.0)],
+        targets in 3usize..60,
+        warm_up in 0usize..8,
+        per_round in 2usize..6,
+        identified in any::<bool>(),
+    ) {
+        let src = rippled_program(&ripple, reach);
+        let ws = files::load_program(None, src.as_bytes(), None).unwrap();
+        let cal_name = if identified { "kr30ha-example.json" } else { "kr30ha-handset.json" };
+        let (model, bytes) = cal(cal_name);
+        let c = Calibrated::new(&model, cal_name, &bytes);
+        let with = |parallel: bool, stretching| {
+            compensate::compensate_program(&ws, &c, &program::Options {
+                method: compensate::Method::Iterate,
+                parallel,
+                stretching,
+                frames: Vec::new(),
+                points: true,
+            })
+        };
+        let stretching = robopost::compensate::sequence::Stretching { targets, warm_up, per_round };
+        let sequential = with(false, stretching);
+        let stretched = with(true, stretching);
+        prop_assert_eq!(sequential.rejected, stretched.rejected);
+        prop_assert_eq!(sequential.files.len(), stretched.files.len());
+        for (a, b) in sequential.files.iter().zip(&stretched.files) {
+            prop_assert!(a.bytes.to_vec() == b.bytes.to_vec(), "the written program differs");
+        }
+        let json = |r: &ProgramResult| serde_json::to_string(&r.report).unwrap();
+        prop_assert_eq!(json(&sequential), json(&stretched));
+        // The path does turn the axes round inside their plays (the case the guesses are for).
+        prop_assert!(sequential.report.compensated > 0);
     }
 }

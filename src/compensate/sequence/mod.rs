@@ -28,6 +28,9 @@ use nalgebra::{Vector3, Vector6};
 use std::cell::{Cell, RefCell};
 use std::mem::MaybeUninit;
 
+mod stretches;
+pub use stretches::Stretching;
+
 pub use crate::motion::interpolate::REST_DEG;
 
 /// Status bits a target must keep after compensation.
@@ -244,6 +247,8 @@ pub struct Options {
     pub method: Method,
     /// Solve the targets on rayon's pool (else on the calling thread).
     pub parallel: bool,
+    /// How the re-check cuts a long sequence to walk it on the pool.
+    pub stretching: Stretching,
 }
 
 /// Targets per chunk of the parallel pass that places the first-pass commands.
@@ -676,7 +681,7 @@ pub fn settle(
     // Without a target before, the first arrives after long motions in its nominal
     // directions (those `start` leads to), as the first pass assumed.
     let previous = history.last().map(|c| c.state);
-    let (counts, states) = recheck(&ctx, previous, h, all, &nominal_signs, &mut resolved);
+    let (counts, states) = recheck(&ctx, previous, h, all, &nominal_signs, &mut resolved, options);
     complete_commands(&ctx, &all[h..], &resolved[h..], &mut commands);
     resolved.drain(..h);
     Compensated {
@@ -1139,7 +1144,8 @@ pub const HOLD_DEG: f64 = 1e-5;
 /// Pass 3: walks the compensated commands through each axis's history, re-solving the targets
 /// whose gear plays stand otherwise than the flanks they were solved with (see the module
 /// documentation). Targets before `from` are settled (history). Returns the counts and the
-/// states of the last (up to [`LOOK_BACK`]) targets.
+/// states of the last (up to [`LOOK_BACK`]) targets. A long sequence on the pool is walked in
+/// stretches beside each other ([`stretches`]), to the same bits.
 fn recheck(
     ctx: &Recheck,
     previous: Option<AxisState>,
@@ -1147,13 +1153,69 @@ fn recheck(
     outcomes: &mut [Outcome],
     nominal: &[Signs],
     resolved: &mut [bool],
+    options: &Options,
 ) -> (Counts, Vec<AxisState>) {
-    let mut counts = Counts::default();
     let mut states = States::new(previous);
-    for k in from..ctx.len() {
+    let span = Span {
+        nominal_from: from,
+        first: from,
+    };
+    let counts = if options.parallel {
+        stretches::recheck(ctx, &mut states, span, outcomes, nominal, resolved, options.stretching)
+    } else {
+        span.settle(ctx, &mut states, from..ctx.len(), outcomes, nominal, resolved, |_, _, _| {})
+    };
+    // The segment's own (the history's state may still be among them).
+    let keep = (ctx.len() - from).min(states.len());
+    (counts, states.oldest_first().skip(states.len() - keep).copied().collect())
+}
+
+/// Where a walk of the re-check stands in its sequence: `nominal` holds the signs of the
+/// targets from `nominal_from` on, and `first` is the first target it settles (a circle's end
+/// there does not settle its auxiliary point again: it lies before the walk).
+#[derive(Clone, Copy, Debug)]
+struct Span {
+    nominal_from: usize,
+    first: usize,
+}
+
+impl Span {
+    /// Settles targets `ks` in order after the states in `states`, telling `each` every target
+    /// settled with the states after it and what it adds to the counts.
+    #[allow(clippy::too_many_arguments)]
+    fn settle(
+        self,
+        ctx: &Recheck,
+        states: &mut States,
+        ks: std::ops::Range<usize>,
+        outcomes: &mut [Outcome],
+        nominal: &[Signs],
+        resolved: &mut [bool],
+        mut each: impl FnMut(usize, &States, Counts),
+    ) -> Counts {
+        let mut counts = Counts::default();
+        for k in ks {
+            let step = self.settle_one(ctx, states, k, outcomes, nominal, resolved);
+            counts += step;
+            each(k, states, step);
+        }
+        counts
+    }
+
+    /// Settles target `k` after the states in `states` (then holding its own as the last), and
+    /// what it adds to the counts.
+    fn settle_one(
+        self,
+        ctx: &Recheck,
+        states: &mut States,
+        k: usize,
+        outcomes: &mut [Outcome],
+        nominal: &[Signs],
+        resolved: &mut [bool],
+    ) -> Counts {
         let rest = |k: usize| -> [bool; 6] {
             let turns = ctx.target(k).turns.angle_deg;
-            match nominal.get(k.wrapping_sub(from)).copied().flatten() {
+            match nominal.get(k.wrapping_sub(self.nominal_from)).copied().flatten() {
                 Some(v) => std::array::from_fn(|n| v[n] == 0 && !turns[n].is_finite()),
                 None => [false; 6],
             }
@@ -1162,7 +1224,7 @@ fn recheck(
         settle_one(ctx, k, &rest(k), last, outcomes, &mut resolved[k], state);
         // A circle's auxiliary point and end shape one arc: the end settled, its auxiliary
         // point (settled with the end's first-pass command) is settled again, then the end.
-        if ctx.target(k).interp == Interp::CircEnd && k > from && states.len() >= 2 {
+        if ctx.target(k).interp == Interp::CircEnd && k > self.first && states.len() >= 2 {
             for _ in 0..2 {
                 let (before_aux, aux) = states.before_last_and_last();
                 let (aux_rest, aux_resolved) = (&rest(k - 1), &mut resolved[k - 1]);
@@ -1171,6 +1233,7 @@ fn recheck(
                 settle_one(ctx, k, &rest(k), last, outcomes, &mut resolved[k], state);
             }
         }
+        let mut counts = Counts::default();
         let o = &outcomes[k];
         if resolved[k] {
             counts.reflanked += (o.resolution == Resolution::Reflanked) as usize;
@@ -1185,15 +1248,14 @@ fn recheck(
             }
         }
         states.push_next();
+        counts
     }
-    // The segment's own (the history's state may still be among them).
-    let keep = (ctx.len() - from).min(states.len());
-    (counts, states.oldest_first().skip(states.len() - keep).copied().collect())
 }
 
 /// The states of the last (up to [`LOOK_BACK`]) targets settled, in a ring with a slot for
 /// the next: the next target's state is written in place beside the ones it needs (they are
 /// 400-byte records).
+#[derive(Clone)]
 struct States {
     slots: [AxisState; LOOK_BACK + 1],
     /// The slot of the last state.
@@ -1214,8 +1276,25 @@ impl States {
         }
     }
 
+    /// The states a walk left, oldest first (up to [`LOOK_BACK`]).
+    fn holding(states: &[AxisState]) -> States {
+        debug_assert!(states.len() <= LOOK_BACK);
+        let mut slots = [AxisState::default(); LOOK_BACK + 1];
+        slots[..states.len()].copy_from_slice(states);
+        States {
+            slots,
+            last: states.len().saturating_sub(1),
+            len: states.len(),
+        }
+    }
+
     fn len(&self) -> usize {
         self.len
+    }
+
+    /// The state `back` places before the last (0: the last), when held.
+    fn back(&self, back: usize) -> Option<&AxisState> {
+        (back < self.len).then(|| &self.slots[self.slot(back)])
     }
 
     /// The slot `back` places before the last.
