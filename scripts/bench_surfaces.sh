@@ -11,7 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 W=${1:-/tmp/robopost-surfaces}
 POINTS=${POINTS:-1000000}
-BIN=target/dist/robopost  # the packaged build (Cargo.toml: profile.dist)
+BIN=${BIN:-target/dist/robopost}  # the packaged build (Cargo.toml: profile.dist)
 [ -n "${NO_BUILD:-}" ] || cargo build --profile dist --quiet
 mkdir -p "$W/out"
 declare -A SURFACE=(
