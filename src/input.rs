@@ -1,6 +1,6 @@
 //! Reading an input file with a size limit: `/dev/zero`, a pipe that never ends or a file far
 //! larger than any program or measurement campaign is refused once the limit is passed,
-//! instead of being read into memory until the machine runs out of it. The limit is 2 GiB
+//! instead of being read into memory until the machine runs out of it. The limit is 1 GiB
 //! (a program of a million motions is 67 MB, a campaign of a million rows 90 MB);
 //! `ROBOPOST_MAX_INPUT_MB` sets another.
 
@@ -8,7 +8,7 @@ use std::io::{self, Read};
 use std::path::Path;
 
 /// The default limit, in MiB.
-const DEFAULT_MIB: u64 = 2048;
+const DEFAULT_MIB: u64 = 1024;
 
 /// The limit in bytes (`ROBOPOST_MAX_INPUT_MB`, else [`DEFAULT_MIB`]).
 pub fn limit() -> u64 {

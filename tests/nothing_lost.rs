@@ -435,6 +435,52 @@ fn two_runs_writing_one_output_leave_one_runs_pair() {
     }
 }
 
+/// The state a run killed between its two renames leaves (its `.dat` renamed, its `.src`
+/// still a temporary file, its commit record naming both): `check` says the pair is being
+/// written, and the next run writing into the directory (here another program's) completes
+/// it before anything else: the killed run's whole pair, not a mix.
+#[test]
+fn a_killed_runs_decided_pair_is_detected_and_completed() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    teach(d);
+    write(d, "cal2.json", fixture("calibrations/kr30ha-handset.json"));
+    let job = |cal: &str, out: &str| {
+        run(
+            d,
+            &["pp.src", "-c", cal, "--config", "config.dat", "-o", out],
+        )
+    };
+    assert_eq!(job("cal.json", "old/pp.src").0, 0);
+    assert_eq!(job("cal2.json", "new/pp.src").0, 0);
+    let read = |p: &str| std::fs::read(d.join(p)).unwrap();
+    // Killed after renaming the .dat: the old .src beside the new .dat.
+    write(d, "out/pp.src", read("old/pp.src"));
+    write(d, "out/pp.dat", read("new/pp.dat"));
+    write(d, "out/.robopost-Ab12Cd", read("new/pp.src"));
+    write(
+        d,
+        "out/.robopost-commit-Zz99Yy",
+        b".robopost-Ef34Gh\0pp.dat\0.robopost-Ab12Cd\0pp.src\0end\n",
+    );
+    let (_, _, stderr) = run(d, &["check", "out/pp.src"]);
+    assert!(
+        stderr.contains("was killed while writing this program"),
+        "{stderr}"
+    );
+    write(d, "pa.src", fixture("fixtures/programs/paper_path1.src"));
+    let (exit, _, stderr) = run(d, &["pa.src", "-c", "cal.json", "-o", "out/pa.src"]);
+    assert_eq!(exit, 0, "{stderr}");
+    assert!(read("out/pp.src") == read("new/pp.src"));
+    assert!(read("out/pp.dat") == read("new/pp.dat"));
+    let mut left: Vec<String> = std::fs::read_dir(d.join("out"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["pa.src", "pp.dat", "pp.src"]);
+}
+
 // ---- 6. ambiguous input ---------------------------------------------------------------------
 
 /// A key given twice in a calibration (inside `parameters`, or anywhere else): refused with
