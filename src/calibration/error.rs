@@ -76,7 +76,7 @@ impl CalError {
         let (line, column) = (e.line(), e.column());
         let source_line = text.lines().nth(line.saturating_sub(1)).unwrap_or("");
         // A long line (a calibration written on one line) is shown clipped around the column.
-        const AROUND: usize = 60;
+        const AROUND: usize = 120;
         let chars: Vec<char> = source_line.chars().collect();
         let at = column.saturating_sub(1).min(chars.len());
         let from = at.saturating_sub(AROUND);

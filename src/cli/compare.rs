@@ -128,25 +128,34 @@ pub fn run(args: Args) -> Exit {
     // in the statistics of any model (the same points for all).
     let marks = compare::gross_errors(&cals[0], &data);
     let n_marked = marks.iter().filter(|m| m.is_some()).count();
-    let unmarked = |r: &[Row]| -> Vec<Row> {
-        r.iter()
+    // The rows without the marked ones, copied only when some are marked (a million rows
+    // are ~0.5 GB a copy).
+    let unmarked = |r: &[Row], summary: fn(&[Row]) -> Summary| -> Summary {
+        if n_marked == 0 {
+            return summary(r);
+        }
+        let kept: Vec<Row> = r
+            .iter()
             .zip(&marks)
             .filter(|(_, m)| m.is_none())
             .map(|(row, _)| row.clone())
-            .collect()
+            .collect();
+        summary(&kept)
     };
     let summaries: Vec<Summary> = rows
         .iter()
-        .map(|r| Summary::residuals(&unmarked(r)))
+        .map(|r| unmarked(r, Summary::residuals))
         .collect();
-    let nominal = Summary::uncompensated(&unmarked(&rows[0]));
+    let nominal = unmarked(&rows[0], Summary::uncompensated);
+    // The measurements are needed again only by the report: freed here otherwise.
+    let data = args.report.as_ref().map(|_| data);
     for ((path, cal), s) in cal_paths.iter().zip(&cals).zip(&summaries) {
         warn_if_implausible(path, cal, s);
     }
 
-    if let Some(dir) = &args.report {
+    if let (Some(dir), Some(data)) = (&args.report, &data) {
         let labels: Vec<String> = cal_paths.iter().map(|p| short_name(p)).collect();
-        let learned = crate::diagnose::learned_only(&cals[0], &data);
+        let learned = crate::diagnose::learned_only(&cals[0], data);
         let input = ReportInput {
             models: cals
                 .iter()

@@ -315,12 +315,13 @@ fn already_compensated_files(ws: &Workspace) -> Vec<Diagnostic> {
         .collect()
 }
 
-/// A program none of whose targets could be compensated because the walk could not resolve
-/// them before run time (its `.dat` missing, or the program read from standard input without
+/// A program no target of which can be compensated because what its motions go to is
+/// declared nowhere (its `.dat` missing, or the program read from standard input without
 /// it): compensating it would write it back unchanged and look like success, so it is
-/// refused with the reason.
+/// refused with the reason. (A program whose only motions wait for a position known at run
+/// time, with nothing missing, is not: that is the program.)
 fn nothing_known(ws: &Workspace, report: &Report) -> Option<Diagnostic> {
-    if report.compensated > 0 || report.unresolved == 0 {
+    if report.compensable > 0 || report.unresolved == 0 || report.needs.is_empty() {
         return None;
     }
     let main = ws.get(ws.main);
