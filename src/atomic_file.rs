@@ -85,11 +85,16 @@ pub fn persist(tmp: NamedTempFile, path: &Path) -> io::Result<()> {
     tmp.persist(path).map(drop).map_err(|e| e.error)
 }
 
-/// `path` written with `bytes` (see [`temp_beside`], [`persist`]).
+/// `path` written with `bytes` (see [`temp_beside`], [`persist`]); the file is synced before
+/// it takes the name and the directory after, so that a power cut leaves the old file or the
+/// new one, not an empty one.
 pub fn write(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let mut tmp = temp_beside(path)?;
     io::Write::write_all(&mut tmp, bytes)?;
-    persist(tmp, path)
+    tmp.as_file().sync_all()?;
+    persist(tmp, path)?;
+    crate::atomic_unit::sync_dir(crate::atomic_unit::dir_of(path));
+    Ok(())
 }
 
 /// Exchanges the names `new` and `old` where `old` is a regular file (not a directory or a

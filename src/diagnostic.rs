@@ -223,6 +223,16 @@ impl fmt::Display for Diagnostic {
     }
 }
 
+/// `text` as a message quotes it: at most `max` characters, the cut marked with `...` (a
+/// 50 MB field is not echoed whole; cli.md promises messages of a few hundred bytes).
+pub fn clip(text: &str, max: usize) -> String {
+    if text.chars().count() <= max {
+        return text.to_string();
+    }
+    let head: String = text.chars().take(max.saturating_sub(3)).collect();
+    format!("{head}... ({} bytes)", text.len())
+}
+
 /// Bytes as shown to the user: UTF-8 when valid, else one character per byte (Latin-1);
 /// control characters other than tab become `�` so the terminal is never disturbed and every
 /// byte still takes one column.

@@ -62,6 +62,8 @@ macro_rules! rooms {
 
 rooms!(
     atomic_file,
+    atomic_unit,
+    input,
     calibration,
     compare,
     compensate,

@@ -75,9 +75,18 @@ impl CalError {
     pub(crate) fn syntax(path: &std::path::Path, text: &str, e: &serde_json::Error) -> CalError {
         let (line, column) = (e.line(), e.column());
         let source_line = text.lines().nth(line.saturating_sub(1)).unwrap_or("");
+        // A long line (a calibration written on one line) is shown clipped around the column.
+        const AROUND: usize = 120;
+        let chars: Vec<char> = source_line.chars().collect();
+        let at = column.saturating_sub(1).min(chars.len());
+        let from = at.saturating_sub(AROUND);
+        let to = (at + AROUND).min(chars.len());
+        let head = if from > 0 { "..." } else { "" };
+        let tail = if to < chars.len() { "..." } else { "" };
+        let shown: String = chars[from..to].iter().collect();
         let excerpt = format!(
-            "{line:>4} | {source_line}\n     | {}^",
-            " ".repeat(column.saturating_sub(1))
+            "{line:>4} | {head}{shown}{tail}\n     | {}^",
+            " ".repeat(head.len() + at - from)
         );
         // serde_json appends " at line L column C"; the location is already in front.
         let message = e.to_string();

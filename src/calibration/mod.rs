@@ -48,6 +48,7 @@
 //! `model::effects::play`). Unknown keys are errors. The JSON Schema generated from these
 //! types ships as `calibrations/calibration.schema.json`.
 
+mod duplicates;
 mod error;
 mod file;
 pub mod ranges;
@@ -159,7 +160,7 @@ impl Calibration {
 
 /// Reads and validates a calibration file.
 pub fn load(path: &Path) -> Result<Calibration, CalError> {
-    let text = std::fs::read_to_string(path).map_err(|source| CalError::Io {
+    let text = crate::input::read_to_string(path).map_err(|source| CalError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -168,6 +169,12 @@ pub fn load(path: &Path) -> Result<Calibration, CalError> {
 
 /// Parses calibration JSON; `path` only names the source in errors.
 pub fn parse(text: &str, path: &Path) -> Result<Calibration, CalError> {
+    // A key given twice is refused before the reader keeps one of its values.
+    if let Err(e) = duplicates::check(text) {
+        if e.is_data() {
+            return Err(CalError::syntax(path, text, &e));
+        }
+    }
     match serde_json::from_str::<CalibrationFile>(text) {
         Ok(file) => Calibration::from_file(file, path),
         Err(e) => {

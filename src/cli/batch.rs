@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::compensate::{calibrated, cell_fitted, load_calibration, robot_label, ProgramArgs};
 use super::Exit;
-use crate::compensate::batch::{self, Done};
+use crate::compensate::batch::{self, Done, Kept};
 use crate::compensate::files;
 use crate::krl;
 
@@ -104,6 +104,28 @@ pub fn run(args: Args) -> Exit {
         .chain(plan.copies.iter().map(|(_, to)| to))
         .filter_map(|p| p.parent())
         .collect();
+    // Programs a killed run had decided to write are finished first (their temporary files
+    // are named in its record, see `atomic_unit`), then the rest of its temporary files go.
+    // The output directory is locked for the whole run: its writes need no lock of their own.
+    crate::atomic_unit::hold(&args.out);
+    let mut finished = 0;
+    for d in &dirs {
+        match crate::atomic_unit::recover_locked(d) {
+            Ok(done) => finished += done.len(),
+            Err(e) => {
+                return super::usage(format!(
+                    "{}: completing an interrupted run's output: {e}",
+                    d.display()
+                ))
+            }
+        }
+    }
+    if finished > 0 {
+        eprintln!(
+            "note: completed {finished} file(s) of programs an interrupted run was writing in {}",
+            args.out.display()
+        );
+    }
     let stale: Vec<PathBuf> = dirs
         .into_iter()
         .flat_map(|d| crate::atomic_file::remove_stale(d, started))
@@ -215,7 +237,7 @@ fn run_in_pool(
                 target_errors += te;
                 warnings += w;
                 max_um = max_um.max(report.correction.position_um.max);
-                println!(
+                super::outln!(
                     "{}: {}, {w} warning{}",
                     path.display(),
                     report.counts(),
@@ -226,12 +248,19 @@ fn run_in_pool(
                 }
                 reports.push(report.as_ref());
             }
-            Done::Failed { message, copied } => {
+            Done::Failed { message, kept } => {
                 let first = message.lines().next().unwrap_or_default();
-                if *copied {
-                    println!("{}: rejected, copied unchanged ({first})", path.display());
-                } else {
-                    println!("{}: failed, nothing written ({first})", path.display());
+                match kept {
+                    Kept::Copied => {
+                        super::outln!("{}: rejected, copied unchanged ({first})", path.display())
+                    }
+                    Kept::Earlier => super::outln!(
+                        "{}: rejected, the earlier output left as it was ({first})",
+                        path.display()
+                    ),
+                    Kept::Nothing => {
+                        super::outln!("{}: failed, nothing written ({first})", path.display())
+                    }
                 }
                 eprintln!("{}: rejected\n{message}", path.display());
                 exit = super::Exit::Rejected;
@@ -239,7 +268,7 @@ fn run_in_pool(
         }
     }
     for (path, e) in &plan.unreadable {
-        println!("{}: unreadable ({e})", path.display());
+        super::outln!("{}: unreadable ({e})", path.display());
         exit = super::Exit::Rejected;
     }
     for e in &copy_errors {
@@ -262,7 +291,7 @@ fn run_in_pool(
             "rejected_targets": target_errors,
             "reports": reports,
             "failures": done.iter().filter_map(|(p, d)| match d {
-                Done::Failed { message, copied } => Some(serde_json::json!({ "program": p.display().to_string(), "message": message, "copied_unchanged": copied })),
+                Done::Failed { message, kept } => Some(serde_json::json!({ "program": p.display().to_string(), "message": message, "copied_unchanged": *kept == Kept::Copied, "earlier_output_kept": *kept == Kept::Earlier })),
                 _ => None,
             }).collect::<Vec<_>>(),
         });

@@ -59,8 +59,14 @@ pub fn run(args: Args) -> Exit {
                 if let Some(d) = &p.dat_path {
                     companions.insert(canonical(d));
                 }
+                if crate::atomic_unit::pending(path) {
+                    eprintln!(
+                        "warning: {}: a robopost run was killed while writing this program: its .src and .dat may be from two runs until the next run writing into its directory completes them",
+                        path.display()
+                    );
+                }
                 let (line, rejected) = summary(&p, !simulate);
-                println!("{line}");
+                super::outln!("{line}");
                 for d in p.diagnostics_with(!simulate) {
                     eprintln!("{}", d.render());
                 }

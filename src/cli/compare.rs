@@ -74,6 +74,25 @@ pub(crate) fn load_inputs(
     Some((loaded, data))
 }
 
+/// A mean 3-D error this large (µm) is no robot's calibrated or even uncalibrated error (a
+/// few mm at most): the calibration is of another robot, or the positions are in another
+/// frame.
+const IMPLAUSIBLE_MEAN_UM: f64 = 20_000.0;
+
+/// Warns when the calibration at `path` predicts the measurements implausibly badly (see
+/// [`IMPLAUSIBLE_MEAN_UM`]): a KR 16 calibration on KR 30 measurements is 0.5 m off.
+fn warn_if_implausible(path: &Path, cal: &Calibration, s: &Summary) {
+    let mean_mm = s.all.d3_mean_um / 1000.0;
+    if s.all.d3_mean_um.is_finite() && s.all.d3_mean_um <= IMPLAUSIBLE_MEAN_UM {
+        return;
+    }
+    let robot = &cal.robot_name;
+    eprintln!(
+        "warning: {}: the model predicts the measured positions {mean_mm:.1} mm off on average, far more than any robot's error (a few mm at most): is it a calibration of this robot (it describes a {robot})? are the positions in the robot's base frame (identify --frame tracker otherwise)?",
+        path.display()
+    );
+}
+
 /// The file name a user recognises in a table column.
 pub(crate) fn short_name(path: &Path) -> String {
     path.file_name()
@@ -109,22 +128,34 @@ pub fn run(args: Args) -> Exit {
     // in the statistics of any model (the same points for all).
     let marks = compare::gross_errors(&cals[0], &data);
     let n_marked = marks.iter().filter(|m| m.is_some()).count();
-    let unmarked = |r: &[Row]| -> Vec<Row> {
-        r.iter()
+    // The rows without the marked ones, copied only when some are marked (a million rows
+    // are ~0.5 GB a copy).
+    let unmarked = |r: &[Row], summary: fn(&[Row]) -> Summary| -> Summary {
+        if n_marked == 0 {
+            return summary(r);
+        }
+        let kept: Vec<Row> = r
+            .iter()
             .zip(&marks)
             .filter(|(_, m)| m.is_none())
             .map(|(row, _)| row.clone())
-            .collect()
+            .collect();
+        summary(&kept)
     };
     let summaries: Vec<Summary> = rows
         .iter()
-        .map(|r| Summary::residuals(&unmarked(r)))
+        .map(|r| unmarked(r, Summary::residuals))
         .collect();
-    let nominal = Summary::uncompensated(&unmarked(&rows[0]));
+    let nominal = unmarked(&rows[0], Summary::uncompensated);
+    // The measurements are needed again only by the report: freed here otherwise.
+    let data = args.report.as_ref().map(|_| data);
+    for ((path, cal), s) in cal_paths.iter().zip(&cals).zip(&summaries) {
+        warn_if_implausible(path, cal, s);
+    }
 
-    if let Some(dir) = &args.report {
+    if let (Some(dir), Some(data)) = (&args.report, &data) {
         let labels: Vec<String> = cal_paths.iter().map(|p| short_name(p)).collect();
-        let learned = crate::diagnose::learned_only(&cals[0], &data);
+        let learned = crate::diagnose::learned_only(&cals[0], data);
         let input = ReportInput {
             models: cals
                 .iter()
@@ -165,7 +196,7 @@ pub fn run(args: Args) -> Exit {
                 map.insert("against".into(), summary_json(s, path));
             }
         }
-        println!(
+        super::outln!(
             "{}",
             serde_json::to_string_pretty(&out).unwrap_or_else(|_| "{}".into())
         );
@@ -177,12 +208,12 @@ pub fn run(args: Args) -> Exit {
         }
         models.push((short_name(&args.cal), &summaries[0]));
         let refs: Vec<(&str, &Summary)> = models.iter().map(|(l, s)| (l.as_str(), *s)).collect();
-        print!("{}", table::render(&refs));
-        println!(
+        super::out!("{}", table::render(&refs));
+        super::outln!(
             "(residual = measured − predicted; `nominal` is the robot's error from the command)"
         );
         if n_marked > 0 {
-            println!(
+            super::outln!(
                 "{n_marked} point(s) that identify left out as gross errors are not in these \
                  statistics (marked in the --report page; listed in the calibration's \
                  provenance.excluded)"

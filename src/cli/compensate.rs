@@ -1,7 +1,7 @@
 //! `robopost IN.src -c CAL.json -o OUT.src`: compensate one program (its `.dat` and called
 //! modules beside it), `-` for standard input/output.
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::Exit;
@@ -280,9 +280,12 @@ pub struct Args {
 /// The calibration file and its bytes (for the header's checksum); an unreadable or invalid
 /// file is reported here and is a usage error (exit 2), before any program is touched.
 pub fn load_calibration(path: &Path) -> Result<(calibration::Calibration, Vec<u8>), Exit> {
-    let loaded = std::fs::read(path)
+    let loaded = crate::input::read(path)
         .map_err(|e| format!("{}: {e}", path.display()))
         .and_then(|bytes| {
+            if crate::input::is_utf16(&bytes) {
+                return Err(format!("{}: {}", path.display(), crate::input::UTF16));
+            }
             let cal = calibration::parse(&String::from_utf8_lossy(&bytes), path)
                 .map_err(|e| e.to_string())?;
             Ok((cal, bytes))
@@ -320,12 +323,13 @@ pub fn run(args: Args) -> Exit {
     };
     let stdin = is_dash(&args.input);
     let bytes = if stdin {
-        let mut b = Vec::new();
-        if let Err(e) = std::io::stdin().read_to_end(&mut b) {
-            eprintln!("error: <stdin>: {e}");
-            return Exit::Usage;
+        match crate::input::stdin() {
+            Ok(b) => b,
+            Err(e) => {
+                eprintln!("error: <stdin>: {e}");
+                return Exit::Usage;
+            }
         }
-        b
     } else {
         match files::read_program(&args.input) {
             Ok(b) => b,
@@ -401,8 +405,22 @@ pub fn run(args: Args) -> Exit {
             .iter()
             .find(|f| f.file == ws.main)
             .expect("the main file is an output");
-        if result.files.iter().any(|f| f.file != ws.main && f.changed) {
-            eprintln!("warning: the .dat or called modules changed too; they are written only with a file output (-o FILE.src)");
+        // Standard output carries one file: a .src printed without the .dat (or modules) its
+        // compensation changed would use values or names (XHOME_2) the controller does not
+        // have. Refused before anything is printed.
+        let changed: Vec<String> = result
+            .files
+            .iter()
+            .filter(|f| f.file != ws.main && f.changed)
+            .map(|f| ws.get(f.file).name.to_string())
+            .collect();
+        if !changed.is_empty() {
+            eprintln!(
+                "error: compensating {} changes {} too (new or changed declarations the program uses), which standard output cannot carry: nothing written; write to a file (-o OUT.src) to get the program with its .dat",
+                ws.get(ws.main).name,
+                changed.join(", ")
+            );
+            return Exit::Usage;
         }
         let mut out = std::io::stdout().lock();
         let written = main
@@ -420,7 +438,8 @@ pub fn run(args: Args) -> Exit {
         let written =
             tracing::info_span!("write").in_scope(|| files::write_atomic_pieces(&outputs));
         if let Err(e) = written {
-            eprintln!("error: writing {}: {e}", args.out.display());
+            // The error names the file that failed (`writing OUT.dat: No space left…`).
+            eprintln!("error: {e}; nothing of {} was written", args.out.display());
             return Exit::Usage;
         }
     }
@@ -555,7 +574,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
         }
         let r = &result.report;
         if result.rejected {
-            println!("{}: rejected", path.display());
+            super::outln!("{}: rejected", path.display());
             exit = exit.max(Exit::Rejected);
             continue;
         }
@@ -564,7 +583,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
         } else {
             r.resolution()
         };
-        println!("{}: {counts}{}", path.display(), r.needs_text());
+        super::outln!("{}: {counts}{}", path.display(), r.needs_text());
         if r.rejected > 0 {
             exit = exit.max(Exit::Rejected);
         }

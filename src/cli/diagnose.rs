@@ -114,14 +114,14 @@ pub fn run(args: Args) -> Exit {
     }
     if args.json {
         match serde_json::to_string_pretty(&d) {
-            Ok(s) => println!("{s}"),
+            Ok(s) => super::outln!("{s}"),
             Err(e) => {
                 eprintln!("error: {e}");
                 return Exit::Usage;
             }
         }
     } else {
-        print!("{}", text(&d, &args));
+        super::out!("{}", text(&d, &args));
     }
     Exit::Success
 }

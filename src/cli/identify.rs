@@ -236,13 +236,19 @@ pub fn run(args: Args) -> Exit {
         Ok(r) => r,
         Err(e) => return usage(&e.to_string()),
     };
-    print!(
-        "{}",
-        report(
-            &identified,
-            args.effects.as_deref().unwrap_or(PAPER_EFFECTS)
-        )
-    );
+    // With `-o -` the calibration goes to standard output: the report goes to standard error.
+    let to_stdout = args.out.as_os_str() == "-";
+    let say = |text: &str| {
+        if to_stdout {
+            eprint!("{text}");
+        } else {
+            super::out!("{text}");
+        }
+    };
+    say(&report(
+        &identified,
+        args.effects.as_deref().unwrap_or(PAPER_EFFECTS),
+    ));
     if let Some(failure) = &identified.verdict.failure {
         if !args.accept_poor_fit {
             eprint!("robopost identify: {failure}");
@@ -257,7 +263,15 @@ pub fn run(args: Args) -> Exit {
             "warning: written anyway (--accept-poor-fit); the provenance records the failure"
         );
     }
-    match identified.calibration.save_atomic(&args.out) {
+    let saved = if to_stdout {
+        identified
+            .calibration
+            .to_json(&args.out)
+            .map(|json| super::out!("{json}"))
+    } else {
+        identified.calibration.save_atomic(&args.out)
+    };
+    match saved {
         Ok(()) => {}
         // A value outside its physical range: the fit went astray (a failed fit written
         // with --accept-poor-fit); no command could read the file back.
@@ -273,7 +287,9 @@ pub fn run(args: Args) -> Exit {
         }
         Err(e) => return usage(&e.to_string()),
     }
-    println!("wrote {}", args.out.display());
+    if !to_stdout {
+        super::outln!("wrote {}", args.out.display());
+    }
     if let (Some(old), false) = (&old, added.is_empty()) {
         let (text, worse) = crate::identify::promise::run(
             old,
@@ -288,7 +304,7 @@ pub fn run(args: Args) -> Exit {
                 .unwrap_or_default(),
             &args.out.display().to_string(),
         );
-        print!("{text}");
+        say(&text);
         if worse {
             eprintln!("warning: the new calibration predicts held-out data worse than the old one (see the promise check above)");
         }

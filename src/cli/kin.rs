@@ -170,17 +170,17 @@ pub fn run_fk(args: FkArgs) -> Exit {
                 "rotation_deg": d.rotation_deg,
             });
         }
-        println!("{out:#}");
+        super::outln!("{out:#}");
     } else {
-        println!("nominal  {}", pose_line(&nominal));
-        println!("         S {s} {}  T {t} {}", bits(s, 3), bits(t, 6));
+        super::outln!("nominal  {}", pose_line(&nominal));
+        super::outln!("         S {s} {}  T {t} {}", bits(s, 3), bits(t, 6));
         if let (Some((flange, d)), Some(path)) = (&model, &args.cal) {
-            println!("model    {}", pose_line(&flange.to_pose()));
-            println!(
+            super::outln!("model    {}", pose_line(&flange.to_pose()));
+            super::outln!(
                 "         ({}; rotation directions unknown: mean of both branches)",
                 path.display()
             );
-            println!(
+            super::outln!(
                 "model − nominal: dX {}  dY {}  dZ {} mm, |d| {:.1} µm, rotation {:.5}°",
                 signed(d.offset.x, 4),
                 signed(d.offset.y, 4),
@@ -346,17 +346,24 @@ pub fn run_ik(args: IkArgs) -> Exit {
                 v
             })
             .collect();
-        println!("{:#}", json!({ "solutions": solutions }));
+        super::outln!("{:#}", json!({ "solutions": solutions }));
         return Exit::Success;
     }
-    println!(
+    super::outln!(
         "{:<12} {:<14} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
-        "S", "T", "A1", "A2", "A3", "A4", "A5", "A6"
+        "S",
+        "T",
+        "A1",
+        "A2",
+        "A3",
+        "A4",
+        "A5",
+        "A6"
     );
     for r in &rows {
         let sol = &r.solution;
         let a = sol.axes_deg;
-        println!(
+        super::outln!(
             "{:<12} {:<14} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}{}",
             format!("{} {}", sol.s, bits(sol.s, 3)),
             format!("{} {}", sol.t, bits(sol.t, 6)),

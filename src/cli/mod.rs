@@ -15,6 +15,37 @@ pub mod identify;
 pub mod kin;
 pub mod simulate;
 
+/// Writes to standard output that fail (a full disk, `/dev/full`, a closed descriptor) are
+/// remembered, not panicked on: the command finishes (a batch still writes its `--report`)
+/// and [`main`] then says so and sets the exit status. `println!` would panic (exit 101).
+static STDOUT_ERROR: std::sync::Mutex<Option<std::io::Error>> = std::sync::Mutex::new(None);
+
+/// Writes `text` to standard output; the first failure is kept for [`main`].
+pub fn write_stdout(text: std::fmt::Arguments) {
+    use std::io::Write;
+    let result = std::io::stdout().lock().write_fmt(text);
+    if let Err(e) = result {
+        remember_stdout_error(e);
+    }
+}
+
+/// Records a failed write to standard output (the first one is reported).
+pub fn remember_stdout_error(e: std::io::Error) {
+    let mut kept = STDOUT_ERROR.lock().unwrap_or_else(|p| p.into_inner());
+    kept.get_or_insert(e);
+}
+
+/// `print!` to standard output through [`write_stdout`].
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!($($arg)*)) };
+}
+
+/// `println!` to standard output through [`write_stdout`].
+macro_rules! outln {
+    ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!("{}\n", format_args!($($arg)*))) };
+}
+pub(crate) use {out, outln};
+
 /// Exit status per `docs/cli.md`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Exit {
@@ -118,6 +149,13 @@ pub fn main(args: Vec<String>) -> i32 {
             return code;
         }
     };
+    // A batch's product is its output tree: a lost summary on standard output is a rejected
+    // part of the job, not "nothing written".
+    let stdout_lost = if matches!(cli.command, Command::Batch(_)) {
+        Exit::Rejected
+    } else {
+        Exit::Usage
+    };
     let exit = match cli.command {
         Command::Compensate(a) => compensate::run(a),
         Command::Batch(a) => batch::run(a),
@@ -129,7 +167,21 @@ pub fn main(args: Vec<String>) -> i32 {
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
     };
-    exit as i32
+    let flushed = std::io::Write::flush(&mut std::io::stdout().lock());
+    if let Err(e) = flushed {
+        remember_stdout_error(e);
+    }
+    let lost = STDOUT_ERROR
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .take();
+    match lost {
+        Some(e) => {
+            eprintln!("error: writing standard output: {e}");
+            exit.max(stdout_lost) as i32
+        }
+        None => exit as i32,
+    }
 }
 
 #[cfg(test)]

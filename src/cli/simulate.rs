@@ -208,8 +208,8 @@ fn guard_output<'a>(inputs: impl IntoIterator<Item = &'a Path>, out: &Path) -> R
 /// The campaign file at `path`; a usage error (file:line:col and the line) when it cannot be
 /// read or is not a valid campaign.
 fn read_campaign(path: &Path) -> Result<Campaign, Exit> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| usage(&format!("{}: {e}", path.display())))?;
+    let text = crate::input::read_to_string(path)
+        .map_err(|e| usage(&format!("{}: {e}", path.display())))?;
     let campaign: Campaign = serde_json::from_str(&text).map_err(|e| {
         let line = text.lines().nth(e.line().saturating_sub(1)).unwrap_or("");
         usage(&format!(

@@ -64,9 +64,23 @@ pub fn percent(change: Option<f64>) -> String {
     change.map_or(String::new(), |c| format!("{:+.0}%", c * 100.0))
 }
 
+/// Test and model labels longer than this are shown clipped (`...` at the end): a table
+/// column is as wide as its widest label, and a label of 65,536 characters is past what a
+/// format width can be.
+const MAX_LABEL_CHARS: usize = 60;
+
+/// `text` clipped to [`MAX_LABEL_CHARS`] characters.
+fn clipped(text: &str) -> String {
+    crate::diagnostic::clip(text, MAX_LABEL_CHARS)
+}
+
 /// Renders the table for `models` (label, statistics) as fixed-width text.
 pub fn render(models: &[(&str, &Summary)]) -> String {
-    let lines = lines(models);
+    let mut lines = lines(models);
+    for l in &mut lines {
+        l.test = clipped(&l.test);
+        l.label = clipped(&l.label);
+    }
     let width = |f: fn(&Line) -> &str, min: usize| {
         lines
             .iter()

@@ -39,8 +39,20 @@ pub enum Done {
         warnings: usize,
     },
     /// Rejected (parse error, unknown frame, …) or not readable/writable: nothing of it
-    /// compensated; `copied`: its files are in the output tree unchanged, with the note.
-    Failed { message: String, copied: bool },
+    /// compensated; `kept`: what its place in the output tree holds.
+    Failed { message: String, kept: Kept },
+}
+
+/// What a rejected program's place in the output tree holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kept {
+    /// Its files copied unchanged, with the note of why (no output was there).
+    Copied,
+    /// The output an earlier run wrote, left as it was, with the note of why: a rejected
+    /// program writes nothing over a good output.
+    Earlier,
+    /// Nothing (it could not be read, or the copy failed).
+    Nothing,
 }
 
 /// The plan of a batch: programs to compensate and files to copy as they are.
@@ -116,7 +128,7 @@ type Called = std::io::Result<HashSet<Vec<u8>>>;
 /// Routine names called by a `.src` (upper case); its syntax errors are the compensation's
 /// to report, so only a file that cannot be read fails.
 fn calls(path: &Path) -> Called {
-    let bytes = std::fs::read(path)?;
+    let bytes = crate::input::read(path)?;
     let file = krl::parse_recovering(&bytes, FileKind::Src);
     let mut out = HashSet::new();
     for st in file.statements() {
@@ -212,15 +224,15 @@ pub fn run_job(
     robot: &str,
 ) -> Done {
     let failed = |message: String| {
-        let copied = keep_unchanged(job, &message).is_ok();
-        Done::Failed { message, copied }
+        let kept = keep_unchanged(job, &message).unwrap_or(Kept::Nothing);
+        Done::Failed { message, kept }
     };
-    let bytes = match std::fs::read(&job.src) {
+    let bytes = match crate::input::read(&job.src) {
         Ok(b) => b,
         Err(e) => {
             return Done::Failed {
                 message: format!("{}: {e}", job.src.display()),
-                copied: false,
+                kept: Kept::Nothing,
             }
         }
     };
@@ -251,10 +263,12 @@ pub fn run_job(
     let outputs = files::outputs(&ws, &result.files, &job.out);
     if let Err(e) = files::write_atomic_pieces(&outputs) {
         return Done::Failed {
-            message: format!("writing {}: {e}", job.out.display()),
-            copied: false,
+            message: format!("{e}; nothing of {} was written", job.out.display()),
+            kept: Kept::Nothing,
         };
     }
+    // A note of an earlier rejection no longer holds.
+    let _ = std::fs::remove_file(rejected_note(&job.out));
     Done::Written {
         report: Box::new(result.report),
         target_errors: result.target_errors,
@@ -269,22 +283,50 @@ pub fn rejected_note(out: &Path) -> PathBuf {
     PathBuf::from(name)
 }
 
-/// A rejected program's files copied unchanged into the output tree, and the note of why.
-fn keep_unchanged(job: &Job, message: &str) -> Result<(), CopyError> {
-    copy(&job.src, &job.out)?;
-    if let Some(dat) = krl::companion_dat(&job.src) {
+/// A rejected program's place in the output tree: its files copied unchanged with the note
+/// of why, all as one unit — or, where an earlier run left an output (`.src` or `.dat`),
+/// that output left as it was and only the note written.
+fn keep_unchanged(job: &Job, message: &str) -> Result<Kept, CopyError> {
+    let dat = krl::companion_dat(&job.src).map(|dat| {
         let ext = dat
             .extension()
             .map(|e| e.to_os_string())
             .unwrap_or_default();
-        copy(&dat, &job.out.with_extension(ext))?;
+        let out = job.out.with_extension(ext);
+        (dat, out)
+    });
+    let exists = |p: &Path| std::fs::symlink_metadata(p).is_ok();
+    let earlier = exists(&job.out) || dat.as_ref().is_some_and(|(_, out)| exists(out));
+    let path = rejected_note(&job.out);
+    let write_err = |source| CopyError::Write {
+        path: job.out.clone(),
+        source,
+    };
+    if earlier {
+        let note = format!(
+            "robopost rejected this program: the output an earlier run wrote here is left as it was (it is not of the program as it is now).\n\n{message}\n"
+        );
+        files::write_atomic(&[(path, note.as_bytes())]).map_err(write_err)?;
+        return Ok(Kept::Earlier);
     }
+    let read = |p: &Path| {
+        crate::input::read(p).map_err(|source| CopyError::Read {
+            path: p.to_path_buf(),
+            source,
+        })
+    };
+    let src = read(&job.src)?;
+    let dat_bytes = dat.as_ref().map(|(from, _)| read(from)).transpose()?;
     let note = format!(
         "robopost rejected this program: it is copied here unchanged (not compensated).\n\n{message}\n"
     );
-    let path = rejected_note(&job.out);
-    files::write_atomic(&[(path.clone(), note.as_bytes())])
-        .map_err(|source| CopyError::Write { path, source })
+    let mut unit = vec![(job.out.clone(), src.as_slice())];
+    if let (Some((_, out)), Some(bytes)) = (&dat, &dat_bytes) {
+        unit.push((out.clone(), bytes.as_slice()));
+    }
+    unit.push((path, note.as_bytes()));
+    files::write_atomic(&unit).map_err(write_err)?;
+    Ok(Kept::Copied)
 }
 
 /// Why a file could not be copied: the file and what the system said.
@@ -297,8 +339,9 @@ pub enum CopyError {
         path: PathBuf,
         source: std::io::Error,
     },
-    /// The copy could not be written (nothing was left half-written).
-    #[error("writing {}: {source}", path.display())]
+    /// The copy could not be written (nothing was left half-written); the error names the
+    /// file.
+    #[error("{source}")]
     Write {
         path: PathBuf,
         source: std::io::Error,
@@ -307,7 +350,7 @@ pub enum CopyError {
 
 /// Copies a file atomically.
 pub fn copy(from: &Path, to: &Path) -> Result<(), CopyError> {
-    let bytes = std::fs::read(from).map_err(|source| CopyError::Read {
+    let bytes = crate::input::read(from).map_err(|source| CopyError::Read {
         path: from.to_path_buf(),
         source,
     })?;

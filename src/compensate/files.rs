@@ -50,7 +50,7 @@ pub fn load_program_in(
     let dat = match path.and_then(krl::companion_dat) {
         Some(d) => {
             let shown = d.display().to_string();
-            let b = std::fs::read(&d).map_err(|source| LoadError::Io {
+            let b = crate::input::read(&d).map_err(|source| LoadError::Io {
                 name: shown.clone(),
                 source,
             })?;
@@ -82,6 +82,9 @@ pub fn read_program(path: &Path) -> std::io::Result<Vec<u8>> {
         let mut file = std::fs::File::open(path)?;
         let meta = file.metadata()?;
         let len = meta.len();
+        if meta.is_file() && len > crate::input::limit() {
+            return Err(crate::input::too_large(crate::input::limit()));
+        }
         if len >= READ_IN_HALVES && meta.is_file() {
             let mut buf = vec![0u8; len as usize];
             let (a, b) = buf.split_at_mut(len as usize / 2);
@@ -94,7 +97,7 @@ pub fn read_program(path: &Path) -> std::io::Result<Vec<u8>> {
             return Ok(buf);
         }
     }
-    std::fs::read(path)
+    crate::input::read(path)
 }
 
 /// Where each output file goes when the main program is written to `out`: its `.dat` beside
@@ -163,26 +166,26 @@ pub fn no_stale_dat(ws: &Workspace, out: &Path) -> Result<(), StaleDat> {
     Ok(())
 }
 
-/// Writes every `(path, bytes)` atomically: all temporary files first, then the renames.
+/// Writes every `(path, bytes)` as one unit (see [`write_atomic_pieces`]).
 pub fn write_atomic(files: &[(PathBuf, &[u8])]) -> std::io::Result<()> {
     let pieces: Vec<(PathBuf, Vec<&[u8]>)> =
         files.iter().map(|(p, b)| (p.clone(), vec![*b])).collect();
     write_atomic_pieces(&pieces)
 }
 
-/// [`write_atomic`] of files given in pieces (see `program::Output`).
+/// [`write_atomic`] of files given in pieces (see `program::Output`): every file to its
+/// temporary file, synced, then all renamed as one unit ([`crate::atomic_unit`]): a reader
+/// or a rerun never finds a `.src` and a `.dat` from two runs. An error names the file that
+/// failed (a full disk: the `.dat` or the `.src` that did not fit).
 pub fn write_atomic_pieces(files: &[(PathBuf, Vec<&[u8]>)]) -> std::io::Result<()> {
+    use crate::atomic_unit::{self, Staged, WriteError};
     let mut staged = Vec::with_capacity(files.len());
     for (path, pieces) in files {
-        let tmp = crate::atomic_file::temp_beside(path)?;
-        // No fsync: like `cp`, durability against power loss is the file system's business;
-        // the rename still guarantees that a reader sees the old file or the whole new one.
-        write_pieces(tmp.as_file(), pieces)?;
-        staged.push((tmp, path));
+        let tmp = crate::atomic_file::temp_beside(path).map_err(WriteError::at(path))?;
+        write_pieces(tmp.as_file(), pieces).map_err(WriteError::at(path))?;
+        staged.push(Staged { tmp, dest: path });
     }
-    for (tmp, path) in staged {
-        crate::atomic_file::persist(tmp, path)?;
-    }
+    atomic_unit::commit(staged)?;
     Ok(())
 }
 

@@ -258,6 +258,10 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         diagnostics.push(*d);
         return rejected(ws, unfilled, diagnostics, target_errors);
     }
+    if let Some(d) = nothing_known(ws, &report) {
+        diagnostics.push(d);
+        return rejected(ws, unfilled, diagnostics, target_errors);
+    }
     let windows = std::mem::take(&mut seg.windows);
     let applied =
         tracing::info_span!("apply").in_scope(|| apply(ws, edits, windows, cal, options.method));
@@ -312,6 +316,38 @@ fn already_compensated_files(ws: &Workspace) -> Vec<Diagnostic> {
             )
         })
         .collect()
+}
+
+/// A program no target of which can be compensated because what its motions go to is
+/// declared nowhere (its `.dat` missing, or the program read from standard input without
+/// it): compensating it would write it back unchanged and look like success, so it is
+/// refused with the reason. (A program whose only motions wait for a position known at run
+/// time, with nothing missing, is not: that is the program.)
+fn nothing_known(ws: &Workspace, report: &Report) -> Option<Diagnostic> {
+    if report.compensable > 0 || report.unresolved == 0 || report.needs.is_empty() {
+        return None;
+    }
+    let main = ws.get(ws.main);
+    let has_dat = main.partner.is_some();
+    let why = if main.path.is_none() {
+        "a program read from standard input comes without its .dat: give the file's path instead of `-`"
+    } else if !has_dat {
+        "it has no .dat beside it: put the .dat of the same name beside the .src, or give the cell (--config $config.dat, --cell DIR)"
+    } else {
+        "give what it needs (--config $config.dat, --cell DIR, --base, --tool)"
+    };
+    Some(
+        Diagnostic::new(
+            Severity::Error,
+            &main.name,
+            format!(
+                "no target could be compensated: {} motion(s) go to positions not known before run time{}",
+                report.unresolved,
+                report.needs_text()
+            ),
+        )
+        .with_help(why),
+    )
 }
 
 /// The program refused: every file as it was, the report listing the errors.

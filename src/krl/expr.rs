@@ -729,14 +729,23 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
     let (j, _) = punct(b'{')(i)?;
     let (mut j, type_name) = aggregate_type(cx, ws(j)?.0)?;
     let (nested, mark) = open_aggregate(cx);
-    let close = |k: &'a [u8]| close_aggregate(cx, cx.span(i, k), type_name, nested, mark);
+    let close = |k: &'a [u8]| -> PResult<'a, Expr> {
+        if let Some(at) = repeated_member(cx, nested, mark) {
+            return fail!(
+                &cx.base()[at..],
+                "this member is given twice in the aggregate",
+                "give each member once: of `{X 1200, X 1300}` a reader keeps one value, and which one was meant is not known",
+            );
+        }
+        Ok((k, close_aggregate(cx, cx.span(i, k), type_name, nested, mark)))
+    };
     if let Ok((k, _)) = punct(b'}')(j) {
-        return Ok((k, close(k)));
+        return close(k);
     }
     loop {
         if !nested {
             match plain_members(cx, j) {
-                Members::Closed(k) => return Ok((k, close(k))),
+                Members::Closed(k) => return close(k),
                 Members::Other(k) => j = k,
             }
         }
@@ -749,7 +758,7 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
             continue;
         }
         if let Ok((k, _)) = punct(b'}')(k) {
-            return Ok((k, close(k)));
+            return close(k);
         }
         if k.is_empty() {
             return fail!(
@@ -764,6 +773,56 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
             "separate members with commas and close the aggregate with } on the same line",
         );
     }
+}
+
+/// The offset of the second name of a member given twice in the aggregate being closed (its
+/// members start at `mark`); see [`repeated_name`].
+fn repeated_member(cx: Cx<'_>, nested: bool, mark: usize) -> Option<usize> {
+    let n = cx.nodes.borrow();
+    let members = if nested {
+        &n.scratch[mark..]
+    } else {
+        &n.members[mark..]
+    };
+    repeated_name(&n, members, cx.base(), 0)
+}
+
+/// The source offset of the second name of a member given twice among `members`, compared as
+/// KRL does, ignoring case (`src`: the source from offset `offset` on, holding the names).
+/// One-letter names (`X`, `A`, `S`: nearly every member of a position) are checked by a bit
+/// each; the others pair by pair, few in any aggregate. An indexed member (`NAME[] "text"`)
+/// names an element, not the member: not compared.
+pub(crate) fn repeated_name(
+    n: &Nodes,
+    members: &[Packed],
+    src: &[u8],
+    offset: usize,
+) -> Option<usize> {
+    let name = |m| {
+        let span = n.member_name(m);
+        let (a, b) = (span.start as usize - offset, span.end as usize - offset);
+        (span.start as usize, &src[a..b], src.get(b) == Some(&b'['))
+    };
+    let mut letters = 0u64;
+    for (i, &m) in members.iter().enumerate() {
+        let (at, this, indexed) = name(m);
+        if indexed {
+            continue;
+        }
+        if let [b] = this {
+            let bit = 1u64 << (b.to_ascii_uppercase() & 63);
+            if letters & bit != 0 {
+                return Some(at);
+            }
+            letters |= bit;
+        } else if members[..i].iter().any(|&o| {
+            let (_, other, indexed) = name(o);
+            !indexed && other.len() == this.len() && other.eq_ignore_ascii_case(this)
+        }) {
+            return Some(at);
+        }
+    }
+    None
 }
 
 /// The optional `TYPE :` after an aggregate's `{` (and the blanks after it).

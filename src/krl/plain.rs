@@ -104,6 +104,11 @@ impl Reader<'_> {
         let type_name = self.type_prefix();
         let first = nodes.members.len();
         self.members(nodes)?;
+        // A member given twice is an error: the grammar's parser says so.
+        let members = &nodes.members[first..];
+        if super::expr::repeated_name(nodes, members, self.b, self.base).is_some() {
+            return None;
+        }
         let span = self.span(open, self.p);
         let len = (nodes.members.len() - first) as u32;
         let id = AggregateId(nodes.aggregates.len() as u32);

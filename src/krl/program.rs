@@ -8,7 +8,6 @@ use super::span::Span;
 use super::symbols::Symbols;
 use super::tree::{parse_recovering_owned, FileKind, SourceFile};
 use crate::diagnostic::Diagnostic;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// A file that could not be read.
@@ -36,11 +35,9 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>, LoadError> {
         source,
     };
     if path.as_os_str() == "-" {
-        let mut buf = Vec::new();
-        std::io::stdin().read_to_end(&mut buf).map_err(err)?;
-        return Ok(buf);
+        return crate::input::stdin().map_err(err);
     }
-    std::fs::read(path).map_err(err)
+    crate::input::read(path).map_err(err)
 }
 
 impl Program {

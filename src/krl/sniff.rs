@@ -21,6 +21,18 @@ fn is_control(b: u8) -> bool {
     (b < 0x20 && !matches!(b, b'\t' | b'\n' | b'\r' | 0x0c | 0x1a)) || b == 0x7f
 }
 
+/// Text saved as UTF-16 (Windows editors' "Unicode"): a byte order mark, or a NUL in every
+/// other byte of the first line. Named as such, with the way out, rather than "binary".
+fn utf16(src: &[u8]) -> Option<Problem> {
+    crate::input::is_utf16(src).then(|| {
+        Problem::error(
+            Span::new(0, src.len().min(2)),
+            "not a KRL file: it is text saved as UTF-16 (\"Unicode\"), which the controller does not read",
+            "save it as ANSI (Windows-1252) or UTF-8 text, e.g. in Notepad: Save as, Encoding",
+        )
+    })
+}
+
 /// Why `file` is not KRL, as an error at the first place that shows it; `None` for a KRL
 /// file (an empty one or one of comments only included).
 pub fn not_krl(file: &SourceFile) -> Option<Problem> {
@@ -28,6 +40,9 @@ pub fn not_krl(file: &SourceFile) -> Option<Problem> {
     let head = ..src.len().min(SAMPLE);
     let tail = src.len().saturating_sub(SAMPLE).max(head.end)..;
     let parts = [(0, &src[head]), (tail.start, &src[tail])];
+    if let Some(e) = utf16(src) {
+        return Some(e);
+    }
     for (at, part) in parts {
         if let Some(i) = memchr::memchr(0, part) {
             let at = at + i;

@@ -41,6 +41,9 @@ impl MeasureError {
     }
 }
 
+/// Characters of a field a message quotes (see [`crate::diagnostic::clip`]).
+const MAX_QUOTED: usize = 40;
+
 const AXES: [&str; 6] = ["a1", "a2", "a3", "a4", "a5", "a6"];
 const DIRS: [&str; 6] = ["dir1", "dir2", "dir3", "dir4", "dir5", "dir6"];
 const KNOWN: [&str; 17] = [
@@ -72,10 +75,9 @@ pub fn read_csv_within(
 ) -> Result<Measurements, MeasureError> {
     let name = path.display().to_string();
     let bytes = if name == "-" {
-        let mut buf = Vec::new();
-        std::io::Read::read_to_end(&mut std::io::stdin(), &mut buf).map(|_| buf)
+        crate::input::stdin()
     } else {
-        std::fs::read(path)
+        crate::input::read(path)
     };
     let bytes = bytes.map_err(|e| MeasureError {
         file: name.clone(),
@@ -154,6 +156,9 @@ pub fn parse_csv_within(
         message,
         help: help.map(str::to_string),
     };
+    if crate::input::is_utf16(bytes) {
+        return Err(error(0, 0, crate::input::UTF16.into(), None));
+    }
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
@@ -175,6 +180,17 @@ pub fn parse_csv_within(
         .iter()
         .map(|h| String::from_utf8_lossy(h).trim().to_ascii_lowercase())
         .collect();
+    // A column named twice is ambiguous (which `x` is the measured one?): refused.
+    for (i, n) in names.iter().enumerate() {
+        if KNOWN.contains(&n.as_str()) && names[..i].contains(n) {
+            return Err(error(
+                1,
+                column_of_field(&line_of(1), i),
+                format!("column `{n}` is named twice in the header"),
+                Some("each column may appear once: remove or rename the other"),
+            ));
+        }
+    }
     let find = |n: &str| names.iter().position(|h| h == n);
     let require = |n: &str| {
         find(n).ok_or_else(|| {
@@ -209,6 +225,8 @@ pub fn parse_csv_within(
     let mut stops = Vec::new();
     let mut explicit = Vec::new();
     let mut record = csv::ByteRecord::new();
+    // The last time given (`t`) and its line.
+    let mut last_time: Option<(f64, usize)> = None;
     loop {
         let more = reader.read_byte_record(&mut record).map_err(|e| {
             let line = line_at(e.position());
@@ -227,6 +245,8 @@ pub fn parse_csv_within(
         let col_of = |field: usize| column_of_field(&line_of(line), field);
         let text =
             |i: usize| String::from_utf8_lossy(record.get(i).unwrap_or_default()).to_string();
+        // A field as a message quotes it: clipped (a 50 MB field is not echoed whole).
+        let quoted = |i: usize| crate::diagnostic::clip(&text(i), MAX_QUOTED);
         let number = |i: usize, what: &str| -> Result<Option<f64>, MeasureError> {
             let bytes = record.get(i).unwrap_or_default();
             if bytes.is_empty() {
@@ -248,7 +268,7 @@ pub fn parse_csv_within(
                     col_of(i),
                     format!(
                         "{what} = {} is beyond any physical range (at most ±{range} {unit})",
-                        text(i)
+                        quoted(i)
                     ),
                     Some(
                         "check the column's unit (mm, degrees, seconds) and the number's exponent",
@@ -257,7 +277,7 @@ pub fn parse_csv_within(
                 _ => Err(error(
                     line,
                     col_of(i),
-                    format!("`{}` is not a number ({what})", text(i)),
+                    format!("`{}` is not a number ({what})", quoted(i)),
                     None,
                 )),
             }
@@ -312,7 +332,23 @@ pub fn parse_csv_within(
             }
         };
         let time_s = match cols.t {
-            Some(c) => number(c, "t")?.unwrap_or(0.0),
+            Some(c) => match number(c, "t")? {
+                Some(t) => {
+                    // The rows are in the order the robot visited them: the clock only
+                    // goes on (drift is fitted over it).
+                    if let Some((before, at)) = last_time.filter(|(before, _)| t < *before) {
+                        return Err(error(
+                            line,
+                            col_of(c),
+                            format!("time runs backwards: t = {t} s, after {before} s on line {at}"),
+                            Some("rows are in the order the robot visited them; two campaigns go in two files"),
+                        ));
+                    }
+                    last_time = Some((t, line));
+                    t
+                }
+                None => 0.0,
+            },
             None => 0.0,
         };
         let mut dirs = [None; 6];

@@ -177,7 +177,7 @@ impl Cell {
             }
             let mut read = || {
                 cell.scanned += 1;
-                std::fs::read(path).map_err(|source| ScanError {
+                crate::input::read(path).map_err(|source| ScanError {
                     path: path.clone(),
                     source,
                 })
@@ -292,7 +292,7 @@ pub enum MachineDataError {
 /// robopost models (a palletiser's offset wrist, a special kinematic class).
 pub fn machine_robot(path: &Path) -> Result<(String, RobotDescription), MachineDataError> {
     use crate::krl::{Expr, FileKind, StmtKind};
-    let bytes = std::fs::read(path).map_err(|source| MachineDataError::Io {
+    let bytes = crate::input::read(path).map_err(|source| MachineDataError::Io {
         path: path.to_path_buf(),
         source,
     })?;

@@ -100,7 +100,7 @@ fn checked(
 }
 
 fn read(path: &Path, name: &str) -> Result<Vec<u8>, LoadError> {
-    std::fs::read(path).map_err(|source| LoadError::Io {
+    crate::input::read(path).map_err(|source| LoadError::Io {
         name: name.to_string(),
         source,
     })

@@ -24,7 +24,7 @@ pub enum Truth {
 impl Truth {
     /// Reads a truth file of either format.
     pub fn load(path: &Path) -> Result<Truth, CalError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CalError::Io {
+        let text = crate::input::read_to_string(path).map_err(|source| CalError::Io {
             path: path.to_path_buf(),
             source,
         })?;

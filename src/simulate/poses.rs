@@ -49,7 +49,7 @@ pub fn read_poses(
     axis_speed_deg_s: f64,
 ) -> Result<Vec<PlannedStop>, MeasureError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| MeasureError {
+    let bytes = crate::input::read(path).map_err(|e| MeasureError {
         file: name.clone(),
         line: 0,
         col: 0,

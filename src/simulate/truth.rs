@@ -196,7 +196,7 @@ pub fn parse(text: &str, path: &Path) -> Result<TruthFile, CalError> {
 
 /// Reads and validates a truth file.
 pub fn load(path: &Path) -> Result<TruthFile, CalError> {
-    let text = std::fs::read_to_string(path).map_err(|source| CalError::Io {
+    let text = crate::input::read_to_string(path).map_err(|source| CalError::Io {
         path: path.to_path_buf(),
         source,
     })?;

@@ -62,7 +62,9 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
 }
 
 /// A zero-error calibration changes nothing: every file of every fixture is written back
-/// byte for byte, without a header.
+/// byte for byte, without a header. (A fixture whose motions all go to names declared
+/// nowhere, `language/no_header.src`, is refused as nothing can be compensated, its files
+/// kept as they are.)
 #[test]
 fn nominal_calibration_is_the_identity_on_every_fixture() {
     let all = fixtures();
@@ -70,8 +72,10 @@ fn nominal_calibration_is_the_identity_on_every_fixture() {
     for path in all {
         let ws = load(&path);
         let result = run(&ws, "kr30ha-nominal.json", compensate::Method::Iterate);
+        let nothing_known = result.report.errors.len() == 1
+            && result.report.errors[0].contains("no target could be compensated");
         assert!(
-            !result.rejected,
+            !result.rejected || nothing_known,
             "{}: {:?}",
             path.display(),
             result.report.errors

@@ -198,26 +198,33 @@ impl<'f> Simulator<'f> {
 
     /// After iteration `n` (from 1) of loop `s` (whose condition would have it go on): whether
     /// to go on. A loop that ends on a run-time condition met in the iteration, or whose
-    /// iteration changed nothing (`changed`: assignments made), is followed twice; a million
-    /// iterations end any loop. When it stops here, the robot's position is unknown.
-    fn again(&mut self, file: FileId, s: &Stmt, n: u64, changed: bool) -> bool {
-        const MAX_ITERATIONS: u64 = 1_000_000;
+    /// iteration changed nothing (`changed`: assignments made), is followed twice; the loop
+    /// limits ([`MAX_LOOP_ITERATIONS`], [`MAX_LOOP_TOTAL`]) end any loop. When it stops here,
+    /// the robot's position is unknown.
+    fn again(&mut self, file: FileId, s: &Stmt, n: LoopCount, changed: bool) -> bool {
         let why = if let Some((_, line)) = self.exit_unknown {
             format!("this loop ends on a condition known only at run time (line {line})")
         } else if !changed {
             "nothing in this loop changes what ends it before run time (it runs until a signal or forever)".to_string()
-        } else if n >= MAX_ITERATIONS {
-            format!("this loop ran {MAX_ITERATIONS} times before run time without ending")
+        } else if self.loop_limit_reached(n) {
+            format!(
+                "this loop ran {} times before run time without ending ({})",
+                n.all,
+                loop_limits()
+            )
         } else {
             return true;
         };
-        if n < 2 {
+        if n.all < 2 {
             return true;
         }
         self.warn(
             file,
             s.head,
-            format!("{why}: it is followed {n} times, as a cycle, and the robot's position after it is unknown"),
+            format!(
+                "{why}: it is followed {} times, as a cycle, and the robot's position after it is unknown",
+                n.all
+            ),
         );
         self.state.current = None;
         false
@@ -347,9 +354,12 @@ impl<'f> Simulator<'f> {
                 }
                 let var = upper(self.src(file).text(f.var));
                 let outer = self.exit_unknown.take();
+                let within = |i: i64| (step > 0 && i <= to) || (step < 0 && i >= to);
                 let mut i = from;
-                while (step > 0 && i <= to) || (step < 0 && i >= to) {
+                let mut n = LoopCount::default();
+                while within(i) {
                     self.set_var(file, &var, Value::Int(i), scope);
+                    let stops = self.out.stops.len();
                     match self.block(file, &b.body, scope) {
                         Flow::Next => {}
                         Flow::Exit => break,
@@ -358,7 +368,28 @@ impl<'f> Simulator<'f> {
                     if self.steps >= MAX_STEPS {
                         return Flow::Return;
                     }
-                    i += step;
+                    self.count_iteration(&mut n, stops);
+                    // An overflowing counter ends the loop (the controller's would stop).
+                    let Some(next) = i.checked_add(step) else {
+                        break;
+                    };
+                    i = next;
+                    if within(i) && self.loop_limit_reached(n) {
+                        let left = (i128::from(to) - i128::from(i)) / i128::from(step) + 1;
+                        self.warn(
+                            file,
+                            s.head,
+                            format!(
+                                "this FOR loop runs {} times; it is followed {} times ({}), as a cycle, and the robot's position after it is unknown",
+                                left + i128::from(n.all),
+                                n.all,
+                                loop_limits()
+                            ),
+                        );
+                        self.state.current = None;
+                        self.exit_unknown = outer;
+                        return Flow::Next;
+                    }
                 }
                 if let Some((_, line)) = self.exit_unknown.take() {
                     // It may end at any iteration: where the robot is after it is not known.
@@ -448,7 +479,36 @@ impl<'f> Simulator<'f> {
     }
 }
 
+/// The loop limits, as messages state them.
+fn loop_limits() -> String {
+    format!("robopost follows a loop at most {MAX_LOOP_ITERATIONS} times, {MAX_MOVING_ITERATIONS} of them moving the robot, and {MAX_MOVING_TOTAL} moving iterations of all loops of a program")
+}
+
+/// Iterations of one loop followed so far: all, and those that moved the robot.
+#[derive(Clone, Copy, Debug, Default)]
+struct LoopCount {
+    all: u64,
+    moving: u64,
+}
+
 impl<'f> Simulator<'f> {
+    /// Counts an iteration just run (`stops`: the stops before it).
+    fn count_iteration(&mut self, n: &mut LoopCount, stops: usize) {
+        n.all += 1;
+        if self.out.stops.len() != stops {
+            n.moving += 1;
+            self.moving_iterations += 1;
+        }
+    }
+
+    /// Whether a loop that would go on after `n` iterations has reached a loop limit (it is
+    /// then ended as a cycle by the caller).
+    fn loop_limit_reached(&self, n: LoopCount) -> bool {
+        n.all >= MAX_LOOP_ITERATIONS
+            || n.moving >= MAX_MOVING_ITERATIONS
+            || self.moving_iterations >= MAX_MOVING_TOTAL
+    }
+
     /// `WHILE cond … ENDWHILE`.
     fn while_loop(
         &mut self,
@@ -458,7 +518,7 @@ impl<'f> Simulator<'f> {
         body: &'f [Stmt],
         scope: &mut Scope<'f>,
     ) -> Flow {
-        let mut n = 0;
+        let mut n = LoopCount::default();
         loop {
             match self.eval(file, cond, scope) {
                 Value::Bool(true) => {}
@@ -475,6 +535,7 @@ impl<'f> Simulator<'f> {
                 }
             }
             let before = self.assignments;
+            let stops = self.out.stops.len();
             match self.block(file, body, scope) {
                 Flow::Next => {}
                 Flow::Exit => return Flow::Next,
@@ -483,7 +544,7 @@ impl<'f> Simulator<'f> {
             if self.steps >= MAX_STEPS {
                 return Flow::Return;
             }
-            n += 1;
+            self.count_iteration(&mut n, stops);
             let goes_on = matches!(self.eval(file, cond, scope), Value::Bool(true));
             let changed =
                 self.assignments != before && (!constant(cond) || Self::exits(body, false));
@@ -502,9 +563,10 @@ impl<'f> Simulator<'f> {
         body: &'f [Stmt],
         scope: &mut Scope<'f>,
     ) -> Flow {
-        let mut n = 0;
+        let mut n = LoopCount::default();
         loop {
             let before = self.assignments;
+            let stops = self.out.stops.len();
             match self.block(file, body, scope) {
                 Flow::Next => {}
                 Flow::Exit => return Flow::Next,
@@ -531,7 +593,7 @@ impl<'f> Simulator<'f> {
             if self.steps >= MAX_STEPS {
                 return Flow::Return;
             }
-            n += 1;
+            self.count_iteration(&mut n, stops);
             let changed = self.assignments != before
                 && (!cond.is_some_and(constant) || Self::exits(body, false));
             if !self.again(file, s, n, changed) {

@@ -43,6 +43,16 @@ pub const CARRIED_STOPS: usize = 2;
 const MAX_CALL_DEPTH: usize = 64;
 /// Statements executed before the simulation gives up (an endless loop).
 const MAX_STEPS: u64 = 200_000_000;
+/// Iterations of one loop (`FOR`, `WHILE`, `REPEAT`) followed before run time. Past a limit
+/// the loop is followed as a cycle (like `LOOP`): the robot's position after it is unknown,
+/// said with a warning.
+const MAX_LOOP_ITERATIONS: u64 = 1_000_000;
+/// Iterations of one loop that moved the robot: a counted loop of a billion iterations with a
+/// motion inside would hold a stop per iteration, and each statement is written with one
+/// correction however often it runs (its last use).
+const MAX_MOVING_ITERATIONS: u64 = 1_000;
+/// Iterations that moved the robot, of all loops of a run together (nested loops multiply).
+const MAX_MOVING_TOTAL: u64 = 10_000;
 /// KUKA HOME, the reference for choosing a branch when nothing else is known.
 const HOME: [f64; 6] = [0.0, -90.0, 90.0, 0.0, 0.0, 0.0];
 
@@ -438,6 +448,8 @@ struct Simulator<'f> {
     seen: HashMap<(FileId, u32, Severity, String), (usize, usize)>,
     depth: usize,
     steps: u64,
+    /// Loop iterations that moved the robot in the run (see [`MAX_MOVING_TOTAL`]).
+    moving_iterations: u64,
     warned_frames: bool,
     /// The note on external axes was given.
     noted_external: bool,
@@ -554,6 +566,7 @@ impl<'f> Simulator<'f> {
             seen: HashMap::new(),
             depth: 0,
             steps: 0,
+            moving_iterations: 0,
             warned_frames: false,
             noted_external: false,
             prefixes: Default::default(),

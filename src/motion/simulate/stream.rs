@@ -103,6 +103,7 @@ impl<'f> Simulator<'f> {
         walker.warned_frames = self.warned_frames;
         walker.noted_external = self.noted_external;
         walker.steps = self.steps;
+        walker.moving_iterations = self.moving_iterations;
         walker.out.frames = self.out.frames.clone();
         walker.out.stops.extend(history.iter().copied());
         if let Some(c) = &mut walker.state.current {
@@ -116,6 +117,7 @@ impl<'f> Simulator<'f> {
         self.warned_frames = walker.warned_frames;
         self.noted_external = walker.noted_external;
         self.steps = walker.steps;
+        self.moving_iterations = walker.moving_iterations;
         self.needs
             .borrow_mut()
             .append(&mut walker.needs.borrow_mut());

@@ -89,7 +89,7 @@ impl PhysicalRobot {
 
     /// Reads a physical truth file.
     pub fn load(path: &Path) -> Result<PhysicalRobot, CalError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CalError::Io {
+        let text = crate::input::read_to_string(path).map_err(|source| CalError::Io {
             path: path.to_path_buf(),
             source,
         })?;
