@@ -7,11 +7,14 @@
 use clap::{Parser, Subcommand};
 
 pub mod batch;
+pub mod campaign;
 pub mod check;
 pub mod compare;
 pub mod compensate;
 pub mod diagnose;
 pub mod identify;
+pub mod import;
+pub mod instrument;
 pub mod kin;
 pub mod simulate;
 
@@ -68,6 +71,10 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Identify a calibration from laser-tracker measurements.
     Identify(identify::Args),
+    /// The measurement campaign for a real cell: a KRL program and its plan.
+    Campaign(campaign::Args),
+    /// Join a tracker package's export (or a stream) to a campaign's plan: the measurement CSV.
+    Import(import::Args),
 }
 
 const SUBCOMMANDS: &[&str] = &[
@@ -78,6 +85,8 @@ const SUBCOMMANDS: &[&str] = &[
     "identify",
     "compare",
     "diagnose",
+    "import",
+    "campaign",
     "fk",
     "ik",
     "help",
@@ -128,6 +137,8 @@ pub fn main(args: Vec<String>) -> i32 {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Import(a) => import::run(a),
+        Command::Campaign(a) => campaign::run(a),
     };
     exit as i32
 }
