@@ -53,8 +53,12 @@ pub struct Args {
     pub floor: Option<f64>,
     /// A keep-out box (two opposite corners, base frame, mm): no stop puts the reflector or
     /// the flange inside it. Repeat for more boxes.
-    #[arg(long = "box", value_delimiter = ',', allow_negative_numbers = true, num_args = 6, action = clap::ArgAction::Append)]
-    pub boxes: Vec<f64>,
+    #[arg(
+        long = "box",
+        value_name = "X1,Y1,Z1,X2,Y2,Z2",
+        allow_hyphen_values = true
+    )]
+    pub boxes: Vec<String>,
     /// Step of the indexing tests, degrees.
     #[arg(long, default_value_t = 1.0)]
     pub pitch: f64,
@@ -64,6 +68,10 @@ pub struct Args {
     /// Axis speed assumed between stops for the plan's times, degrees per second.
     #[arg(long, default_value_t = crate::simulate::campaign::DEFAULT_AXIS_SPEED_DEG_S)]
     pub speed: f64,
+    /// The reversal tests' back-and-forth moves, degrees (some shorter and some longer than
+    /// a gear play; a stream's dwells need moves longer than --radius of `import`).
+    #[arg(long = "reversal-steps", value_delimiter = ',')]
+    pub reversal_steps: Option<Vec<f64>>,
     /// Pulse this output half-way through each measured stop's dwell (triggered capture).
     #[arg(long)]
     pub pulse: Option<u16>,
@@ -103,6 +111,29 @@ fn program_name(out: &Path) -> Result<String, Exit> {
     }
 }
 
+/// The `--box` arguments, six numbers each.
+fn boxes(args: &[String]) -> Result<Vec<[f64; 6]>, Exit> {
+    args.iter()
+        .map(|arg| {
+            let v: Vec<f64> = arg
+                .split(',')
+                .map(|c| c.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| {
+                    super::usage(format!("--box {arg}: expected X1,Y1,Z1,X2,Y2,Z2 in mm"))
+                })?;
+            match v.as_slice() {
+                [a, b, c, d, e, f] if v.iter().all(|x| x.is_finite()) => {
+                    Ok([*a, *b, *c, *d, *e, *f])
+                }
+                _ => Err(super::usage(format!(
+                    "--box {arg}: expected X1,Y1,Z1,X2,Y2,Z2 in mm"
+                ))),
+            }
+        })
+        .collect()
+}
+
 pub fn run(args: Args) -> Exit {
     match build(&args) {
         Ok(exit) => exit,
@@ -127,6 +158,15 @@ fn build(args: &Args) -> Result<Exit, Exit> {
         axis_speed_deg_s: args.speed,
         ..Choices::default()
     };
+    if let Some(steps) = &args.reversal_steps {
+        if !steps
+            .iter()
+            .all(|s| s.is_finite() && *s > 0.0 && *s <= 10.0)
+        {
+            return Err(super::usage("--reversal-steps: steps in (0, 10]°"));
+        }
+        choices.reversal_steps_deg = steps.clone();
+    }
     if let Some(r) = &args.reference {
         match r.as_slice() {
             [a, b, c, d, e, f] if r.iter().all(|v| v.is_finite()) => {
@@ -153,11 +193,7 @@ fn build(args: &Args) -> Result<Exit, Exit> {
         tracker_mm: triple(&args.tracker_at, "--tracker-at")?,
         acceptance_deg: args.acceptance,
         floor_mm: args.floor,
-        boxes: args
-            .boxes
-            .chunks(6)
-            .map(|b| [b[0], b[1], b[2], b[3], b[4], b[5]])
-            .collect(),
+        boxes: boxes(&args.boxes)?,
     };
     let plan_path = args
         .plan

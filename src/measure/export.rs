@@ -211,9 +211,16 @@ fn header_of(fields: &[Field], line: usize) -> Option<Header> {
         return None;
     };
     let first = |r: Role| roles.iter().position(|(role, _, _)| *role == r);
+    // A name column by its name, else the first column before X that is none of the others
+    // (`Prüfpunkt`, `Merkmal`).
+    let name = first(Role::Name).or_else(|| {
+        roles[..x]
+            .iter()
+            .position(|(role, _, _)| *role == Role::Other)
+    });
     Some(Header {
         line,
-        name: first(Role::Name),
+        name,
         time: first(Role::Time),
         xyz: [x, y, z],
         unit,
