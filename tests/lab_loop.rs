@@ -475,3 +475,33 @@ fn the_tracker_sets_the_noise_floor_and_the_gross_error_threshold() {
         panic!("the floor came from repeats: {kind}");
     }
 }
+
+/// The example exports of docs/import.md (three points of the measurement CSV example, as each
+/// package writes them) all import to the same rows, `fixtures/exports/expected.csv`: the
+/// coordinates and times written there by hand from the plan and the points.
+#[test]
+fn the_documented_example_exports_import_to_the_expected_rows() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/exports");
+    let expected = std::fs::read_to_string(dir.join("expected.csv")).unwrap();
+    let out = tempfile::tempdir().unwrap();
+    for name in [
+        "spatial_analyzer.txt",
+        "tracker_pilot.csv",
+        "cam2_utf16le.txt",
+        "polyworks.txt",
+        "german_excel.csv",
+        "utf16be.txt",
+        "stream.csv",
+    ] {
+        let to = out.path().join(format!("{name}.csv"));
+        let export = dir.join(name);
+        let mut args = vec!["import", s(&export)];
+        let plan = dir.join("plan.csv");
+        args.extend(["--plan", s(&plan), "-o", s(&to)]);
+        if name == "stream.csv" {
+            args.push("--stream");
+        }
+        ok(&args);
+        assert_eq!(std::fs::read_to_string(&to).unwrap(), expected, "{name}");
+    }
+}

@@ -46,7 +46,7 @@ impl fmt::Display for Separator {
             Separator::Tab => "tab",
             Separator::Semicolon => "`;`",
             Separator::Comma => "`,`",
-            Separator::Spaces => "spaces",
+            Separator::Spaces => "space",
         })
     }
 }
