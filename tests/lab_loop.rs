@@ -505,3 +505,56 @@ fn the_documented_example_exports_import_to_the_expected_rows() {
         assert_eq!(std::fs::read_to_string(&to).unwrap(), expected, "{name}");
     }
 }
+
+/// `compare --residuals`: a row per measured point whose numbers agree with the measurement
+/// file and with themselves, and whose RMS (gross errors left out) is `compare --json`'s.
+#[test]
+fn compare_writes_every_points_residual() {
+    let run = run(None);
+    let cal = run.dir.path().join("cal.json");
+    ok(&["identify", s(&run.direct), "-o", s(&cal)]);
+    let file = run.dir.path().join("residuals.csv");
+    let out = robopost(&[
+        "compare",
+        "-c",
+        s(&cal),
+        s(&run.direct),
+        "--json",
+        "--residuals",
+        s(&file),
+    ]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("# robopost-residuals/1"));
+    assert!(lines.next().unwrap().starts_with("source,line,test,a1"));
+    let measured: Vec<Vector3<f64>> = read_csv(&run.direct)
+        .unwrap()
+        .stops
+        .iter()
+        .filter_map(|s| s.measured_mm)
+        .collect();
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    assert_eq!(rows.len(), measured.len());
+    let (mut ss, mut n) = (0.0, 0);
+    for (r, m) in rows.iter().zip(&measured) {
+        let f = |i: usize| r[i].parse::<f64>().unwrap();
+        assert_eq!([f(10), f(11), f(12)], [m.x, m.y, m.z]);
+        for c in 0..3 {
+            // The residual in µm is measured − predicted (both written to 0.1 µm).
+            assert!((f(16 + c) - (f(10 + c) - f(13 + c)) * 1000.0).abs() < 0.11);
+        }
+        if r[20] == "0" {
+            ss += f(19) * f(19);
+            n += 1;
+        }
+    }
+    let rms = (ss / n as f64).sqrt();
+    assert!(
+        (rms - json["rms_um"].as_f64().unwrap()).abs() < 0.01,
+        "{rms} {json}"
+    );
+}
