@@ -29,6 +29,10 @@ pub struct Args {
     /// A second calibration shown side by side (e.g. the one before adding an effect).
     #[arg(long, value_name = "OTHER.json")]
     pub against: Option<PathBuf>,
+    /// Write every measured point's residual under the calibration (`-c`) to this CSV
+    /// (docs/residuals.md).
+    #[arg(long, value_name = "FILE.csv")]
+    pub residuals: Option<PathBuf>,
 }
 
 /// Loads calibrations and measurement files, printing errors; `None` means exit 2.
@@ -108,6 +112,53 @@ fn summary_json(s: &Summary, path: &Path) -> Value {
     v
 }
 
+/// The version line of a residuals file.
+pub const RESIDUALS_VERSION: &str = "# robopost-residuals/1";
+
+/// One line per measured point: where it came from, its command, the measured and predicted
+/// positions (mm) and the residual (µm), and whether identification left it out.
+fn residuals_csv<T>(rows: &[Row], marks: &[Option<T>]) -> Vec<u8> {
+    let mut out = format!(
+        "{RESIDUALS_VERSION}\nsource,line,test,a1,a2,a3,a4,a5,a6,t,x,y,z,predicted_x,predicted_y,predicted_z,dx_um,dy_um,dz_um,d3_um,gross\n"
+    );
+    for (r, m) in rows.iter().zip(marks) {
+        let d = r.residual() * 1000.0;
+        let a = r.state.axes_deg;
+        let quote = |t: &str| {
+            if t.contains([',', '"', '\n']) {
+                format!("\"{}\"", t.replace('"', "\"\""))
+            } else {
+                t.to_string()
+            }
+        };
+        out.push_str(&format!(
+            "{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.1},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.2},{:.2},{:.2},{:.2},{}\n",
+            quote(&r.source),
+            r.line,
+            quote(&r.test),
+            a[0],
+            a[1],
+            a[2],
+            a[3],
+            a[4],
+            a[5],
+            r.state.time_s,
+            r.measured.x,
+            r.measured.y,
+            r.measured.z,
+            r.predicted.x,
+            r.predicted.y,
+            r.predicted.z,
+            d.x,
+            d.y,
+            d.z,
+            d.norm(),
+            u8::from(m.is_some())
+        ));
+    }
+    out.into_bytes()
+}
+
 pub fn run(args: Args) -> Exit {
     let mut cal_paths = vec![args.cal.as_path()];
     cal_paths.extend(args.against.as_deref());
@@ -117,6 +168,15 @@ pub fn run(args: Args) -> Exit {
             .read_all(cal_paths.iter().copied())
             .read_all(args.measurements.iter().map(PathBuf::as_path));
         if let Err(clash) = guard.write(&dir.join(report::INDEX)) {
+            return super::refuse(&clash);
+        }
+    }
+    if let Some(out) = &args.residuals {
+        let mut guard = crate::paths::Guard::new();
+        guard
+            .read_all(cal_paths.iter().copied())
+            .read_all(args.measurements.iter().map(PathBuf::as_path));
+        if let Err(clash) = guard.write(out) {
             return super::refuse(&clash);
         }
     }
@@ -153,6 +213,13 @@ pub fn run(args: Args) -> Exit {
         warn_if_implausible(path, cal, s);
     }
 
+    if let Some(out) = &args.residuals {
+        let bytes = residuals_csv(&rows[0], &marks);
+        if let Err(e) = super::simulate::write_output(out, &bytes) {
+            eprintln!("error: cannot write {}: {e}", out.display());
+            return Exit::Usage;
+        }
+    }
     if let (Some(dir), Some(data)) = (&args.report, &data) {
         let labels: Vec<String> = cal_paths.iter().map(|p| short_name(p)).collect();
         let learned = crate::diagnose::learned_only(&cals[0], data);

@@ -37,6 +37,8 @@ pub struct Args {
     /// Also write the HTML report (as `compare --report`, with the learned drivers) into DIR.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    #[command(flatten)]
+    pub instrument: super::instrument::TrackerArgs,
 }
 
 pub fn run(args: Args) -> Exit {
@@ -47,6 +49,10 @@ pub fn run(args: Args) -> Exit {
             eprintln!("error: --only: {e}");
             return Exit::Usage;
         }
+    };
+    let tracker = match args.instrument.tracker() {
+        Ok(t) => t,
+        Err(exit) => return exit,
     };
     let Some((cals, data)) = load_inputs(&[args.cal.as_path()], &args.measurements) else {
         return Exit::Usage;
@@ -64,6 +70,7 @@ pub fn run(args: Args) -> Exit {
         folds: args.folds as usize,
         only,
         learn: !args.no_learn,
+        tracker,
         progress: bar.clone().map(|bar| {
             ProgressSink(Arc::new(move |stage: &str, done: usize, of: usize| {
                 bar.set_message(stage.to_string());

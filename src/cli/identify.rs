@@ -73,6 +73,8 @@ pub struct Args {
     /// old and the new model (besides held-out folds of the fit's data).
     #[arg(long = "validate", value_name = "FILE.csv")]
     pub validate: Vec<PathBuf>,
+    #[command(flatten)]
+    pub instrument: super::instrument::TrackerArgs,
 }
 
 /// Gross errors printed one per line (all are in the calibration's provenance).
@@ -90,6 +92,10 @@ pub fn run(args: Args) -> Exit {
             args.map_pitch
         ));
     }
+    let tracker = match args.instrument.tracker() {
+        Ok(t) => t,
+        Err(exit) => return exit,
+    };
     let mut guard = crate::paths::Guard::new();
     guard
         .read_all(args.files.iter().map(PathBuf::as_path))
@@ -210,6 +216,7 @@ pub fn run(args: Args) -> Exit {
         sources: args.files.iter().map(|f| f.display().to_string()).collect(),
         file_of,
         max_points: Some(args.max_points),
+        tracker,
         progress: progress.clone().map(|bar| {
             Arc::new(move |p: &Progress| {
                 bar.set_prefix(p.stage);

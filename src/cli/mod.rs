@@ -7,11 +7,14 @@
 use clap::{Parser, Subcommand};
 
 pub mod batch;
+pub mod campaign;
 pub mod check;
 pub mod compare;
 pub mod compensate;
 pub mod diagnose;
 pub mod identify;
+pub mod import;
+pub mod instrument;
 pub mod kin;
 pub mod simulate;
 
@@ -99,6 +102,10 @@ pub enum Command {
     Simulate(simulate::Args),
     /// Identify a calibration from laser-tracker measurements.
     Identify(identify::Args),
+    /// The measurement campaign for a real cell: a KRL program and its plan.
+    Campaign(campaign::Args),
+    /// Join a tracker package's export (or a stream) to a campaign's plan: the measurement CSV.
+    Import(import::Args),
 }
 
 const SUBCOMMANDS: &[&str] = &[
@@ -109,6 +116,8 @@ const SUBCOMMANDS: &[&str] = &[
     "identify",
     "compare",
     "diagnose",
+    "import",
+    "campaign",
     "fk",
     "ik",
     "help",
@@ -166,6 +175,8 @@ pub fn main(args: Vec<String>) -> i32 {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Identify(a) => identify::run(a),
+        Command::Import(a) => import::run(a),
+        Command::Campaign(a) => campaign::run(a),
     };
     let flushed = std::io::Write::flush(&mut std::io::stdout().lock());
     if let Err(e) = flushed {

@@ -271,6 +271,7 @@ fn run_program(
         Ok(c) => c,
         Err(exit) => return exit,
     };
+    let source = String::from_utf8_lossy(&bytes).into_owned();
     let mut ws = match files::load_program_in((!stdin).then_some(path), bytes, cell.as_ref(), None)
     {
         Ok(ws) => ws,
@@ -315,7 +316,9 @@ fn run_program(
             |s| s.to_string_lossy().into_owned(),
         )
     };
-    let visits = program::program_visits(&sim, &test, dwell, speed);
+    let mut visits = program::program_visits(&sim, &test, dwell, speed);
+    // A campaign program (`robopost campaign`) labels its tests and names its measured stops.
+    program::label_campaign(&mut visits, &source);
     match robot.run_program(&visits) {
         Ok(measured) => write_measured(&program::rows_with_turns(&visits, &measured), out),
         Err(e) => {

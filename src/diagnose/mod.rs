@@ -71,6 +71,8 @@ pub struct DiagnoseOptions {
     pub max_screened: usize,
     /// Called as the work goes on (the command line's progress bar); `None`: silent.
     pub progress: Option<ProgressSink>,
+    /// The laser tracker's stated accuracy and station (`--tracker`, `--tracker-at`).
+    pub tracker: crate::measure::tracker::Tracker,
 }
 
 impl Default for DiagnoseOptions {
@@ -81,6 +83,7 @@ impl Default for DiagnoseOptions {
             learn: true,
             max_screened: sample::MAX_SCREENED,
             progress: None,
+            tracker: Default::default(),
         }
     }
 }
@@ -323,7 +326,7 @@ pub fn diagnose(
             .collect()
     };
     let model = cal.model_ref();
-    let floor = noise::estimate(&rows, &cal.frame);
+    let floor = noise::estimate(&rows, &cal.frame, &options.tracker);
     let all_before: Vec<Vector3<f64>> = rows.iter().map(Row::residual).collect();
     let rms = crossval::rms_um(&all_before);
     let residual_by_test = shares(&rows);

@@ -21,8 +21,10 @@ use serde::Serialize;
 
 use crate::calibration::MeasurementFrame;
 use crate::compare::Row;
+use crate::measure::tracker::Tracker;
 
-/// Tracker MPE: constant part (µm) and part per metre of distance (µm/m).
+/// The default tracker's (Leica AT960) MPE: constant part (µm) and part per metre of
+/// distance (µm/m); `--tracker` gives another ([`Tracker`]).
 pub const MPE_UM: f64 = 15.0;
 pub const MPE_UM_PER_M: f64 = 6.0;
 /// The typical error is about half of the MPE (MODEL.md).
@@ -50,6 +52,9 @@ pub enum NoiseSource {
         mean_distance_m: f64,
         /// The tracker's station was not in the data and was assumed.
         station_assumed: bool,
+        /// The tracker and its MPE in words ("AT960 MPE ±(15 µm + 6 µm/m)").
+        #[serde(skip)]
+        mpe: String,
     },
 }
 
@@ -61,8 +66,14 @@ impl NoiseSource {
             NoiseSource::TrackerSpec {
                 mean_distance_m,
                 station_assumed,
+                mpe,
             } => format!(
-                "tracker specification, typical half of the AT960 MPE ±(15 µm + 6 µm/m) at {:.1} m{}",
+                "tracker specification, typical half of the {} at {:.1} m{}",
+                if mpe.is_empty() {
+                    Tracker::default().mpe_words()
+                } else {
+                    mpe.clone()
+                },
                 mean_distance_m,
                 if *station_assumed {
                     " from a tracker assumed 3 m in front of the robot"
@@ -81,8 +92,9 @@ pub struct NoiseFloor {
     pub source: NoiseSource,
 }
 
-/// Estimates the noise floor of `rows` measured in `frame`.
-pub fn estimate(rows: &[Row], frame: &MeasurementFrame) -> NoiseFloor {
+/// Estimates the noise floor of `rows` measured in `frame` with `tracker` (standing where it
+/// says, else at the tracker frame's origin, else assumed).
+pub fn estimate(rows: &[Row], frame: &MeasurementFrame, tracker: &Tracker) -> NoiseFloor {
     if let Some((rms_um, dof)) = from_repeats(rows) {
         return NoiseFloor {
             rms_um,
@@ -92,19 +104,27 @@ pub fn estimate(rows: &[Row], frame: &MeasurementFrame) -> NoiseFloor {
     let (station, station_assumed) = match frame {
         // The tracker frame's origin is the tracker head.
         MeasurementFrame::Tracker(f) => (f.position(), false),
-        MeasurementFrame::Base => (Vector3::from(ASSUMED_STATION_MM), true),
+        MeasurementFrame::Base => match tracker.station_mm {
+            Some(at) => (at, false),
+            None => (Vector3::from(ASSUMED_STATION_MM), true),
+        },
     };
-    from_spec(rows, &station, station_assumed)
+    from_spec(rows, &station, station_assumed, tracker)
 }
 
-/// Spec noise: the typical 3-D error, half the MPE at each point's distance from the
+/// Spec noise: the typical 3-D error, half `tracker`'s MPE at each point's distance from the
 /// tracker, as an RMS over the points.
-pub fn from_spec(rows: &[Row], station: &Vector3<f64>, station_assumed: bool) -> NoiseFloor {
+pub fn from_spec(
+    rows: &[Row],
+    station: &Vector3<f64>,
+    station_assumed: bool,
+    tracker: &Tracker,
+) -> NoiseFloor {
     let n = rows.len().max(1) as f64;
     let (mut var, mut dist) = (0.0, 0.0);
     for r in rows {
         let d_m = (r.measured - station).norm() / 1000.0;
-        let typical = TYPICAL_FRACTION * (MPE_UM + MPE_UM_PER_M * d_m);
+        let typical = tracker.typical_um(d_m);
         var += typical * typical;
         dist += d_m;
     }
@@ -113,6 +133,7 @@ pub fn from_spec(rows: &[Row], station: &Vector3<f64>, station_assumed: bool) ->
         source: NoiseSource::TrackerSpec {
             mean_distance_m: dist / n,
             station_assumed,
+            mpe: tracker.mpe_words(),
         },
     }
 }
@@ -198,13 +219,14 @@ mod tests {
             row([0.0; 6], 0.0, Vector3::new(1000.0, 0.0, 800.0)),
             row([0.0; 6], 0.0, Vector3::new(3000.0, 0.0, 1800.0)),
         ];
-        let f = from_spec(&rows, &station, true);
+        let f = from_spec(&rows, &station, true, &Tracker::default());
         assert!((f.rms_um - ((13.5f64.powi(2) + 10.5f64.powi(2)) / 2.0).sqrt()).abs() < 1e-9);
         assert_eq!(
             f.source,
             NoiseSource::TrackerSpec {
                 mean_distance_m: 1.5,
-                station_assumed: true
+                station_assumed: true,
+                mpe: "AT960 MPE ±(15 µm + 6 µm/m)".into(),
             }
         );
     }

@@ -27,6 +27,7 @@ use super::verdict::{judge, Clues, TestResidual, Verdict};
 use crate::calibration::{Calibration, ExcludedPoint, MeasurementFrame, Provenance};
 use crate::compare::Row;
 use crate::diagnose::noise::{self, NoiseFloor, ASSUMED_STATION_MM};
+use crate::measure::tracker::Tracker;
 use crate::kinematics::{Frame, Payload, RobotDescription};
 use crate::measure::Stop;
 use crate::model::{EffectName, Model};
@@ -74,6 +75,9 @@ pub struct Request {
     /// Most measured points the fit uses ([`super::thin`]); `None`: [`DEFAULT_MAX_POINTS`],
     /// `Some(0)`: all.
     pub max_points: Option<usize>,
+    /// The laser tracker's stated accuracy and station (`--tracker`, `--tracker-at`): the
+    /// noise of each point in the gross-error test and the noise floor.
+    pub tracker: Tracker,
     pub progress: Option<ProgressFn>,
 }
 
@@ -223,11 +227,16 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
     // model lacks makes that one point's residual jump though its position does not.
     report(progress, "screening the tests", 0, 1);
     let tests = indexing_tests_grouped(stops, &request.file_of);
-    let assumed = Vector3::from(ASSUMED_STATION_MM);
+    let assumed = request
+        .tracker
+        .station_mm
+        .unwrap_or(Vector3::from(ASSUMED_STATION_MM));
     let spec_sigma = |i: usize| {
         let m = stops[i].measured_mm.unwrap_or_default();
-        // In a tracker frame the head is at the origin; else assumed in front of the robot.
-        tracker_sigma_mm(&m, &if tracker { Vector3::zeros() } else { assumed })
+        // In a tracker frame the head is at the origin; else where the user says it stands,
+        // or assumed in front of the robot.
+        let station = if tracker { Vector3::zeros() } else { assumed };
+        tracker_sigma_mm(&m, &station, &request.tracker)
     };
     let suspects: Vec<Suspect> = tests
         .par_iter()
@@ -337,7 +346,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
             .zip(&fit_file)
             .map(|(s, &g)| {
                 let m = frames[g] * Point3::from(s.measured_mm.unwrap_or_default());
-                tracker_sigma_mm(&m.coords, &station(g, &frames))
+                tracker_sigma_mm(&m.coords, &station(g, &frames), &request.tracker)
             })
             .collect();
         let in_fit: Vec<bool> = excluded.iter().map(|x| !x).collect();
@@ -399,7 +408,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
             let s = &stops[i];
             let m = (frames[g] * Point3::from(s.measured_mm.unwrap_or_default())).coords;
             let r = m - model.target_position(&s.state);
-            (m, r, tracker_sigma_mm(&m, &station(g, &frames)))
+            (m, r, tracker_sigma_mm(&m, &station(g, &frames), &request.tracker))
         })
         .collect();
     // Their residuals less their neighbours' (as in the rounds), over all measured points.
@@ -496,7 +505,13 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         .map(|k| in_fit[k] && !is_gross[k])
         .collect();
     let floor = noise_floor(
-        stops, &measured, &files, &checked, &of_fit, &frames, tracker,
+        stops,
+        &measured,
+        &files,
+        &checked,
+        &of_fit,
+        &frames,
+        (tracker, &request.tracker),
     );
     let residual_tests: Vec<TestResidual> = by_test
         .iter()
@@ -728,7 +743,7 @@ fn noise_floor(
     checked: &[(Vector3<f64>, Vector3<f64>, f64)],
     used: &[bool],
     frames: &[Frame],
-    tracker: bool,
+    (tracker, instrument): (bool, &Tracker),
 ) -> NoiseFloor {
     let mut floors: Vec<(NoiseFloor, usize)> = Vec::new();
     for (g, frame) in frames.iter().enumerate() {
@@ -752,12 +767,14 @@ fn noise_floor(
         let (f, station) = if tracker {
             (MeasurementFrame::Tracker(frame.to_pose()), frame.position)
         } else {
-            (MeasurementFrame::Base, Vector3::from(ASSUMED_STATION_MM))
+            let at = instrument.station_mm;
+            (MeasurementFrame::Base, at.unwrap_or(ASSUMED_STATION_MM.into()))
         };
-        let mut floor = noise::estimate(&rows, &f);
+        let mut floor = noise::estimate(&rows, &f, instrument);
         // "Repeats" scattering far beyond what a tracker does are not repeats of one pose
         // (the same campaign from another set-up, duplicated rows): judge by the tracker.
-        let spec = noise::from_spec(&rows, &station, !tracker);
+        let assumed = !tracker && instrument.station_mm.is_none();
+        let spec = noise::from_spec(&rows, &station, assumed, instrument);
         if floor.rms_um > REPEATS_BEYOND_SPEC * spec.rms_um {
             floor = spec;
         }
@@ -777,6 +794,7 @@ fn noise_floor(
         .unwrap_or(noise::NoiseSource::TrackerSpec {
             mean_distance_m: 0.0,
             station_assumed: true,
+            mpe: instrument.mpe_words(),
         });
     NoiseFloor {
         rms_um: rms,

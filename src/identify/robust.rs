@@ -16,6 +16,8 @@
 
 use nalgebra::Vector3;
 
+use crate::measure::tracker::Tracker;
+
 /// A residual beyond this many scaled standard deviations (3-D length / σ per coordinate) is
 /// a gross error: for three normal coordinates the chance is 1.5·10⁻⁵ per point. With many
 /// points the threshold rises so that noise alone flags fewer than half a point over all of
@@ -23,7 +25,8 @@ use nalgebra::Vector3;
 pub const THRESHOLD: f64 = 5.0;
 /// Most of a test's points that may be gross errors (see the module documentation).
 pub const MAX_SHARE: f64 = 0.05;
-/// Typical tracker noise per coordinate, µm, and its growth with distance, µm/m.
+/// Typical noise per coordinate of the default tracker (Leica AT960), µm, and its growth with
+/// distance, µm/m.
 pub const SIGMA_UM: f64 = 5.0;
 pub const SIGMA_UM_PER_M: f64 = 2.5;
 /// Median of the χ distribution with 3 degrees of freedom: the median length of a 3-D normal
@@ -81,9 +84,10 @@ pub fn threshold(n: usize, dof: u8) -> f64 {
 }
 
 /// The tracker's typical standard deviation per coordinate (mm) at `point` measured from
-/// `station` (both mm, one frame).
-pub fn tracker_sigma_mm(point: &Vector3<f64>, station: &Vector3<f64>) -> f64 {
-    (SIGMA_UM + SIGMA_UM_PER_M * (point - station).norm() / 1000.0) / 1000.0
+/// `station` (both mm, one frame): [`SIGMA_UM`] + [`SIGMA_UM_PER_M`] for the default AT960,
+/// in proportion to the stated MPE for another (`--tracker`).
+pub fn tracker_sigma_mm(point: &Vector3<f64>, station: &Vector3<f64>, tracker: &Tracker) -> f64 {
+    tracker.sigma_mm(point, station)
 }
 
 /// The outcome of one screening.
@@ -222,7 +226,11 @@ mod tests {
     #[test]
     fn sigma_by_hand_and_scale_from_the_fitted_points() {
         // 3 m from the tracker: 5 + 7.5 = 12.5 µm.
-        let s = tracker_sigma_mm(&Vector3::new(3000.0, 0.0, 0.0), &Vector3::zeros());
+        let s = tracker_sigma_mm(
+            &Vector3::new(3000.0, 0.0, 0.0),
+            &Vector3::zeros(),
+            &Tracker::default(),
+        );
         assert!((s - 0.0125).abs() < 1e-12);
         // Residuals of length exactly the χ₃ median (scale 1), one 6σ point and one 4σ point.
         let mut residuals = vec![Vector3::new(CHI3_MEDIAN * 0.01, 0.0, 0.0); 9];

@@ -109,6 +109,8 @@ pub fn parse_csv_within(
     file: &str,
     limits_deg: Option<&[[f64; 2]; 6]>,
 ) -> Result<Measurements, MeasureError> {
+    // A UTF-8 byte-order mark (Excel's "CSV UTF-8") is not part of the first column's name.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     // Lines end with `\n`, `\r\n` or a lone `\r`, as the csv reader reads them. Their starts
     // are found once: looking a line up per row must not rescan the file (quadratic time).
     let ends_line = |i: usize| match bytes[i] {
@@ -197,8 +199,8 @@ pub fn parse_csv_within(
             error(
                 1,
                 1,
-                format!("required column `{n}` is missing"),
-                Some("required columns: test, a1..a6, x, y, z (any order)"),
+                format!("required column `{n}` is missing ({})", seen(bytes)),
+                Some("required columns: test, a1..a6, x, y, z, `,`-separated (any order); a tracker package's export is joined to the campaign's plan by `robopost import EXPORT --plan PLAN.csv -o MEAS.csv`"),
             )
         })
     };
@@ -390,6 +392,32 @@ pub fn parse_csv_within(
         stops,
         ignored_columns,
     })
+}
+
+/// What the reader saw in a file whose columns are wrong: its encoding, the separator its
+/// header row seems to use, and the names in it ("read as UTF-16 LE; the header row seems
+/// `;`-separated: Punkt;X;Y;Z").
+fn seen(bytes: &[u8]) -> String {
+    let (text, encoding) = match super::text::decode(bytes) {
+        Ok(t) => t,
+        Err(e) => return format!("the file is not text: {e}"),
+    };
+    let header = super::text::lines(&text)
+        .into_iter()
+        .find(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .unwrap_or_default()
+        .to_string();
+    let count = |c: char| header.matches(c).count();
+    let separator = [('\t', "tab"), (';', "`;`"), (',', "`,`")]
+        .into_iter()
+        .max_by_key(|(c, _)| count(*c))
+        .filter(|(c, _)| count(*c) > 0)
+        .map_or("not separated by tab, `;` or `,`", |(_, name)| name);
+    let shown: String = header.chars().take(60).collect();
+    format!(
+        "the file reads as {encoding}; its header row is {separator}{}: {shown}",
+        if separator.starts_with('n') { "" } else { "-separated" }
+    )
 }
 
 /// 1-based byte column where field `index` starts in a raw CSV line (quote-aware).

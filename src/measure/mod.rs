@@ -2,10 +2,17 @@
 //! [`Stop`]s (command axis angles, each axis's history — rotation direction and gear-play
 //! memory — inferred from the visiting order, time, measured position) and written back.
 //! Histories are inferred here once, so that identification, diagnosis and the virtual robot
-//! all agree on where each axis's gear play stood.
+//! all agree on where each axis's gear play stood. A tracker package's own export is read
+//! ([`export`], [`text`]) and joined to the campaign's plan ([`plan`], [`join`]) into the same
+//! rows.
 
 mod csv_file;
 mod directions;
+pub mod export;
+pub mod join;
+pub mod plan;
+pub mod text;
+pub mod tracker;
 
 pub use csv_file::{
     parse_csv, parse_csv_within, read_csv, read_csv_within, write_csv, MeasureError,

@@ -7,6 +7,7 @@
 
 pub mod any_truth;
 pub mod campaign;
+pub mod lab;
 pub mod paper;
 pub mod physical;
 pub mod poses;

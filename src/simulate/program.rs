@@ -99,6 +99,23 @@ pub fn visit_states(visits: &[ProgramVisit]) -> Vec<AxisState> {
         .collect()
 }
 
+/// Labels the visits of a program `robopost campaign` wrote ([`super::lab`]) by its markers:
+/// each stop gets its test's label, and only the stops with a point name are measured (the
+/// approach moves are visited, not measured), as on the real cell. `false` (nothing changed)
+/// for any other program.
+pub fn label_campaign(visits: &mut [ProgramVisit], source: &str) -> bool {
+    let Some(marks) = super::lab::markers(source) else {
+        return false;
+    };
+    for v in visits.iter_mut() {
+        if let Some((test, point)) = marks.get(&v.line) {
+            v.stop.test = test.clone();
+            v.stop.measured = point.is_some();
+        }
+    }
+    true
+}
+
 /// The rows of a measurement file for `visits` measured as `stops` (one per visit): before
 /// every visit whose motion turns an axis round, an unmeasured row with those axes at their
 /// turning points (the others where the motion started), so that the histories a reader
