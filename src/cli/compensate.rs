@@ -93,6 +93,33 @@ pub struct ProgramArgs {
     /// Apply the paper's equation (3) once instead of iterating to 0.1 µm (for comparison).
     #[arg(long = "one-step")]
     pub one_step: bool,
+    /// A value the walk cannot know before run time, `NAME=VALUE` (repeatable): a variable
+    /// (`lnUsedBase=2`), an array element or input (`$IN[5]=TRUE`), an enum (`side=#LEFT`).
+    #[arg(long = "assume", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    pub assume: Vec<crate::motion::Assumption>,
+    /// Which points to compensate: `offline` (computed away from the robot: every point),
+    /// `taught` (taught on the robot: none, unless --from), `auto` (each point as the
+    /// evidence in its files says).
+    #[arg(long = "points", value_enum, default_value_t = PointOrigin::Auto)]
+    pub point_origin: PointOrigin,
+}
+
+/// `--points`: where the program's points come from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PointOrigin {
+    Auto,
+    Offline,
+    Taught,
+}
+
+impl From<PointOrigin> for crate::compensate::Taken {
+    fn from(p: PointOrigin) -> Self {
+        match p {
+            PointOrigin::Auto => crate::compensate::Taken::Auto,
+            PointOrigin::Offline => crate::compensate::Taken::Offline,
+            PointOrigin::Taught => crate::compensate::Taken::Taught,
+        }
+    }
 }
 
 /// `args.program.config` etc. read through to the frame options.
@@ -115,6 +142,8 @@ impl ProgramArgs {
             parallel,
             frames,
             points,
+            assumptions: self.assume.clone(),
+            taken: self.point_origin.into(),
         }
     }
 }
@@ -354,6 +383,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     ws.robot = robot_label(&cal, &args.cal);
+    ws.assumptions.clone_from(&args.program.assume);
     if tracing::enabled!(tracing::Level::DEBUG) {
         let runs = ws.get(ws.main).file.streamed_runs();
         let windows: usize = runs.iter().map(|r| r.windows().len()).sum();
@@ -453,7 +483,7 @@ fn exit_status(result: &compensate::ProgramResult) -> Exit {
 /// One line on standard error.
 pub fn summary(r: &compensate::Report) {
     eprintln!(
-        "{}: {} (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} direction flips, {} held axes kept, {} reversals inside the play",
+        "{}: {} (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} direction flips, {} held axes kept, {} reversals inside the play{}",
         r.program,
         r.counts(),
         r.correction.position_um.max,
@@ -461,7 +491,8 @@ pub fn summary(r: &compensate::Report) {
         r.correction.position_um.mean,
         r.direction_flips,
         r.held_axes,
-        r.reversals_inside_play
+        r.reversals_inside_play,
+        r.taken_text()
     );
 }
 
@@ -548,6 +579,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
             }
         };
         ws.robot = label.clone();
+        ws.assumptions.clone_from(&args.assume);
         let result = compensate::compensate_program(&ws, &calibrated, &args.options(true, false));
         for d in &result.diagnostics {
             eprintln!("{}", d.render());
@@ -563,7 +595,12 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
         } else {
             r.resolution()
         };
-        println!("{}: {counts}{}", path.display(), r.needs_text());
+        println!(
+            "{}: {counts}{}{}",
+            path.display(),
+            r.needs_text(),
+            r.taken_text()
+        );
         if r.rejected > 0 {
             exit = exit.max(Exit::Rejected);
         }

@@ -11,6 +11,7 @@ use crate::motion::workspace::Role as FileRole;
 use crate::motion::{self, FileId, GivenFrame, Programmed, Role, Simulation, Workspace};
 
 use super::output::Chunk;
+use super::taken::Taken;
 pub use super::output::Output;
 pub(super) use super::report::Tally;
 pub use super::report::{CalibrationRef, MaxMean, PointReport, PoseStats, Report, SplitReport};
@@ -54,6 +55,12 @@ pub struct Options {
     pub frames: Vec<GivenFrame>,
     /// List every target in the report (`--report`); the summary is always filled.
     pub points: bool,
+    /// What the user states about run time (`--assume`); the caller puts them in the
+    /// workspace (`Workspace::assumptions`), where the walk reads them.
+    pub assumptions: Vec<motion::Assumption>,
+    /// Which points are taken as taught (left as they are) and which as offline
+    /// (compensated): `--points`.
+    pub taken: Taken,
 }
 
 impl Options {
@@ -88,7 +95,12 @@ pub struct ProgramResult {
 }
 
 /// The compensation targets of the stops `range` of a simulation.
-pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
+/// `taught` says which stops are taken as taught: left as they are.
+pub fn targets(
+    sim: &Simulation,
+    range: std::ops::Range<usize>,
+    taught: impl Fn(&motion::Stop) -> bool + Sync,
+) -> Vec<Target> {
     use rayon::prelude::*;
     let from = range.start;
     sim.stops[range]
@@ -120,7 +132,7 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
                     None => Interp::Line,
                 },
             },
-            compensate: s.compensable,
+            compensate: s.compensable && !taught(s),
             written_base: match s.programmed {
                 Programmed::Pose(_) if s.compensable && s.origin.is_some() => Some(s.base),
                 _ => None,
@@ -228,7 +240,8 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
         return rejected(ws, report, compensated_before, 0);
     }
     let model = cal.model;
-    let mut seg = Segments::new(ws, model, options);
+    let taking = super::taken::Taking::new(ws, options.taken);
+    let mut seg = Segments::new(ws, model, options, &taking);
     let sim = tracing::info_span!("simulate and compensate").in_scope(|| {
         motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg))
     });
@@ -380,6 +393,28 @@ fn rewrite_and_report(
     report.rejected += sim.unreachable;
     report.unresolved = sim.lost;
     report.needs = sim.needs.iter().cloned().collect();
+    report.points_taken = seg.taken.fill(seg.taking_mode());
+    report.assumptions = ws
+        .assumptions
+        .iter()
+        .enumerate()
+        .map(|(k, a)| super::report::AssumptionUse {
+            assumption: a.to_string(),
+            uses: sim.assumptions_used.0.get(k).copied().unwrap_or(0),
+        })
+        .collect();
+    for a in report.assumptions.iter().filter(|a| a.uses == 0) {
+        let d = Diagnostic::new(
+            Severity::Warning,
+            &ws.get(ws.main).name,
+            format!(
+                "--assume {}: never used (the walk never read it where the program leaves the value open)",
+                a.assumption
+            ),
+        );
+        report.warnings.push(format!("{}: {}", d.file, d.message));
+        diagnostics.push(d);
+    }
     (std::mem::take(&mut rw.edits), report)
 }
 

@@ -139,6 +139,7 @@ fn compensated(text: &[u8], stream: Option<robopost::krl::StreamOptions>) -> Vec
         parallel: true,
         frames: Vec::new(),
         points: false,
+        ..program::Options::default()
     };
     let result = robopost::compensate::compensate_program(&ws, &c, &options);
     assert!(!result.rejected, "{:?}", result.report.errors);

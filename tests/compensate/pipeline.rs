@@ -56,6 +56,10 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
             parallel: true,
             frames: Vec::new(),
             points: true,
+            assumptions: Vec::new(),
+            // The points of every fixture rewritten, taught ones too: these tests are of
+            // the walk and the rewrite (`taken.rs` tests which points `auto` leaves).
+            taken: compensate::Taken::Offline,
         },
     )
 }
