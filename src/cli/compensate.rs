@@ -300,6 +300,10 @@ pub struct Args {
     /// Write a JSON report: per-target corrections, direction flips, warnings.
     #[arg(long = "report", value_name = "FILE.json")]
     pub report: Option<PathBuf>,
+    /// The calibration of the robot the program was taught on (a twin or the robot replaced):
+    /// the targets taken as taught are compensated to where that robot reaches them.
+    #[arg(long = "from", value_name = "A.json")]
+    pub from: Option<PathBuf>,
     #[command(flatten)]
     pub program: ProgramArgs,
 }
@@ -345,6 +349,26 @@ pub fn run(args: Args) -> Exit {
     let cell = match cell_fitted(&args.program, &mut cal, &args.cal) {
         Ok(c) => c,
         Err(exit) => return exit,
+    };
+    let from = match &args.from {
+        None => None,
+        Some(path) => {
+            let (mut a, _) = match load_calibration(path) {
+                Ok(c) => c,
+                Err(exit) => return exit,
+            };
+            // The robot of -c stated for the robot of --from: one type, or no transfer.
+            let b = StatedRobot {
+                name: cal.robot_name.clone(),
+                robot: cal.model_ref().robot,
+                source: format!("-c {}", args.cal.display()),
+                configured: false,
+            };
+            if let Err(exit) = fit_robot(&mut a, path, &[b]) {
+                return exit;
+            }
+            Some(a)
+        }
     };
     let stdin = is_dash(&args.input);
     let bytes = if stdin {
@@ -393,6 +417,7 @@ pub fn run(args: Args) -> Exit {
     let mut guard = crate::paths::Guard::new();
     guard
         .read(&args.cal)
+        .read_all(args.from.iter().map(PathBuf::as_path))
         .read_all(ws.files.iter().filter_map(|f| f.path.as_deref()));
     let outputs = if to_stdout {
         Vec::new()
@@ -412,9 +437,10 @@ pub fn run(args: Args) -> Exit {
         }
     }
     let calibrated = calibrated(&cal, &args.cal, &cal_bytes);
-    let result = compensate::compensate_program(
+    let result = compensate::compensate_program_from(
         &ws,
         &calibrated,
+        from.as_ref().map(|a| a.model_ref()),
         &args.program.options(true, args.report.is_some()),
     );
     for d in &result.diagnostics {

@@ -234,20 +234,42 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
 /// the skeleton's targets and gather what every step said into the report; apply the edits.
 /// Any step that fails leaves every file as it was (`rejected`).
 pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -> ProgramResult {
+    compensate_program_from(ws, cal, None, options)
+}
+
+/// [`compensate_program`] of a program taught on another robot (`--from A.json -c B.json`):
+/// the targets taken as taught are where robot `from` (its calibrated model) reaches them —
+/// at the axis angles the controller stored, with the gear-play history of the program's
+/// nominal motion — and are compensated so that the robot of `cal` reaches those places;
+/// the other targets as usual. The two robots must be of one type (the caller checks).
+pub fn compensate_program_from(
+    ws: &Workspace,
+    cal: &Calibrated,
+    from: Option<&Model>,
+    options: &Options,
+) -> ProgramResult {
+    if from.is_some() && !ws.get(ws.main).file.streamed_runs().is_empty() {
+        // The places are found on the whole walk, stop by stop.
+        return compensate_program_from(&ws.whole(), cal, from, options);
+    }
     let report = empty_report(ws, cal, options);
     let compensated_before = already_compensated_files(ws);
     if !compensated_before.is_empty() {
         return rejected(ws, report, compensated_before, 0);
     }
     let model = cal.model;
-    let taking = super::taken::Taking::new(ws, options.taken);
+    let mut taking = super::taken::Taking::new(ws, options.taken);
+    if let Some(from) = from {
+        let places = taught_places(ws, from, options, &taking);
+        taking = taking.with_places(places);
+    }
     let mut seg = Segments::new(ws, model, options, &taking);
     let sim = tracing::info_span!("simulate and compensate").in_scope(|| {
         motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg))
     });
     if sim.needs_whole_tree {
         drop((sim, seg));
-        return compensate_program(&ws.whole(), cal, options);
+        return compensate_program_from(&ws.whole(), cal, from, options);
     }
     // What loading the cell had to say (a shared data list with a line left out…).
     let main = ws.get(ws.main);
@@ -284,6 +306,41 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             rejected(ws, unfilled, diagnostics, target_errors)
         }
     }
+}
+
+/// Where robot `from` reaches each target taken as taught (`None` for the others): the walk
+/// on its nominal geometry, nothing compensated, each target's predicted pose error added to
+/// its programmed pose.
+fn taught_places(
+    ws: &Workspace,
+    from: &Model,
+    options: &Options,
+    taking: &super::taken::Taking,
+) -> Vec<Option<crate::motion::frame::Frame>> {
+    let sim = motion::simulate(ws, &from.robot, &options.frames);
+    let all = targets(&sim, 0..sim.stops.len(), |_| true);
+    let outcomes = super::sequence::compensate(
+        from,
+        &sim.frames,
+        &all,
+        [crate::model::Direction::Unknown; 6],
+        &options.sequence(),
+    );
+    sim.stops
+        .iter()
+        .zip(&outcomes)
+        .map(|(s, o)| {
+            taking.taught(ws, s).then(|| {
+                let e = &o.before;
+                crate::motion::frame::Frame {
+                    position: s.goal.position + nalgebra::Vector3::new(e[0], e[1], e[2]),
+                    rotation: crate::motion::frame::exp_so3(&nalgebra::Vector3::new(
+                        e[3], e[4], e[5],
+                    )) * s.goal.rotation,
+                }
+            })
+        })
+        .collect()
 }
 
 /// The report before anything was done: the program, the calibration and the method.
@@ -393,7 +450,7 @@ fn rewrite_and_report(
     report.rejected += sim.unreachable;
     report.unresolved = sim.lost;
     report.needs = sim.needs.iter().cloned().collect();
-    report.points_taken = seg.taken.fill(seg.taking_mode());
+    report.points_taken = seg.taken.fill(seg.taking_mode(), seg.taking_moves());
     report.assumptions = ws
         .assumptions
         .iter()

@@ -69,7 +69,16 @@ impl Preparer<'_> {
         let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
         let first = from + ghosts;
         let taking = self.taking;
-        let targets = targets(sim, first..sim.stops.len(), |s| taking.taught(ws, s));
+        let leaves = |s: &crate::motion::Stop| !taking.moves() && taking.taught(ws, s);
+        let mut targets = targets(sim, first..sim.stops.len(), leaves);
+        if taking.moves() {
+            // `--from`: a taught target goes where the robot it was taught on reaches it.
+            for (k, t) in targets.iter_mut().enumerate() {
+                if let Some(place) = taking.place(first + k) {
+                    t.goal = *place;
+                }
+            }
+        }
         let passes = sequence::first_passes(
             self.model,
             &sim.frames,
@@ -138,6 +147,11 @@ pub(super) struct Segments<'a> {
 }
 
 impl<'a> Segments<'a> {
+    /// Whether taught targets are moved (`--from`).
+    pub fn taking_moves(&self) -> bool {
+        self.taking.moves()
+    }
+
     /// `--points` as given.
     pub fn taking_mode(&self) -> taken::Taken {
         self.taking.mode

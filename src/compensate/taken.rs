@@ -9,6 +9,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use crate::motion::frame::Frame;
 use crate::motion::provenance::{self, Evidence, Facts};
 use crate::motion::{Stop, Workspace};
 
@@ -39,6 +40,11 @@ impl Taken {
 pub struct Taking {
     pub mode: Taken,
     facts: Facts,
+    /// With `--from`: per stop of the whole-tree walk, where the robot the points were taught
+    /// on reaches a target taken as taught (its model at the axis angles the controller
+    /// stored, with the gear-play history of the program's motion) — the goal it is
+    /// compensated to instead of its written pose. `None` for the other targets.
+    places: Option<Vec<Option<Frame>>>,
 }
 
 impl Taking {
@@ -47,7 +53,27 @@ impl Taking {
             Taken::Auto => Facts::of(ws),
             _ => Facts::default(),
         };
-        Taking { mode, facts }
+        Taking {
+            mode,
+            facts,
+            places: None,
+        }
+    }
+
+    /// The places of the taught targets on the robot they were taught on (see `places`).
+    pub fn with_places(mut self, places: Vec<Option<Frame>>) -> Taking {
+        self.places = Some(places);
+        self
+    }
+
+    /// Whether taught targets are moved (`--from`) rather than left.
+    pub fn moves(&self) -> bool {
+        self.places.is_some()
+    }
+
+    /// Where stop `k` of the walk is to go, when it is a taught target moved (`--from`).
+    pub fn place(&self, k: usize) -> Option<&Frame> {
+        self.places.as_ref()?.get(k)?.as_ref()
     }
 
     /// The evidence on `stop` (`Literal` without looking when the mode decides alone).
@@ -91,6 +117,9 @@ pub struct PointsTaken {
     pub reasons: Vec<Reason>,
     /// The declared points taken as taught: `file:line NAME`.
     pub taught_points: Vec<String>,
+    /// `--from`: the taught targets were compensated to where the robot they were taught on
+    /// reaches them (rather than left as they are).
+    pub moved_from: bool,
 }
 
 /// One reason for taking targets as taught or offline.
@@ -143,9 +172,10 @@ impl Tally {
         }
     }
 
-    pub fn fill(&self, mode: Taken) -> PointsTaken {
+    pub fn fill(&self, mode: Taken, moved_from: bool) -> PointsTaken {
         let mut out = PointsTaken {
             mode: mode.name(),
+            moved_from,
             taught_points: self.taught_points.clone(),
             ..PointsTaken::default()
         };
@@ -188,10 +218,15 @@ impl PointsTaken {
                 .join("; ")
         };
         let mut text = format!(
-            "; {} target{} taken as taught ({}), {} as offline",
+            "; {} target{} taken as taught ({}){}, {} as offline",
             self.taught,
             if self.taught == 1 { "" } else { "s" },
             reasons("taught"),
+            if self.moved_from {
+                " and moved to where the robot of --from reaches them"
+            } else {
+                ""
+            },
             self.offline
         );
         if self.offline > 0 {

@@ -494,3 +494,138 @@ fn a_mixed_program_compensates_only_its_cam_path() {
     assert_eq!(r["compensated"], 0);
     assert_eq!(read(&out), read(&src));
 }
+
+// ---- a program moved to another robot ---------------------------------------------------
+
+/// The model of a truth file (`robopost-truth/1`: the robot as it really is).
+fn truth_model(path: &str) -> robopost::model::Model {
+    let v: serde_json::Value = serde_json::from_str(&read(Path::new(path))).unwrap();
+    robopost::calibration::parse(&v["model"].to_string(), Path::new(path))
+        .unwrap()
+        .model()
+}
+
+/// The TCP every stop of `sim` reaches on robot `m`: its model at the commanded axes with the
+/// gear-play history of the simulated motion (`program_states`), then the stop's tool.
+fn reached(
+    m: &robopost::model::Model,
+    sim: &robopost::motion::Simulation,
+) -> Vec<robopost::motion::frame::Frame> {
+    let states = robopost::motion::program_states(sim);
+    sim.stops
+        .iter()
+        .zip(&states)
+        .map(|(s, st)| m.flange_pose(st).compose(&sim.frames[s.tool as usize]))
+        .collect()
+}
+
+/// `--from A -c B` on the virtual robot: a pick-and-place taught on robot A (the hidden-effect
+/// truth; the pendant stored the nominal poses of the taught axis angles) and moved to robot B
+/// (the paper's truth, compensated with the calibration identified from B's campaign) reaches
+/// on B the places A reached, within what B's identification leaves (B's calibration against
+/// B's truth at the commands written) and the written decimals; run unchanged on B it misses
+/// them by A's and B's errors together.
+#[test]
+fn a_program_taught_on_one_robot_reaches_its_places_on_another() {
+    use robopost::compensate::{files, program, Calibrated};
+    let a_true = truth_model("fixtures/measurements/kr30ha-truth-hidden.json");
+    let b_true = truth_model("fixtures/measurements/kr30ha-truth.json");
+    let b_cal = robopost::calibration::load(Path::new(CAL)).unwrap().model();
+    let dir = tempfile::tempdir().unwrap();
+    let src = copy("points", "taught_pick", dir.path());
+    let load = |p: &Path| {
+        files::load_program(Some(p), &std::fs::read(p).unwrap(), Some(Path::new(CONFIG))).unwrap()
+    };
+    let ws = load(&src);
+    let robot = b_cal.robot;
+    let taught = robopost::motion::simulate(&ws, &robot, &[]);
+    // The check of `reached` itself: the nominal model reaches the programmed poses.
+    let nominal = robopost::calibration::load(Path::new("calibrations/kr30ha-nominal.json"))
+        .unwrap()
+        .model();
+    for (s, r) in taught.stops.iter().zip(reached(&nominal, &taught)) {
+        assert!((s.goal.position - r.position).norm() < 1e-6);
+    }
+    let places = reached(&a_true, &taught);
+    let unmoved = reached(&b_true, &taught);
+
+    let c = Calibrated::new(&b_cal, "b", b"");
+    let options = program::Options {
+        parallel: true,
+        ..program::Options::default()
+    };
+    let result = robopost::compensate::compensate_program_from(&ws, &c, Some(&a_true), &options);
+    assert!(
+        !result.rejected && result.target_errors == 0,
+        "{:?}",
+        result.report.errors
+    );
+    assert_eq!(result.report.points_taken.taught, 8);
+    assert!(result.report.points_taken.moved_from);
+    let out = dir.path().join("moved/taught_pick.src");
+    std::fs::create_dir_all(out.parent().unwrap()).unwrap();
+    files::write_atomic_pieces(&files::outputs(&ws, &result.files, &out)).unwrap();
+    let written = load(&out);
+    let moved = robopost::motion::simulate(&written, &robot, &[]);
+    assert_eq!(moved.stops.len(), taught.stops.len());
+    let on_b = reached(&b_true, &moved);
+    let predicted_b = reached(&b_cal, &moved);
+    let (mut worst, mut worst_before) = (0.0f64, 0.0f64);
+    for k in 0..taught.stops.len() {
+        if taught.stops[k].nominal_axes.0 == [0.0, -90.0, 90.0, 0.0, 0.0, 0.0] {
+            // HOME, an axis target: the same axes on every robot, nothing to move.
+            continue;
+        }
+        let miss = (on_b[k].position - places[k].position).norm() * 1e3;
+        let floor = (on_b[k].position - predicted_b[k].position).norm() * 1e3;
+        let before = (unmoved[k].position - places[k].position).norm() * 1e3;
+        // B's identification error at the command, plus the written decimals (3 of a mm,
+        // 4 of a degree) and the solver's tolerance.
+        assert!(
+            miss <= floor + 2.0,
+            "stop {k}: {miss:.1} µm from A's place, B's identification leaves {floor:.1} µm"
+        );
+        eprintln!("stop {k}: {miss:.2} µm (floor {floor:.2} µm, unmoved {before:.1} µm)");
+        worst = worst.max(miss);
+        worst_before = worst_before.max(before);
+    }
+    eprintln!("moved: worst {worst:.1} µm from A's places; unmoved: {worst_before:.1} µm");
+    assert!(worst_before > 100.0, "A and B differ: {worst_before:.1} µm");
+    assert!(
+        worst < worst_before / 3.0,
+        "moved {worst:.1} µm, unmoved {worst_before:.1} µm"
+    );
+}
+
+/// `--from` on the command line: the summary says the taught targets were moved; a
+/// calibration of another robot type is refused before anything is written.
+#[test]
+fn from_on_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = copy("points", "taught_pick", dir.path());
+    let (o, out, r) = compensate(&src, &["--from", "calibrations/kr30ha-handset.json"]);
+    assert!(
+        text(&o.stderr).contains("taken as taught (8 a teach-pendant inline form with its point in the .dat) and moved to where the robot of --from reaches them"),
+        "{}",
+        text(&o.stderr)
+    );
+    assert_eq!(r["points_taken"]["moved_from"], true);
+    assert_ne!(
+        read(&out.with_extension("dat")),
+        read(&src.with_extension("dat"))
+    );
+    let bad = dir.path().join("bad.src");
+    let o = robopost(&[
+        src.to_str().unwrap(),
+        "-c",
+        CAL,
+        "--config",
+        CONFIG,
+        "--from",
+        "calibrations/kr16-2-nominal.json",
+        "-o",
+        bad.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(!bad.exists());
+}
