@@ -197,8 +197,7 @@ fn header(file: &SourceFile) -> Option<Header> {
         .first()
         .map_or(first, |r| first.min(r.range.start as usize));
     let end = first.min(HEADER_BYTES).min(src.len());
-    let mut line = 1u32;
-    for text in src[..end].split(|&b| b == b'\n') {
+    for (line, text) in (1u32..).zip(src[..end].split(|&b| b == b'\n')) {
         let comment = match memchr::memchr(b';', text) {
             Some(at) => &text[at..],
             None if text.trim_ascii_start().starts_with(b"&") => text,
@@ -213,7 +212,6 @@ fn header(file: &SourceFile) -> Option<Header> {
                 return Some(Header { line, word });
             }
         }
-        line += 1;
     }
     None
 }
