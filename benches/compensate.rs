@@ -22,7 +22,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
     let (model, cal_bytes, bytes, ws) = cam_fixture::load();
     let calibrated = Calibrated::new(&model, "kr30ha-handset.json", &cal_bytes);
     let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
-    let targets = program::targets(&sim, 0..sim.stops.len());
+    let targets = program::targets(&sim, 0..sim.stops.len(), |_| false);
     let n = targets.len();
     let serial = compensate::Options {
         method: compensate::Method::Iterate,

@@ -24,7 +24,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
         .expect("the global pool is this thread");
     {
         let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
-        let targets = program::targets(&sim, 0..sim.stops.len());
+        let targets = program::targets(&sim, 0..sim.stops.len(), |_| false);
         let n = targets.len();
         let outcomes = compensate::compensate(
             &model,

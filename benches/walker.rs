@@ -37,7 +37,7 @@ fn walker(c: &mut Criterion<ThreadCpuTime>) {
         b.iter(|| black_box(robopost::motion::simulate(&ws, &model.robot, &[])))
     });
     g.bench_function("targets", |b| {
-        b.iter(|| black_box(program::targets(&sim, 0..n)))
+        b.iter(|| black_box(program::targets(&sim, 0..n, |_| false)))
     });
     g.finish();
 }

@@ -320,6 +320,7 @@ fn compensation_moves_each_target_against_the_bearing_motion() {
         stretching: robopost::compensate::sequence::Stretching::DEFAULT,
         frames: Vec::new(),
         points: false,
+        ..program::Options::default()
     };
     let result = robopost::compensate::compensate_program(&ws, &c, &options);
     assert!(!result.rejected, "{:?}", result.report.errors);

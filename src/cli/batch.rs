@@ -238,10 +238,11 @@ fn run_in_pool(
                 warnings += w;
                 max_um = max_um.max(report.correction.position_um.max);
                 super::outln!(
-                    "{}: {}, {w} warning{}",
+                    "{}: {}, {w} warning{}{}",
                     path.display(),
                     report.counts(),
-                    if *w == 1 { "" } else { "s" }
+                    if *w == 1 { "" } else { "s" },
+                    report.taken_text()
                 );
                 if *te > 0 {
                     exit = super::Exit::Rejected;

@@ -93,6 +93,33 @@ pub struct ProgramArgs {
     /// Apply the paper's equation (3) once instead of iterating to 0.1 µm (for comparison).
     #[arg(long = "one-step")]
     pub one_step: bool,
+    /// A value the walk cannot know before run time, `NAME=VALUE` (repeatable): a variable
+    /// (`lnUsedBase=2`), an array element or input (`$IN[5]=TRUE`), an enum (`side=#LEFT`).
+    #[arg(long = "assume", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    pub assume: Vec<crate::motion::Assumption>,
+    /// Which points to compensate: `offline` (computed away from the robot: every point),
+    /// `taught` (taught on the robot: none, unless --from), `auto` (each point as the
+    /// evidence in its files says).
+    #[arg(long = "points", value_enum, default_value_t = PointOrigin::Auto)]
+    pub point_origin: PointOrigin,
+}
+
+/// `--points`: where the program's points come from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PointOrigin {
+    Auto,
+    Offline,
+    Taught,
+}
+
+impl From<PointOrigin> for crate::compensate::Taken {
+    fn from(p: PointOrigin) -> Self {
+        match p {
+            PointOrigin::Auto => crate::compensate::Taken::Auto,
+            PointOrigin::Offline => crate::compensate::Taken::Offline,
+            PointOrigin::Taught => crate::compensate::Taken::Taught,
+        }
+    }
 }
 
 /// `args.program.config` etc. read through to the frame options.
@@ -116,6 +143,8 @@ impl ProgramArgs {
             frames,
             points,
             stretching: Default::default(),
+            assumptions: self.assume.clone(),
+            taken: self.point_origin.into(),
         }
     }
 }
@@ -272,6 +301,10 @@ pub struct Args {
     /// Write a JSON report: per-target corrections, direction flips, warnings.
     #[arg(long = "report", value_name = "FILE.json")]
     pub report: Option<PathBuf>,
+    /// The calibration of the robot the program was taught on (a twin or the robot replaced):
+    /// the targets taken as taught are compensated to where that robot reaches them.
+    #[arg(long = "from", value_name = "A.json")]
+    pub from: Option<PathBuf>,
     #[command(flatten)]
     pub program: ProgramArgs,
 }
@@ -321,6 +354,26 @@ pub fn run(args: Args) -> Exit {
         Ok(c) => c,
         Err(exit) => return exit,
     };
+    let from = match &args.from {
+        None => None,
+        Some(path) => {
+            let (mut a, _) = match load_calibration(path) {
+                Ok(c) => c,
+                Err(exit) => return exit,
+            };
+            // The robot of -c stated for the robot of --from: one type, or no transfer.
+            let b = StatedRobot {
+                name: cal.robot_name.clone(),
+                robot: cal.model_ref().robot,
+                source: format!("-c {}", args.cal.display()),
+                configured: false,
+            };
+            if let Err(exit) = fit_robot(&mut a, path, &[b]) {
+                return exit;
+            }
+            Some(a)
+        }
+    };
     let stdin = is_dash(&args.input);
     let bytes = if stdin {
         match crate::input::stdin() {
@@ -359,6 +412,7 @@ pub fn run(args: Args) -> Exit {
         }
     };
     ws.robot = robot_label(&cal, &args.cal);
+    ws.assumptions.clone_from(&args.program.assume);
     if tracing::enabled!(tracing::Level::DEBUG) {
         let runs = ws.get(ws.main).file.streamed_runs();
         let windows: usize = runs.iter().map(|r| r.windows().len()).sum();
@@ -368,6 +422,7 @@ pub fn run(args: Args) -> Exit {
     let mut guard = crate::paths::Guard::new();
     guard
         .read(&args.cal)
+        .read_all(args.from.iter().map(PathBuf::as_path))
         .read_all(ws.files.iter().filter_map(|f| f.path.as_deref()));
     let outputs = if to_stdout {
         Vec::new()
@@ -387,9 +442,10 @@ pub fn run(args: Args) -> Exit {
         }
     }
     let calibrated = calibrated(&cal, &args.cal, &cal_bytes);
-    let result = compensate::compensate_program(
+    let result = compensate::compensate_program_from(
         &ws,
         &calibrated,
+        from.as_ref().map(|a| a.model_ref()),
         &args.program.options(true, args.report.is_some()),
     );
     for d in &result.diagnostics {
@@ -473,7 +529,7 @@ fn exit_status(result: &compensate::ProgramResult) -> Exit {
 /// One line on standard error.
 pub fn summary(r: &compensate::Report) {
     eprintln!(
-        "{}: {} (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} direction flips, {} held axes kept, {} reversals inside the play",
+        "{}: {} (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} direction flips, {} held axes kept, {} reversals inside the play{}",
         r.program,
         r.counts(),
         r.correction.position_um.max,
@@ -481,7 +537,8 @@ pub fn summary(r: &compensate::Report) {
         r.correction.position_um.mean,
         r.direction_flips,
         r.held_axes,
-        r.reversals_inside_play
+        r.reversals_inside_play,
+        r.taken_text()
     );
 }
 
@@ -568,6 +625,7 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
             }
         };
         ws.robot = label.clone();
+        ws.assumptions.clone_from(&args.assume);
         let result = compensate::compensate_program(&ws, &calibrated, &args.options(true, false));
         for d in &result.diagnostics {
             eprintln!("{}", d.render());
@@ -583,7 +641,12 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
         } else {
             r.resolution()
         };
-        super::outln!("{}: {counts}{}", path.display(), r.needs_text());
+        super::outln!(
+            "{}: {counts}{}{}",
+            path.display(),
+            r.needs_text(),
+            r.taken_text()
+        );
         if r.rejected > 0 {
             exit = exit.max(Exit::Rejected);
         }

@@ -242,6 +242,7 @@ pub fn run_job(
         Err(e) => return failed(e.to_string()),
     };
     ws.robot = robot.to_string();
+    ws.assumptions.clone_from(&options.assumptions);
     let result = program::compensate_program(&ws, cal, options);
     let warnings = result
         .diagnostics

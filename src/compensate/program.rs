@@ -11,6 +11,7 @@ use crate::motion::workspace::Role as FileRole;
 use crate::motion::{self, FileId, GivenFrame, Programmed, Role, Simulation, Workspace};
 
 use super::output::Chunk;
+use super::taken::Taken;
 pub use super::output::Output;
 pub(super) use super::report::Tally;
 pub use super::report::{CalibrationRef, MaxMean, PointReport, PoseStats, Report, SplitReport};
@@ -56,6 +57,12 @@ pub struct Options {
     pub points: bool,
     /// How the re-check cuts a long sequence to walk it on the pool.
     pub stretching: super::sequence::Stretching,
+    /// What the user states about run time (`--assume`); the caller puts them in the
+    /// workspace (`Workspace::assumptions`), where the walk reads them.
+    pub assumptions: Vec<motion::Assumption>,
+    /// Which points are taken as taught (left as they are) and which as offline
+    /// (compensated): `--points`.
+    pub taken: Taken,
 }
 
 impl Options {
@@ -91,7 +98,12 @@ pub struct ProgramResult {
 }
 
 /// The compensation targets of the stops `range` of a simulation.
-pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
+/// `taught` says which stops are taken as taught: left as they are.
+pub fn targets(
+    sim: &Simulation,
+    range: std::ops::Range<usize>,
+    taught: impl Fn(&motion::Stop) -> bool + Sync,
+) -> Vec<Target> {
     use rayon::prelude::*;
     let from = range.start;
     sim.stops[range]
@@ -123,7 +135,7 @@ pub fn targets(sim: &Simulation, range: std::ops::Range<usize>) -> Vec<Target> {
                     None => Interp::Line,
                 },
             },
-            compensate: s.compensable,
+            compensate: s.compensable && !taught(s),
             written_base: match s.programmed {
                 Programmed::Pose(_) if s.compensable && s.origin.is_some() => Some(s.base),
                 _ => None,
@@ -225,19 +237,42 @@ fn header(file: &krl::SourceFile, cal: &Calibrated, method: Method) -> (usize, V
 /// the skeleton's targets and gather what every step said into the report; apply the edits.
 /// Any step that fails leaves every file as it was (`rejected`).
 pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -> ProgramResult {
+    compensate_program_from(ws, cal, None, options)
+}
+
+/// [`compensate_program`] of a program taught on another robot (`--from A.json -c B.json`):
+/// the targets taken as taught are where robot `from` (its calibrated model) reaches them —
+/// at the axis angles the controller stored, with the gear-play history of the program's
+/// nominal motion — and are compensated so that the robot of `cal` reaches those places;
+/// the other targets as usual. The two robots must be of one type (the caller checks).
+pub fn compensate_program_from(
+    ws: &Workspace,
+    cal: &Calibrated,
+    from: Option<&Model>,
+    options: &Options,
+) -> ProgramResult {
+    if from.is_some() && !ws.get(ws.main).file.streamed_runs().is_empty() {
+        // The places are found on the whole walk, stop by stop.
+        return compensate_program_from(&ws.whole(), cal, from, options);
+    }
     let report = empty_report(ws, cal, options);
     let compensated_before = already_compensated_files(ws);
     if !compensated_before.is_empty() {
         return rejected(ws, report, compensated_before, 0);
     }
     let model = cal.model;
-    let mut seg = Segments::new(ws, model, options);
+    let mut taking = super::taken::Taking::new(ws, options.taken);
+    if let Some(from) = from {
+        let places = taught_places(ws, from, options, &taking);
+        taking = taking.with_places(places);
+    }
+    let mut seg = Segments::new(ws, model, options, &taking);
     let sim = tracing::info_span!("simulate and compensate").in_scope(|| {
         motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg))
     });
     if sim.needs_whole_tree {
         drop((sim, seg));
-        return compensate_program(&ws.whole(), cal, options);
+        return compensate_program_from(&ws.whole(), cal, from, options);
     }
     // What loading the cell had to say (a shared data list with a line left out…).
     let main = ws.get(ws.main);
@@ -278,6 +313,41 @@ pub fn compensate_program(ws: &Workspace, cal: &Calibrated, options: &Options) -
             rejected(ws, unfilled, diagnostics, target_errors)
         }
     }
+}
+
+/// Where robot `from` reaches each target taken as taught (`None` for the others): the walk
+/// on its nominal geometry, nothing compensated, each target's predicted pose error added to
+/// its programmed pose.
+fn taught_places(
+    ws: &Workspace,
+    from: &Model,
+    options: &Options,
+    taking: &super::taken::Taking,
+) -> Vec<Option<crate::motion::frame::Frame>> {
+    let sim = motion::simulate(ws, &from.robot, &options.frames);
+    let all = targets(&sim, 0..sim.stops.len(), |_| true);
+    let outcomes = super::sequence::compensate(
+        from,
+        &sim.frames,
+        &all,
+        [crate::model::Direction::Unknown; 6],
+        &options.sequence(),
+    );
+    sim.stops
+        .iter()
+        .zip(&outcomes)
+        .map(|(s, o)| {
+            taking.taught(ws, s).then(|| {
+                let e = &o.before;
+                crate::motion::frame::Frame {
+                    position: s.goal.position + nalgebra::Vector3::new(e[0], e[1], e[2]),
+                    rotation: crate::motion::frame::exp_so3(&nalgebra::Vector3::new(
+                        e[3], e[4], e[5],
+                    )) * s.goal.rotation,
+                }
+            })
+        })
+        .collect()
 }
 
 /// The report before anything was done: the program, the calibration and the method.
@@ -419,6 +489,28 @@ fn rewrite_and_report(
     report.rejected += sim.unreachable;
     report.unresolved = sim.lost;
     report.needs = sim.needs.iter().cloned().collect();
+    report.points_taken = seg.taken.fill(seg.taking_mode(), seg.taking_moves());
+    report.assumptions = ws
+        .assumptions
+        .iter()
+        .enumerate()
+        .map(|(k, a)| super::report::AssumptionUse {
+            assumption: a.to_string(),
+            uses: sim.assumptions_used.0.get(k).copied().unwrap_or(0),
+        })
+        .collect();
+    for a in report.assumptions.iter().filter(|a| a.uses == 0) {
+        let d = Diagnostic::new(
+            Severity::Warning,
+            &ws.get(ws.main).name,
+            format!(
+                "--assume {}: never used (the walk never read it where the program leaves the value open)",
+                a.assumption
+            ),
+        );
+        report.warnings.push(format!("{}: {}", d.file, d.message));
+        diagnostics.push(d);
+    }
     (std::mem::take(&mut rw.edits), report)
 }
 

@@ -115,6 +115,17 @@ pub struct Report {
     pub errors: Vec<String>,
     /// Every target, in execution order.
     pub points: Vec<PointReport>,
+    /// Targets taken as taught (left as they are) or offline (compensated), and why.
+    pub points_taken: super::taken::PointsTaken,
+    /// Every `--assume` given, and how often the walk used it.
+    pub assumptions: Vec<AssumptionUse>,
+}
+
+/// One `--assume NAME=VALUE` and how often the walk used it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct AssumptionUse {
+    pub assumption: String,
+    pub uses: u64,
 }
 
 impl Report {
@@ -149,6 +160,28 @@ impl Report {
                 if n == 1 { "" } else { "s" }
             ),
         }
+    }
+
+    /// `; assumed lnUsedBase=2 (used 3 times)`, and which targets were taken as taught (see
+    /// `PointsTaken::text`): empty when nothing was assumed and no target taken as taught.
+    pub fn taken_text(&self) -> String {
+        let mut text = String::new();
+        if !self.assumptions.is_empty() {
+            let list: Vec<String> = self
+                .assumptions
+                .iter()
+                .map(|a| {
+                    format!(
+                        "{} (used {} time{})",
+                        a.assumption,
+                        a.uses,
+                        if a.uses == 1 { "" } else { "s" }
+                    )
+                })
+                .collect();
+            text += &format!("; assumed {}", list.join(", "));
+        }
+        text + &self.points_taken.text()
     }
 
     /// `; needs: routine SetFrames, BASE_DATA[3]` (empty when nothing is missing).

@@ -17,6 +17,7 @@ use crate::model::{Direction, Model};
 use crate::motion::{RunSink, Simulation, Walked, Workspace};
 
 use super::program::{targets, Options, Tally};
+use super::taken::{self, Taking};
 use super::rewrite;
 use super::sequence::{self, Carried, Command, Compensated, Outcome, Target, LOOK_BACK};
 
@@ -52,11 +53,13 @@ pub(super) struct Prepared {
 struct Preparer<'a> {
     model: &'a Model,
     options: &'a Options,
+    taking: &'a Taking,
 }
 
 impl Preparer<'_> {
     fn prepare(
         self,
+        ws: &Workspace,
         sim: &Simulation,
         from: usize,
         nominal_start: &mut [Direction; 6],
@@ -65,7 +68,17 @@ impl Preparer<'_> {
         use rayon::prelude::*;
         let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
         let first = from + ghosts;
-        let targets = targets(sim, first..sim.stops.len());
+        let taking = self.taking;
+        let leaves = |s: &crate::motion::Stop| !taking.moves() && taking.taught(ws, s);
+        let mut targets = targets(sim, first..sim.stops.len(), leaves);
+        if taking.moves() {
+            // `--from`: a taught target goes where the robot it was taught on reaches it.
+            for (k, t) in targets.iter_mut().enumerate() {
+                if let Some(place) = taking.place(first + k) {
+                    t.goal = *place;
+                }
+            }
+        }
         let passes = sequence::first_passes(
             self.model,
             &sim.frames,
@@ -104,6 +117,9 @@ pub(super) struct Segments<'a> {
     separator: Option<Vec<u8>>,
     model: &'a Model,
     options: &'a Options,
+    taking: &'a Taking,
+    /// Targets taken as taught or offline, and why.
+    pub taken: taken::Tally,
     /// The nominal directions after the last prepared segment.
     nominal_end: [Direction; 6],
     /// Where the last prepared segment left the warm-start chains.
@@ -131,17 +147,34 @@ pub(super) struct Segments<'a> {
 }
 
 impl<'a> Segments<'a> {
+    /// Whether taught targets are moved (`--from`).
+    pub fn taking_moves(&self) -> bool {
+        self.taking.moves()
+    }
+
+    /// `--points` as given.
+    pub fn taking_mode(&self) -> taken::Taken {
+        self.taking.mode
+    }
+
     /// The calibrated model the segments are compensated with.
     pub fn model(&self) -> &'a Model {
         self.model
     }
 
-    pub fn new(ws: &'a Workspace, model: &'a Model, options: &'a Options) -> Segments<'a> {
+    pub fn new(
+        ws: &'a Workspace,
+        model: &'a Model,
+        options: &'a Options,
+        taking: &'a Taking,
+    ) -> Segments<'a> {
         Segments {
             main: &ws.get(ws.main).file,
             separator: None,
             model,
             options,
+            taking,
+            taken: taken::Tally::default(),
             nominal_end: [Direction::Unknown; 6],
             chains: sequence::Chains::default(),
             pending: None,
@@ -163,6 +196,7 @@ impl<'a> Segments<'a> {
         Preparer {
             model: self.model,
             options: self.options,
+            taking: self.taking,
         }
     }
 
@@ -281,8 +315,11 @@ impl<'a> Segments<'a> {
         self.flush();
         let prepared = self
             .preparer()
-            .prepare(sim, from, &mut self.nominal_end, &mut self.chains);
+            .prepare(ws, sim, from, &mut self.nominal_end, &mut self.chains);
         let seg = self.settle(ws, sim, from, prepared);
+        let first = from + seg.ghosts;
+        let stops = &sim.stops[first..first + seg.done.targets().len()];
+        self.taken.add(ws, self.taking, stops);
         let points = self.options.points;
         self.tally.add(
             ws,
@@ -311,6 +348,8 @@ impl<'a> Segments<'a> {
         let robot = &self.model.robot;
         let mut rw =
             rewrite::rewrite_placed(ws, sim, part.outcomes(), placed, robot, Some(separator));
+        let stops = &sim.stops[part.ghosts..part.ghosts + part.done.targets().len()];
+        self.taken.add(ws, self.taking, stops);
         let points = self.options.points;
         self.tally.add(
             ws,
@@ -366,14 +405,14 @@ impl<'f> RunSink<'f> for (&'f Workspace, &mut Segments<'_>) {
         let mut nominal = seg.nominal_end;
         let mut chains = seg.chains;
         let pending = seg.pending.take();
-        let prepared = walked.with_dependent(|_, sim| {
+        let prepared = walked.with_dependent(|ws, sim| {
             rayon::join(
                 || {
                     if let Some((w, p)) = pending {
                         w.with_dependent(|ws, sim| seg.window_done(ws, sim, p));
                     }
                 },
-                || preparer.prepare(sim, 0, &mut nominal, &mut chains),
+                || preparer.prepare(ws, sim, 0, &mut nominal, &mut chains),
             )
             .1
         });

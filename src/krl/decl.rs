@@ -413,6 +413,8 @@ fn callable_head<'a>(
     protected_forms: bool,
     i: &'a [u8],
 ) -> Fails<'a, (bool, bool, Option<TypeRef>, &'a [u8])> {
+    // A routine's name is a module's (see `module_name`); an external declaration's an ident.
+    let name_of = if protected_forms { ident } else { module_name };
     let (j, kw) = ident(i)?;
     let is = |w: &[u8], p: bool| {
         let (base, tail) = kw.split_at(kw.len().min(w.len()));
@@ -449,7 +451,7 @@ fn callable_head<'a>(
         };
         j = ws(k)?.0;
     }
-    let (j, name) = ident(j)?;
+    let (j, name) = name_of(j)?;
     let (j, _) = ws(j)?;
     Ok((j, (function, protected, ret, name)))
 }
@@ -489,6 +491,26 @@ fn paren_text(i: &[u8]) -> PResult<'_, &[u8]> {
         }
     }
     super::lex::backtrack(i)
+}
+
+/// The name after `DEF`/`DEFFCT`/`DEFDAT`: a KRL name, or — as generators write the path
+/// of the file into it (`DEF Archivos_KRL/Contorno_KRL/cilindro( )`) — any bytes up to a
+/// blank, `(` or `;`. A name that is not a KRL name is a warning on it (`tree::lines`), the
+/// module otherwise read as any other; `is_name` tells which.
+pub(crate) fn module_name(i: &[u8]) -> PResult<'_, &[u8]> {
+    let n = i
+        .iter()
+        .take_while(|&&b| !super::lex::is_blank(b) && !matches!(b, b'(' | b';'))
+        .count();
+    if n == 0 {
+        return super::lex::backtrack(i);
+    }
+    Ok((&i[n..], &i[..n]))
+}
+
+/// Whether `name` is a KRL name (a letter, `_` or `$`, then letters, digits, `_`, `$`).
+pub(crate) fn is_name(name: &[u8]) -> bool {
+    matches!(ident(name), Ok((rest, _)) if rest.is_empty())
 }
 
 const HELP_DEF: &str = "routines start with DEF name(p1:IN, p2:OUT) or DEFFCT TYPE name()";
@@ -579,7 +601,7 @@ fn param<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Param> {
 pub(crate) fn dat_header<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, DatHeader> {
     let (j, _) = keyword("DEFDAT")(i)?;
     let (j, _) = ws(j)?;
-    let (j, name) = ident(j)?;
+    let (j, name) = module_name(j)?;
     let (k, _) = ws(j)?;
     let (rest, public) = match keyword("PUBLIC")(k) {
         Ok((r, p)) => (r, Some(cx.span_of(p))),

@@ -4,16 +4,19 @@
 //! (from the simulated interpolation), together with where in the source its numbers live.
 //! Knows nothing of error models; `compensate` consumes what it yields.
 
+pub mod assume;
 pub mod cell;
 pub mod frame;
 pub mod interpolate;
 pub mod lu6;
 pub mod nominal;
+pub mod provenance;
 pub mod simulate;
 pub mod spline;
 pub mod value;
 pub mod workspace;
 
+pub use assume::Assumption;
 pub use cell::Cell;
 pub use simulate::{
     simulate, simulate_streaming, CircularAngle, GivenFrame, Programmed, Rel, Role, RunSink,

@@ -50,6 +50,8 @@ pub struct Workspace {
     pub robot: String,
     /// What loading the cell had to say (several `$config.dat` in a tree…).
     pub notes: Vec<String>,
+    /// What the user states about run time (`--assume`, see [`super::assume`]).
+    pub assumptions: Vec<super::Assumption>,
 }
 
 /// A file that could not be read or parsed: the program is rejected.
@@ -327,6 +329,7 @@ impl Workspace {
             main: self.main,
             robot: self.robot.clone(),
             notes: self.notes.clone(),
+            assumptions: self.assumptions.clone(),
         }
     }
 
@@ -344,6 +347,7 @@ impl Workspace {
             main: 0,
             robot: self.robot.clone(),
             notes: Vec::new(),
+            assumptions: self.assumptions.clone(),
         }
     }
 

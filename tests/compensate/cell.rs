@@ -77,6 +77,10 @@ fn compensate_with(ws: &Workspace, model: &Model, bytes: &[u8]) -> ProgramResult
             stretching: robopost::compensate::sequence::Stretching::DEFAULT,
             frames: Vec::new(),
             points: true,
+            assumptions: Vec::new(),
+            // The points of every fixture rewritten, taught ones too: these tests are of
+            // the walk and the rewrite (`taken.rs` tests which points `auto` leaves).
+            taken: compensate::Taken::Offline,
         },
     )
 }
@@ -611,8 +615,9 @@ fn cell_on_the_command_line() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!err.contains("routine pallet_pick is not found"), "{err}");
     assert!(err.contains("routine SetBaseTool is not found"), "{err}");
-    // With it: everything resolves; the summary is the one count.
-    let o = run(&["--cell", cell.to_str().unwrap()]);
+    // With it: everything resolves; the summary is the one count (every point compensated:
+    // its three inline-form points are taken as taught by default, see `cells.rs`).
+    let o = run(&["--cell", cell.to_str().unwrap(), "--points", "offline"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(0), "{err}");
     assert!(!err.contains("is not found"), "{err}");

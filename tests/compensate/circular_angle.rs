@@ -140,6 +140,7 @@ fn compensated(text: &[u8], stream: Option<robopost::krl::StreamOptions>) -> Vec
         stretching: robopost::compensate::sequence::Stretching::DEFAULT,
         frames: Vec::new(),
         points: false,
+        ..program::Options::default()
     };
     let result = robopost::compensate::compensate_program(&ws, &c, &options);
     assert!(!result.rejected, "{:?}", result.report.errors);

@@ -1,6 +1,7 @@
 //! Compensation tests: the solver and sequence logic (`core`), and later the KRL pipeline.
 
 mod cell;
+mod cells;
 mod circular_angle;
 mod cli;
 mod core;

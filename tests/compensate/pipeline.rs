@@ -57,6 +57,10 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
             stretching: robopost::compensate::sequence::Stretching::DEFAULT,
             frames: Vec::new(),
             points: true,
+            assumptions: Vec::new(),
+            // The points of every fixture rewritten, taught ones too: these tests are of
+            // the walk and the rewrite (`taken.rs` tests which points `auto` leaves).
+            taken: compensate::Taken::Offline,
         },
     )
 }
@@ -1008,8 +1012,8 @@ proptest! {
                 method: compensate::Method::Iterate,
                 parallel,
                 stretching,
-                frames: Vec::new(),
                 points: true,
+                ..program::Options::default()
             })
         };
         let stretching = robopost::compensate::sequence::Stretching { targets, warm_up, per_round };

@@ -165,6 +165,9 @@ impl<'s> LineParse<'s> {
             }
             Err(None) => Line::Simple(StmtKind::Opaque),
         };
+        if let Some(p) = module_name_warning(src, &parsed) {
+            self.blocks.problems.push(p);
+        }
         let at = LineAt {
             leading,
             head: code,
@@ -207,6 +210,28 @@ impl<'s> LineParse<'s> {
             runs: self.runs,
         }
     }
+}
+
+/// A routine or data list whose name is not a KRL name (a generator wrote the file's path
+/// into it): a warning on the name; the module is read as any other.
+fn module_name_warning(src: &[u8], parsed: &Line) -> Option<Problem> {
+    let (name, what) = match parsed {
+        Line::Open(StmtKind::Routine(h), _) => (h.name, "routine"),
+        Line::Open(StmtKind::DefDat(h), _) => (h.name, "data list"),
+        _ => return None,
+    };
+    let text = &src[name.range()];
+    if crate::krl::decl::is_name(text) {
+        return None;
+    }
+    Some(Problem::warning(
+        name,
+        format!(
+            "the {what} name `{}` is not a KRL name (letters, digits, `_`, `$`; not starting with a digit): the controller will refuse the module; the rest is read as usual",
+            String::from_utf8_lossy(text)
+        ),
+        "name the module as its file, without the folder (a generator may have written the path into it)",
+    ))
 }
 
 /// A `;FOLD` or `;ENDFOLD` line (a run never spans one: folds change what motions mean).

@@ -443,6 +443,49 @@ impl<'f> Simulator<'f> {
         }
     }
 
+    /// Without a `$config.dat` holding frames (none given, none in the cell's tree): the
+    /// frames of it the program's files name (`TOOL_DATA[n]`, `BASE_DATA[n]`, an `FDAT`'s
+    /// `TOOL_NO`/`BASE_NO`), none given on the command line, and how to give them.
+    pub(super) fn frames_without_config(&self) -> Option<String> {
+        let has = self.config.as_ref().is_some_and(|c| {
+            c.get(b"TOOL_DATA").is_some() || c.get(b"BASE_DATA").is_some()
+        });
+        if has {
+            return None;
+        }
+        let mut named = std::collections::BTreeSet::new();
+        for f in self
+            .ws
+            .files
+            .iter()
+            .filter(|f| f.role != crate::motion::workspace::Role::Config)
+        {
+            config_frames_named(f.file.source(), &mut named);
+        }
+        named.retain(|&(base, n)| n != 0 && !self.given.iter().any(|g| g.base == base && g.index == n));
+        if named.is_empty() {
+            return None;
+        }
+        let what = |(base, n): &(bool, i64)| {
+            format!("{}[{n}]", if *base { "BASE_DATA" } else { "TOOL_DATA" })
+        };
+        let arg = |(base, n): &(bool, i64)| {
+            format!("--{} {n}=X,Y,Z,A,B,C", if *base { "base" } else { "tool" })
+        };
+        // Tools first, as the pendant lists them.
+        let mut order: Vec<&(bool, i64)> = named.iter().collect();
+        order.sort_by_key(|(base, n)| (*base, *n));
+        for (base, n) in &order {
+            self.need(what(&(*base, *n)));
+        }
+        Some(format!(
+            "no $config.dat was given or found in the cell, and this program needs {}: give {} with {}, or the robot's $config.dat apart with --config FILE",
+            order.iter().map(|f| what(f)).collect::<Vec<_>>().join(", "),
+            if order.len() == 1 { "it" } else { "them" },
+            order.iter().map(|f| arg(f)).collect::<Vec<_>>().join(" "),
+        ))
+    }
+
     pub(super) fn config_element(&self, name: &[u8], n: i64) -> Option<Value<'f>> {
         let cfg = self.config.as_ref()?;
         let (f, e) = cfg.element(name, &[n])?;
@@ -485,6 +528,35 @@ impl<'f> Simulator<'f> {
                 FrameState::Unknown(file, s.head, format!("{what} is not known"), GIVE_FRAME)
             }
             k => k,
+        }
+    }
+}
+
+/// The frames of `$config.dat` named in `src`: `TOOL_DATA[n]`, `BASE_DATA[n]`, and an
+/// `FDAT`'s `TOOL_NO n`, `BASE_NO n` (any case), as (base, n).
+fn config_frames_named(src: &[u8], out: &mut std::collections::BTreeSet<(bool, i64)>) {
+    let upper = src.to_ascii_uppercase();
+    for (pattern, base, bracket) in [
+        (&b"TOOL_DATA["[..], false, true),
+        (b"BASE_DATA[", true, true),
+        (b"TOOL_NO", false, false),
+        (b"BASE_NO", true, false),
+    ] {
+        for at in memchr::memmem::find_iter(&upper, pattern) {
+            let rest = &upper[at + pattern.len()..];
+            let rest = if bracket {
+                rest
+            } else {
+                rest.trim_ascii_start()
+            };
+            let digits = rest.iter().take_while(|b| b.is_ascii_digit()).count();
+            let closed = !bracket || rest.get(digits) == Some(&b']');
+            let n = std::str::from_utf8(&rest[..digits])
+                .ok()
+                .and_then(|d| d.parse::<i64>().ok());
+            if let (Some(n), true) = (n, closed) {
+                out.insert((base, n));
+            }
         }
     }
 }

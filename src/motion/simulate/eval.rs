@@ -131,13 +131,29 @@ impl<'f> Simulator<'f> {
     }
 
     pub(super) fn lookup(&self, file: FileId, name: &[u8], scope: &Scope<'f>) -> Value<'f> {
+        // A value the walk knows from the program's own assignments wins over an assumption;
+        // an assumption wins over what only run time knows and over a declared initial value.
+        let assumed = || {
+            (!self.assumptions.is_empty())
+                .then(|| self.assumed(name, &[]))
+                .flatten()
+        };
         if let Some(v) = scope.vars.get(name) {
+            if let (Value::Unknown(_), Some(a)) = (v, assumed()) {
+                return a;
+            }
             return v.clone();
         }
         if !self.globals.vars.is_empty() {
             if let Some(v) = self.globals.vars.get(&self.global_key(file, name)) {
+                if let (Value::Unknown(_), Some(a)) = (v, assumed()) {
+                    return a;
+                }
                 return v.clone();
             }
+        }
+        if let Some(a) = assumed() {
+            return a;
         }
         match name {
             b"$NULLFRAME" => return Value::Pos(Pos::numbers(Components::Pose([Some(0.0); 6]))),
@@ -236,11 +252,19 @@ impl<'f> Simulator<'f> {
         idx: &[i64],
         scope: &Scope<'f>,
     ) -> Value<'f> {
+        let assumed = || {
+            (!self.assumptions.is_empty())
+                .then(|| self.assumed(name, idx))
+                .flatten()
+        };
         if let Some(v) = scope.elements.get(&(name.to_vec(), idx.to_vec())) {
+            if let (Value::Unknown(_), Some(a)) = (v, assumed()) {
+                return a;
+            }
             return v.clone();
         }
         if let Some(why) = self.unknown_arrays.get(name) {
-            return Value::Unknown(why.clone());
+            return assumed().unwrap_or_else(|| Value::Unknown(why.clone()));
         }
         if let Some((caller, array)) = scope.arrays.get(name) {
             // An array passed whole: the caller's elements.
@@ -249,8 +273,14 @@ impl<'f> Simulator<'f> {
         if !self.globals.elements.is_empty() {
             let key = (self.global_key(file, name), idx.to_vec());
             if let Some(v) = self.globals.elements.get(&key) {
+                if let (Value::Unknown(_), Some(a)) = (v, assumed()) {
+                    return a;
+                }
                 return v.clone();
             }
+        }
+        if let Some(a) = assumed() {
+            return a;
         }
         if idx.len() == 1 && (name == b"BASE_DATA" || name == b"TOOL_DATA") {
             let base = name == b"BASE_DATA";
@@ -313,6 +343,12 @@ impl<'f> Simulator<'f> {
                     .collect();
                 match idx {
                     Ok(idx) => {
+                        if let Some(a) = (!self.assumptions.is_empty())
+                            .then(|| self.assumed(&name, &idx))
+                            .flatten()
+                        {
+                            return a;
+                        }
                         if name.starts_with(b"$") && name != b"$BASE_DATA" {
                             return Value::Unknown(format!(
                                 "the run-time value {}",

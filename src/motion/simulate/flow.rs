@@ -163,7 +163,7 @@ impl<'f> Simulator<'f> {
                         file,
                         s.head,
                         format!("{} may be {said}", src.text_lossy(p.root)),
-                        "set the frame outside branches that depend on run time",
+                        "set the frame outside branches that depend on run time, or state what decides the branch with --assume NAME=VALUE",
                     );
                     if root == b"$BASE" {
                         self.state.base = st;

@@ -208,6 +208,8 @@ pub struct Simulation<'f> {
     /// What the program needs that was found nowhere (`routine SetFrames`, `BASE_DATA[3]`,
     /// `XHOME (declared nowhere)`): what the user must add.
     pub needs: std::collections::BTreeSet<String>,
+    /// How often the walk used each of `Workspace::assumptions` (in their order).
+    pub assumptions_used: crate::motion::assume::Used,
     /// Declared points used as the offset of a geometric operator (`P1 : P2`: P2), which
     /// must keep their written numbers there.
     pub pinned: Vec<Pinned<'f>>,
@@ -474,6 +476,10 @@ struct Simulator<'f> {
     /// Functions being evaluated, and the statements they ran (see `function`).
     fn_depth: std::cell::Cell<usize>,
     fn_steps: std::cell::Cell<u64>,
+    /// The user's assumptions (`Workspace::assumptions`; a window's walker gets the
+    /// program's) and how often each was used.
+    assumptions: Vec<crate::motion::Assumption>,
+    used: std::cell::RefCell<crate::motion::assume::Used>,
 }
 
 fn upper(b: &[u8]) -> Vec<u8> {
@@ -579,7 +585,21 @@ impl<'f> Simulator<'f> {
             mode_assumed: Default::default(),
             fn_depth: Default::default(),
             fn_steps: Default::default(),
+            assumptions: ws.assumptions.clone(),
+            used: std::cell::RefCell::new(crate::motion::assume::Used(vec![
+                0;
+                ws.assumptions.len()
+            ])),
         }
+    }
+
+    /// The value the user assumed for `name` (capitals) at `index`, counted as used.
+    pub(super) fn assumed(&self, name: &[u8], index: &[i64]) -> Option<Value<'f>> {
+        let k = self.assumptions.iter().position(|a| a.is(name, index))?;
+        if let Some(n) = self.used.borrow_mut().0.get_mut(k) {
+            *n += 1;
+        }
+        Some(self.assumptions[k].value())
     }
 
     /// The walk's result, its messages counted and its notes gathered.
@@ -593,6 +613,7 @@ impl<'f> Simulator<'f> {
             ));
         }
         let mut out = self.out;
+        out.assumptions_used = self.used.into_inner();
         out.prefixes = self.prefixes.into_inner();
         out.needs.append(&mut self.needs.into_inner());
         out

@@ -99,6 +99,11 @@ impl<'f> Simulator<'f> {
         history: &mut Vec<Stop<'static>>,
     ) -> Simulation<'w> {
         let mut walker = Simulator::new(ws, &self.robot, &self.given);
+        walker.assumptions.clone_from(&self.assumptions);
+        walker.used = std::cell::RefCell::new(crate::motion::assume::Used(vec![
+            0;
+            self.assumptions.len()
+        ]));
         walker.state = self.state.clone();
         walker.warned_frames = self.warned_frames;
         walker.noted_external = self.noted_external;
@@ -121,6 +126,7 @@ impl<'f> Simulator<'f> {
         self.needs
             .borrow_mut()
             .append(&mut walker.needs.borrow_mut());
+        self.used.borrow_mut().add(&walker.used.borrow());
         let mut out = walker.out;
         self.out.unreachable += out.unreachable;
         self.out.lost += out.lost;

@@ -138,6 +138,9 @@ impl<'f> Simulator<'f> {
                     } else {
                         (*f, *span)
                     };
+                    let hint = self
+                        .frames_without_config()
+                        .unwrap_or_else(|| hint.to_string());
                     self.error(f, span, format!("{msg}: {hint}"));
                     return None;
                 }
