@@ -68,7 +68,7 @@ fn full_model(rng: &mut Lcg) -> Model {
     }
     // The play under load on A2 (counterbalanced) and A3, with friction bands that the random
     // states fall in and out of.
-    for (axis, friction_knm, balance_knm) in [(2, 0.6, [1.2, -0.4]), (3, 0.15, [0.0; 2])] {
+    for (axis, friction_knm, balance_knm) in [(2, 0.6, [0.2, 1.2, -0.4]), (3, 0.15, [0.0; 3])] {
         model.push(Box::new(LoadPlay {
             axis,
             width_deg: [0.0],
@@ -275,7 +275,7 @@ fn loadplay_axis_slopes_match_finite_differences() {
         axis: 2,
         width_deg: [0.03],
         friction_knm: 0.6,
-        balance_knm: [1.2, -0.4],
+        balance_knm: [0.2, 1.2, -0.4],
     };
     let h = 1e-6;
     let (mut loaded, mut free) = (0, 0);
@@ -331,7 +331,7 @@ fn loadplay_flank_follows_the_torque_beyond_friction() {
         axis: 2,
         width_deg: [0.04],
         friction_knm: 0.0,
-        balance_knm: [0.0; 2],
+        balance_knm: [0.0; 3],
     };
     let lag = |e: &LoadPlay, axes: [f64; 6], d: Direction| {
         let mut errors = ChainErrors::default();
@@ -347,7 +347,7 @@ fn loadplay_flank_follows_the_torque_beyond_friction() {
         assert!((lag(&effect, axes, d) - 0.02).abs() < 1e-12);
     }
     // A counterbalance larger than gravity there turns the flank over.
-    effect.balance_knm = [2.0 * t / 20f64.to_radians().cos(), 0.0];
+    effect.balance_knm = [2.0 * t, 0.0, 0.0];
     for d in [Direction::Positive, Direction::Negative] {
         assert!((lag(&effect, axes, d) + 0.02).abs() < 1e-12);
     }

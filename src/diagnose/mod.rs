@@ -366,6 +366,20 @@ pub fn diagnose(
     if all_rows.is_empty() {
         return Err(DiagnoseError::NoMeasurements);
     }
+    // The points `identify` left out of this calibration's fit as gross errors are left out
+    // here too: a millimetre of a broken beam must not outweigh the residual a diagnosis is
+    // about.
+    let gross = compare::gross_errors(cal, data);
+    let all_rows: Vec<Row> = if gross.iter().all(Option::is_none) {
+        all_rows
+    } else {
+        all_rows
+            .into_iter()
+            .zip(&gross)
+            .filter(|(_, g)| g.is_none())
+            .map(|(r, _)| r)
+            .collect()
+    };
     // Exact copies are not repeated measurements: out, before anything is estimated.
     let copies = noise::duplicates(&all_rows);
     let duplicates = copies.iter().filter(|c| **c).count();

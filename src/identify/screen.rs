@@ -359,6 +359,8 @@ impl Structure {
     }
 }
 
+/// Two suspects are the same jump seen twice only when their sizes agree within this factor.
+const SAME_SIZE: f64 = 3.0;
 /// Systematic suspects of one axis this close (degrees) are reported as one jump: where a
 /// flank changes with the load, the angle shifts from test to test with the other axes.
 const ONE_JUMP_DEG: f64 = 15.0;
@@ -390,13 +392,16 @@ pub fn pitch_deg(data: &[Stop], rows: &[usize], axis: u8) -> f64 {
 }
 
 /// Splits located suspects into the isolated ones (gross errors) and the structures: a
-/// suspect with another at the same angle (within the finer pitch of the two tests) in the
-/// other direction of its test, in another test of its axis, or at a neighbouring angle in its
-/// own direction is systematic. `tests_of_axis[n-1]`: how many indexing tests axis n has.
+/// suspect with another of about its size ([`SAME_SIZE`]) at the same angle (within the finer
+/// pitch of the two tests) in the other direction of its test, in another test of its axis,
+/// or at a neighbouring angle in its own direction is systematic. `tests_of_axis[n-1]`: how many indexing tests axis n has.
 pub fn systematic(
     located: Vec<Located>,
     tests_of_axis: [usize; 6],
 ) -> (Vec<Suspect>, Vec<Structure>) {
+    // A jump that repeats repeats at about its size; a millimetre beside a few hundredths is
+    // a gross error next to noise.
+    let alike = |x: f64, y: f64| x.max(y) <= SAME_SIZE * x.min(y);
     let near = |a: &Located, b: &Located| {
         (a.angle_deg - b.angle_deg).abs() <= 1.01 * a.pitch_deg.min(b.pitch_deg)
     };
@@ -408,6 +413,7 @@ pub fn systematic(
                 j != i
                     && a.axis == b.axis
                     && near(a, b)
+                    && alike(a.suspect.size_mm, b.suspect.size_mm)
                     && (a.test != b.test || a.direction != b.direction || {
                         // A run in its own direction: a neighbouring angle, not the same one.
                         (a.angle_deg - b.angle_deg).abs() > 1e-6

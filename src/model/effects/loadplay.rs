@@ -7,7 +7,7 @@
 //!
 //! The net torque is the gravity torque of the bodies beyond the axis and the payload
 //! (`compliance::gravity_torques_knm`, kN·m, KUKA sign) less, for A2, a counterbalance spring
-//! written as `k_c·cos A2 + k_s·sin A2` (kN·m): `τ = τ_g − τ_cb`. The effect writes
+//! written as `k_0 + k_c·cos A2 + k_s·sin A2` (kN·m): `τ = τ_g − τ_cb`. The effect writes
 //! `dθ_n += sign(τ)·b/2` where `|τ| > τ_f`, else the play's lag.
 //!
 //! Its values — what a least-squares fit moves — are the width b alone (degrees): the flank a
@@ -39,8 +39,14 @@ pub const BALANCED_AXIS: u8 = 2;
 /// gravity torques are a few kN·m).
 pub const MAX_TORQUE_KNM: f64 = 100.0;
 /// Steps of the counterbalance grid per coordinate (coarse, then as many around the best).
-const BALANCE_STEPS: usize = 41;
-/// The coarse counterbalance grid spans ± this many times the largest gravity torque seen.
+const BALANCE_STEPS: usize = 21;
+/// Grids searched, each around the best of the one before and two of its steps wide.
+const BALANCE_PASSES: usize = 3;
+/// The first grid around the least-squares counterbalance spans ± this share of that span.
+const BALANCE_LOCAL: f64 = 0.15;
+/// Ridge weight per pair on the counterbalance's angle terms (kN·m² per unit of cos, sin).
+const RIDGE: f64 = 0.01;
+/// The counterbalance grid's scale: this many times the largest gravity torque seen.
 const BALANCE_SPAN: f64 = 1.5;
 /// Farthest a neighbour (degrees of axis n) may be to give a test's direction of motion.
 const MAX_TANGENT_STEP_DEG: f64 = 10.0;
@@ -62,8 +68,8 @@ pub struct LoadPlay {
     pub width_deg: [f64; 1],
     /// The friction threshold τ_f, kN·m (≥ 0).
     pub friction_knm: f64,
-    /// The counterbalance `[k_c, k_s]`, kN·m (A2 only; zero elsewhere).
-    pub balance_knm: [f64; 2],
+    /// The counterbalance `[k_0, k_c, k_s]`, kN·m (A2 only; zero elsewhere).
+    pub balance_knm: [f64; 3],
 }
 
 impl LoadPlay {
@@ -78,15 +84,16 @@ impl LoadPlay {
             axis,
             width_deg: [0.0],
             friction_knm: 0.0,
-            balance_knm: [0.0; 2],
+            balance_knm: [0.0; 3],
         })
     }
 
-    /// The record's names, in order: `b`, `friction`, and on A2 `balance_cos`, `balance_sin`.
+    /// The record's names, in order: `b`, `friction`, and on A2 `balance_const`,
+    /// `balance_cos`, `balance_sin`.
     fn names(axis: u8) -> Vec<String> {
         let mut names = vec!["b".to_string(), "friction".to_string()];
         if axis == BALANCED_AXIS {
-            names.extend(["balance_cos".to_string(), "balance_sin".to_string()]);
+            names.extend(["balance_const", "balance_cos", "balance_sin"].map(String::from));
         }
         names
     }
@@ -118,7 +125,7 @@ impl LoadPlay {
                 v[1].to_string(),
             ));
         }
-        for (k, name) in [(2, "balance_cos"), (3, "balance_sin")] {
+        for (k, name) in [(2, "balance_const"), (3, "balance_cos"), (4, "balance_sin")] {
             if v.get(k).is_some_and(|x| x.abs() > MAX_TORQUE_KNM) {
                 return Err(RecordError::new(
                     format!("parameters.{name}"),
@@ -131,10 +138,7 @@ impl LoadPlay {
             axis,
             width_deg: [v[0]],
             friction_knm: v[1],
-            balance_knm: [
-                v.get(2).copied().unwrap_or(0.0),
-                v.get(3).copied().unwrap_or(0.0),
-            ],
+            balance_knm: std::array::from_fn(|k| v.get(2 + k).copied().unwrap_or(0.0)),
         })
     }
 
@@ -144,7 +148,8 @@ impl LoadPlay {
             return 0.0;
         }
         let a = axes_deg[BALANCED_AXIS as usize - 1].to_radians();
-        self.balance_knm[0] * a.cos() + self.balance_knm[1] * a.sin()
+        let [k0, kc, ks] = self.balance_knm;
+        k0 + kc * a.cos() + ks * a.sin()
     }
 
     /// The net torque about the axis at `axes_deg`, kN·m; `None` without mass data.
@@ -202,13 +207,13 @@ impl LoadPlay {
             .iter()
             .map(|p| p.axes_deg[BALANCED_AXIS as usize - 1].to_radians())
             .collect();
-        let band = |balance: [f64; 2]| -> Band {
+        let band = |balance: [f64; 3]| -> Band {
             let net: Vec<f64> = torques
                 .iter()
                 .zip(&angles)
                 .map(|(t, a)| {
                     if self.axis == BALANCED_AXIS {
-                        t - balance[0] * a.cos() - balance[1] * a.sin()
+                        t - balance[0] - balance[1] * a.cos() - balance[2] * a.sin()
                     } else {
                         *t
                     }
@@ -216,26 +221,59 @@ impl LoadPlay {
                 .collect();
             best_band(&net, &diffs)
         };
-        let mut best = (band([0.0; 2]), [0.0; 2]);
+        let mut best = (band([0.0; 3]), [0.0; 3]);
         if self.axis == BALANCED_AXIS {
+            // Inside the band the net torque is near zero: the counterbalance that cancels the
+            // gravity torque at the pairs whose difference shows the play (linear least
+            // squares), then the best band on grids around it.
+            let widest = diffs.iter().fold(0.0, |m: f64, d| m.max(*d));
+            let rows: Vec<usize> = (0..diffs.len())
+                .filter(|&i| diffs[i] > 0.5 * widest)
+                .collect();
+            // Ridge on the angle terms: the band's pairs cluster where the torque crosses
+            // zero, where a constant, cos A2 and sin A2 are nearly collinear.
+            let ridge = RIDGE * rows.len() as f64;
+            let mut normal = nalgebra::Matrix3::<f64>::zeros();
+            let mut rhs = nalgebra::Vector3::<f64>::zeros();
+            for &r in &rows {
+                let a = angles[r];
+                let x = nalgebra::Vector3::new(1.0, a.cos(), a.sin());
+                normal += x * x.transpose();
+                rhs += x * torques[r];
+            }
+            normal[(1, 1)] += ridge;
+            normal[(2, 2)] += ridge;
+            let start = normal
+                .try_inverse()
+                .map_or([0.0; 3], |inv| {
+                    let x = inv * rhs;
+                    [x[0], x[1], x[2]]
+                });
+            let found = band(start);
+            if found.sse < best.0.sse {
+                best = (found, start);
+            }
             let span = BALANCE_SPAN * torques.iter().fold(0.0, |m: f64, t| m.max(t.abs()));
-            let mut step = 2.0 * span / (BALANCE_STEPS - 1) as f64;
-            let mut centre = [0.0; 2];
-            for _ in 0..3 {
-                let half = (BALANCE_STEPS / 2) as f64;
+            let mut step = 2.0 * span * BALANCE_LOCAL / (BALANCE_STEPS - 1) as f64;
+            let half = (BALANCE_STEPS / 2) as f64;
+            let at = |i: usize, centre: f64, step: f64| centre + (i as f64 - half) * step;
+            for _ in 0..BALANCE_PASSES {
+                let centre = best.1;
                 for i in 0..BALANCE_STEPS {
                     for j in 0..BALANCE_STEPS {
-                        let k = [
-                            centre[0] + (i as f64 - half) * step,
-                            centre[1] + (j as f64 - half) * step,
-                        ];
-                        let b = band(k);
-                        if b.sse < best.0.sse - 1e-15 {
-                            best = (b, k);
+                        for k in 0..BALANCE_STEPS {
+                            let b = [
+                                at(i, centre[0], step),
+                                at(j, centre[1], step),
+                                at(k, centre[2], step),
+                            ];
+                            let found = band(b);
+                            if found.sse < best.0.sse - 1e-15 {
+                                best = (found, b);
+                            }
                         }
                     }
                 }
-                centre = best.1;
                 // The next grid spans two of this grid's steps either side of the best.
                 step *= 4.0 / (BALANCE_STEPS - 1) as f64;
             }
@@ -245,7 +283,7 @@ impl LoadPlay {
         self.balance_knm = if self.axis == BALANCED_AXIS {
             balance
         } else {
-            [0.0; 2]
+            [0.0; 3]
         };
         self.width_deg = [band.width_deg.clamp(0.0, MAX_PLAY_DEG)];
     }
