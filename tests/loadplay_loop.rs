@@ -17,6 +17,8 @@
 //!
 //! Run with `-- --nocapture` to see the figures.
 
+#[path = "support/readme.rs"]
+mod readme;
 #[path = "support/tooled.rs"]
 mod tooled;
 use tooled::with_identified_tool;
@@ -350,6 +352,21 @@ fn the_loop_on_case_3_lands_near_the_robot_without_the_effect() {
     println!(
         "campaign fit: paper model {:.1} µm RMS, with loadplay:A2 {:.1} µm RMS",
         first.fit.stats.rms_um, second.fit.stats.rms_um
+    );
+    let values = |s: &ErrorStats| vec![s.xy_mean_um, s.xy_2sigma_um, s.z_mean_um, s.z_2sigma_um];
+    // The README's figures, within 2 µm (floating-point differences between machines).
+    readme::assert_rows(
+        "loadplay-case-3",
+        &[
+            (
+                "the paper's model, robot without the effect",
+                values(&without),
+            ),
+            ("the paper's model, case 3", values(&before)),
+            ("with `loadplay:A2`, case 3", values(&after)),
+        ],
+        2.0,
+        1,
     );
     assert!(
         after.xy_mean_um <= 1.6 * without.xy_mean_um,
