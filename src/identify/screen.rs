@@ -392,9 +392,10 @@ pub fn pitch_deg(data: &[Stop], rows: &[usize], axis: u8) -> f64 {
 }
 
 /// Splits located suspects into the isolated ones (gross errors) and the structures: a
-/// suspect with another of about its size ([`SAME_SIZE`]) at the same angle (within the finer
-/// pitch of the two tests) in the other direction of its test, in another test of its axis,
-/// or at a neighbouring angle in its own direction is systematic. `tests_of_axis[n-1]`: how many indexing tests axis n has.
+/// suspect with another of about its size ([`SAME_SIZE`]) in its own test, at the same angle
+/// (within the test's pitch) in the other direction or at a neighbouring angle in its own
+/// direction, is systematic when such jumps show in more than one test of the axis at nearby
+/// angles (reported as one structure); the rest are isolated. `tests_of_axis[n-1]`: how many indexing tests axis n has.
 pub fn systematic(
     located: Vec<Located>,
     tests_of_axis: [usize; 6],
@@ -414,10 +415,11 @@ pub fn systematic(
                     && a.axis == b.axis
                     && near(a, b)
                     && alike(a.suspect.size_mm, b.suspect.size_mm)
-                    && (a.test != b.test || a.direction != b.direction || {
-                        // A run in its own direction: a neighbouring angle, not the same one.
-                        (a.angle_deg - b.angle_deg).abs() > 1e-6
-                    })
+                    // In its own test: the other direction, or a run in its own direction
+                    // (a neighbouring angle, not the same one). Gross errors of other tests
+                    // meet at one angle by chance where they are many.
+                    && a.test == b.test
+                    && (a.direction != b.direction || (a.angle_deg - b.angle_deg).abs() > 1e-6)
             })
         })
         .collect();
@@ -465,6 +467,17 @@ pub fn systematic(
         group.push(l);
     }
     flush(&mut group, &mut structures);
+    // A pair of gross errors can meet by chance in one test; a jump the robot makes shows in
+    // more than one test of its axis.
+    let (structures, chance): (Vec<Structure>, Vec<Structure>) =
+        structures.into_iter().partition(|s| s.tests >= 2);
+    for st in chance {
+        isolated.extend(
+            kept.iter()
+                .filter(|l| st.rows.contains(&l.suspect.row))
+                .map(|l| l.suspect.clone()),
+        );
+    }
     (isolated, structures)
 }
 
