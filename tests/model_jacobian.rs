@@ -5,6 +5,7 @@
 
 use nalgebra::Vector3;
 use robopost::kinematics::{Payload, RobotDescription};
+use robopost::model::effects::loadplay::LoadPlay;
 use robopost::model::{
     expand_list, AxisHistory, AxisState, ChainErrors, Direction, GridOptions, Model, N_SLOTS,
 };
@@ -65,12 +66,22 @@ fn full_model(rng: &mut Lcg) -> Model {
     for name in expand_list(list).expect("valid list") {
         model.push_named(&name, &options).expect("constructible");
     }
+    // The play under load on A2 (counterbalanced) and A3, with friction bands that the random
+    // states fall in and out of.
+    for (axis, friction_knm, balance_knm) in [(2, 0.6, [0.2, 1.2, -0.4]), (3, 0.15, [0.0; 3])] {
+        model.push(Box::new(LoadPlay {
+            axis,
+            width_deg: [0.0],
+            friction_knm,
+            balance_knm,
+        }));
+    }
     let mut values: Vec<f64> = (0..model.n_parameters())
         .map(|_| rng.range(-0.05, 0.05))
         .collect();
     // Gear plays have widths, not signs.
     for (e, effect) in model.effects().iter().enumerate() {
-        if effect.name().starts_with("backlash") {
+        if effect.name().starts_with("backlash") || effect.name().starts_with("loadplay") {
             let start = model.effect_start(e);
             for v in &mut values[start..start + effect.values().len()] {
                 *v = v.abs() + 0.001;
@@ -244,4 +255,104 @@ fn fixed_plus_varying_errors_are_the_chain_errors() {
         .collect();
     let merged = robopost::model::merged::Merged::new(model.effects(), &varying);
     assert_eq!(merged.rest.len(), varying.len() - 12);
+}
+
+/// `loadplay`'s slopes along the axes (what a compensation solve steps with) against central
+/// differences of `add_to`, at states away from the edge of the friction band (where the flank
+/// jumps and no derivative exists); and both branches are exercised.
+#[test]
+fn loadplay_axis_slopes_match_finite_differences() {
+    use robopost::model::{AxisSlopes, Effect, Slot};
+    let mut rng = Lcg(17);
+    let robot = RobotDescription::kr30ha();
+    let payload = Payload {
+        mass_kg: 12.0,
+        cog_mm: [10.0, -5.0, 80.0],
+    };
+    let model = Model::new(robot, payload, Vector3::zeros());
+    let ctx = model.context();
+    let effect = LoadPlay {
+        axis: 2,
+        width_deg: [0.03],
+        friction_knm: 0.6,
+        balance_knm: [0.2, 1.2, -0.4],
+    };
+    let h = 1e-6;
+    let (mut loaded, mut free) = (0, 0);
+    for _ in 0..400 {
+        let state = random_state(&mut rng, &robot);
+        let torque = |s: &AxisState| effect.net_torque_knm(&s.axes_deg, &ctx).unwrap();
+        let t = torque(&state);
+        if (t.abs() - effect.friction_knm).abs() < 0.05 {
+            continue;
+        }
+        if t.abs() > effect.friction_knm {
+            loaded += 1;
+        } else {
+            free += 1;
+        }
+        let mut errors = ChainErrors::default();
+        let mut slopes = AxisSlopes::default();
+        effect.add_with_axis_slopes(&state, &ctx, &mut errors, &mut slopes);
+        let slot = Slot::Angle { axis: 2 };
+        let mut plain = ChainErrors::default();
+        effect.add_to(&state, &ctx, &mut plain);
+        assert_eq!(plain.get(slot), errors.get(slot));
+        for n in 0..6 {
+            let at = |d: f64| {
+                let mut s = state;
+                s.axes_deg[n] += d;
+                let mut e = ChainErrors::default();
+                effect.add_to(&s, &ctx, &mut e);
+                e.get(slot)
+            };
+            let numeric = (at(h) - at(-h)) / (2.0 * h);
+            assert!(
+                (numeric - slopes.angle[1][n]).abs() < 1e-9,
+                "A{}: {numeric} vs {}",
+                n + 1,
+                slopes.angle[1][n]
+            );
+        }
+    }
+    assert!(loaded > 20 && free > 20, "loaded {loaded}, free {free}");
+}
+
+/// The physics by hand: where the net torque beats friction, both directions sit on the
+/// torque's flank (+b/2 for a positive torque); inside the band, the direction decides as a
+/// play does (−b/2 arriving from below, +b/2 from above).
+#[test]
+fn loadplay_flank_follows_the_torque_beyond_friction() {
+    use robopost::model::{Effect, Slot};
+    let robot = RobotDescription::kr30ha();
+    let model = Model::new(robot, Payload::default(), Vector3::zeros());
+    let ctx = model.context();
+    let mut effect = LoadPlay {
+        axis: 2,
+        width_deg: [0.04],
+        friction_knm: 0.0,
+        balance_knm: [0.0; 3],
+    };
+    let lag = |e: &LoadPlay, axes: [f64; 6], d: Direction| {
+        let mut errors = ChainErrors::default();
+        e.add_to(&AxisState::with_directions(axes, [d; 6]), &ctx, &mut errors);
+        errors.get(Slot::Angle { axis: 2 }).to_degrees()
+    };
+    // Upper arm forward and down a little, forearm horizontal: gravity pulls A2 towards
+    // positive angles (A2 turns about +Y; the arm's weight ahead of the axis turns it down).
+    let axes = [0.0, -20.0, 20.0, 0.0, 0.0, 0.0];
+    let t = effect.net_torque_knm(&axes, &ctx).unwrap();
+    assert!(t > 0.5, "gravity torque about A2 at {axes:?}: {t}");
+    for d in [Direction::Positive, Direction::Negative] {
+        assert!((lag(&effect, axes, d) - 0.02).abs() < 1e-12);
+    }
+    // A counterbalance larger than gravity there turns the flank over.
+    effect.balance_knm = [2.0 * t, 0.0, 0.0];
+    for d in [Direction::Positive, Direction::Negative] {
+        assert!((lag(&effect, axes, d) + 0.02).abs() < 1e-12);
+    }
+    // Friction beyond the torque: the motion chooses.
+    effect.friction_knm = 10.0;
+    assert!((lag(&effect, axes, Direction::Positive) + 0.02).abs() < 1e-12);
+    assert!((lag(&effect, axes, Direction::Negative) - 0.02).abs() < 1e-12);
 }

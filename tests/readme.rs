@@ -23,6 +23,7 @@ const CLAIMS: [(&str, &str); 33] = [
     ("physical-fixture", "tests/readme.rs"),
     ("physical-arm-only", "tests/physical_truth.rs"),
     ("physical-table-1", "tests/physical_truth.rs"),
+    ("loadplay-case-3", "tests/loadplay_loop.rs"),
     ("physical-floor", "tests/physical_truth.rs"),
     ("physical-diagnose", "tests/physical_truth.rs"),
     ("solver-tolerance", "tests/readme.rs"),

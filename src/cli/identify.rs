@@ -441,6 +441,16 @@ pub fn report(r: &Identified, requested: &str) -> String {
             );
         }
     }
+    for st in &r.structures {
+        out += &format!(
+            "systematic, kept in the fit: {}; a jump that repeats is the robot's, not the \
+             tracker's: an effect the model lacks (a flank that follows the load: \
+             `loadplay:A{}` in place of `backlash:A{}`, see docs/effects.md)\n",
+            st.describe(),
+            st.axis,
+            st.axis
+        );
+    }
     if let (Some(f), Some(se)) = (fit.tracker_frame, fit.tracker_frame_standard_errors) {
         let k = f.to_pose();
         out += &format!(

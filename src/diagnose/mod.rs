@@ -273,6 +273,63 @@ fn veto(e: &Evaluation, time: bool) -> Option<String> {
     None
 }
 
+/// Most candidates identified as their printed command would, looking for the first one
+/// that can be followed (each is a full identification on all the data).
+pub const MAX_FOLLOW_FITS: usize = 3;
+
+/// Identifies `name` on top of `cal` as the command a finding prints does (`identify -c CAL
+/// FILES --effects …`: the same files, effects and defaults); why it cannot be followed, if it
+/// cannot: the identification fails, its fit fails, or its values leave their physical range.
+pub fn follow(cal: &Calibration, data: &[Measurements], name: &EffectName) -> Result<(), String> {
+    use crate::identify::pipeline::{identify, Effects, Request};
+    let model = cal.model_ref();
+    let replaced = crossval::replaced(model, name);
+    let effects = if replaced.is_empty() {
+        Effects::Add(vec![*name])
+    } else {
+        let mut list: Vec<EffectName> = model
+            .effects()
+            .iter()
+            .filter(|e| !replaced.contains(&e.name()))
+            .filter_map(|e| EffectName::parse(&e.name()).ok())
+            .collect();
+        list.push(*name);
+        Effects::Exactly(list)
+    };
+    let mut stops = Vec::new();
+    let mut file_of = Vec::new();
+    for (k, m) in data.iter().enumerate() {
+        file_of.resize(file_of.len() + m.stops.len(), k);
+        stops.extend(m.stops.iter().cloned());
+    }
+    let request = Request {
+        effects: Some(effects),
+        base: Some(cal.clone()),
+        sources: data.iter().map(|m| m.source.clone()).collect(),
+        file_of,
+        max_points: Some(crate::identify::thin::DEFAULT_MAX_POINTS),
+        ..Request::default()
+    };
+    let identified = identify(&stops, &request)
+        .map_err(|e| format!("identified as its command prints, it fails: {e}"))?;
+    if let Some(failure) = &identified.verdict.failure {
+        return Err(format!(
+            "identified as its command prints, the fit fails: {}",
+            failure.trim_end()
+        ));
+    }
+    identified
+        .calibration
+        .to_json(std::path::Path::new("NEW.json"))
+        .map(|_| ())
+        .map_err(|e| {
+            format!(
+                "identified as its command prints, the calibration is not physical ({e}): \
+                 `identify` would refuse to write it"
+            )
+        })
+}
+
 /// The checks of a candidate that passes on the stretches.
 fn run_checks(
     model: &Model,
@@ -312,6 +369,20 @@ pub fn diagnose(
     if all_rows.is_empty() {
         return Err(DiagnoseError::NoMeasurements);
     }
+    // The points `identify` left out of this calibration's fit as gross errors are left out
+    // here too: a millimetre of a broken beam must not outweigh the residual a diagnosis is
+    // about.
+    let gross = compare::gross_errors(cal, data);
+    let all_rows: Vec<Row> = if gross.iter().all(Option::is_none) {
+        all_rows
+    } else {
+        all_rows
+            .into_iter()
+            .zip(&gross)
+            .filter(|(_, g)| g.is_none())
+            .map(|(r, _)| r)
+            .collect()
+    };
     // Exact copies are not repeated measurements: out, before anything is estimated.
     let copies = noise::duplicates(&all_rows);
     let duplicates = copies.iter().filter(|c| **c).count();
@@ -398,7 +469,7 @@ pub fn diagnose(
     for (i, checks) in checked {
         evaluations[i].checks = checks;
     }
-    let vetoes: Vec<Option<String>> = evaluations
+    let mut vetoes: Vec<Option<String>> = evaluations
         .iter()
         .map(|e| {
             passes_within(e, screen_rms)
@@ -406,6 +477,24 @@ pub fn diagnose(
                 .flatten()
         })
         .collect();
+    // Advice the user can follow: the first finding is identified as its printed command will
+    // identify it (the same calibration, files and effects); one whose identification fails
+    // or leaves its physical range is not advised, and the next is tried.
+    let mut tried = 0;
+    for i in 0..evaluations.len() {
+        if tried == MAX_FOLLOW_FITS {
+            break;
+        }
+        if !(passes_within(&evaluations[i], screen_rms) && vetoes[i].is_none()) {
+            continue;
+        }
+        tick(options, "following the advice", tried, MAX_FOLLOW_FITS);
+        tried += 1;
+        match follow(cal, data, &evaluations[i].name) {
+            Ok(()) => break,
+            Err(why) => vetoes[i] = Some(why),
+        }
+    }
     let significant = |i: usize| passes_within(&evaluations[i], screen_rms) && vetoes[i].is_none();
 
     // Twins of the best significant candidate: significant candidates that correct the

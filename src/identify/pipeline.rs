@@ -20,7 +20,7 @@ use super::direct::{
 use super::refine::{refine, Fit, IdentifyError, Progress, ProgressFn, RefineOptions, Status};
 use super::register::rigid_fit;
 use super::robust::{self, tracker_sigma_mm};
-use super::screen::{screen_test, Suspect};
+use super::screen::{pitch_deg, screen_test, systematic, Located, Structure, Suspect};
 use super::setup::{add_effects, GridChoice};
 use super::thin::{thin, Thinning, DEFAULT_MAX_POINTS};
 use super::verdict::{judge, Clues, TestResidual, Verdict};
@@ -134,6 +134,10 @@ pub struct Identified {
     pub physical: Vec<String>,
     /// The gross errors, in data order.
     pub gross: Vec<GrossError>,
+    /// Jumps of the residual that repeat (at one axis angle in both directions, in several
+    /// tests or over neighbours): systematic, kept in the fit, and a sign of an effect the
+    /// model lacks.
+    pub structures: Vec<Structure>,
     /// How the points were thinned to the fit's budget, when they were.
     pub thinning: Option<Thinning>,
     /// Where the tracker's target (the TCP offset) came from.
@@ -238,10 +242,32 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         let station = if tracker { Vector3::zeros() } else { assumed };
         tracker_sigma_mm(&m, &station, &request.tracker)
     };
-    let suspects: Vec<Suspect> = tests
+    let located: Vec<Located> = tests
         .par_iter()
-        .flat_map_iter(|t| screen_test(stops, &t.rows, t.axis, &spec_sigma).0)
+        .enumerate()
+        .flat_map_iter(|(k, t)| {
+            let pitch = pitch_deg(stops, &t.rows, t.axis);
+            let n = t.axis as usize - 1;
+            screen_test(stops, &t.rows, t.axis, &spec_sigma)
+                .0
+                .into_iter()
+                .map(move |suspect| Located {
+                    test: k,
+                    axis: t.axis,
+                    angle_deg: stops[suspect.row].state.axes_deg[n],
+                    direction: stops[suspect.row].state.directions()[n],
+                    pitch_deg: pitch,
+                    suspect,
+                })
+        })
         .collect();
+    // What repeats (both directions, several tests, a run) is the robot's, not the tracker's:
+    // it stays in the fit and is reported.
+    let mut tests_of_axis = [0; 6];
+    for t in &tests {
+        tests_of_axis[t.axis as usize - 1] += 1;
+    }
+    let (suspects, structures) = systematic(located, tests_of_axis);
     let mut in_indexing = vec![false; stops.len()];
     for t in &tests {
         for &i in &t.rows {
@@ -562,6 +588,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
         effects,
         physical,
         gross,
+        structures,
         thinning,
         target,
         stats,

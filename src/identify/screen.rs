@@ -306,6 +306,181 @@ fn suspects(locals: &[Local], axis: u8) -> Vec<Suspect> {
     out
 }
 
+/// Suspects that are not isolated: the same jump seen at one angle of the indexed axis in
+/// both directions, in several tests or over a run of neighbours. A gross error is one point,
+/// unlike its neighbours, its partner in the other direction and the same pose in another test;
+/// a jump that repeats is the robot's (a flank that changes with the load, a contact), which
+/// the fit must see and the user must be told of.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Structure {
+    /// The indexed axis, 1..=6.
+    pub axis: u8,
+    /// The command angles of that axis where it shows, degrees (lowest, highest).
+    pub angles_deg: [f64; 2],
+    /// The rows of the data it covers.
+    pub rows: Vec<usize>,
+    /// Tests of that axis showing it, and the axis's indexing tests in all.
+    pub tests: usize,
+    pub of_tests: usize,
+    /// Whether it shows in both rotation directions.
+    pub both_directions: bool,
+}
+
+impl Structure {
+    /// "the residual jumps at A2 ≈ −65° in every A2 test (4 tests, 14 points, both directions)".
+    pub fn describe(&self) -> String {
+        let [lo, hi] = self.angles_deg;
+        let at = if hi - lo < 1.5 {
+            format!("A{} ≈ {:.0}°", self.axis, 0.5 * (lo + hi))
+        } else {
+            format!("A{} {lo:.0}..{hi:.0}°", self.axis)
+        };
+        let tests = if self.tests == self.of_tests && self.tests > 1 {
+            format!("in every A{} test ({} tests", self.axis, self.tests)
+        } else {
+            format!(
+                "in {} of {} A{} tests ({} test{}",
+                self.tests,
+                self.of_tests,
+                self.axis,
+                self.tests,
+                if self.tests == 1 { "" } else { "s" }
+            )
+        };
+        format!(
+            "the residual jumps at {at} {tests}, {} points{})",
+            self.rows.len(),
+            if self.both_directions {
+                ", both directions"
+            } else {
+                ""
+            }
+        )
+    }
+}
+
+/// Two suspects are the same jump seen twice only when their sizes agree within this factor.
+const SAME_SIZE: f64 = 3.0;
+/// Systematic suspects of one axis this close (degrees) are reported as one jump: where a
+/// flank changes with the load, the angle shifts from test to test with the other axes.
+const ONE_JUMP_DEG: f64 = 15.0;
+
+/// One suspect of the screening with where it lies: its indexing test, axis, command angle
+/// of that axis, rotation direction, and the test's pitch (degrees between neighbouring
+/// command angles).
+#[derive(Clone, Debug)]
+pub struct Located {
+    pub suspect: Suspect,
+    pub test: usize,
+    pub axis: u8,
+    pub angle_deg: f64,
+    pub direction: Direction,
+    pub pitch_deg: f64,
+}
+
+/// The pitch of a test's command angles of axis `axis`: the median step between its distinct
+/// angles (1° when it has fewer than two).
+pub fn pitch_deg(data: &[Stop], rows: &[usize], axis: u8) -> f64 {
+    let mut angles: Vec<f64> = rows
+        .iter()
+        .map(|&i| data[i].state.axes_deg[axis as usize - 1])
+        .collect();
+    angles.sort_by(f64::total_cmp);
+    angles.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    let steps: Vec<f64> = angles.windows(2).map(|w| w[1] - w[0]).collect();
+    median(steps).unwrap_or(1.0)
+}
+
+/// Splits located suspects into the isolated ones (gross errors) and the structures: a
+/// suspect with another of about its size ([`SAME_SIZE`]) in its own test, at the same angle
+/// (within the test's pitch) in the other direction or at a neighbouring angle in its own
+/// direction, is systematic when such jumps show in more than one test of the axis at nearby
+/// angles (reported as one structure); the rest are isolated. `tests_of_axis[n-1]`: how many indexing tests axis n has.
+pub fn systematic(
+    located: Vec<Located>,
+    tests_of_axis: [usize; 6],
+) -> (Vec<Suspect>, Vec<Structure>) {
+    // A jump that repeats repeats at about its size; a millimetre beside a few hundredths is
+    // a gross error next to noise.
+    let alike = |x: f64, y: f64| x.max(y) <= SAME_SIZE * x.min(y);
+    let near = |a: &Located, b: &Located| {
+        (a.angle_deg - b.angle_deg).abs() <= 1.01 * a.pitch_deg.min(b.pitch_deg)
+    };
+    let repeated: Vec<bool> = located
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            located.iter().enumerate().any(|(j, b)| {
+                j != i
+                    && a.axis == b.axis
+                    && near(a, b)
+                    && alike(a.suspect.size_mm, b.suspect.size_mm)
+                    // In its own test: the other direction, or a run in its own direction
+                    // (a neighbouring angle, not the same one). Gross errors of other tests
+                    // meet at one angle by chance where they are many.
+                    && a.test == b.test
+                    && (a.direction != b.direction || (a.angle_deg - b.angle_deg).abs() > 1e-6)
+            })
+        })
+        .collect();
+    let mut isolated = Vec::new();
+    let mut kept: Vec<Located> = Vec::new();
+    for (l, r) in located.into_iter().zip(repeated) {
+        if r {
+            kept.push(l);
+        } else {
+            isolated.push(l.suspect);
+        }
+    }
+    // Structures: the systematic suspects of one axis, grouped where their angles chain.
+    kept.sort_by(|a, b| (a.axis, a.angle_deg).partial_cmp(&(b.axis, b.angle_deg)).unwrap_or(std::cmp::Ordering::Equal));
+    let mut structures: Vec<Structure> = Vec::new();
+    let mut group: Vec<&Located> = Vec::new();
+    let flush = |group: &mut Vec<&Located>, structures: &mut Vec<Structure>| {
+        if let (Some(first), Some(last)) = (group.first(), group.last()) {
+            let mut tests: Vec<usize> = group.iter().map(|l| l.test).collect();
+            tests.sort_unstable();
+            tests.dedup();
+            let mut rows: Vec<usize> = group.iter().map(|l| l.suspect.row).collect();
+            rows.sort_unstable();
+            let axis = first.axis;
+            structures.push(Structure {
+                axis,
+                angles_deg: [first.angle_deg, last.angle_deg],
+                rows,
+                tests: tests.len(),
+                of_tests: tests_of_axis[axis as usize - 1].max(tests.len()),
+                both_directions: group.iter().any(|l| l.direction == Direction::Positive)
+                    && group.iter().any(|l| l.direction == Direction::Negative),
+            });
+        }
+        group.clear();
+    };
+    for l in &kept {
+        let chained = group.last().is_some_and(|g: &&Located| {
+            g.axis == l.axis
+                && l.angle_deg - g.angle_deg <= ONE_JUMP_DEG.max(2.01 * g.pitch_deg.max(l.pitch_deg))
+        });
+        if !chained {
+            flush(&mut group, &mut structures);
+        }
+        group.push(l);
+    }
+    flush(&mut group, &mut structures);
+    // A pair of gross errors can meet by chance in one test; a jump the robot makes shows in
+    // more than one test of its axis.
+    let (structures, chance): (Vec<Structure>, Vec<Structure>) =
+        structures.into_iter().partition(|s| s.tests >= 2);
+    for st in chance {
+        isolated.extend(
+            kept.iter()
+                .filter(|l| st.rows.contains(&l.suspect.row))
+                .map(|l| l.suspect.clone()),
+        );
+    }
+    (isolated, structures)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

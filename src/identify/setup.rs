@@ -8,7 +8,7 @@
 use std::collections::BTreeMap;
 
 use crate::measure::Stop;
-use crate::model::{EffectName, GridOptions, Model};
+use crate::model::{EffectName, GridOptions, Model, Observed};
 
 /// Most distinct angles of the influencing axis used directly as crosstalk columns.
 const MAX_DISTINCT_COLUMNS: usize = 8;
@@ -138,13 +138,39 @@ pub fn add_effects(
         if model.effects().iter().any(|e| e.name() == canonical) || added.contains(&canonical) {
             continue;
         }
-        model
-            .push_named(name, &grid_options(name, data, choice))
+        let mut effect = name
+            .create(&grid_options(name, data, choice), &model.robot)
             .map_err(|source| SetupError {
                 effect: canonical.clone(),
                 source,
             })?;
+        effect.start_from_data(&observed(data), &model.context());
+        model.push(effect);
         added.push(canonical);
     }
     Ok(added)
+}
+
+/// The measured points of `data` as effects see them when they set themselves up
+/// ([`Effect::start_from_data`](crate::model::Effect::start_from_data)): tests numbered by
+/// label in order of appearance.
+fn observed(data: &[Stop]) -> Vec<Observed<'_>> {
+    let mut labels: Vec<&str> = Vec::new();
+    data.iter()
+        .filter_map(|s| {
+            let m = s.measured_mm?;
+            let test = match labels.iter().position(|l| *l == s.test) {
+                Some(t) => t,
+                None => {
+                    labels.push(&s.test);
+                    labels.len() - 1
+                }
+            };
+            Some(Observed {
+                test,
+                state: &s.state,
+                measured_mm: m,
+            })
+        })
+        .collect()
 }

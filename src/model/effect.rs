@@ -112,6 +112,17 @@ pub struct Partial {
     pub value: f64,
 }
 
+/// A measured point as an effect sees it when it sets itself up from the data
+/// ([`Effect::start_from_data`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Observed<'a> {
+    /// The test the point belongs to: points of one test (one file's label) share it.
+    pub test: usize,
+    pub state: &'a AxisState,
+    /// The measured target position, mm, in the frame of its file.
+    pub measured_mm: nalgebra::Vector3<f64>,
+}
+
 /// Read-only data an effect may need besides the state (gravity data, payload).
 #[derive(Clone, Copy, Debug)]
 pub struct Context<'a> {
@@ -274,6 +285,10 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn direction_axes(&self) -> Vec<u8> {
         Vec::new()
     }
+    /// Sets what a least-squares fit cannot move (a threshold, a step's position) from the
+    /// measured data, when the effect is added for identification; the values a fit moves
+    /// may get starting values. Most effects need nothing.
+    fn start_from_data(&mut self, _data: &[Observed], _ctx: &Context) {}
     fn clone_box(&self) -> Box<dyn Effect>;
 }
 

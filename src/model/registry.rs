@@ -15,6 +15,7 @@ use super::effects::{
     drift::Drift,
     geometric::Geometric,
     learned::Learned,
+    loadplay::LoadPlay,
     map::AngleMap,
     play::GearPlay,
     tilt::Tilt,
@@ -200,6 +201,17 @@ pub static KINDS: &[Kind] = &[
         evidence: Evidence::GravityTorque,
     },
     Kind {
+        prefix: "loadplay",
+        arity: Arity::Axis,
+        meaning: "gear play whose flank follows the net torque (gravity less counterbalance) beyond friction, the direction of motion only near zero torque",
+        create: |a, _, r| boxed(LoadPlay::zeros(one(a), r)),
+        decode: |a, rec, r| boxed(LoadPlay::from_record(one(a), rec, r)),
+        upgrade_v1: None,
+        look_alikes: none,
+        in_time: false,
+        evidence: Evidence::DirectionDifference,
+    },
+    Kind {
         prefix: "tilt",
         arity: Arity::Axis,
         meaning: "tilt error motion of an axis over its own angle",
@@ -339,7 +351,7 @@ fn name_error(expected: impl Into<String>, found: &str) -> NameError {
     }
 }
 
-const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, tilt:An, drift, learned:<action>(<drivers>))";
+const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, loadplay:An, tilt:An, drift, learned:<action>(<drivers>))";
 
 /// [`KNOWN`] and the kinds registered at run time.
 fn known() -> String {

@@ -9,6 +9,7 @@ pub mod crosstalk;
 pub mod drift;
 pub mod geometric;
 pub mod learned;
+pub mod loadplay;
 pub mod map;
 pub mod play;
 pub mod tilt;

@@ -40,6 +40,9 @@ pub struct PhysicalTruthFile {
     /// reference pose), deg/(kg·m²): the paper's explanation of the A3 → A2 crosstalk.
     #[serde(default)]
     pub inertia_deg_per_kgm2: [f64; 6],
+    /// The spring that balances the upper arm on A2; absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub counterbalance: Option<Counterbalance>,
     /// Links that grow as the robot warms up.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub thermal: Vec<Growth>,
@@ -79,6 +82,51 @@ pub struct Gear {
     /// b/2 and stays put while a reversal is shorter than the play.
     #[serde(default)]
     pub play_deg: f64,
+    /// Friction in the train, kN·m: where the net torque about the axis (gravity, plus the
+    /// counterbalance on A2) is larger, it holds the output on the flank it pushes towards,
+    /// whatever the direction of motion. Absent: the motion alone chooses the flank.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flank_friction_knm: Option<f64>,
+}
+
+/// A tension spring from the carousel to the upper arm that balances A2 (a KUKA arm's
+/// counterbalance), in the vertical plane of the arm, coordinates from the A2 axis: x forward
+/// (away from A1 at A1 = 0), z up. The pin on the arm turns with A2 (A2 = 0: the upper arm
+/// horizontal forward, −90°: vertical).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Counterbalance {
+    /// The pin on the carousel, [x, z] mm.
+    pub anchor_mm: [f64; 2],
+    /// Distance of the pin on the upper arm from the A2 axis, mm.
+    pub lever_mm: f64,
+    /// Angle of that pin from the upper arm's direction, degrees, in A2's sense.
+    pub lever_deg: f64,
+    /// Tension at length `length_mm`, N.
+    pub tension_n: f64,
+    /// The spring's length (pin to pin) at tension `tension_n`, mm.
+    pub length_mm: f64,
+    /// Tension gained per mm of stretch, N/mm.
+    pub rate_n_per_mm: f64,
+}
+
+impl Counterbalance {
+    /// The torque the spring puts on the upper arm about A2 at output angle `a2_deg`, kN·m,
+    /// signed like the KUKA angle (A2 turns about +Y).
+    pub fn torque_knm(&self, a2_deg: f64) -> f64 {
+        let turn = (a2_deg + self.lever_deg).to_radians();
+        // Turning +x about +Y by θ gives (cos θ, −sin θ) in (x, z).
+        let pin = [self.lever_mm * turn.cos(), -self.lever_mm * turn.sin()];
+        let to_anchor = [self.anchor_mm[0] - pin[0], self.anchor_mm[1] - pin[1]];
+        let length = to_anchor[0].hypot(to_anchor[1]);
+        if length == 0.0 {
+            return 0.0;
+        }
+        let tension = self.tension_n + self.rate_n_per_mm * (length - self.length_mm);
+        let force = [tension * to_anchor[0] / length, tension * to_anchor[1] / length];
+        // (r × F)·ŷ = r_z·F_x − r_x·F_z, N·mm.
+        (pin[1] * force[0] - pin[0] * force[1]) / 1e6
+    }
 }
 
 /// `amplitude · sin(2π·A/period + phase)`.
@@ -250,6 +298,9 @@ impl PhysicalTruthFile {
         }
         for (g, gear) in self.gears.iter().enumerate() {
             non_negative(format!("gears[{g}].play_deg"), gear.play_deg)?;
+            if let Some(f) = gear.flank_friction_knm {
+                non_negative(format!("gears[{g}].flank_friction_knm"), f)?;
+            }
             for c in 0..2 {
                 finite(format!("gears[{g}].trend_deg[{c}]"), gear.trend_deg[c])?;
             }
@@ -287,6 +338,23 @@ impl PhysicalTruthFile {
                 "link masses (compliance and inertia need them)",
                 "nothing".into(),
             );
+        }
+        if let Some(c) = &self.counterbalance {
+            for (key, v) in [
+                ("anchor_mm[0]", c.anchor_mm[0]),
+                ("anchor_mm[1]", c.anchor_mm[1]),
+                ("lever_deg", c.lever_deg),
+                ("rate_n_per_mm", c.rate_n_per_mm),
+            ] {
+                finite(format!("counterbalance.{key}"), v)?;
+            }
+            for (key, v) in [
+                ("lever_mm", c.lever_mm),
+                ("tension_n", c.tension_n),
+                ("length_mm", c.length_mm),
+            ] {
+                non_negative(format!("counterbalance.{key}"), v)?;
+            }
         }
         for (i, g) in self.thermal.iter().enumerate() {
             if !(1..=7).contains(&g.joint) {

@@ -52,6 +52,7 @@ mod tests {
             }],
             trend_deg: [0.002, -0.001],
             play_deg: 0.0,
+            flank_friction_knm: None,
         };
         // At 0: cos(0)·0.004; at 7.3/4: sin(π/2 + π/2) = 0, plus the trend.
         assert!((gear.transmission_error_deg(0.0) - 0.004).abs() < 1e-15);

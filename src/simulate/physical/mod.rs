@@ -26,7 +26,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 pub use file::{
-    parse, Gear, Growth, Harmonic, JointError, Noise, PhysicalTruthFile, Tracker, PHYSICAL_FORMAT,
+    parse, Counterbalance, Gear, Growth, Harmonic, JointError, Noise, PhysicalTruthFile, Tracker, PHYSICAL_FORMAT,
 };
 pub use samples::{from_program, from_stops, CommandSample, SampleKind, PTP_STEP_DEG};
 
@@ -188,6 +188,7 @@ impl PhysicalRobot {
                 let delta: [f64; 6] = std::array::from_fn(|k| sample.axes_deg[k] - p[k]);
                 play.advance(&delta, &widths);
             }
+            self.press_flanks(&sample.axes_deg, sample.time_s, &widths, &mut play);
             previous = Some(&sample.axes_deg);
             // The model's view of the same command trajectory: every sample (passes included,
             // so a turn inside a motion is in the history) continues each axis's history.
@@ -214,6 +215,34 @@ impl PhysicalRobot {
             });
         }
         Ok(rows)
+    }
+
+    /// The net torque about each axis at command `command_deg` (kN·m, KUKA sign): gravity,
+    /// and on A2 the counterbalance spring.
+    pub fn net_torques_knm(&self, command_deg: &[f64; 6], time_s: f64) -> [f64; 6] {
+        let bodies = self.arm.bodies(command_deg, time_s);
+        let mut torque = self.arm.gravity_torques_knm(&bodies);
+        if let Some(c) = &self.file.counterbalance {
+            torque[1] += c.torque_knm(command_deg[1]);
+        }
+        torque
+    }
+
+    /// Where an axis's net torque beats the friction of its train, the output rests on the
+    /// flank the torque pushes it to (leading the command when the torque is positive).
+    fn press_flanks(&self, command_deg: &[f64; 6], time_s: f64, widths: &[f64; 6], play: &mut Play) {
+        let frictions = self.file.gears.each_ref().map(|g| g.flank_friction_knm);
+        if frictions.iter().all(Option::is_none) || self.robot().gravity.is_none() {
+            return;
+        }
+        let torque = self.net_torques_knm(command_deg, time_s);
+        for k in 0..6 {
+            if let Some(f) = frictions[k] {
+                if torque[k].abs() > f {
+                    play.lag_deg[k] = torque[k].signum() * widths[k] / 2.0;
+                }
+            }
+        }
     }
 
     fn check_limits(&self, samples: &[CommandSample]) -> Result<(), PhysicalError> {
@@ -258,6 +287,7 @@ mod tests {
             gears,
             compliance_deg_per_knm: [0.0; 6],
             inertia_deg_per_kgm2: [0.0; 6],
+            counterbalance: None,
             thermal: Vec::new(),
             tracker: Tracker {
                 noise: Noise::NONE,
