@@ -42,7 +42,7 @@ fn an_advice_that_cannot_be_written_is_not_given_first() {
     };
     let files = std::slice::from_ref(&measurements);
     let name = EffectName::parse("compliance:A5").unwrap();
-    let why = diagnose::follow(&cal, files, &name).unwrap_err();
+    let why = diagnose::follow(&cal, files, &name, false).unwrap_err();
     assert!(
         why.contains("not physical") && why.contains("parameters.c"),
         "{why}"

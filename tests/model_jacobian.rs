@@ -74,6 +74,7 @@ fn full_model(rng: &mut Lcg) -> Model {
             width_deg: [0.0],
             friction_knm,
             balance_knm,
+            loaded_pairs: None,
         }));
     }
     let mut values: Vec<f64> = (0..model.n_parameters())
@@ -276,6 +277,7 @@ fn loadplay_axis_slopes_match_finite_differences() {
         width_deg: [0.03],
         friction_knm: 0.6,
         balance_knm: [0.2, 1.2, -0.4],
+        loaded_pairs: None,
     };
     let h = 1e-6;
     let (mut loaded, mut free) = (0, 0);
@@ -332,6 +334,7 @@ fn loadplay_flank_follows_the_torque_beyond_friction() {
         width_deg: [0.04],
         friction_knm: 0.0,
         balance_knm: [0.0; 3],
+        loaded_pairs: None,
     };
     let lag = |e: &LoadPlay, axes: [f64; 6], d: Direction| {
         let mut errors = ChainErrors::default();

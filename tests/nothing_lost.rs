@@ -83,6 +83,7 @@ fn campaign(rows: usize) -> String {
 const CONFIG: &str = "fixtures/config/$config.dat";
 
 /// The teach-pendant program (a `.src` and a `.dat` of points), the calibration, the cell.
+/// Its points are taught: the jobs that must change them say `--points offline`.
 fn teach(dir: &Path) {
     write(
         dir,
@@ -356,6 +357,9 @@ fn standard_output_never_carries_a_program_without_its_changed_dat() {
             "cal.json",
             "--config",
             "config.dat",
+            // Taught points are left as they are: offline, they change the `.dat`.
+            "--points",
+            "offline",
             "-o",
             "-",
         ],
@@ -408,7 +412,17 @@ fn two_runs_writing_one_output_leave_one_runs_pair() {
     let job = |cal: &str, out: &str| {
         robopost(
             d,
-            &["pp.src", "-c", cal, "--config", "config.dat", "-o", out],
+            &[
+                "pp.src",
+                "-c",
+                cal,
+                "--config",
+                "config.dat",
+                "--points",
+                "offline",
+                "-o",
+                out,
+            ],
         )
     };
     let pair = |out: &str| {
@@ -448,7 +462,17 @@ fn a_killed_runs_decided_pair_is_detected_and_completed() {
     let job = |cal: &str, out: &str| {
         run(
             d,
-            &["pp.src", "-c", cal, "--config", "config.dat", "-o", out],
+            &[
+                "pp.src",
+                "-c",
+                cal,
+                "--config",
+                "config.dat",
+                "--points",
+                "offline",
+                "-o",
+                out,
+            ],
         )
     };
     assert_eq!(job("cal.json", "old/pp.src").0, 0);

@@ -34,6 +34,9 @@ pub enum NotEvaluated {
     /// A fold's training points do not observe the candidate.
     #[error("{0}")]
     Unobserved(Warning),
+    /// The data do not show the candidate apart from a simpler effect of the table.
+    #[error("{0}")]
+    NotShown(String),
 }
 
 /// Iterations of each fit: the candidate enters linearly to first order, so a few suffice.
@@ -197,6 +200,15 @@ fn with_candidate(
         with.push(e.clone());
     }
     add_effects(&mut with, &[*name], stops, grid)?;
+    let canonical = name.to_string();
+    let why = with
+        .effects()
+        .iter()
+        .find(|e| e.name() == canonical)
+        .and_then(|e| e.not_shown_by_data());
+    if let Some(why) = why {
+        return Err(NotEvaluated::NotShown(why));
+    }
     let added = with.n_parameters() as isize - base.n_parameters() as isize;
     Ok((with, added.max(0) as usize))
 }

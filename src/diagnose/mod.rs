@@ -280,7 +280,15 @@ pub const MAX_FOLLOW_FITS: usize = 3;
 /// Identifies `name` on top of `cal` as the command a finding prints does (`identify -c CAL
 /// FILES --effects …`: the same files, effects and defaults); why it cannot be followed, if it
 /// cannot: the identification fails, its fit fails, or its values leave their physical range.
-pub fn follow(cal: &Calibration, data: &[Measurements], name: &EffectName) -> Result<(), String> {
+/// A fit still poor after the addition does not count against it where `cal` itself is a poor
+/// fit of these data (`base_poor`: the user is adding the missing effects one by one, each
+/// written with `--accept-poor-fit` as `cal` was).
+pub fn follow(
+    cal: &Calibration,
+    data: &[Measurements],
+    name: &EffectName,
+    base_poor: bool,
+) -> Result<(), String> {
     use crate::identify::pipeline::{identify, Effects, Request};
     let model = cal.model_ref();
     let replaced = crossval::replaced(model, name);
@@ -312,7 +320,7 @@ pub fn follow(cal: &Calibration, data: &[Measurements], name: &EffectName) -> Re
     };
     let identified = identify(&stops, &request)
         .map_err(|e| format!("identified as its command prints, it fails: {e}"))?;
-    if let Some(failure) = &identified.verdict.failure {
+    if let Some(failure) = identified.verdict.failure.as_ref().filter(|_| !base_poor) {
         return Err(format!(
             "identified as its command prints, the fit fails: {}",
             failure.trim_end()
@@ -401,6 +409,19 @@ pub fn diagnose(
     let all_before: Vec<Vector3<f64>> = rows.iter().map(Row::residual).collect();
     let rms = crossval::rms_um(&all_before);
     let residual_by_test = shares(&rows);
+    // Whether `cal` is itself a poor fit of these data: some test's residual beyond the ratio
+    // at which `identify` refuses to write a calibration (see [`follow`]).
+    let base_poor = {
+        let mut by_test: std::collections::HashMap<&str, (f64, usize)> = Default::default();
+        for (r, e) in rows.iter().zip(&all_before) {
+            let t = by_test.entry(r.test.as_str()).or_default();
+            t.0 += e.norm_squared();
+            t.1 += 1;
+        }
+        by_test.values().any(|&(sum, n)| {
+            (sum / n as f64).sqrt() * 1e3 > crate::identify::verdict::FAIL_RATIO * floor.rms_um
+        })
+    };
 
     // The points the candidates are screened on.
     let all_groups = blocks::groups(rows.iter().map(|r| (r.source.as_str(), r.test.as_str())));
@@ -490,7 +511,7 @@ pub fn diagnose(
         }
         tick(options, "following the advice", tried, MAX_FOLLOW_FITS);
         tried += 1;
-        match follow(cal, data, &evaluations[i].name) {
+        match follow(cal, data, &evaluations[i].name, base_poor) {
             Ok(()) => break,
             Err(why) => vetoes[i] = Some(why),
         }

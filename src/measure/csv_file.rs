@@ -158,9 +158,8 @@ pub fn parse_csv_within(
         message,
         help: help.map(str::to_string),
     };
-    if crate::input::is_utf16(bytes) {
-        return Err(error(0, 0, crate::input::UTF16.into(), None));
-    }
+    // Text saved as UTF-16 (a tracker package's export) fails on its columns below, where the
+    // message names the encoding and the separator seen and points to `robopost import`.
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)

@@ -289,6 +289,11 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// measured data, when the effect is added for identification; the values a fit moves
     /// may get starting values. Most effects need nothing.
     fn start_from_data(&mut self, _data: &[Observed], _ctx: &Context) {}
+    /// After [`Self::start_from_data`]: why the data do not show this effect apart from a
+    /// simpler one of the table, if they do not (a diagnosis then does not offer it).
+    fn not_shown_by_data(&self) -> Option<String> {
+        None
+    }
     fn clone_box(&self) -> Box<dyn Effect>;
 }
 

@@ -70,6 +70,10 @@ pub struct LoadPlay {
     pub friction_knm: f64,
     /// The counterbalance `[k_0, k_c, k_s]`, kN·m (A2 only; zero elsewhere).
     pub balance_knm: [f64; 3],
+    /// Once started from data ([`Effect::start_from_data`]): how many of the indexing tests'
+    /// pairs lie outside the friction band, where the torque and not the direction chooses
+    /// the flank. None of them: the data show a plain gear play.
+    pub loaded_pairs: Option<usize>,
 }
 
 impl LoadPlay {
@@ -85,6 +89,7 @@ impl LoadPlay {
             width_deg: [0.0],
             friction_knm: 0.0,
             balance_knm: [0.0; 3],
+            loaded_pairs: None,
         })
     }
 
@@ -139,6 +144,7 @@ impl LoadPlay {
             width_deg: [v[0]],
             friction_knm: v[1],
             balance_knm: std::array::from_fn(|k| v.get(2 + k).copied().unwrap_or(0.0)),
+            loaded_pairs: None,
         })
     }
 
@@ -191,6 +197,7 @@ impl LoadPlay {
     /// the data hold no such differences.
     pub fn search(&mut self, data: &[Observed], ctx: &Context) {
         let pairs = direction_differences(self.axis, data);
+        self.loaded_pairs = Some(0);
         if pairs.is_empty() {
             return;
         }
@@ -279,6 +286,20 @@ impl LoadPlay {
             }
         }
         let (band, balance) = best;
+        self.loaded_pairs = Some(
+            torques
+                .iter()
+                .zip(&angles)
+                .filter(|(t, a)| {
+                    let net = if self.axis == BALANCED_AXIS {
+                        *t - balance[0] - balance[1] * a.cos() - balance[2] * a.sin()
+                    } else {
+                        **t
+                    };
+                    net.abs() > band.friction_knm
+                })
+                .count(),
+        );
         self.friction_knm = band.friction_knm;
         self.balance_knm = if self.axis == BALANCED_AXIS {
             balance
@@ -466,6 +487,15 @@ impl Effect for LoadPlay {
     }
     fn start_from_data(&mut self, data: &[Observed], ctx: &Context) {
         self.search(data, ctx);
+    }
+    fn not_shown_by_data(&self) -> Option<String> {
+        (self.loaded_pairs == Some(0)).then(|| {
+            format!(
+                "no pair of the A{n} indexing tests lies where the torque beats the friction: the \
+                 data show a plain gear play (backlash:A{n})",
+                n = self.axis
+            )
+        })
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())
