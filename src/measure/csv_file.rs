@@ -22,6 +22,24 @@ pub struct MeasureError {
 }
 
 impl MeasureError {
+    /// A located error at `line:col` (1-based) of `file`, whose lines are `lines`.
+    pub fn in_lines(
+        file: &str,
+        lines: &[String],
+        (line, col): (usize, usize),
+        message: String,
+        help: Option<&str>,
+    ) -> MeasureError {
+        MeasureError {
+            file: file.to_string(),
+            line,
+            col,
+            source_line: lines.get(line.wrapping_sub(1)).cloned().unwrap_or_default(),
+            message,
+            help: help.map(str::to_string),
+        }
+    }
+
     /// The message with the source line and a caret under the column (the shared
     /// [`Diagnostic`](crate::diagnostic::Diagnostic) rendering; no location for a whole-file
     /// error such as a missing file).

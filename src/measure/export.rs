@@ -86,14 +86,7 @@ pub struct Export {
 impl Export {
     /// A located error at `line:col` of this export.
     pub fn error(&self, line: usize, col: usize, message: String, help: Option<&str>) -> MeasureError {
-        MeasureError {
-            file: self.source.clone(),
-            line,
-            col,
-            source_line: self.lines.get(line.wrapping_sub(1)).cloned().unwrap_or_default(),
-            message,
-            help: help.map(str::to_string),
-        }
+        MeasureError::in_lines(&self.source, &self.lines, (line, col), message, help)
     }
 
     /// "UTF-16 LE, tab-separated, decimal comma, m" — what was seen, for the summary.

@@ -36,14 +36,7 @@ pub struct Plan {
 impl Plan {
     /// A located error at `line:col` of the plan.
     pub fn error(&self, line: usize, col: usize, message: String, help: Option<&str>) -> MeasureError {
-        MeasureError {
-            file: self.source.clone(),
-            line,
-            col,
-            source_line: self.lines.get(line.wrapping_sub(1)).cloned().unwrap_or_default(),
-            message,
-            help: help.map(str::to_string),
-        }
+        MeasureError::in_lines(&self.source, &self.lines, (line, col), message, help)
     }
 
     /// The measured stops (those with a point name).
