@@ -141,7 +141,9 @@ pub fn targets(
                 _ => None,
             },
             keep: Keep {
-                s: s.keep_s,
+                // An axis target's S is not programmed, but a later Cartesian motion without
+                // S takes the configuration of the position it starts from.
+                s: true,
                 t: s.keep_t,
             },
         })

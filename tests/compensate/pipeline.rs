@@ -24,7 +24,11 @@ pub fn cal(name: &str) -> (Model, Vec<u8>) {
 /// Every program fixture (.src), with whether it needs the cell's `$config.dat`.
 pub fn fixtures() -> Vec<PathBuf> {
     let mut out = Vec::new();
-    let mut stack = vec![PathBuf::from("fixtures/programs")];
+    // `modules`: a module whose name holds its path (a generator's), a milling program.
+    let mut stack = vec![
+        PathBuf::from("fixtures/programs"),
+        PathBuf::from("fixtures/modules"),
+    ];
     while let Some(dir) = stack.pop() {
         for e in std::fs::read_dir(&dir).unwrap() {
             let p = e.unwrap().path();
@@ -350,7 +354,9 @@ fn compensated_paths_reach_the_programmed_poses() {
             // reversing inside its play on both sides) reports its residual: it must be
             // the one the re-simulation finds, and such targets stay rare.
             let unsettled = point.compensated && point.residual_um > 1.0;
-            if unsettled && !point.resolution.starts_with("held") {
+            // (A wrist-singular target, XHOME, is reached in the least-squares sense only.)
+            let singular = robopost::kinematics::singularity(&robot, &a.nominal_axes).is_some();
+            if unsettled && !point.resolution.starts_with("held") && !singular {
                 unsettled_targets += 1;
             }
             if point.resolution.starts_with("held") || unsettled {
@@ -511,6 +517,7 @@ fn diff_snapshots() {
         );
         let snap = path
             .strip_prefix("fixtures/programs")
+            .or_else(|_| path.strip_prefix("fixtures"))
             .unwrap()
             .display()
             .to_string()

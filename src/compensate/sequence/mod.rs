@@ -36,7 +36,8 @@ pub use crate::motion::interpolate::REST_DEG;
 /// Status bits a target must keep after compensation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Keep {
-    /// The configuration S (Cartesian targets; the controller's IK chooses the branch by it).
+    /// The configuration S (Cartesian targets: the controller's IK chooses the branch by it;
+    /// axis targets: a later Cartesian motion without S takes it from them).
     pub s: bool,
     /// The turn T (PTP Cartesian targets with an explicit T: the controller picks ±360° by it).
     pub t: bool,
@@ -773,12 +774,24 @@ fn solve_target(
         _ => solve_or_best(&problem, method)?,
     };
     let mut turn_held = [false; 6];
-    let ((s0, t0), (s1, t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
+    let ((s0, t0), (mut s1, mut t1)) = status_turns(robot, &target.nominal_axes, &sol.axes_deg);
     // The solution's status and turn, known unless it is solved again.
     let mut solved = Some((s1, t1));
+    let mut problem = problem;
+    // A5 moved across 0° (the wrist singularity): the configuration S changes with its sign,
+    // and a later Cartesian motion without S takes the configuration of this position. Held
+    // on its programmed side, as a turn is.
+    if target.keep.s && s0 ^ s1 == WRIST_BIT {
+        (problem, turn_held) = turn_kept(&problem, WRIST_TURN_BIT, t0);
+        sol = solve_or_best(&problem, Method::Iterate)?;
+        (s1, t1) = status_turn(robot, &sol.axes_deg);
+        solved = Some((s1, t1));
+    }
     if target.keep.t && t0 != t1 && s0 == s1 {
         let retry;
-        (retry, turn_held) = turn_kept(&problem, t0 ^ t1, t0);
+        let held;
+        (retry, held) = turn_kept(&problem, t0 ^ t1, t0);
+        turn_held = std::array::from_fn(|i| turn_held[i] || held[i]);
         sol = solve_or_best(&retry, Method::Iterate)?;
         solved = None;
     }
@@ -846,6 +859,10 @@ fn within_limits_and_configuration(
     }
     Ok(())
 }
+
+/// The status bit S of A5's sign (`kinematics::status_turn`), and A5's bit of the turn T.
+const WRIST_BIT: u8 = 1 << 2;
+const WRIST_TURN_BIT: u8 = 1 << 4;
 
 /// How far inside its programmed side of zero an axis is held to keep the target's T: ten
 /// times what the written decimals (1e-4° of an orientation, 1e-3 mm) move a wrist axis.

@@ -164,7 +164,6 @@ pub struct Stop<'f> {
     /// The programmed values as the controller completes them, absolute (missing components
     /// from the start; a relative target's missing offsets zero).
     pub programmed: Programmed,
-    pub keep_s: bool,
     pub keep_t: bool,
     pub rel: Option<Rel>,
     /// Where the numbers are written.

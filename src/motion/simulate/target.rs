@@ -435,7 +435,6 @@ impl<'f> Simulator<'f> {
         stop.arrival = arrival;
         stop.turns = turns;
         stop.programmed = programmed;
-        stop.keep_s = !pos.v.is_axes();
         stop.keep_t = !pos.v.is_axes() && m.kind.is_joint() && s_t.1.is_some();
         stop.origin = pos.origin;
         stop.reference = reference;
@@ -961,7 +960,6 @@ fn blank_stop<'f>(
         arrival: None,
         turns: interpolate::NO_TURNS,
         programmed: Programmed::Pose(Pose::IDENTITY),
-        keep_s: true,
         keep_t: false,
         rel,
         origin: None,
