@@ -321,6 +321,7 @@ impl<'a> Segments<'a> {
         let stops = &sim.stops[first..first + seg.done.targets().len()];
         self.taken.add(ws, self.taking, stops);
         let points = self.options.points;
+        let uncertainty = self.options.uncertainty.as_deref().map(|c| (c, self.model));
         self.tally.add(
             ws,
             sim,
@@ -328,6 +329,7 @@ impl<'a> Segments<'a> {
             seg.done.targets(),
             &seg.done.commands,
             points,
+            uncertainty,
         );
         self.skeleton.extend_from_slice(seg.outcomes());
         self.skeleton_commands.extend(seg.ghost_commands);
@@ -351,6 +353,7 @@ impl<'a> Segments<'a> {
         let stops = &sim.stops[part.ghosts..part.ghosts + part.done.targets().len()];
         self.taken.add(ws, self.taking, stops);
         let points = self.options.points;
+        let uncertainty = self.options.uncertainty.as_deref().map(|c| (c, self.model));
         self.tally.add(
             ws,
             sim,
@@ -358,6 +361,7 @@ impl<'a> Segments<'a> {
             part.done.targets(),
             &part.done.commands,
             points,
+            uncertainty,
         );
         self.rewrite_diagnostics.append(&mut rw.diagnostics);
         self.euler = rewrite::EulerLeft::merge(self.euler.take(), rw.euler.take());
