@@ -11,7 +11,8 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 34] = [
+const CLAIMS: [(&str, &str); 35] = [
+    ("error-budget", "tests/budget.rs"),
     ("paper-table-1-floor", "tests/paper_experiment.rs"),
     ("recommended-campaign", "tests/paper_experiment.rs"),
     ("gross-thresholds", "tests/readme.rs"),

@@ -1,12 +1,13 @@
 //! What the error-budget options share: a calibration's parameter covariance from the
 //! measurement files it was identified from (`--campaign` of the main job, the calibration
-//! file of `compare --budget`), read with the usual located errors.
+//! file of `compare --budget`), read with the usual located errors; and the budget itself
+//! (`compare --budget`), as JSON or a table.
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
 use super::Exit;
-use crate::calibration::Calibration;
+use crate::calibration::{Calibration, MeasurementFrame};
 use crate::identify::covariance::{self, Covariance};
 use crate::measure;
 
@@ -40,4 +41,101 @@ pub fn covariance_of(
             );
             Exit::Usage
         })
+}
+
+/// `compare --budget CAMPAIGN.csv`: the error budget of the calibration on the validation
+/// rows (gross errors left out), as JSON or as a table on standard output. `None`: the
+/// error was printed, exit 2.
+pub fn budget(
+    cal: &Calibration,
+    campaign: &[PathBuf],
+    tracker: &super::instrument::TrackerArgs,
+    validation: &[crate::compare::Row],
+) -> Result<crate::compare::budget::Budget, Exit> {
+    let tracker = tracker.tracker()?;
+    let limits = cal.model_ref().robot.limits_deg;
+    let mut files = Vec::new();
+    for path in campaign {
+        match measure::read_csv_within(path, Some(&limits)) {
+            Ok(m) => files.push(m),
+            Err(e) => {
+                eprint!("{}", e.render());
+                return Err(Exit::Usage);
+            }
+        }
+    }
+    let covariance = covariance_of_files(cal, campaign, &files)?;
+    let marks = crate::compare::gross_errors(cal, &files);
+    let rows: Vec<crate::compare::Row> = crate::compare::compare(cal, &files)
+        .into_iter()
+        .zip(&marks)
+        .filter(|(_, m)| m.is_none())
+        .map(|(r, _)| r)
+        .collect();
+    let station = match (tracker.station_mm, cal.frame) {
+        (Some(at), _) => at,
+        (None, MeasurementFrame::Tracker(f)) => crate::kinematics::Frame::from_kuka(&f).position,
+        (None, MeasurementFrame::Base) => {
+            nalgebra::Vector3::from(crate::diagnose::noise::ASSUMED_STATION_MM)
+        }
+    };
+    let instrument = crate::compare::budget::Instrument {
+        tracker,
+        station_mm: station,
+    };
+    Ok(crate::compare::budget::budget(
+        cal.model_ref(),
+        &covariance,
+        &rows,
+        validation,
+        &instrument,
+    ))
+}
+
+fn covariance_of_files(
+    cal: &Calibration,
+    campaign: &[PathBuf],
+    files: &[measure::Measurements],
+) -> Result<Arc<Covariance>, Exit> {
+    covariance::of_calibration(cal, files).map_err(|e| {
+        let names: Vec<String> = campaign.iter().map(|p| p.display().to_string()).collect();
+        eprintln!(
+            "error: the calibration's uncertainty from {}: {e}",
+            names.join(", ")
+        );
+        Exit::Usage
+    })
+}
+
+/// The budget as a table: overall, then per test.
+pub fn render(b: &crate::compare::budget::Budget) -> String {
+    let mut out = String::from(
+        "error budget (3-D RMS, µm; the parts add in mean square, explained = their root-sum-square):\n\
+         | test | points | measured | tracker | identification | model form | explained | unexplained | offset |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
+    );
+    let line = |name: &str, p: &crate::compare::budget::Parts| {
+        format!(
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            p.points,
+            p.measured_um,
+            p.tracker_um,
+            p.identification_um,
+            p.model_form_um,
+            p.explained_um,
+            p.unexplained_um,
+            p.offset_um
+        )
+    };
+    out += &line("all", &b.all);
+    for (name, p) in &b.tests {
+        out += &line(name, p);
+    }
+    out += &format!(
+        "(model form: the campaign fit's lack of fit, {:.1} µm RMS of which the tracker {:.1} µm; \
+         unexplained: measured less the parts, negative when they exceed it; offset: the mean \
+         residual's length)\n",
+        b.campaign_rms_um, b.campaign_tracker_um
+    );
+    out
 }
