@@ -178,6 +178,14 @@ fn budget_parts_account_for_the_measured_error_on_three_truths() {
             "{p:?}"
         );
     }
+    // On the physical truth most of the unexplained part is a constant offset of the
+    // validation (its warm-up since the campaign).
+    let p = &physical_budget.all;
+    assert!(
+        p.offset_um.powi(2) > 0.5 * p.unexplained_um.powi(2),
+        "{p:?}"
+    );
+    readme::assert_prose("error-budget-offset", &[p.offset_um, p.unexplained_um], 0.1);
     // Per test and per point, the same parts.
     assert_eq!(clean.points.len(), clean.all.points);
     assert_eq!(
@@ -247,6 +255,16 @@ fn compare_budget_on_the_command_line() {
         text.contains("error budget") && text.contains("| all | 144 |"),
         "{text}"
     );
+    // Another robot's campaign: computed, with a warning that it is not the calibration's.
+    let out = run(&[], &m("campaign-hidden.csv"));
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("may not be the files it was identified from"),
+        "{stderr}"
+    );
+    let out = run(&[], &m("campaign.csv"));
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
     // A campaign that cannot be read: exit 2, the file named.
     let out = run(&[], &m("no-such-campaign.csv"));
     assert_eq!(out.status.code(), Some(2));

@@ -97,14 +97,26 @@ fn covariance_of_files(
     campaign: &[PathBuf],
     files: &[measure::Measurements],
 ) -> Result<Arc<Covariance>, Exit> {
-    covariance::of_calibration(cal, files).map_err(|e| {
-        let names: Vec<String> = campaign.iter().map(|p| p.display().to_string()).collect();
+    let names: Vec<String> = campaign.iter().map(|p| p.display().to_string()).collect();
+    let covariance = covariance::of_calibration(cal, files).map_err(|e| {
         eprintln!(
             "error: the calibration's uncertainty from {}: {e}",
             names.join(", ")
         );
         Exit::Usage
-    })
+    })?;
+    // Other files than the calibration's give the covariance of another fit: said when the
+    // fit's scatter is not the one `identify` recorded.
+    if let Some(recorded) = cal.provenance.fit.get("sigma_um") {
+        let rebuilt = covariance.sigma_mm * 1e3;
+        if !(0.9..=1.1).contains(&(rebuilt / recorded)) {
+            eprintln!(
+                "warning: the calibration fitted to {} scatters by {rebuilt:.1} µm per coordinate, where identify recorded {recorded:.1} µm: these may not be the files it was identified from, and the uncertainty is that of a fit to them",
+                names.join(", ")
+            );
+        }
+    }
+    Ok(covariance)
 }
 
 /// The budget as a table: overall, then per test.
