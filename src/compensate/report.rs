@@ -289,6 +289,14 @@ pub(super) struct Tally {
 /// The parameter covariance and the model it belongs to.
 pub(super) type Uncertainty<'a> = (&'a Covariance, &'a Model);
 
+/// What the report lists per target: every target (`--report`), and with a covariance each
+/// one's predicted uncertainty.
+#[derive(Clone, Copy)]
+pub(super) struct Listing<'a> {
+    pub points: bool,
+    pub uncertainty: Option<Uncertainty<'a>>,
+}
+
 /// One standard deviation per coordinate (µm) of the TCP's position at a target's command.
 fn target_sigma_um(
     (covariance, model): Uncertainty<'_>,
@@ -322,8 +330,10 @@ impl Tally {
         first: usize,
         outcomes: &[Outcome],
         commands: &[Command],
-        points: bool,
-        uncertainty: Option<Uncertainty<'_>>,
+        Listing {
+            points,
+            uncertainty,
+        }: Listing<'_>,
     ) {
         use rayon::prelude::*;
         let stops = &sim.stops[first..first + outcomes.len()];

@@ -17,6 +17,7 @@ use crate::model::{Direction, Model};
 use crate::motion::{RunSink, Simulation, Walked, Workspace};
 
 use super::program::{targets, Options, Tally};
+use super::report::Listing;
 use super::taken::{self, Taking};
 use super::rewrite;
 use super::sequence::{self, Carried, Command, Compensated, Outcome, Target, LOOK_BACK};
@@ -328,8 +329,10 @@ impl<'a> Segments<'a> {
             from + seg.ghosts,
             seg.done.targets(),
             &seg.done.commands,
-            points,
-            uncertainty,
+            Listing {
+                points,
+                uncertainty,
+            },
         );
         self.skeleton.extend_from_slice(seg.outcomes());
         self.skeleton_commands.extend(seg.ghost_commands);
@@ -360,8 +363,10 @@ impl<'a> Segments<'a> {
             part.ghosts,
             part.done.targets(),
             &part.done.commands,
-            points,
-            uncertainty,
+            Listing {
+                points,
+                uncertainty,
+            },
         );
         self.rewrite_diagnostics.append(&mut rw.diagnostics);
         self.euler = rewrite::EulerLeft::merge(self.euler.take(), rw.euler.take());
