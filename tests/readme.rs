@@ -11,7 +11,9 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 34] = [
+const CLAIMS: [(&str, &str); 36] = [
+    ("error-budget-offset", "tests/budget.rs"),
+    ("error-budget", "tests/budget.rs"),
     ("paper-table-1-floor", "tests/paper_experiment.rs"),
     ("recommended-campaign", "tests/paper_experiment.rs"),
     ("gross-thresholds", "tests/readme.rs"),

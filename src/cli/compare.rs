@@ -33,6 +33,14 @@ pub struct Args {
     /// (docs/residuals.md).
     #[arg(long, value_name = "FILE.csv")]
     pub residuals: Option<PathBuf>,
+    /// The measurement files the calibration was identified from: an error budget of the
+    /// measurements (tracker, identification, model form, unexplained), overall, per test and
+    /// (`--json`) per point.
+    #[arg(long, value_name = "CAMPAIGN.csv")]
+    pub budget: Vec<PathBuf>,
+    /// With `--budget`: the tracker of the measurements (its accuracy and station).
+    #[command(flatten)]
+    pub tracker: super::instrument::TrackerArgs,
 }
 
 /// Loads calibrations and measurement files, printing errors; `None` means exit 2.
@@ -166,7 +174,8 @@ pub fn run(args: Args) -> Exit {
         let mut guard = crate::paths::Guard::new();
         guard
             .read_all(cal_paths.iter().copied())
-            .read_all(args.measurements.iter().map(PathBuf::as_path));
+            .read_all(args.measurements.iter().map(PathBuf::as_path))
+            .read_all(args.budget.iter().map(PathBuf::as_path));
         if let Err(clash) = guard.write(&dir.join(report::INDEX)) {
             return super::refuse(&clash);
         }
@@ -175,7 +184,8 @@ pub fn run(args: Args) -> Exit {
         let mut guard = crate::paths::Guard::new();
         guard
             .read_all(cal_paths.iter().copied())
-            .read_all(args.measurements.iter().map(PathBuf::as_path));
+            .read_all(args.measurements.iter().map(PathBuf::as_path))
+            .read_all(args.budget.iter().map(PathBuf::as_path));
         if let Err(clash) = guard.write(out) {
             return super::refuse(&clash);
         }
@@ -207,6 +217,20 @@ pub fn run(args: Args) -> Exit {
         .map(|r| unmarked(r, Summary::residuals))
         .collect();
     let nominal = unmarked(&rows[0], Summary::uncompensated);
+    let budget = if args.budget.is_empty() {
+        None
+    } else {
+        let kept: Vec<Row> = rows[0]
+            .iter()
+            .zip(&marks)
+            .filter(|(_, m)| m.is_none())
+            .map(|(r, _)| r.clone())
+            .collect();
+        match super::budget::budget(&cals[0], &args.budget, &args.tracker, &kept) {
+            Ok(b) => Some(b),
+            Err(exit) => return exit,
+        }
+    };
     // The measurements are needed again only by the report: freed here otherwise.
     let data = args.report.as_ref().map(|_| data);
     for ((path, cal), s) in cal_paths.iter().zip(&cals).zip(&summaries) {
@@ -262,6 +286,12 @@ pub fn run(args: Args) -> Exit {
             if let (Some(path), Some(s)) = (&args.against, summaries.get(1)) {
                 map.insert("against".into(), summary_json(s, path));
             }
+            if let Some(b) = &budget {
+                map.insert(
+                    "budget".into(),
+                    serde_json::to_value(b).unwrap_or(Value::Null),
+                );
+            }
         }
         super::outln!(
             "{}",
@@ -285,6 +315,9 @@ pub fn run(args: Args) -> Exit {
                  statistics (marked in the --report page; listed in the calibration's \
                  provenance.excluded)"
             );
+        }
+        if let Some(b) = &budget {
+            super::out!("{}", super::budget::render(b));
         }
     }
     Exit::Success

@@ -145,6 +145,7 @@ impl ProgramArgs {
             stretching: Default::default(),
             assumptions: self.assume.clone(),
             taken: self.point_origin.into(),
+            uncertainty: None,
         }
     }
 }
@@ -305,6 +306,11 @@ pub struct Args {
     /// the targets taken as taught are compensated to where that robot reaches them.
     #[arg(long = "from", value_name = "A.json")]
     pub from: Option<PathBuf>,
+    /// The measurement files the calibration was identified from: the report gives every
+    /// target's predicted uncertainty (`sigma_um`), their tracker noise carried through the
+    /// identification.
+    #[arg(long = "campaign", value_name = "MEAS.csv", requires = "report")]
+    pub campaign: Vec<PathBuf>,
     #[command(flatten)]
     pub program: ProgramArgs,
 }
@@ -374,6 +380,10 @@ pub fn run(args: Args) -> Exit {
             Some(a)
         }
     };
+    let uncertainty = match super::budget::covariance_of(&cal, &args.campaign) {
+        Ok(u) => u,
+        Err(exit) => return exit,
+    };
     let stdin = is_dash(&args.input);
     let bytes = if stdin {
         match crate::input::stdin() {
@@ -423,6 +433,7 @@ pub fn run(args: Args) -> Exit {
     guard
         .read(&args.cal)
         .read_all(args.from.iter().map(PathBuf::as_path))
+        .read_all(args.campaign.iter().map(PathBuf::as_path))
         .read_all(ws.files.iter().filter_map(|f| f.path.as_deref()));
     let outputs = if to_stdout {
         Vec::new()
@@ -446,7 +457,10 @@ pub fn run(args: Args) -> Exit {
         &ws,
         &calibrated,
         from.as_ref().map(|a| a.model_ref()),
-        &args.program.options(true, args.report.is_some()),
+        &program::Options {
+            uncertainty,
+            ..args.program.options(true, args.report.is_some())
+        },
     );
     for d in &result.diagnostics {
         eprintln!("{}", d.render());

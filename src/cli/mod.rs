@@ -7,6 +7,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod batch;
+pub mod budget;
 pub mod campaign;
 pub mod check;
 pub mod compare;

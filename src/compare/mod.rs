@@ -7,6 +7,7 @@
 //! a residual may depend on (axis angles, gravity torques, time) in [`drivers`].
 
 pub mod axis_residual;
+pub mod budget;
 pub mod drivers;
 pub mod summary;
 pub mod table;
@@ -110,7 +111,7 @@ pub fn compare(cal: &Calibration, files: &[Measurements]) -> Vec<Row> {
 
 /// Whether two names of a measurement file are the same file: `identify` records them as
 /// given on its command line, `compare` may be run from elsewhere, so by file name.
-fn same_file(recorded: &str, given: &str) -> bool {
+pub fn same_file(recorded: &str, given: &str) -> bool {
     let name = |s: &str| std::path::Path::new(s).file_name().map(|n| n.to_owned());
     recorded == given || (name(recorded).is_some() && name(recorded) == name(given))
 }

@@ -63,6 +63,9 @@ pub struct Options {
     /// Which points are taken as taught (left as they are) and which as offline
     /// (compensated): `--points`.
     pub taken: Taken,
+    /// The calibration's parameter covariance (from the campaign it was identified from):
+    /// each target's predicted uncertainty goes into the report (`sigma_um`).
+    pub uncertainty: Option<std::sync::Arc<crate::identify::covariance::Covariance>>,
 }
 
 impl Options {

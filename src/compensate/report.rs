@@ -5,7 +5,8 @@
 use serde::Serialize;
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::model::Direction;
+use crate::identify::covariance::{sigma_um, Covariance};
+use crate::model::{AxisState, Direction, Model};
 use crate::motion::frame;
 use crate::motion::{self, Role, Simulation, Workspace};
 
@@ -64,6 +65,11 @@ pub struct PointReport {
     pub resolution: String,
     /// Whether the target's numbers were rewritten.
     pub compensated: bool,
+    /// Predicted uncertainty of the TCP's position at the command, one standard deviation
+    /// per base coordinate X, Y, Z (µm): the calibration campaign's tracker noise carried
+    /// through the identification to this target (only with the campaign given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_um: Option<[f64; 3]>,
     /// Why the target was left as written, when it was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
@@ -99,6 +105,10 @@ pub struct Report {
     pub predicted_before: PoseStats,
     /// The model's predicted TCP error left at the new commands.
     pub predicted_after: PoseStats,
+    /// Predicted uncertainty of the compensated targets' positions, the 3-D one standard
+    /// deviation `√(σx² + σy² + σz²)` (µm; only with the calibration campaign given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predicted_sigma_3d_um: Option<MaxMean>,
     /// Targets where an axis's compensated direction differs from the nominal one.
     pub direction_flips: usize,
     /// Targets where an axis the program holds was kept exactly still (its output need not
@@ -272,6 +282,35 @@ pub(super) struct Tally {
     /// the first few as located warnings.
     large: usize,
     large_shown: Vec<Diagnostic>,
+    /// 3-D predicted uncertainty of the compensated targets, when a covariance is given.
+    sigma_3d: Option<Running>,
+}
+
+/// The parameter covariance and the model it belongs to.
+pub(super) type Uncertainty<'a> = (&'a Covariance, &'a Model);
+
+/// What the report lists per target: every target (`--report`), and with a covariance each
+/// one's predicted uncertainty.
+#[derive(Clone, Copy)]
+pub(super) struct Listing<'a> {
+    pub points: bool,
+    pub uncertainty: Option<Uncertainty<'a>>,
+}
+
+/// One standard deviation per coordinate (µm) of the TCP's position at a target's command.
+fn target_sigma_um(
+    (covariance, model): Uncertainty<'_>,
+    sim: &Simulation,
+    stop: &motion::Stop,
+    o: &Outcome,
+) -> [f64; 3] {
+    let state = AxisState::with_directions(o.axes_deg.0, o.directions);
+    let tool = sim
+        .frames
+        .get(stop.tool as usize)
+        .copied()
+        .unwrap_or_else(crate::kinematics::Frame::identity);
+    sigma_um(&covariance.tcp(model, &state, &tool))
 }
 
 /// A correction larger than this (5 mm, 1°) is no calibrated robot's error but a calibration
@@ -291,7 +330,10 @@ impl Tally {
         first: usize,
         outcomes: &[Outcome],
         commands: &[Command],
-        points: bool,
+        Listing {
+            points,
+            uncertainty,
+        }: Listing<'_>,
     ) {
         use rayon::prelude::*;
         let stops = &sim.stops[first..first + outcomes.len()];
@@ -299,12 +341,30 @@ impl Tally {
             |i: usize| outcomes[i].changed && outcomes[i].error.is_none() && stops[i].compensable;
         // Command change at the TCP, µm and mdeg.
         let corr = |i: usize| commands[i].correction;
+        let mut sigmas: Vec<Option<[f64; 3]>> = Vec::new();
+        if let Some(u) = uncertainty {
+            (0..outcomes.len())
+                .into_par_iter()
+                .with_min_len(64)
+                .map(|i| Some(target_sigma_um(u, sim, &stops[i], &outcomes[i])))
+                .collect_into_vec(&mut sigmas);
+            let running = self.sigma_3d.get_or_insert_with(Running::default);
+            for (i, s) in sigmas.iter().enumerate() {
+                if let (true, Some(s)) = (compensated(i), s) {
+                    running.add(s.iter().map(|v| v * v).sum::<f64>().sqrt());
+                }
+            }
+        }
         if points {
             let mut listed = Vec::new();
             (0..outcomes.len())
                 .into_par_iter()
                 .with_min_len(512)
-                .map(|i| point_report(ws, &stops[i], &outcomes[i], corr(i), compensated(i)))
+                .map(|i| {
+                    let mut p = point_report(ws, &stops[i], &outcomes[i], corr(i), compensated(i));
+                    p.sigma_um = sigmas.get(i).copied().flatten();
+                    p
+                })
                 .collect_into_vec(&mut listed);
             self.points.append(&mut listed);
         }
@@ -402,6 +462,7 @@ impl Tally {
             position_um: f[4].get(),
             orientation_mdeg: f[5].get(),
         };
+        report.predicted_sigma_3d_um = self.sigma_3d.map(|r| r.get());
         report.direction_flips = self.direction_flips;
         report.held_axes = self.held_axes;
         report.reversals_inside_play = self.reversals_inside_play;
@@ -465,6 +526,7 @@ fn point_report(
             String::new()
         },
         compensated,
+        sigma_um: None,
         error: o.error.map(|e| e.to_string()),
     }
 }

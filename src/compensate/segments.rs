@@ -17,6 +17,7 @@ use crate::model::{Direction, Model};
 use crate::motion::{RunSink, Simulation, Walked, Workspace};
 
 use super::program::{targets, Options, Tally};
+use super::report::Listing;
 use super::taken::{self, Taking};
 use super::rewrite;
 use super::sequence::{self, Carried, Command, Compensated, Outcome, Target, LOOK_BACK};
@@ -321,13 +322,17 @@ impl<'a> Segments<'a> {
         let stops = &sim.stops[first..first + seg.done.targets().len()];
         self.taken.add(ws, self.taking, stops);
         let points = self.options.points;
+        let uncertainty = self.options.uncertainty.as_deref().map(|c| (c, self.model));
         self.tally.add(
             ws,
             sim,
             from + seg.ghosts,
             seg.done.targets(),
             &seg.done.commands,
-            points,
+            Listing {
+                points,
+                uncertainty,
+            },
         );
         self.skeleton.extend_from_slice(seg.outcomes());
         self.skeleton_commands.extend(seg.ghost_commands);
@@ -351,13 +356,17 @@ impl<'a> Segments<'a> {
         let stops = &sim.stops[part.ghosts..part.ghosts + part.done.targets().len()];
         self.taken.add(ws, self.taking, stops);
         let points = self.options.points;
+        let uncertainty = self.options.uncertainty.as_deref().map(|c| (c, self.model));
         self.tally.add(
             ws,
             sim,
             part.ghosts,
             part.done.targets(),
             &part.done.commands,
-            points,
+            Listing {
+                points,
+                uncertainty,
+            },
         );
         self.rewrite_diagnostics.append(&mut rw.diagnostics);
         self.euler = rewrite::EulerLeft::merge(self.euler.take(), rw.euler.take());

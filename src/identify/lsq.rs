@@ -172,6 +172,12 @@ impl LsqSolution {
         e
     }
 
+    /// Solves (AᵀA) Z = H in place for the columns of `h` (n × k): the inverse normal
+    /// matrix applied to a few vectors, e.g. the sensitivities of one predicted position.
+    pub fn solve_normal_in_place(&self, h: faer::MatMut<'_, f64>) {
+        self.llt.solve_in_place(h);
+    }
+
     /// Column `i` of (AᵀA)⁻¹: multiplied by σ² it is the covariance of parameter `i` with all
     /// others (σ² = rss / (rows − parameters) for unit-weight measurement rows).
     pub fn inverse_normal_column(&self, i: usize) -> Vec<f64> {

@@ -3,6 +3,7 @@
 //! requested effect).
 
 pub mod circle;
+pub mod covariance;
 pub mod direct;
 pub mod lsq;
 pub mod pipeline;

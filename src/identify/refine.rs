@@ -266,6 +266,9 @@ pub struct Fit {
     /// The cost stopped falling: the last accepted step lowered it by less than the
     /// tolerance, or no step lowered it at all.
     pub converged: bool,
+    /// The parameters' covariance at the solution (with the standard errors), for the
+    /// uncertainty of predicted positions.
+    pub covariance: Option<Arc<super::covariance::Covariance>>,
 }
 
 impl Fit {
@@ -648,6 +651,7 @@ pub fn refine(
     }
     let mut standard_errors = vec![None; n_flat];
     let mut frames_se = Vec::new();
+    let mut covariance = None;
     if options.standard_errors {
         let lsq = problem.system(model, &frame, &residuals, LAMBDA_MIN)?;
         let solution = lsq.solve()?;
@@ -762,6 +766,13 @@ pub fn refine(
                 ]);
             }
         }
+        covariance = Some(Arc::new(super::covariance::Covariance::new(
+            solution,
+            col_of.clone(),
+            col_scale.clone(),
+            sigma_mm,
+            n_cols - n_smoothed,
+        )));
     }
 
     Ok(Fit {
@@ -788,6 +799,7 @@ pub fn refine(
         warnings,
         iterations,
         converged,
+        covariance,
     })
 }
 

@@ -81,6 +81,7 @@ fn compensate_with(ws: &Workspace, model: &Model, bytes: &[u8]) -> ProgramResult
             // The points of every fixture rewritten, taught ones too: these tests are of
             // the walk and the rewrite (`taken.rs` tests which points `auto` leaves).
             taken: compensate::Taken::Offline,
+            uncertainty: None,
         },
     )
 }

@@ -65,6 +65,7 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
             // The points of every fixture rewritten, taught ones too: these tests are of
             // the walk and the rewrite (`taken.rs` tests which points `auto` leaves).
             taken: compensate::Taken::Offline,
+            uncertainty: None,
         },
     )
 }
