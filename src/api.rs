@@ -24,15 +24,13 @@ pub use crate::diagnose::{
 };
 pub use crate::identify::direct::DirectResult;
 pub use crate::identify::pipeline::{GrossError, Identified, TargetSource, PAPER_EFFECTS};
-pub use crate::identify::refine::{Fit, Status as ParameterStatus, Warning as FitWarning};
+pub use crate::identify::refine::{Fit, Status as ParameterStatus};
 pub use crate::identify::thin::Thinning;
 pub use crate::identify::verdict::Verdict;
-pub use crate::kinematics::{Frame, Payload, Pose, RobotDescription};
+pub use crate::kinematics::{Payload, RobotDescription};
 pub use crate::measure::tracker::Tracker;
 pub use crate::measure::{Columns as MeasurementColumns, Measurements, Stop as MeasuredStop};
-pub use crate::model::{
-    AxisHistory, AxisState, Direction, EffectName, Model, NameError, RecordError,
-};
+pub use crate::model::{AxisHistory, AxisState, Direction, EffectName, NameError, RecordError};
 pub use crate::stats::ErrorStats;
 
 /// Why a call could not do its job.
