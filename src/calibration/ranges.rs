@@ -136,6 +136,16 @@ pub fn check(file: &CalibrationFile, path: &Path) -> Result<(), CalError> {
             if let Some(other) = &t.other_grid_deg {
                 grid(other, &format!("{at}.table.other_grid_deg"), path)?;
             }
+            for (k, v) in t.values_deg.iter().enumerate() {
+                let key = || format!("{at}.table.values_deg[{k}]");
+                within(*v, (f64::MIN, f64::MAX), "", key, path)?;
+            }
+        }
+        // Every number finite before the effect reads it (its range is checked after, by
+        // the effect: see [`effect`]).
+        for (param, &v) in record.parameters.iter().flatten() {
+            let key = || format!("{at}.parameters.{param}");
+            within(v, (f64::MIN, f64::MAX), "", key, path)?;
         }
     }
     Ok(())
