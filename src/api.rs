@@ -18,17 +18,19 @@ use crate::motion::{self, workspace::LoadError, Workspace};
 pub use crate::calibration::{CalError, Calibration};
 pub use crate::compensate::report::{CalibrationRef, MaxMean, PointReport, PoseStats, SplitReport};
 pub use crate::compensate::Report;
+pub use crate::compensate::Taken;
 pub use crate::diagnose::{
     DiagnoseOptions, Diagnosis, Finding, LearnedDrivers, NoiseSource, ProgressSink, TestShare,
 };
 pub use crate::identify::direct::DirectResult;
 pub use crate::identify::pipeline::{GrossError, Identified, TargetSource, PAPER_EFFECTS};
-pub use crate::identify::refine::Fit;
+pub use crate::identify::refine::{Fit, Status as ParameterStatus};
 pub use crate::identify::thin::Thinning;
 pub use crate::identify::verdict::Verdict;
-pub use crate::kinematics::RobotDescription;
-pub use crate::measure::{Measurements, Stop as MeasuredStop};
-pub use crate::model::{EffectName, NameError, RecordError};
+pub use crate::kinematics::{Payload, RobotDescription};
+pub use crate::measure::tracker::Tracker;
+pub use crate::measure::{Columns as MeasurementColumns, Measurements, Stop as MeasuredStop};
+pub use crate::model::{AxisHistory, AxisState, Direction, EffectName, NameError, RecordError};
 pub use crate::stats::ErrorStats;
 
 /// Why a call could not do its job.
@@ -65,6 +67,9 @@ pub enum Error {
     /// An effect list that names no known effect (`--effects` syntax).
     #[error("{0}")]
     Effects(#[from] crate::model::NameError),
+    /// An option out of its range or spelled wrong (a tracker preset, a table pitch).
+    #[error("{0}")]
+    Option(String),
 }
 
 /// Reads a calibration file (`robopost-calibration/2` JSON, docs/calibration.md).
@@ -83,6 +88,9 @@ pub struct Compensated {
     /// The program's new bytes: the source with only the numbers that must change rewritten
     /// and a header comment naming the calibration.
     pub source: Vec<u8>,
+    /// The new bytes of the program's `.dat`, when [`CellContext::dat`] gave one (written
+    /// back whether or not compensation changed it).
+    pub dat: Option<Vec<u8>>,
     /// Counts, corrections and the predicted error before and after (the `--report` JSON).
     pub report: Report,
     /// Warnings and per-target errors (a rejected target is left as written), rendered as the
@@ -90,8 +98,52 @@ pub struct Compensated {
     pub messages: Vec<String>,
 }
 
+/// A frame of the robot's cell given by number, as `--base N=X,Y,Z,A,B,C` and
+/// `--tool N=…` give it: `BASE_DATA[index]` or `TOOL_DATA[index]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellFrame {
+    /// `true` for `BASE_DATA[index]`, `false` for `TOOL_DATA[index]`.
+    pub base: bool,
+    /// The frame's number in its array.
+    pub index: i64,
+    /// X, Y, Z (mm) and A, B, C (degrees, KUKA's Z-Y-X angles).
+    pub xyzabc: [f64; 6],
+}
+
+/// What a program is compensated with besides its own text and the calibration: the files
+/// and options of the command line's `robopost IN.src -c CAL.json -o OUT.src`, held in
+/// memory. The default is a program alone (no `.dat`, no cell), every point as its files
+/// say.
+#[derive(Clone, Debug, Default)]
+pub struct CellContext {
+    /// The program's own data list (the `.dat` beside its `.src`), bytes.
+    pub dat: Option<Vec<u8>>,
+    /// The robot's `$config.dat` (`BASE_DATA`, `TOOL_DATA`, …), bytes (`--config`).
+    pub config: Option<Vec<u8>>,
+    /// Frames given by number (`--base`, `--tool`).
+    pub frames: Vec<CellFrame>,
+    /// Which points are compensated (`--points`).
+    pub points: Taken,
+    /// The calibration's file, which the compensated program's header names, as the command
+    /// line writes it. `None`: the header names the calibration's robot and the SHA-256 of the
+    /// calibration as robopost writes it.
+    pub calibration_file: Option<CalibrationSource>,
+}
+
+/// The file a calibration was read from, as a compensated program's header names it: its
+/// name (the command line writes the file name without its directory) and its bytes, of
+/// which the header carries the SHA-256.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct CalibrationSource {
+    /// The file's name, e.g. `kr30ha-example.json`.
+    pub name: String,
+    /// The file's bytes.
+    pub bytes: Vec<u8>,
+}
+
 /// Compensates one program given as bytes (a `.src` without its `.dat`; `name` names it in
-/// messages and in the report) with `calibration`, as `robopost IN.src -c CAL.json` does.
+/// messages and in the report) with `calibration`, as `robopost IN.src -c CAL.json` does:
+/// [`compensate_in_cell`] with the default [`CellContext`].
 ///
 /// A target the robot cannot reach is left as written and named in
 /// [`Compensated::messages`]; a program that cannot be walked at all is an
@@ -101,37 +153,81 @@ pub fn compensate_source(
     source: &[u8],
     calibration: &Calibration,
 ) -> Result<Compensated, Error> {
-    let ws = Workspace::load_streaming((source.to_vec(), None, name), None, None, None)?;
-    let (ws, result) = compensated(ws, calibration, name, source)?;
-    let main = result
-        .files
-        .iter()
-        .find(|f| f.file == ws.main)
-        .expect("the main file is an output");
+    compensate_in_cell(name, source, calibration, &CellContext::default())
+}
+
+/// Compensates one program given as bytes in the cell `context` describes (its `.dat`, the
+/// robot's `$config.dat`, frames, the points' origin): the same bytes as the command line
+/// writes for the same files and options. `name` names the program in messages and in the
+/// report.
+pub fn compensate_in_cell(
+    name: &str,
+    source: &[u8],
+    calibration: &Calibration,
+    context: &CellContext,
+) -> Result<Compensated, Error> {
+    let dat_name = format!("{}.dat", name.strip_suffix(".src").unwrap_or(name));
+    let dat = context
+        .dat
+        .as_deref()
+        .map(|d| (d, Path::new(&dat_name), dat_name.as_str()));
+    let stream = Some(crate::krl::StreamOptions::default());
+    let mut ws = Workspace::load_streaming((source.to_vec(), None, name), dat, None, stream)?;
+    if let Some(config) = &context.config {
+        ws.push_shared_data(config, None, "$config.dat");
+    }
+    let (header_name, header_bytes) = match &context.calibration_file {
+        Some(file) => (file.name.clone(), file.bytes.clone()),
+        None => (
+            calibration.robot_name.clone(),
+            calibration
+                .to_json(Path::new(&calibration.robot_name))?
+                .into_bytes(),
+        ),
+    };
+    let options = program::Options {
+        parallel: true,
+        frames: context
+            .frames
+            .iter()
+            .map(|f| motion::GivenFrame {
+                base: f.base,
+                index: f.index,
+                pose: crate::kinematics::Pose::from_array(f.xyzabc),
+            })
+            .collect(),
+        taken: context.points,
+        ..program::Options::default()
+    };
+    let (ws, result) = compensated(ws, calibration, &header_name, &header_bytes, &options)?;
+    let bytes_of = |id| {
+        result
+            .files
+            .iter()
+            .find(|f| f.file == id)
+            .map(|f| f.bytes.pieces().concat())
+    };
+    let dat_id = ws.get(ws.main).partner;
     Ok(Compensated {
-        source: main.bytes.pieces().concat(),
+        source: bytes_of(ws.main).unwrap_or_default(),
+        dat: dat_id.and_then(bytes_of),
         messages: result.diagnostics.iter().map(Diagnostic::render).collect(),
         report: result.report,
     })
 }
 
 /// The main job on a loaded program: its result, or the rejection of the whole program.
+/// `header_name` and `header_bytes` are the calibration file's, which the header names.
 fn compensated(
     mut ws: Workspace,
     calibration: &Calibration,
-    label: &str,
-    bytes: &[u8],
+    header_name: &str,
+    header_bytes: &[u8],
+    options: &program::Options,
 ) -> Result<(Workspace, program::ProgramResult), Error> {
     ws.robot = calibration.robot_name.clone();
-    let calibrated = program::Calibrated::new(calibration.model_ref(), label, bytes);
-    let result = compensate::compensate_program(
-        &ws,
-        &calibrated,
-        &program::Options {
-            parallel: true,
-            ..program::Options::default()
-        },
-    );
+    let calibrated = program::Calibrated::new(calibration.model_ref(), header_name, header_bytes);
+    let result = compensate::compensate_program(&ws, &calibrated, options);
     if result.rejected {
         return Err(Error::Rejected(result.diagnostics));
     }
@@ -150,7 +246,18 @@ pub fn compensate_file(
         source,
     })?;
     let ws = files::load_program(Some(input), &bytes, None)?;
-    let (ws, result) = compensated(ws, calibration, &input.display().to_string(), &bytes)?;
+    let json = calibration.to_json(Path::new(&calibration.robot_name))?;
+    let options = program::Options {
+        parallel: true,
+        ..program::Options::default()
+    };
+    let (ws, result) = compensated(
+        ws,
+        calibration,
+        &calibration.robot_name,
+        json.as_bytes(),
+        &options,
+    )?;
     let outputs = files::outputs(&ws, &result.files, output);
     files::write_atomic_pieces(&outputs).map_err(|source| Error::Write {
         path: output.display().to_string(),
@@ -213,21 +320,140 @@ pub fn read_measurements(path: &Path) -> Result<Measurements, Error> {
     Ok(crate::measure::read_csv(path)?)
 }
 
+/// Measurements built in memory, column by column (a binding's arrays, a data frame), with
+/// the measurement CSV's checks; a rejected entry is an [`Error::Measurements`] located as
+/// `source:ROW:COLUMN` (rows counted from 1, columns as `test, a1..a6, x, y, z, t`).
+pub fn measurements_from_columns(
+    source: &str,
+    columns: &MeasurementColumns,
+) -> Result<Measurements, Error> {
+    Ok(Measurements::from_columns(source, columns)?)
+}
+
+/// The choices of an identification: the options of `robopost identify` (docs/cli.md). The
+/// default is the command's: the paper's full model in the base frame, tables every 1°, the
+/// target from the data, the default tracker.
+#[derive(Clone, Debug)]
+pub struct IdentifyOptions {
+    /// The effects (contract names, `map:A1..A6` expands); `None`: [`PAPER_EFFECTS`]. With
+    /// [`Self::calibration`], `+NAME,…` adds effects to it (`--effects`).
+    pub effects: Option<String>,
+    /// Positions are in a tracker frame, identified too, one per measurement set
+    /// (`--frame tracker`); `false`: the robot's base frame.
+    pub tracker_frame: bool,
+    /// Grid pitch of the `map` and `backlash` tables, degrees (`--map-pitch`).
+    pub map_pitch_deg: f64,
+    /// An existing calibration: robot, target and starting values (`-c`).
+    pub calibration: Option<Calibration>,
+    /// A hint for the measurement target in the flange frame, mm (`--target`).
+    pub target_mm: Option<[f64; 3]>,
+    /// The robot's name written into the calibration (`--robot-name`).
+    pub robot_name: Option<String>,
+    /// Most measured points the fit uses (`--max-points`); `None`: the command's default,
+    /// `Some(0)`: all.
+    pub max_points: Option<usize>,
+    /// The tracker: a preset or its MPE as `C+Mppm` (`--tracker`); `None`: the default.
+    pub tracker: Option<String>,
+    /// Where the tracker stands in the robot's base frame, mm (`--tracker-at`).
+    pub tracker_at_mm: Option<[f64; 3]>,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            effects: None,
+            tracker_frame: false,
+            map_pitch_deg: 1.0,
+            calibration: None,
+            target_mm: None,
+            robot_name: None,
+            max_points: None,
+            tracker: None,
+            tracker_at_mm: None,
+        }
+    }
+}
+
 /// Identifies a calibration of `effects` (contract names, e.g. [`PAPER_EFFECTS`]) from
 /// measurement files, unaided: the target vector from the data, gross errors screened out.
 pub fn identify(files: &[Measurements], effects: &str) -> Result<Identified, Error> {
-    let names = crate::model::expand_list(effects)?;
+    identify_with(
+        files,
+        &IdentifyOptions {
+            effects: Some(effects.to_string()),
+            ..IdentifyOptions::default()
+        },
+    )
+}
+
+/// Identifies a calibration from measurement sets (one per file or tracker station) as
+/// `robopost identify` does with the same `options`: the same parameters for the same data.
+pub fn identify_with(
+    files: &[Measurements],
+    options: &IdentifyOptions,
+) -> Result<Identified, Error> {
+    let finest = crate::model::table::MIN_PITCH_DEG;
+    if !(options.map_pitch_deg.is_finite() && options.map_pitch_deg >= finest) {
+        return Err(Error::Option(format!(
+            "map pitch {}: the table pitch must be at least {finest} degrees",
+            options.map_pitch_deg
+        )));
+    }
+    let effects = match options.effects.as_deref() {
+        None => None,
+        Some(list) => {
+            let items: Vec<&str> = list
+                .split(',')
+                .map(str::trim)
+                .filter(|s| !s.is_empty())
+                .collect();
+            let adds = items.iter().filter(|s| s.starts_with('+')).count();
+            if adds > 0 && (adds < items.len() || options.calibration.is_none()) {
+                return Err(Error::Option(
+                    "effects `+NAME` add to an existing calibration: every name starts with `+` and a calibration is given".into(),
+                ));
+            }
+            let stripped: Vec<&str> = items.iter().map(|s| s.trim_start_matches('+')).collect();
+            let names = crate::model::expand_list(&stripped.join(","))?;
+            Some(if adds > 0 {
+                pipeline::Effects::Add(names)
+            } else {
+                pipeline::Effects::Exactly(names)
+            })
+        }
+    };
+    let mut tracker = match &options.tracker {
+        Some(spec) => crate::measure::tracker::Tracker::parse(spec).map_err(Error::Option)?,
+        None => crate::measure::tracker::Tracker::default(),
+    };
+    if let Some(at) = options.tracker_at_mm {
+        tracker.station_mm = Some(Vector3::from(at));
+    }
     let mut stops = Vec::new();
     let mut file_of = Vec::new();
     for (k, f) in files.iter().enumerate() {
-        file_of.extend(std::iter::repeat(k).take(f.stops.len()));
+        file_of.extend(std::iter::repeat_n(k, f.stops.len()));
         stops.extend(f.stops.iter().cloned());
     }
     let request = pipeline::Request {
-        effects: Some(pipeline::Effects::Exactly(names)),
+        effects,
+        base: options.calibration.clone(),
+        tracker_frame: options.tracker_frame,
+        grid: crate::identify::setup::GridChoice {
+            map_pitch_deg: options.map_pitch_deg,
+            ..Default::default()
+        },
+        target_mm: options.target_mm,
+        robot_name: options.robot_name.clone(),
         sources: files.iter().map(|f| f.source.clone()).collect(),
         file_of,
-        ..pipeline::Request::default()
+        max_points: Some(
+            options
+                .max_points
+                .unwrap_or(crate::identify::thin::DEFAULT_MAX_POINTS),
+        ),
+        tracker,
+        progress: None,
     };
     Ok(pipeline::identify(&stops, &request)?)
 }
@@ -254,7 +480,17 @@ pub fn diagnose(
 /// The `robopost` command itself (docs/cli.md): `args` as the process received them, the
 /// program's name first; prints as the command does and returns its exit status (0 done,
 /// 1 some input rejected, 2 usage error or unreadable input, nothing written). For a wrapper
-/// that embeds the command; the `robopost` binary is this call.
+/// that embeds the command and goes on: everything the command built is freed before it
+/// returns.
 pub fn run_command_line(args: Vec<String>) -> i32 {
-    crate::cli::main(args)
+    let status = crate::cli::main(args);
+    crate::cli::free_left();
+    status
+}
+
+/// [`run_command_line`], then the process exits with its status without freeing the
+/// program's syntax tree node by node (the exit returns the memory at once): the `robopost`
+/// binary.
+pub fn exit_with_command_line(args: Vec<String>) -> ! {
+    std::process::exit(crate::cli::main(args))
 }

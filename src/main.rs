@@ -11,7 +11,7 @@ fn main() {
     }
     keep_freed_memory();
     trace_if_asked();
-    std::process::exit(robopost::run_command_line(std::env::args().collect()));
+    robopost::exit_with_command_line(std::env::args().collect());
 }
 
 /// With `ROBOPOST_LOG` set (a `tracing` filter such as `robopost=info`, or `robopost=trace` for

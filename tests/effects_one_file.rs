@@ -18,7 +18,13 @@ use std::path::{Path, PathBuf};
 
 use robopost::model::registry::KINDS;
 
-const SCANNED: [&str; 3] = ["src/identify", "src/diagnose", "src/compensate"];
+const SCANNED: [&str; 5] = [
+    "src/identify",
+    "src/diagnose",
+    "src/compensate",
+    "src/calibration",
+    "src/cli",
+];
 const EXCEPT_FILES: [&str; 0] = [];
 const EXCEPT_KINDS: [&str; 1] = ["learned"];
 /// Files of `src/model/effects/` that are shared machinery, not an effect.

@@ -338,6 +338,7 @@ fn validate(file: &CalibrationFile, path: &Path) -> Result<Model, CalError> {
             _ => name.decode(record, &robot),
         }
         .map_err(invalid)?;
+        ranges::effect(record, effect.as_effect(), &format!("effects[{i}]"), path)?;
         model.push(effect);
     }
     Ok(model)

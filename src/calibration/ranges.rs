@@ -4,12 +4,13 @@
 //! the value. The same numbers are written into the JSON Schema (`minimum`/`maximum` on the
 //! types; a test keeps the two in step) and into `docs/calibration.md`.
 //!
-//! Ranges are generous bounds of what is physical for an industrial arm, not tolerances.
+//! Ranges are generous bounds of what is physical for an industrial arm, not tolerances. An
+//! effect's own numbers are bounded by the effect ([`Effect::record_range`]), in its file.
 
 use std::path::Path;
 
 use super::{CalError, CalibrationFile, MeasurementFrame};
-use crate::model::{EffectName, EffectRecord};
+use crate::model::{Effect, EffectRecord, RecordRange, RecordValue};
 
 /// Link lengths, mm: none longer than any arm built, none negative …
 pub const LINK_MM: (f64, f64) = (0.0, 5000.0);
@@ -31,22 +32,10 @@ pub const TARGET_MM: f64 = 2000.0;
 /// The tracker's position in the base frame, mm (100 m), and its angles, degrees.
 pub const TRACKER_MM: f64 = 100_000.0;
 pub const TRACKER_DEG: f64 = 360.0;
-/// Angular deviation tables (`map`, `crosstalk`), degrees: a gear error of a degree is
-/// already a broken robot.
-pub const DEVIATION_DEG: f64 = 1.0;
 /// Grid points: within the joint-limit range, at least this far apart (degrees), at most
 /// this many per grid.
 pub const GRID_MIN_SPACING_DEG: f64 = 1e-3;
 pub const GRID_MAX_POINTS: usize = 100_000;
-/// `geometric`: position errors and the target correction (mm), angular errors (degrees).
-pub const GEOMETRIC_MM: f64 = 50.0;
-pub const GEOMETRIC_DEG: f64 = 2.0;
-/// `compliance:An` `c`, degrees per kN·m of gravity torque.
-pub const COMPLIANCE_DEG_PER_KNM: f64 = 1.0;
-/// `tilt:An` harmonic amplitudes, degrees.
-pub const TILT_DEG: f64 = 1.0;
-/// `drift` growth rates, mm per hour.
-pub const DRIFT_MM_PER_H: f64 = 10.0;
 
 fn within(
     value: f64,
@@ -141,43 +130,48 @@ pub fn check(file: &CalibrationFile, path: &Path) -> Result<(), CalError> {
         }
     }
     for (i, record) in file.effects.iter().enumerate() {
-        effect(record, &format!("effects[{i}]"), path)?;
+        let at = format!("effects[{i}]");
+        if let Some(t) = &record.table {
+            grid(&t.grid_deg, &format!("{at}.table.grid_deg"), path)?;
+            if let Some(other) = &t.other_grid_deg {
+                grid(other, &format!("{at}.table.other_grid_deg"), path)?;
+            }
+            for (k, v) in t.values_deg.iter().enumerate() {
+                let key = || format!("{at}.table.values_deg[{k}]");
+                within(*v, (f64::MIN, f64::MAX), "", key, path)?;
+            }
+        }
+        // Every number finite before the effect reads it (its range is checked after, by
+        // the effect: see [`effect`]).
+        for (param, &v) in record.parameters.iter().flatten() {
+            let key = || format!("{at}.parameters.{param}");
+            within(v, (f64::MIN, f64::MAX), "", key, path)?;
+        }
     }
     Ok(())
 }
 
-/// The ranges of one effect's numbers (an unknown name is left to the decoder's message).
-fn effect(record: &EffectRecord, at: &str, path: &Path) -> Result<(), CalError> {
-    let Ok(name) = EffectName::parse(&record.name) else {
-        return Ok(());
+/// The ranges of one effect's numbers, as the effect states them
+/// ([`Effect::record_range`]); `effect` is what `record` decodes to.
+pub fn effect(
+    record: &EffectRecord,
+    effect: &dyn Effect,
+    at: &str,
+    path: &Path,
+) -> Result<(), CalError> {
+    let check = |v: f64, range: RecordRange, key: &dyn Fn() -> String| match range {
+        RecordRange::Within { bound, unit } => within(v, symmetric(bound), unit, key, path),
+        RecordRange::Finite => Ok(()),
     };
-    let prefix = name.kind.prefix;
     if let Some(t) = &record.table {
-        grid(&t.grid_deg, &format!("{at}.table.grid_deg"), path)?;
-        if let Some(other) = &t.other_grid_deg {
-            grid(other, &format!("{at}.table.other_grid_deg"), path)?;
-        }
-        // `backlash` widths have their own range, checked by the effect.
-        if prefix == "map" || prefix == "crosstalk" {
-            for (k, v) in t.values_deg.iter().enumerate() {
-                let key = || format!("{at}.table.values_deg[{k}]");
-                within(*v, symmetric(DEVIATION_DEG), "degrees", key, path)?;
-            }
+        let range = effect.record_range(RecordValue::Table);
+        for (k, v) in t.values_deg.iter().enumerate() {
+            check(*v, range, &|| format!("{at}.table.values_deg[{k}]"))?;
         }
     }
     for (param, &v) in record.parameters.iter().flatten() {
-        let key = || format!("{at}.parameters.{param}");
-        let p = param.to_ascii_lowercase();
-        let (bound, unit) = match prefix {
-            "geometric" if p.starts_with("dth") => (GEOMETRIC_DEG, "degrees"),
-            "geometric" if p.starts_with('d') || p.starts_with("p6") => (GEOMETRIC_MM, "mm"),
-            "geometric" => (GEOMETRIC_DEG, "degrees"),
-            "compliance" => (COMPLIANCE_DEG_PER_KNM, "degrees per kN·m"),
-            "tilt" => (TILT_DEG, "degrees"),
-            "drift" => (DRIFT_MM_PER_H, "mm per hour"),
-            _ => continue,
-        };
-        within(v, symmetric(bound), unit, key, path)?;
+        let range = effect.record_range(RecordValue::Parameter(param));
+        check(v, range, &|| format!("{at}.parameters.{param}"))?;
     }
     Ok(())
 }
@@ -245,7 +239,12 @@ mod tests {
             table["grid_deg"]["maxItems"].as_u64(),
             Some(GRID_MAX_POINTS as u64)
         );
-        assert_eq!(num(&table["values_deg"]["items"], "maximum"), DEVIATION_DEG);
+        let crate::model::RecordRange::Within { bound, .. } =
+            crate::model::effects::DEVIATION_RANGE
+        else {
+            panic!("a deviation table is bounded")
+        };
+        assert_eq!(num(&table["values_deg"]["items"], "maximum"), bound);
         let payload = &defs["Payload"]["properties"];
         assert_eq!(num(&payload["mass_kg"], "maximum"), MASS_KG.1);
         assert_eq!(num(&payload["cog_mm"]["items"], "maximum"), COG_MM);

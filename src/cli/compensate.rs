@@ -523,8 +523,7 @@ pub fn run(args: Args) -> Exit {
     summary(&result.report);
     let status = exit_status(&result);
     // Freeing millions of syntax-tree nodes one by one takes longer than the process exit.
-    std::mem::forget(result);
-    std::mem::forget(ws);
+    super::free_after((result, ws));
     status
 }
 

@@ -463,9 +463,15 @@ pub fn report(r: &Identified, requested: &str) -> String {
     let mut tables: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     out += "standard errors:\n";
     let values = model.values();
+    // Whether each parameter, in the model's flat order, is a cell of a table.
+    let cells: Vec<bool> = model
+        .effects()
+        .iter()
+        .flat_map(|e| std::iter::repeat_n(e.parameters_are_cells(), e.values().len()))
+        .collect();
     for (i, name) in fit.parameter_names.iter().enumerate() {
         let effect = name.split('[').next().unwrap_or(name);
-        let is_table = name.contains('[') && !effect.starts_with("tilt");
+        let is_table = cells.get(i).copied().unwrap_or(false);
         match (fit.standard_errors[i], is_table) {
             (Some(se), true) => tables.entry(effect.to_string()).or_default().push(se),
             (Some(se), false) => {

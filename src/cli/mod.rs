@@ -144,6 +144,26 @@ fn with_default_subcommand(mut args: Vec<String>) -> Vec<String> {
     args
 }
 
+/// What a command left for the process's exit to free: freeing millions of syntax-tree nodes
+/// one by one takes longer than the exit. The `robopost` binary exits without freeing them
+/// ([`crate::exit_with_command_line`]); a caller that goes on frees them when the command
+/// returns ([`crate::run_command_line`]), so that nothing leaks per call.
+static LEFT_FOR_EXIT: std::sync::Mutex<Vec<Box<dyn Send>>> = std::sync::Mutex::new(Vec::new());
+
+/// Leaves `value` to be freed after the command (see [`LEFT_FOR_EXIT`]).
+pub(crate) fn free_after(value: impl Send + 'static) {
+    LEFT_FOR_EXIT
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .push(Box::new(value));
+}
+
+/// Frees what the last commands left for the exit.
+pub fn free_left() {
+    let left = std::mem::take(&mut *LEFT_FOR_EXIT.lock().unwrap_or_else(|p| p.into_inner()));
+    drop(left);
+}
+
 /// Runs the command line on `args` (the program's name first) and returns the exit status.
 pub fn main(args: Vec<String>) -> i32 {
     let args = with_default_subcommand(args);

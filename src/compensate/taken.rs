@@ -26,6 +26,7 @@ pub enum Taken {
 }
 
 impl Taken {
+    /// The option's value as `--points` spells it.
     pub fn name(self) -> &'static str {
         match self {
             Taken::Auto => "auto",

@@ -65,6 +65,7 @@ pub struct Gravity {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Payload {
+    /// The payload's mass, kg.
     #[schemars(range(min = 0, max = 10000))]
     pub mass_kg: f64,
     /// Centre of gravity in the KUKA flange frame, mm.

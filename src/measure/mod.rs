@@ -6,6 +6,7 @@
 //! ([`export`], [`text`]) and joined to the campaign's plan ([`plan`], [`join`]) into the same
 //! rows.
 
+mod columns;
 mod csv_file;
 mod directions;
 pub mod export;
@@ -18,6 +19,7 @@ pub use csv_file::{
     parse_csv, parse_csv_within, read_csv, read_csv_within, write_csv, MeasureError,
     ANGLE_RANGE_DEG, POSITION_RANGE_MM, TIME_RANGE_S,
 };
+pub use columns::Columns;
 pub use directions::infer_histories;
 
 use crate::model::AxisState;

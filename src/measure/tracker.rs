@@ -16,6 +16,7 @@ pub struct Tracker {
     pub name: String,
     /// MPE: constant part, µm, and part per metre of distance, µm/m.
     pub mpe_um: f64,
+    /// The MPE's part per metre of distance, µm/m.
     pub mpe_um_per_m: f64,
     /// Where the tracker head stands in the robot base frame, mm (`--tracker-at`); `None`:
     /// from the identified tracker frame, else assumed.

@@ -169,6 +169,32 @@ impl Role {
     }
 }
 
+/// A number of an effect's calibration record, as [`Effect::record_range`] is asked about it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecordValue<'a> {
+    /// The value of the record's parameter of this name (a key of its `parameters`).
+    Parameter(&'a str),
+    /// A value of the record's table (`table.values_deg`).
+    Table,
+}
+
+/// The physical range of a number of an effect's calibration record. A value outside is not
+/// a robot's error but a typing slip, a unit mix-up or a broken fit: the file is refused,
+/// naming the key, the range and the value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RecordRange {
+    /// From −`bound` to `bound`, in `unit` (as messages name it: "degrees", "mm", …).
+    Within {
+        /// The largest magnitude that is physical.
+        bound: f64,
+        /// The value's unit in words.
+        unit: &'static str,
+    },
+    /// Any finite value: the quantity has no physical bound, or the effect's decoder checks
+    /// it with its own message (a gear play's width).
+    Finite,
+}
+
 /// A physical error effect of the contract table (`geometric`, `map:An`, `backlash:An`,
 /// `crosstalk:Am->An`, `compliance:An`, `tilt:An`, `drift`).
 pub trait Effect: Send + Sync + std::fmt::Debug {
@@ -293,6 +319,18 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// simpler one of the table, if they do not (a diagnosis then does not offer it).
     fn not_shown_by_data(&self) -> Option<String> {
         None
+    }
+    /// The physical range of a number of this effect's calibration record, which reading a
+    /// calibration file checks. By default any finite value: an effect with physical bounds
+    /// states them here.
+    fn record_range(&self, _value: RecordValue) -> RecordRange {
+        RecordRange::Finite
+    }
+    /// Whether the parameters are the cells of a table over the axes (maps, plays, crosstalk,
+    /// a learned function's grid), which a report sums up per effect instead of listing each
+    /// cell. `false` by default: each parameter is listed.
+    fn parameters_are_cells(&self) -> bool {
+        false
     }
     fn clone_box(&self) -> Box<dyn Effect>;
 }

@@ -22,8 +22,8 @@ pub mod state;
 pub mod table;
 
 pub use effect::{
-    AxisSlopes, ChainErrors, Context, Effect, Observed, Parameter, Partial, Role, Slot, JOINT_SLOTS,
-    N_SLOTS,
+    AxisSlopes, ChainErrors, Context, Effect, Observed, Parameter, Partial, RecordRange,
+    RecordValue, Role, Slot, JOINT_SLOTS, N_SLOTS,
 };
 pub use effects::{EffectError, GridOptions, ModelEffect};
 pub use history::{AxisHistory, PlayAt, ENGAGING_RUN_DEG, MAX_PLAY_DEG};

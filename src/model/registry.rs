@@ -351,16 +351,31 @@ fn name_error(expected: impl Into<String>, found: &str) -> NameError {
     }
 }
 
-const KNOWN: &str = "an effect name (geometric, map:An, backlash:An, crosstalk:Am->An, compliance:An, loadplay:An, tilt:An, drift, learned:<action>(<drivers>))";
+impl Kind {
+    /// How a name of this kind is spelled, for messages: `geometric`, `map:An`,
+    /// `crosstalk:Am->An`, `learned:<action>(<drivers>)`.
+    pub fn spelling(&self) -> String {
+        let p = self.prefix;
+        match self.arity {
+            Arity::Robot => p.to_string(),
+            Arity::Axis => format!("{p}:An"),
+            Arity::Pair => format!("{p}:Am->An"),
+            Arity::Spec => format!("{p}:<action>(<drivers>)"),
+        }
+    }
+}
 
-/// [`KNOWN`] and the kinds registered at run time.
+/// The names a parse accepts, for its message: every built-in kind's spelling, then the
+/// kinds registered at run time.
 fn known() -> String {
+    let builtin: Vec<String> = KINDS.iter().map(Kind::spelling).collect();
+    let known = format!("an effect name ({})", builtin.join(", "));
     let registered = REGISTERED.read().unwrap_or_else(|e| e.into_inner());
     if registered.is_empty() {
-        return KNOWN.to_string();
+        return known;
     }
     let extra: Vec<&str> = registered.iter().map(|k| k.prefix).collect();
-    format!("{KNOWN} or a registered one ({})", extra.join(", "))
+    format!("{known} or a registered one ({})", extra.join(", "))
 }
 
 /// `a3` / `A3` → 3, checking the range 1..=6.

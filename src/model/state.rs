@@ -7,10 +7,12 @@ use super::history::AxisHistory;
 /// The rotation direction of one axis at a stop: the sign of its last motion.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 pub enum Direction {
+    /// The last motion went towards smaller angles.
     Negative,
     /// The axis has not moved yet: models use the mean of both branches.
     #[default]
     Unknown,
+    /// The last motion went towards larger angles.
     Positive,
 }
 
@@ -35,6 +37,7 @@ impl Direction {
         }
     }
 
+    /// The direction of sign `s` (+1, −1; 0 is unknown).
     pub fn from_sign(s: i32) -> Direction {
         match s.signum() {
             1 => Direction::Positive,

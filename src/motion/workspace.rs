@@ -160,27 +160,7 @@ impl Workspace {
                 }
                 let name = path.display().to_string();
                 let bytes = read(path, &name)?;
-                // Shared data with a line the controller would not accept either: that
-                // declaration is missing, the others are used (said once).
-                let file = krl::parse_recovering(&bytes, FileKind::Dat);
-                if let Some(p) = file
-                    .problems()
-                    .iter()
-                    .find(|p| p.severity == krl::Severity::Error)
-                {
-                    let d = file.diagnostic(p, &name);
-                    ws.notes.push(format!(
-                        "{}:{}: {} — that declaration is left out, the rest of the data list is used",
-                        d.file, d.line, d.message
-                    ));
-                }
-                ws.files.push(Loaded {
-                    path: Some(path.to_path_buf()),
-                    name: name.clone(),
-                    file,
-                    partner: None,
-                    role: Role::Config,
-                });
+                ws.push_shared_data(&bytes, Some(path), &name);
             }
         }
         // A program named without a directory (`main1.src`) is in the current one.
@@ -190,6 +170,32 @@ impl Workspace {
         });
         ws.load_modules(dir.as_deref(), cell)?;
         Ok(ws)
+    }
+
+    /// Adds a data list of the cell that every program sees (`$config.dat`, a public data
+    /// list): where a name is declared twice, the one added first wins. A line the controller
+    /// would not accept either leaves that declaration out, said once in [`Self::notes`]; the
+    /// rest is used. `path` is `None` for data given in memory.
+    pub fn push_shared_data(&mut self, bytes: &[u8], path: Option<&Path>, name: &str) {
+        let file = krl::parse_recovering(bytes, FileKind::Dat);
+        if let Some(p) = file
+            .problems()
+            .iter()
+            .find(|p| p.severity == krl::Severity::Error)
+        {
+            let d = file.diagnostic(p, name);
+            self.notes.push(format!(
+                "{}:{}: {} — that declaration is left out, the rest of the data list is used",
+                d.file, d.line, d.message
+            ));
+        }
+        self.files.push(Loaded {
+            path: path.map(Path::to_path_buf),
+            name: name.to_string(),
+            file,
+            partner: None,
+            role: Role::Config,
+        });
     }
 
     /// The loaded file read from `path`, if any.

@@ -13,7 +13,9 @@ use nalgebra::Vector3;
 use super::{EffectError, ToRecord};
 use crate::kinematics::{Payload, RobotDescription};
 use crate::model::chain::ChainFrames;
-use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{
+    ChainErrors, Context, Effect, Parameter, Partial, RecordRange, RecordValue, Slot,
+};
 use crate::model::record::{self, EffectRecord, RecordError};
 use crate::model::AxisState;
 
@@ -109,6 +111,9 @@ impl Compliance {
     }
 }
 
+/// The physical range of `c`, degrees per kN·m of gravity torque.
+pub const COMPLIANCE_DEG_PER_KNM: f64 = 1.0;
+
 impl Effect for Compliance {
     fn name(&self) -> String {
         format!("compliance:A{}", self.axis)
@@ -143,6 +148,15 @@ impl Effect for Compliance {
             slot: Slot::Angle { axis: self.axis },
             value: self.gain(state, ctx),
         });
+    }
+    fn record_range(&self, value: RecordValue) -> RecordRange {
+        match value {
+            RecordValue::Parameter(_) => RecordRange::Within {
+                bound: COMPLIANCE_DEG_PER_KNM,
+                unit: "degrees per kN·m",
+            },
+            RecordValue::Table => RecordRange::Finite,
+        }
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())

@@ -9,7 +9,8 @@ use std::f64::consts::PI;
 use super::{grid_label, EffectError, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
 use crate::model::effect::{
-    AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role, Slot,
+    AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, RecordRange, RecordValue, Role,
+    Slot,
 };
 use crate::model::record::{self, EffectRecord, RecordError, TableRecord};
 use crate::model::table::{Grid, Table2};
@@ -186,6 +187,15 @@ impl Effect for Crosstalk {
             from: self.from,
             to: self.to,
         }
+    }
+    fn record_range(&self, value: RecordValue) -> RecordRange {
+        match value {
+            RecordValue::Table => super::DEVIATION_RANGE,
+            RecordValue::Parameter(_) => RecordRange::Finite,
+        }
+    }
+    fn parameters_are_cells(&self) -> bool {
+        true
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())

@@ -3,7 +3,9 @@
 //! grows at its own rate (mm/h), written to the offset slot along that link.
 
 use super::ToRecord;
-use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{
+    ChainErrors, Context, Effect, Parameter, Partial, RecordRange, RecordValue, Slot,
+};
 use crate::model::record::{self, EffectRecord, RecordError};
 use crate::model::AxisState;
 
@@ -37,6 +39,9 @@ impl Drift {
         Ok(d)
     }
 }
+
+/// The physical range of the growth rates, mm per hour.
+pub const DRIFT_MM_PER_H: f64 = 10.0;
 
 impl Effect for Drift {
     fn name(&self) -> String {
@@ -74,6 +79,15 @@ impl Effect for Drift {
                 slot,
                 value: hours,
             });
+        }
+    }
+    fn record_range(&self, value: RecordValue) -> RecordRange {
+        match value {
+            RecordValue::Parameter(_) => RecordRange::Within {
+                bound: DRIFT_MM_PER_H,
+                unit: "mm per hour",
+            },
+            RecordValue::Table => RecordRange::Finite,
         }
     }
     fn clone_box(&self) -> Box<dyn Effect> {

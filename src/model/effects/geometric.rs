@@ -8,7 +8,9 @@
 use std::f64::consts::PI;
 
 use super::ToRecord;
-use crate::model::effect::{ChainErrors, Context, Effect, Parameter, Partial, Role, Slot};
+use crate::model::effect::{
+    ChainErrors, Context, Effect, Parameter, Partial, RecordRange, RecordValue, Role, Slot,
+};
 use crate::model::record::{self, EffectRecord, RecordError};
 use crate::model::AxisState;
 
@@ -86,6 +88,11 @@ impl Geometric {
     }
 }
 
+/// The physical range of the position errors and the target correction, mm …
+pub const GEOMETRIC_MM: f64 = 50.0;
+/// … and of the angular errors, degrees.
+pub const GEOMETRIC_DEG: f64 = 2.0;
+
 impl Effect for Geometric {
     fn name(&self) -> String {
         "geometric".to_string()
@@ -128,6 +135,26 @@ impl Effect for Geometric {
     /// The zero offsets Δθ20..Δθ50 and the target correction p6x, p6y, p6z.
     fn constant_in(&self, slot: Slot) -> Option<usize> {
         PARAMETERS.iter().position(|&(_, s, _)| s == slot)
+    }
+    /// Angles (`dth…`, `alpha…`, …) in degrees; offsets (`d…`) and the target correction
+    /// (`p6…`) in mm.
+    fn record_range(&self, value: RecordValue) -> RecordRange {
+        let RecordValue::Parameter(name) = value else {
+            return RecordRange::Finite;
+        };
+        let p = name.to_ascii_lowercase();
+        let mm = !p.starts_with("dth") && (p.starts_with('d') || p.starts_with("p6"));
+        if mm {
+            RecordRange::Within {
+                bound: GEOMETRIC_MM,
+                unit: "mm",
+            }
+        } else {
+            RecordRange::Within {
+                bound: GEOMETRIC_DEG,
+                unit: "degrees",
+            }
+        }
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())

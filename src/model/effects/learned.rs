@@ -692,6 +692,9 @@ impl Effect for Learned {
             })
             .collect()
     }
+    fn parameters_are_cells(&self) -> bool {
+        true
+    }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())
     }

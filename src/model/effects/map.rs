@@ -5,7 +5,9 @@
 use super::axis_table::AxisTable;
 use super::{EffectError, GridOptions, ToRecord};
 use crate::kinematics::RobotDescription;
-use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Role};
+use crate::model::effect::{
+    AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, RecordRange, RecordValue, Role,
+};
 use crate::model::merged::AxisFactor;
 use crate::model::record::{EffectRecord, RecordError};
 use crate::model::table::Table1;
@@ -66,6 +68,15 @@ impl Effect for AngleMap {
     }
     fn role(&self) -> Role {
         Role::OwnAngle { axis: self.0.axis }
+    }
+    fn record_range(&self, value: RecordValue) -> RecordRange {
+        match value {
+            RecordValue::Table => super::DEVIATION_RANGE,
+            RecordValue::Parameter(_) => RecordRange::Finite,
+        }
+    }
+    fn parameters_are_cells(&self) -> bool {
+        true
     }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())

@@ -14,7 +14,7 @@ pub mod map;
 pub mod play;
 pub mod tilt;
 
-use super::effect::Effect;
+use super::effect::{Effect, RecordRange};
 use super::record::EffectRecord;
 use super::table::GridError;
 
@@ -95,6 +95,13 @@ pub struct GridOptions {
     pub other_range_deg: Option<[f64; 2]>,
     pub other_grid_deg: Option<Vec<f64>>,
 }
+
+/// The physical range of an angular deviation table (`map`, `crosstalk`), degrees: a gear
+/// error of a degree is already a broken robot.
+pub const DEVIATION_RANGE: RecordRange = RecordRange::Within {
+    bound: 1.0,
+    unit: "degrees",
+};
 
 /// A grid point in a parameter name: Rust's shortest round-trip form (`-45`, `12.5`).
 pub(crate) fn grid_label(x: f64) -> String {

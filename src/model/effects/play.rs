@@ -189,6 +189,9 @@ impl Effect for GearPlay {
     fn direction_axes(&self) -> Vec<u8> {
         vec![self.0.axis]
     }
+    fn parameters_are_cells(&self) -> bool {
+        true
+    }
     fn clone_box(&self) -> Box<dyn Effect> {
         Box::new(self.clone())
     }

@@ -9,7 +9,9 @@ use std::f64::consts::PI;
 
 use super::ToRecord;
 use crate::model::chain::AXIS_COORD;
-use crate::model::effect::{AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, Slot};
+use crate::model::effect::{
+    AxisSlopes, ChainErrors, Context, Effect, Parameter, Partial, RecordRange, RecordValue, Slot,
+};
 use crate::model::record::{self, EffectRecord, RecordError};
 use crate::model::AxisState;
 
@@ -78,6 +80,9 @@ impl Tilt {
     }
 }
 
+/// The physical range of the harmonic amplitudes, degrees.
+pub const TILT_DEG: f64 = 1.0;
+
 impl Effect for Tilt {
     fn name(&self) -> String {
         format!("tilt:A{}", self.axis)
@@ -130,6 +135,15 @@ impl Effect for Tilt {
     fn jacobian(&self, state: &AxisState, _ctx: &Context, out: &mut Vec<Partial>) {
         for (param, (slot, value)) in self.gains(state).into_iter().enumerate() {
             out.push(Partial { param, slot, value });
+        }
+    }
+    fn record_range(&self, value: RecordValue) -> RecordRange {
+        match value {
+            RecordValue::Parameter(_) => RecordRange::Within {
+                bound: TILT_DEG,
+                unit: "degrees",
+            },
+            RecordValue::Table => RecordRange::Finite,
         }
     }
     fn clone_box(&self) -> Box<dyn Effect> {
