@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 34] = [
+const CLAIMS: [(&str, &str); 35] = [
     ("paper-table-1-floor", "tests/paper_experiment.rs"),
     ("recommended-campaign", "tests/paper_experiment.rs"),
     ("gross-thresholds", "tests/readme.rs"),
@@ -24,6 +24,7 @@ const CLAIMS: [(&str, &str); 34] = [
     ("physical-arm-only", "tests/physical_truth.rs"),
     ("physical-table-1", "tests/physical_truth.rs"),
     ("loadplay-case-3", "tests/loadplay_loop.rs"),
+    ("loadplay-diagnose", "tests/loadplay_loop.rs"),
     ("physical-floor", "tests/physical_truth.rs"),
     ("physical-diagnose", "tests/physical_truth.rs"),
     ("solver-tolerance", "tests/readme.rs"),

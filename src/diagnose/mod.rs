@@ -18,6 +18,7 @@ pub mod evidence;
 pub mod learn;
 pub mod noise;
 pub mod play;
+pub mod replace;
 pub mod sample;
 pub mod twins;
 
@@ -98,6 +99,9 @@ pub const MIN_RMS_GAIN_UM: f64 = 0.1;
 /// … and, for an effect that extrapolates in time, predict the latest data better by this
 /// t statistic.
 pub const MIN_LATEST_T: f64 = 2.0;
+/// A candidate re-identified in place of effects it replaces, with fewer parameters, must
+/// remove at least this share of the residual the model re-identified alone leaves.
+pub const MIN_REPLACING_EXPLAINED: f64 = 0.05;
 /// Two findings whose corrections agree this closely (cosine) explain the same residual.
 pub const SAME_RESIDUAL: f64 = 0.9;
 /// A significant candidate scoring at least this share of the best's `explained` on top of
@@ -241,6 +245,14 @@ struct Plans {
 
 /// What a finding must pass on the held-out stretches.
 fn passes_within(e: &Evaluation, rms: f64) -> bool {
+    if let Some(r) = &e.reidentified {
+        // Judged on the points both fits learnt from, with fewer parameters than what it
+        // replaces ([`replace`]): the gain must be plain; per-point t statistics and the
+        // spread over tests say nothing of an effect that lives where its axis's torque
+        // changes sign.
+        return e.explained >= MIN_REPLACING_EXPLAINED
+            && r.rms_before_um - e.rms_after_um >= MIN_RMS_GAIN_UM;
+    }
     e.not_evaluated.is_none()
         && e.explained >= MIN_EXPLAINED
         && e.t >= MIN_T
@@ -470,11 +482,40 @@ pub fn diagnose(
             e
         })
         .collect();
+    // A candidate that takes the place of effects of the model and loses fitted alone on top
+    // of it is judged as its printed command identifies it: the model re-identified with it
+    // in their place, where it has fewer parameters than they ([`replace`]).
+    let replacing: Vec<usize> = (0..evaluations.len())
+        .filter(|&i| {
+            let e = &evaluations[i];
+            !passes_within(e, screen_rms)
+                && !matches!(e.not_evaluated, Some(crossval::NotEvaluated::NotShown(_)))
+                && !crossval::replaced(model, &e.name).is_empty()
+        })
+        .collect();
+    if !replacing.is_empty() {
+        tick(options, "re-identifying replacements", 0, replacing.len());
+    }
+    let judged: Vec<(usize, Evaluation)> = replacing
+        .par_iter()
+        .filter_map(|&i| {
+            let name = evaluations[i].name;
+            replace::evaluate(model, &stops, &name, &plans.tests, &grid).map(|e| (i, e))
+        })
+        .collect();
+    for (i, e) in judged {
+        if passes_within(&e, screen_rms) {
+            evaluations[i] = e;
+        }
+    }
     evaluations.sort_by(|a, b| b.explained.total_cmp(&a.explained));
 
-    // Checks of those that pass on the stretches.
+    // Checks of those that pass on the stretches (a re-identified replacement has been
+    // judged on all the data: fitted alone on top of the model it is known to lose).
     let to_check: Vec<usize> = (0..evaluations.len())
-        .filter(|&i| passes_within(&evaluations[i], screen_rms))
+        .filter(|&i| {
+            passes_within(&evaluations[i], screen_rms) && evaluations[i].reidentified.is_none()
+        })
         .collect();
     tick(options, "checks", 0, to_check.len());
     let checked: Vec<(usize, Vec<Score>)> = to_check
@@ -771,9 +812,30 @@ fn finding(
 ) -> Finding {
     let name = e.name.to_string();
     let replaced = crossval::replaced(model, &e.name);
-    let evidence = match &e.not_evaluated {
-        Some(why) => format!("not evaluated: {why}"),
-        None => {
+    let evidence = match (&e.not_evaluated, &e.reidentified) {
+        (Some(why), _) => format!("not evaluated: {why}"),
+        (None, Some(r)) => {
+            let mut s = evidence::describe(&e.name, model, rows);
+            s += &format!(
+                "; re-identified with the model in place of {} ({} values for their {}), it \
+                 fits better than the model re-identified alone on the same points and \
+                 explains {:.0}% of that residual ({:.1} → {:.1} µm RMS)",
+                r.replaced.join(", "),
+                e.parameters,
+                r.removed_parameters,
+                100.0 * e.explained.max(0.0),
+                r.rms_before_um,
+                e.rms_after_um
+            );
+            if let Some(why) = &vetoed {
+                s += &format!(", but {why}");
+            }
+            if !same.is_empty() {
+                s += &format!("; indistinguishable on these data from {}", same.join(", "));
+            }
+            s
+        }
+        (None, None) => {
             let mut s = evidence::describe(&e.name, model, rows);
             if !replaced.is_empty() {
                 s += &format!(
