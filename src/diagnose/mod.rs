@@ -270,6 +270,14 @@ fn veto(e: &Evaluation, time: bool) -> Option<String> {
             ));
         }
     }
+    if !time {
+        if let Some(l) = e.check(Scheme::Latest).filter(|l| l.worse()) {
+            return Some(format!(
+                "it predicts the latest data, learnt from the earlier, worse: {}",
+                l.describe()
+            ));
+        }
+    }
     if time {
         match e.check(Scheme::Latest) {
             Some(l) if l.explained >= MIN_EXPLAINED && l.t >= MIN_LATEST_T => {}
@@ -364,9 +372,13 @@ fn run_checks(
     if let Ok(s) = crossval::check(model, stops, before, name, &plans.tests, grid) {
         out.push(s);
     }
-    if extrapolates_in_time(name) {
-        if let Some(plan) = &plans.latest {
+    if let Some(plan) = &plans.latest {
+        if extrapolates_in_time(name) {
             out.extend(learn::latest_effect_score(model, rows, name, plan));
+        } else if let Ok(s) = crossval::check(model, stops, before, name, plan, grid) {
+            // Programs run later and elsewhere in the workspace: an effect fitted on the
+            // earlier data must not predict the later worse.
+            out.push(s);
         }
     }
     out
