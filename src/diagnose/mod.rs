@@ -21,6 +21,7 @@ pub mod play;
 pub mod replace;
 pub mod sample;
 pub mod twins;
+pub mod validate;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -74,6 +75,9 @@ pub struct DiagnoseOptions {
     pub progress: Option<ProgressSink>,
     /// The laser tracker's stated accuracy and station (`--tracker`, `--tracker-at`).
     pub tracker: crate::measure::tracker::Tracker,
+    /// Validation files measured elsewhere and later (`--validate`): the first advice is
+    /// credited with its gain on them and not given where it does not lower their error.
+    pub validate: Vec<Measurements>,
 }
 
 impl Default for DiagnoseOptions {
@@ -85,6 +89,7 @@ impl Default for DiagnoseOptions {
             max_screened: sample::MAX_SCREENED,
             progress: None,
             tracker: Default::default(),
+            validate: Vec::new(),
         }
     }
 }
@@ -152,6 +157,9 @@ pub struct Finding {
     /// Why it could not be evaluated (then it is not significant).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub not_evaluated: Option<String>,
+    /// With `--validate`: the advice identified as printed, on the validation files.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<validate::ValidationGain>,
 }
 
 /// One test's part of the residual.
@@ -193,6 +201,9 @@ pub struct Diagnosis {
     pub learned: Option<LearnedDrivers>,
     /// The tests by their share of the residual, largest first.
     pub residual_by_test: Vec<TestShare>,
+    /// With `--validate`: the drivers where the validation data leave the campaign's range.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub extrapolation: Vec<String>,
     /// The conclusion in one sentence, as the command line prints it.
     pub verdict: String,
 }
@@ -270,14 +281,6 @@ fn veto(e: &Evaluation, time: bool) -> Option<String> {
             ));
         }
     }
-    if !time {
-        if let Some(l) = e.check(Scheme::Latest).filter(|l| l.worse()) {
-            return Some(format!(
-                "it predicts the latest data, learnt from the earlier, worse: {}",
-                l.describe()
-            ));
-        }
-    }
     if time {
         match e.check(Scheme::Latest) {
             Some(l) if l.explained >= MIN_EXPLAINED && l.t >= MIN_LATEST_T => {}
@@ -308,7 +311,7 @@ pub fn follow(
     data: &[Measurements],
     name: &EffectName,
     base_poor: bool,
-) -> Result<(), String> {
+) -> Result<Calibration, String> {
     use crate::identify::pipeline::{identify, Effects, Request};
     let model = cal.model_ref();
     let replaced = crossval::replaced(model, name);
@@ -349,7 +352,7 @@ pub fn follow(
     identified
         .calibration
         .to_json(std::path::Path::new("NEW.json"))
-        .map(|_| ())
+        .map(|_| identified.calibration.clone())
         .map_err(|e| {
             format!(
                 "identified as its command prints, the calibration is not physical ({e}): \
@@ -372,13 +375,9 @@ fn run_checks(
     if let Ok(s) = crossval::check(model, stops, before, name, &plans.tests, grid) {
         out.push(s);
     }
-    if let Some(plan) = &plans.latest {
-        if extrapolates_in_time(name) {
+    if extrapolates_in_time(name) {
+        if let Some(plan) = &plans.latest {
             out.extend(learn::latest_effect_score(model, rows, name, plan));
-        } else if let Ok(s) = crossval::check(model, stops, before, name, plan, grid) {
-            // Programs run later and elsewhere in the workspace: an effect fitted on the
-            // earlier data must not predict the later worse.
-            out.push(s);
         }
     }
     out
@@ -555,6 +554,7 @@ pub fn diagnose(
     // identify it (the same calibration, files and effects); one whose identification fails
     // or leaves its physical range is not advised, and the next is tried.
     let mut tried = 0;
+    let mut validations: Vec<Option<validate::ValidationGain>> = vec![None; evaluations.len()];
     for i in 0..evaluations.len() {
         if tried == MAX_FOLLOW_FITS {
             break;
@@ -565,7 +565,22 @@ pub fn diagnose(
         tick(options, "following the advice", tried, MAX_FOLLOW_FITS);
         tried += 1;
         match follow(cal, data, &evaluations[i].name, base_poor) {
-            Ok(()) => break,
+            Ok(followed) if !options.validate.is_empty() => {
+                let g = validate::gain(cal, &followed, &options.validate);
+                let lowers = g.as_ref().is_some_and(|g| g.rms_after_um < g.rms_before_um);
+                if let Some(g) = g.as_ref().filter(|_| !lowers) {
+                    vetoes[i] = Some(format!(
+                        "identified as printed, it does not lower the error on the validation \
+                         data ({:.1} → {:.1} µm RMS)",
+                        g.rms_before_um, g.rms_after_um
+                    ));
+                }
+                validations[i] = g;
+                if lowers {
+                    break;
+                }
+            }
+            Ok(_) => break,
             Err(why) => vetoes[i] = Some(why),
         }
     }
@@ -637,7 +652,7 @@ pub fn diagnose(
             } else {
                 Vec::new()
             };
-            finding(
+            let mut f = finding(
                 e,
                 significant(i),
                 vetoes[i].clone(),
@@ -645,7 +660,9 @@ pub fn diagnose(
                 model,
                 &rows,
                 screen_rms,
-            )
+            );
+            f.validation = validations[i].clone();
+            f
         })
         .collect();
     let mut candidates: Vec<Finding> = considered
@@ -683,6 +700,24 @@ pub fn diagnose(
         &residual_by_test,
     );
     verdict += &play::undecided_sentence(&play::undecided(model, &direction_tries, &rows));
+    if let Some(g) = candidates.first().and_then(|f| f.validation.as_ref()) {
+        verdict += &format!(
+            " On the validation data ({} points) it lowers the error {:.1} → {:.1} µm RMS.",
+            g.points, g.rms_before_um, g.rms_after_um
+        );
+    }
+    let extrapolation = if options.validate.is_empty() {
+        Vec::new()
+    } else {
+        validate::extrapolation(&rows, &compare::compare(cal, &options.validate))
+    };
+    if !extrapolation.is_empty() {
+        verdict += &format!(
+            " The validation data leave the campaign's range ({}): there every effect \
+             extrapolates.",
+            extrapolation.join("; ")
+        );
+    }
     Ok(Diagnosis {
         rms_um: rms,
         noise_um: floor.rms_um,
@@ -694,6 +729,7 @@ pub fn diagnose(
         considered,
         learned,
         residual_by_test,
+        extrapolation,
         verdict,
     })
 }
@@ -890,6 +926,7 @@ fn finding(
         vetoed,
         indistinguishable_from: same,
         not_evaluated: e.not_evaluated.as_ref().map(ToString::to_string),
+        validation: None,
     }
 }
 
