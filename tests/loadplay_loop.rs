@@ -8,12 +8,11 @@
 //!
 //! Checked: the points where the flank jumps are not listed as gross errors (they repeat in
 //! both directions and in every A2 test) while a displaced point still is; `diagnose`'s first
-//! advice can be followed (identified as printed, the calibration is physical); after the loop
-//! (identify reports the jump → add `loadplay:A2` in place of A2's backlash → identify →
-//! compensate → execute on the truth) the validation paths land within 1.6× of the robot
-//! without the effect (XY mean and Z 2σ). (`diagnose` does not yet rank `loadplay:A2` first
-//! here: fitted alone on top of the held paper model, whose A2 tables took up the flank's
-//! offsets, it predicts held-out stretches worse.)
+//! advice is `loadplay:A2` in place of A2's backlash (judged re-identified with the model, as
+//! its printed command identifies it: `diagnose::replace`), and the robot without the effect
+//! is not advised it; after the loop (diagnose → add as printed → identify → compensate →
+//! execute on the truth) the validation paths land within 1.6× of the robot without the
+//! effect (XY mean and Z 2σ).
 //!
 //! Run with `-- --nocapture` to see the figures.
 
@@ -310,32 +309,83 @@ fn the_loop_on_case_3_lands_near_the_robot_without_the_effect() {
             f.evidence
         );
     }
-    // The first advice, identified exactly as printed, can be followed.
-    if let Some(advice) = d.candidates.first() {
-        let added = advice
-            .add
-            .trim_start_matches("--effects '")
-            .trim_end_matches('\'');
-        let effects = match added.strip_prefix('+') {
-            Some(a) => Effects::Add(expand_list(a).unwrap()),
-            None => Effects::Exactly(expand_list(added).unwrap()),
-        };
-        let r = identify(&data, &request(effects, Some(first.calibration.clone()))).unwrap();
-        assert!(r.verdict.failure.is_none(), "{}", advice.effect);
-        r.calibration
-            .to_json(Path::new("NEW.json"))
-            .expect("the first advice identifies to a physical calibration");
-    }
-    // `identify` reported the jump as systematic and names `loadplay:A2` in its place of
-    // A2's backlash; the advice followed as `diagnose` prints such a replacement.
-    let list = PAPER_EFFECTS.replace("backlash:A1..A6", "backlash:A1,backlash:A3..A6,loadplay:A2");
-    let effects = Effects::Exactly(expand_list(&list).unwrap());
+    // The first advice is the gear play under load in place of A2's backlash, printed as the
+    // whole list of effects; followed exactly as printed, it identifies to a physical
+    // calibration.
+    let advice = d.candidates.first().expect("diagnose advises an effect");
+    assert_eq!(advice.effect, "loadplay:A2", "{}", d.verdict);
+    assert!(d.verdict.contains(&advice.add), "{}", d.verdict);
+    // The README's sentence: the share, the RMS before and after, the values it carries and
+    // those of the table it replaces.
+    let replaced = first
+        .calibration
+        .model_ref()
+        .effects()
+        .iter()
+        .find(|e| e.name() == "backlash:A2")
+        .map(|e| e.values().len())
+        .unwrap();
+    readme::assert_prose(
+        "loadplay-diagnose",
+        &[
+            (100.0 * advice.explained).round(),
+            d.rms_um,
+            advice.rms_after_um,
+            advice.parameters as f64,
+            replaced as f64,
+        ],
+        0.5,
+    );
+    let added = advice
+        .add
+        .strip_prefix("--effects '")
+        .and_then(|a| a.strip_suffix('\''))
+        .expect("an --effects option");
+    let listed = expand_list(added).unwrap();
+    let effects = match added.strip_prefix('+') {
+        Some(a) => Effects::Add(expand_list(a).unwrap()),
+        None => Effects::Exactly(listed),
+    };
+    // What it lists: the paper's effects with `loadplay:A2` in place of `backlash:A2`.
+    let expected = PAPER_EFFECTS.replace("backlash:A1..A6", "backlash:A1,backlash:A3..A6");
+    let mut expected: Vec<String> = expand_list(&format!("{expected},loadplay:A2"))
+        .unwrap()
+        .iter()
+        .map(|n| n.to_string())
+        .collect();
+    let mut got: Vec<String> = match &effects {
+        Effects::Exactly(l) => l.iter().map(|n| n.to_string()).collect(),
+        other => panic!("{other:?}"),
+    };
+    expected.sort();
+    got.sort();
+    assert_eq!(got, expected);
     let second = identify(&data, &request(effects, Some(first.calibration.clone()))).unwrap();
     assert!(second.verdict.failure.is_none());
     second
         .calibration
         .to_json(Path::new("NEW.json"))
         .expect("a physical calibration");
+    // On the robot without the effect the play is plain: no gear play under load is advised.
+    let plain_measurements = Measurements {
+        source: "campaign.csv".into(),
+        stops: plain_data.clone(),
+        ignored_columns: Vec::new(),
+    };
+    let plain_d = diagnose(
+        &plain_paper.calibration,
+        std::slice::from_ref(&plain_measurements),
+        &DiagnoseOptions::default(),
+    )
+    .unwrap();
+    assert!(
+        plain_d
+            .candidates
+            .iter()
+            .all(|f| !f.effect.starts_with("loadplay")),
+        "{}",
+        plain_d.verdict
+    );
     let after = path_errors(&robot, second.calibration.model_ref(), end, dir.path());
 
     let row = |label: &str, s: &ErrorStats| {

@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 36] = [
+const CLAIMS: [(&str, &str); 37] = [
     ("error-budget-offset", "tests/budget.rs"),
     ("error-budget", "tests/budget.rs"),
     ("paper-table-1-floor", "tests/paper_experiment.rs"),
@@ -26,6 +26,7 @@ const CLAIMS: [(&str, &str); 36] = [
     ("physical-arm-only", "tests/physical_truth.rs"),
     ("physical-table-1", "tests/physical_truth.rs"),
     ("loadplay-case-3", "tests/loadplay_loop.rs"),
+    ("loadplay-diagnose", "tests/loadplay_loop.rs"),
     ("physical-floor", "tests/physical_truth.rs"),
     ("physical-diagnose", "tests/physical_truth.rs"),
     ("solver-tolerance", "tests/readme.rs"),

@@ -34,6 +34,12 @@ pub struct Args {
     /// Do not learn the drivers of the residual (faster; no `learned:` effect proposed).
     #[arg(long = "no-learn")]
     pub no_learn: bool,
+    /// Measurements taken elsewhere in the workspace and later than the campaign: the first
+    /// advice is identified as printed and credited with its gain on them (not given where it
+    /// does not lower their error), and the drivers where they leave the campaign's range are
+    /// named.
+    #[arg(long = "validate", value_name = "FILE.csv")]
+    pub validate: Vec<PathBuf>,
     /// Also write the HTML report (as `compare --report`, with the learned drivers) into DIR.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
@@ -57,6 +63,17 @@ pub fn run(args: Args) -> Exit {
     let Some((cals, data)) = load_inputs(&[args.cal.as_path()], &args.measurements) else {
         return Exit::Usage;
     };
+    let limits = cals[0].model_ref().robot.limits_deg;
+    let mut validate = Vec::new();
+    for file in &args.validate {
+        match crate::measure::read_csv_within(file, Some(&limits)) {
+            Ok(m) => validate.push(m),
+            Err(e) => {
+                eprint!("{}", e.render());
+                return Exit::Usage;
+            }
+        }
+    }
     let bar = std::io::stderr().is_terminal().then(|| {
         let bar = indicatif::ProgressBar::new(1);
         bar.set_style(
@@ -71,6 +88,7 @@ pub fn run(args: Args) -> Exit {
         only,
         learn: !args.no_learn,
         tracker,
+        validate,
         progress: bar.clone().map(|bar| {
             ProgressSink(Arc::new(move |stage: &str, done: usize, of: usize| {
                 bar.set_message(stage.to_string());
@@ -175,6 +193,15 @@ fn text(d: &Diagnosis, args: &Args) -> String {
             files.join(" "),
             f.add
         );
+        if let Some(g) = &f.validation {
+            out += &format!(
+                "   on the validation data ({} points): {:.1} → {:.1} µm RMS ({:+.0}%)\n",
+                g.points,
+                g.rms_before_um,
+                g.rms_after_um,
+                100.0 * g.explained()
+            );
+        }
     }
     if d.candidates.len() > 1 {
         out += "   (Add the first finding and diagnose again: the smaller ones often explain part of the same residual.)\n";

@@ -154,6 +154,9 @@ pub struct Evaluation {
     pub correction: Vec<Vector3<f64>>,
     /// Why it could not be evaluated (no measured point depends on it, or the fit failed).
     pub not_evaluated: Option<NotEvaluated>,
+    /// Set when the score is of the whole model re-identified with it in place of the
+    /// effects it replaces ([`super::replace`]), not of held-out predictions.
+    pub reidentified: Option<super::replace::Reidentified>,
 }
 
 impl Evaluation {
@@ -296,6 +299,7 @@ pub fn evaluate(
         checks: Vec::new(),
         correction: vec![Vector3::zeros(); stops.len()],
         not_evaluated: None,
+        reidentified: None,
     };
     let (with, added) = match with_candidate(base, stops, name, grid) {
         Ok(w) => w,

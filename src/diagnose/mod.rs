@@ -18,8 +18,10 @@ pub mod evidence;
 pub mod learn;
 pub mod noise;
 pub mod play;
+pub mod replace;
 pub mod sample;
 pub mod twins;
+pub mod validate;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -73,6 +75,9 @@ pub struct DiagnoseOptions {
     pub progress: Option<ProgressSink>,
     /// The laser tracker's stated accuracy and station (`--tracker`, `--tracker-at`).
     pub tracker: crate::measure::tracker::Tracker,
+    /// Validation files measured elsewhere and later (`--validate`): the first advice is
+    /// credited with its gain on them and not given where it does not lower their error.
+    pub validate: Vec<Measurements>,
 }
 
 impl Default for DiagnoseOptions {
@@ -84,6 +89,7 @@ impl Default for DiagnoseOptions {
             max_screened: sample::MAX_SCREENED,
             progress: None,
             tracker: Default::default(),
+            validate: Vec::new(),
         }
     }
 }
@@ -98,6 +104,9 @@ pub const MIN_RMS_GAIN_UM: f64 = 0.1;
 /// … and, for an effect that extrapolates in time, predict the latest data better by this
 /// t statistic.
 pub const MIN_LATEST_T: f64 = 2.0;
+/// A candidate re-identified in place of effects it replaces, with fewer parameters, must
+/// remove at least this share of the residual the model re-identified alone leaves.
+pub const MIN_REPLACING_EXPLAINED: f64 = 0.05;
 /// Two findings whose corrections agree this closely (cosine) explain the same residual.
 pub const SAME_RESIDUAL: f64 = 0.9;
 /// A significant candidate scoring at least this share of the best's `explained` on top of
@@ -148,6 +157,9 @@ pub struct Finding {
     /// Why it could not be evaluated (then it is not significant).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub not_evaluated: Option<String>,
+    /// With `--validate`: the advice identified as printed, on the validation files.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<validate::ValidationGain>,
 }
 
 /// One test's part of the residual.
@@ -189,6 +201,9 @@ pub struct Diagnosis {
     pub learned: Option<LearnedDrivers>,
     /// The tests by their share of the residual, largest first.
     pub residual_by_test: Vec<TestShare>,
+    /// With `--validate`: the drivers where the validation data leave the campaign's range.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub extrapolation: Vec<String>,
     /// The conclusion in one sentence, as the command line prints it.
     pub verdict: String,
 }
@@ -241,6 +256,14 @@ struct Plans {
 
 /// What a finding must pass on the held-out stretches.
 fn passes_within(e: &Evaluation, rms: f64) -> bool {
+    if let Some(r) = &e.reidentified {
+        // Judged on the points both fits learnt from, with fewer parameters than what it
+        // replaces ([`replace`]): the gain must be plain; per-point t statistics and the
+        // spread over tests say nothing of an effect that lives where its axis's torque
+        // changes sign.
+        return e.explained >= MIN_REPLACING_EXPLAINED
+            && r.rms_before_um - e.rms_after_um >= MIN_RMS_GAIN_UM;
+    }
     e.not_evaluated.is_none()
         && e.explained >= MIN_EXPLAINED
         && e.t >= MIN_T
@@ -288,7 +311,7 @@ pub fn follow(
     data: &[Measurements],
     name: &EffectName,
     base_poor: bool,
-) -> Result<(), String> {
+) -> Result<Calibration, String> {
     use crate::identify::pipeline::{identify, Effects, Request};
     let model = cal.model_ref();
     let replaced = crossval::replaced(model, name);
@@ -329,7 +352,7 @@ pub fn follow(
     identified
         .calibration
         .to_json(std::path::Path::new("NEW.json"))
-        .map(|_| ())
+        .map(|_| identified.calibration.clone())
         .map_err(|e| {
             format!(
                 "identified as its command prints, the calibration is not physical ({e}): \
@@ -470,11 +493,40 @@ pub fn diagnose(
             e
         })
         .collect();
+    // A candidate that takes the place of effects of the model and loses fitted alone on top
+    // of it is judged as its printed command identifies it: the model re-identified with it
+    // in their place, where it has fewer parameters than they ([`replace`]).
+    let replacing: Vec<usize> = (0..evaluations.len())
+        .filter(|&i| {
+            let e = &evaluations[i];
+            !passes_within(e, screen_rms)
+                && !matches!(e.not_evaluated, Some(crossval::NotEvaluated::NotShown(_)))
+                && !crossval::replaced(model, &e.name).is_empty()
+        })
+        .collect();
+    if !replacing.is_empty() {
+        tick(options, "re-identifying replacements", 0, replacing.len());
+    }
+    let judged: Vec<(usize, Evaluation)> = replacing
+        .par_iter()
+        .filter_map(|&i| {
+            let name = evaluations[i].name;
+            replace::evaluate(model, &stops, &name, &plans.tests, &grid).map(|e| (i, e))
+        })
+        .collect();
+    for (i, e) in judged {
+        if passes_within(&e, screen_rms) {
+            evaluations[i] = e;
+        }
+    }
     evaluations.sort_by(|a, b| b.explained.total_cmp(&a.explained));
 
-    // Checks of those that pass on the stretches.
+    // Checks of those that pass on the stretches (a re-identified replacement has been
+    // judged on all the data: fitted alone on top of the model it is known to lose).
     let to_check: Vec<usize> = (0..evaluations.len())
-        .filter(|&i| passes_within(&evaluations[i], screen_rms))
+        .filter(|&i| {
+            passes_within(&evaluations[i], screen_rms) && evaluations[i].reidentified.is_none()
+        })
         .collect();
     tick(options, "checks", 0, to_check.len());
     let checked: Vec<(usize, Vec<Score>)> = to_check
@@ -502,6 +554,7 @@ pub fn diagnose(
     // identify it (the same calibration, files and effects); one whose identification fails
     // or leaves its physical range is not advised, and the next is tried.
     let mut tried = 0;
+    let mut validations: Vec<Option<validate::ValidationGain>> = vec![None; evaluations.len()];
     for i in 0..evaluations.len() {
         if tried == MAX_FOLLOW_FITS {
             break;
@@ -512,7 +565,22 @@ pub fn diagnose(
         tick(options, "following the advice", tried, MAX_FOLLOW_FITS);
         tried += 1;
         match follow(cal, data, &evaluations[i].name, base_poor) {
-            Ok(()) => break,
+            Ok(followed) if !options.validate.is_empty() => {
+                let g = validate::gain(cal, &followed, &options.validate);
+                let lowers = g.as_ref().is_some_and(|g| g.rms_after_um < g.rms_before_um);
+                if let Some(g) = g.as_ref().filter(|_| !lowers) {
+                    vetoes[i] = Some(format!(
+                        "identified as printed, it does not lower the error on the validation \
+                         data ({:.1} → {:.1} µm RMS)",
+                        g.rms_before_um, g.rms_after_um
+                    ));
+                }
+                validations[i] = g;
+                if lowers {
+                    break;
+                }
+            }
+            Ok(_) => break,
             Err(why) => vetoes[i] = Some(why),
         }
     }
@@ -584,7 +652,7 @@ pub fn diagnose(
             } else {
                 Vec::new()
             };
-            finding(
+            let mut f = finding(
                 e,
                 significant(i),
                 vetoes[i].clone(),
@@ -592,7 +660,9 @@ pub fn diagnose(
                 model,
                 &rows,
                 screen_rms,
-            )
+            );
+            f.validation = validations[i].clone();
+            f
         })
         .collect();
     let mut candidates: Vec<Finding> = considered
@@ -630,6 +700,24 @@ pub fn diagnose(
         &residual_by_test,
     );
     verdict += &play::undecided_sentence(&play::undecided(model, &direction_tries, &rows));
+    if let Some(g) = candidates.first().and_then(|f| f.validation.as_ref()) {
+        verdict += &format!(
+            " On the validation data ({} points) it lowers the error {:.1} → {:.1} µm RMS.",
+            g.points, g.rms_before_um, g.rms_after_um
+        );
+    }
+    let extrapolation = if options.validate.is_empty() {
+        Vec::new()
+    } else {
+        validate::extrapolation(&rows, &compare::compare(cal, &options.validate))
+    };
+    if !extrapolation.is_empty() {
+        verdict += &format!(
+            " The validation data leave the campaign's range ({}): there every effect \
+             extrapolates.",
+            extrapolation.join("; ")
+        );
+    }
     Ok(Diagnosis {
         rms_um: rms,
         noise_um: floor.rms_um,
@@ -641,6 +729,7 @@ pub fn diagnose(
         considered,
         learned,
         residual_by_test,
+        extrapolation,
         verdict,
     })
 }
@@ -771,9 +860,30 @@ fn finding(
 ) -> Finding {
     let name = e.name.to_string();
     let replaced = crossval::replaced(model, &e.name);
-    let evidence = match &e.not_evaluated {
-        Some(why) => format!("not evaluated: {why}"),
-        None => {
+    let evidence = match (&e.not_evaluated, &e.reidentified) {
+        (Some(why), _) => format!("not evaluated: {why}"),
+        (None, Some(r)) => {
+            let mut s = evidence::describe(&e.name, model, rows);
+            s += &format!(
+                "; re-identified with the model in place of {} ({} values for their {}), it \
+                 fits better than the model re-identified alone on the same points and \
+                 explains {:.0}% of that residual ({:.1} → {:.1} µm RMS)",
+                r.replaced.join(", "),
+                e.parameters,
+                r.removed_parameters,
+                100.0 * e.explained.max(0.0),
+                r.rms_before_um,
+                e.rms_after_um
+            );
+            if let Some(why) = &vetoed {
+                s += &format!(", but {why}");
+            }
+            if !same.is_empty() {
+                s += &format!("; indistinguishable on these data from {}", same.join(", "));
+            }
+            s
+        }
+        (None, None) => {
             let mut s = evidence::describe(&e.name, model, rows);
             if !replaced.is_empty() {
                 s += &format!(
@@ -816,6 +926,7 @@ fn finding(
         vetoed,
         indistinguishable_from: same,
         not_evaluated: e.not_evaluated.as_ref().map(ToString::to_string),
+        validation: None,
     }
 }
 

@@ -1,0 +1,374 @@
+//! Issue 33's harness: effects outside the model's table, drawn at random, on the physical
+//! truth robot. The truth is the shipped `kr30ha-physical.json` with what the paper's model
+//! cannot carry switched off (compliance, inertia, thermal growth), so that the drawn effect is
+//! the only thing missing; it is added to every measured position as the displacement it
+//! causes at the commanded pose and time. Families: an axis angle deviation following the
+//! forearm's angle to gravity (case 1), a mount tilting with the arm's reach (case 2), an
+//! angle deviation that steps where another axis crosses a threshold, one that follows an
+//! arm axis's gravity torque squared, a slow drift in time, and a height that steps with the
+//! reach; sizes 20–150 µm at the campaign's typical reach.
+//!
+//! For each draw: the paper's model identified on the campaign, `diagnose`, its first advice
+//! followed exactly as printed, and both calibrations compared on the paper's three validation
+//! paths, measured after the campaign (other poses, later in time). Asserted: the first advice
+//! identifies (its calibration is physical); it is never worse on the later paths than adding
+//! nothing (explained ≥ −2%); on the clean robot nothing is recommended (ignored: it fails
+//! today). The median gain is printed (`-- --nocapture`).
+//!
+//! `a_few_hidden_effects` (the two cases), `clean_robot_gets_no_advice` and
+//! `twenty_hidden_effects` (some fifteen minutes) are ignored: the first two fail today (see
+//! each), and so does the third (a step of the height with the reach draws `tilt:A1`).
+
+use std::path::Path;
+
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use robopost::calibration::Calibration;
+use robopost::compare;
+use robopost::compensate::files;
+use robopost::diagnose::{diagnose, DiagnoseOptions, Finding};
+use robopost::identify::pipeline::{identify, Effects, Request, PAPER_EFFECTS};
+use robopost::measure::{Measurements, Stop};
+use robopost::model::expand_list;
+use robopost::motion;
+use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
+use robopost::simulate::physical::{self, PhysicalRobot, PTP_STEP_DEG};
+use robopost::simulate::program::program_visits;
+use robopost::simulate::Campaign;
+
+const PATHS: [&str; 3] = ["paper_path1", "paper_path2", "paper_path3"];
+/// Advice "worse" on the later paths: it removes less than this share of their residual (the
+/// cross-validation's own bound, `crossval::WORSE_EXPLAINED`).
+const WORSE: f64 = -0.02;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The physical KR 30 HA with only what the paper's model describes.
+fn clean_truth() -> PhysicalRobot {
+    let path = root().join("fixtures/measurements/kr30ha-physical.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut file = physical::parse(&text, &path).unwrap();
+    file.compliance_deg_per_knm = [0.0; 6];
+    file.inertia_deg_per_kgm2 = [0.0; 6];
+    file.thermal.clear();
+    PhysicalRobot::new(file, &path).unwrap()
+}
+
+/// A hidden effect: what it does to a commanded pose at a time.
+#[derive(Clone, Debug)]
+enum Hidden {
+    /// Axis `axis`'s angle deviates by `deg · cos(A2 + A3 + phase)`: the forearm's angle to
+    /// gravity (case 1).
+    ForearmGravity {
+        axis: usize,
+        deg: f64,
+        phase_deg: f64,
+    },
+    /// The mount tilts about the base's `about` axis (0: X, 1: Y) by `urad_per_m` per metre
+    /// of reach (the flange's distance from the A1 axis) (case 2).
+    MountTilt { about: usize, urad_per_m: f64 },
+    /// Axis `axis` deviates by `deg` where axis `by` is beyond `at_deg`, by −`deg` below.
+    AngleStep {
+        axis: usize,
+        by: usize,
+        at_deg: f64,
+        deg: f64,
+    },
+    /// Axis `axis` deviates by `deg · (τ/τ_max)²` with τ the gravity torque of axis `by`.
+    TorqueSquared { axis: usize, by: usize, deg: f64 },
+    /// The target drifts by `um_per_h` along `dir` per hour.
+    Drift { dir: Vector3<f64>, um_per_h: f64 },
+    /// The height steps by `um` where the reach passes `at_mm`.
+    ReachStep { at_mm: f64, um: f64 },
+}
+
+impl Hidden {
+    /// The displacement of the measured target at `stop`'s commanded pose and time, mm.
+    fn displacement(&self, robot: &PhysicalRobot, stop: &Stop) -> Vector3<f64> {
+        let a = stop.state.axes_deg;
+        let t = stop.state.time_s;
+        let angle = |axis: usize, deg: f64| {
+            let mut b = a;
+            b[axis] += deg;
+            robot.target_at(&b, t) - robot.target_at(&a, t)
+        };
+        let here = robot.target_at(&a, t);
+        let reach_mm = here.xy().norm();
+        match *self {
+            Hidden::ForearmGravity {
+                axis,
+                deg,
+                phase_deg,
+            } => angle(axis, deg * (a[1] + a[2] + phase_deg).to_radians().cos()),
+            Hidden::MountTilt { about, urad_per_m } => {
+                let theta = urad_per_m * 1e-6 * reach_mm / 1000.0;
+                let axis = if about == 0 {
+                    Vector3::x_axis()
+                } else {
+                    Vector3::y_axis()
+                };
+                nalgebra::Rotation3::from_axis_angle(&axis, theta) * here - here
+            }
+            Hidden::AngleStep {
+                axis,
+                by,
+                at_deg,
+                deg,
+            } => angle(axis, if a[by] > at_deg { deg } else { -deg }),
+            Hidden::TorqueSquared { axis, by, deg } => {
+                let tau = robot.net_torques_knm(&a, t)[by];
+                angle(axis, deg * (tau / 1.2).powi(2))
+            }
+            Hidden::Drift { dir, um_per_h } => dir * um_per_h * 1e-3 * t / 3600.0,
+            Hidden::ReachStep { at_mm, um } => {
+                Vector3::new(0.0, 0.0, if reach_mm > at_mm { um } else { 0.0 } * 1e-3)
+            }
+        }
+    }
+}
+
+/// An angle whose effect at about 1.2 m from the axis is `um`.
+fn deg_for(um: f64) -> f64 {
+    (um * 1e-3 / 1200.0).to_degrees()
+}
+
+/// Draw `k`: a family in turn, its parameters and size (20–150 µm) at random.
+fn draw(k: usize, rng: &mut ChaCha8Rng) -> Hidden {
+    let um = rng.gen_range(20.0..150.0);
+    match k % 6 {
+        0 => Hidden::ForearmGravity {
+            axis: rng.gen_range(1..3),
+            deg: deg_for(um),
+            phase_deg: rng.gen_range(-90.0..90.0),
+        },
+        1 => Hidden::MountTilt {
+            about: rng.gen_range(0..2),
+            urad_per_m: um / 1.5,
+        },
+        2 => Hidden::AngleStep {
+            axis: rng.gen_range(0..3),
+            by: rng.gen_range(0..3),
+            at_deg: rng.gen_range(-60.0..60.0),
+            deg: deg_for(um) / 2.0,
+        },
+        3 => Hidden::TorqueSquared {
+            axis: rng.gen_range(0..3),
+            by: rng.gen_range(1..3),
+            deg: deg_for(um),
+        },
+        4 => {
+            let d = Vector3::new(
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+                rng.gen_range(-1.0..1.0),
+            );
+            Hidden::Drift {
+                dir: d.normalize(),
+                um_per_h: um / 3.0,
+            }
+        }
+        _ => Hidden::ReachStep {
+            at_mm: rng.gen_range(900.0..1500.0),
+            um,
+        },
+    }
+}
+
+/// The paper's campaign and the three paths run after it, measured on `robot`.
+struct Measured {
+    campaign: Vec<Stop>,
+    paths: Vec<Stop>,
+}
+
+fn measure(robot: &PhysicalRobot) -> Measured {
+    let plan = Campaign::paper().plan().unwrap();
+    let mut campaign = robot
+        .measure(&physical::from_stops(&plan, PTP_STEP_DEG))
+        .unwrap();
+    for (i, r) in campaign.iter_mut().enumerate() {
+        r.line = i + 2;
+    }
+    let end = campaign.last().unwrap().state.time_s;
+    let mut paths = Vec::new();
+    for (k, name) in PATHS.iter().enumerate() {
+        let src = root().join(format!("fixtures/programs/{name}.src"));
+        let bytes = std::fs::read(&src).unwrap();
+        let ws = files::load_program(Some(&src), &bytes, None).unwrap();
+        let sim = motion::simulate(&ws, robot.robot(), &[]);
+        let mut visits = program_visits(&sim, "path", DEFAULT_DWELL_S, DEFAULT_AXIS_SPEED_DEG_S);
+        for v in &mut visits {
+            v.stop.time_s += end + 1800.0 + 900.0 * k as f64;
+        }
+        let robot = robot.clone().with_seed(robot.seed() + 100 + k as u64);
+        let rows = robot
+            .measure(&physical::from_program(&visits, PTP_STEP_DEG))
+            .unwrap();
+        paths.extend(rows.into_iter().filter(|r| r.measured_mm.is_some()));
+    }
+    Measured { campaign, paths }
+}
+
+fn with_hidden(robot: &PhysicalRobot, stops: &[Stop], hidden: Option<&Hidden>) -> Vec<Stop> {
+    let mut out = stops.to_vec();
+    if let Some(h) = hidden {
+        for s in &mut out {
+            let d = h.displacement(robot, s);
+            if let Some(m) = s.measured_mm.as_mut() {
+                *m += d;
+            }
+        }
+    }
+    out
+}
+
+fn files_of(source: &str, stops: Vec<Stop>) -> Vec<Measurements> {
+    vec![Measurements {
+        source: source.into(),
+        stops,
+        ignored_columns: Vec::new(),
+    }]
+}
+
+/// RMS 3-D residual of `cal` on `paths`, µm, gross tracker errors (over 0.25 mm) left out.
+fn rms_on(cal: &Calibration, paths: &[Measurements]) -> f64 {
+    let r: Vec<f64> = compare::compare(cal, paths)
+        .iter()
+        .map(|r| r.residual().norm_squared())
+        .filter(|e| *e < 0.25 * 0.25)
+        .collect();
+    (r.iter().sum::<f64>() / r.len() as f64).sqrt() * 1000.0
+}
+
+/// The effects an advice's `add` option identifies.
+fn effects_of(advice: &Finding) -> Effects {
+    let added = advice
+        .add
+        .strip_prefix("--effects '")
+        .and_then(|a| a.strip_suffix('\''))
+        .expect("an --effects option");
+    match added.strip_prefix('+') {
+        Some(a) => Effects::Add(expand_list(a).unwrap()),
+        None => Effects::Exactly(expand_list(added).unwrap()),
+    }
+}
+
+/// One draw: (first advice, RMS on the paths without it, with it).
+fn run(
+    robot: &PhysicalRobot,
+    base: &Measured,
+    hidden: Option<&Hidden>,
+) -> (Option<String>, f64, f64) {
+    let campaign = with_hidden(robot, &base.campaign, hidden);
+    let paths = files_of("paths.csv", with_hidden(robot, &base.paths, hidden));
+    let request = |effects: Effects, base: Option<Calibration>| Request {
+        effects: Some(effects),
+        base,
+        sources: vec!["campaign.csv".into()],
+        ..Request::default()
+    };
+    let cal = identify(
+        &campaign,
+        &request(Effects::Exactly(expand_list(PAPER_EFFECTS).unwrap()), None),
+    )
+    .unwrap()
+    .calibration;
+    let before = rms_on(&cal, &paths);
+    let files = files_of("campaign.csv", campaign.clone());
+    let d = diagnose(&cal, &files, &DiagnoseOptions::default()).unwrap();
+    for f in d.considered.iter().filter(|f| f.vetoed.is_some()) {
+        println!(
+            "   not a finding: {} — {}",
+            f.effect,
+            f.vetoed.as_deref().unwrap_or_default()
+        );
+    }
+    let Some(advice) = d.candidates.first() else {
+        return (None, before, before);
+    };
+    // Followed exactly as printed: it identifies, to a calibration `identify` writes.
+    let followed = identify(&campaign, &request(effects_of(advice), Some(cal.clone())))
+        .unwrap_or_else(|e| panic!("{hidden:?}: {} fails: {e}", advice.effect));
+    followed
+        .calibration
+        .to_json(Path::new("NEW.json"))
+        .unwrap_or_else(|e| panic!("{hidden:?}: {} is not physical: {e}", advice.effect));
+    let after = rms_on(&followed.calibration, &paths);
+    (Some(advice.effect.clone()), before, after)
+}
+
+fn harness(draws: &[Hidden]) {
+    let robot = clean_truth();
+    let base = measure(&robot);
+    let mut gains = Vec::new();
+    let mut worse = Vec::new();
+    for h in draws {
+        let (advice, before, after) = run(&robot, &base, Some(h));
+        let gain = 1.0 - (after / before).powi(2);
+        println!(
+            "{h:?}: {} — later paths {before:.1} → {after:.1} µm RMS ({:+.0}%)",
+            advice.as_deref().unwrap_or("no advice"),
+            100.0 * gain
+        );
+        if gain < WORSE {
+            worse.push(format!("{h:?}: {advice:?} {before:.1} → {after:.1} µm"));
+        }
+        gains.push(gain);
+    }
+    gains.sort_by(f64::total_cmp);
+    let median = gains[gains.len() / 2];
+    println!(
+        "{} draws: median gain on the later paths {:+.1}%, worse in {}",
+        draws.len(),
+        100.0 * median,
+        worse.len()
+    );
+    assert!(
+        worse.is_empty(),
+        "advice worse on the later paths: {worse:#?}"
+    );
+}
+
+/// Clean data: nothing recommended. Fails today: on the physical robot with nothing the
+/// paper's model lacks switched on, `diagnose` still advises `compliance:A5` (confirmed on whole
+/// tests held out; on the later paths it changes nothing, 30.1 → 30.1 µm RMS).
+#[test]
+#[ignore = "fails: compliance:A5 advised on the clean physical robot (issue 33, open)"]
+fn clean_robot_gets_no_advice() {
+    let robot = clean_truth();
+    let base = measure(&robot);
+    let (advice, before, after) = run(&robot, &base, None);
+    println!("clean: {advice:?} — later paths {before:.1} → {after:.1} µm RMS");
+    assert_eq!(advice, None, "advice on the clean robot");
+}
+
+/// Cases 1 and 2. Fails today on case 2: `diagnose` advises `tilt:A1`, which raises the later
+/// paths 45.6 → 88.3 µm RMS (a veto on the latest campaign data learnt from the earlier
+/// withheld it, but also the hidden `crosstalk:A3->A2` of `tests/diagnose.rs`; not merged).
+#[test]
+#[ignore = "fails: case 2's advice tilt:A1 raises the later paths (issue 33, open)"]
+fn a_few_hidden_effects() {
+    harness(&[
+        // Case 1: A3 follows the forearm's angle to gravity, 80 µm.
+        Hidden::ForearmGravity {
+            axis: 2,
+            deg: deg_for(80.0),
+            phase_deg: 0.0,
+        },
+        // Case 2: the mount tilts with the reach, 60 µrad per metre about Y.
+        Hidden::MountTilt {
+            about: 1,
+            urad_per_m: 60.0,
+        },
+    ]);
+}
+
+#[test]
+#[ignore = "some ten minutes: cargo test --test diagnose_hidden -- --ignored"]
+fn twenty_hidden_effects() {
+    let mut rng = ChaCha8Rng::seed_from_u64(33);
+    let draws: Vec<Hidden> = (0..20).map(|k| draw(k, &mut rng)).collect();
+    harness(&draws);
+}
