@@ -1,8 +1,8 @@
 //! Fuzz target for the KRL parser: any bytes, as a program and as a data list, must parse
 //! without panicking, emit back byte for byte, be covered exactly by the tree's tiles, keep
 //! every number's text readable as its value, and render every problem; parsed with streamed
-//! runs, the skeleton emits the bytes too and its statements plus the windows' are the whole
-//! parse's.
+//! runs, the skeleton emits the bytes too, its statements plus the windows' are the whole
+//! parse's, and it or a window has an error exactly where the whole parse has one.
 
 #![no_main]
 
@@ -35,7 +35,6 @@ fuzz_target!(|data: &[u8]| {
     let whole = krl::parse_recovering(data, FileKind::Src);
     let opts = krl::StreamOptions { min_run: 1, window: 2 };
     let parsed = krl::parse_streaming(data.to_vec(), FileKind::Src, opts);
-    assert_eq!(parsed.is_err(), whole.has_errors());
     let skeleton = match &parsed {
         Ok(f) => f,
         Err(e) => e.recovered(),
@@ -43,13 +42,17 @@ fuzz_target!(|data: &[u8]| {
     assert_eq!(skeleton.emit(), data);
     let key = |s: &krl::Stmt| (s.line, s.head.start, s.head.end);
     let mut got: Vec<_> = skeleton.statements().map(key).collect();
+    // What the line scan takes as plain is parsed by the grammar when its window is: an error
+    // only the grammar sees (a member given twice) is found there, as the main job finds it.
+    let mut window_errors = false;
     for run in skeleton.streamed_runs() {
         for w in run.windows() {
             let window = skeleton.window(w);
-            assert!(!window.has_errors());
+            window_errors |= window.has_errors();
             got.extend(window.statements().map(key));
         }
     }
+    assert_eq!(parsed.is_err() || window_errors, whole.has_errors());
     got.sort_by_key(|k| k.1);
     assert_eq!(got, whole.statements().map(key).collect::<Vec<_>>());
 });
