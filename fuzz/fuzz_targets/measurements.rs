@@ -10,7 +10,12 @@ use robopost::kinematics::RobotDescription;
 use robopost::measure::{self, ANGLE_RANGE_DEG, POSITION_RANGE_MM};
 
 fuzz_target!(|data: &[u8]| {
-    let lines = data.split(|&b| b == b'\n').count();
+    // Lines as the reader counts them: LF, CRLF, or a lone CR (an old Mac export).
+    let lines = 1 + data
+        .iter()
+        .enumerate()
+        .filter(|&(i, &b)| b == b'\n' || (b == b'\r' && data.get(i + 1) != Some(&b'\n')))
+        .count();
     match measure::parse_csv(data, "fuzz.csv") {
         Err(e) => {
             assert!(e.line <= lines, "line {} of {lines}", e.line);
