@@ -54,6 +54,14 @@ fn clean_truth() -> PhysicalRobot {
     file.compliance_deg_per_knm = [0.0; 6];
     file.inertia_deg_per_kgm2 = [0.0; 6];
     file.thermal.clear();
+    // The tracker's registration residual to the base frame (0.0008° about X and Y) is
+    // missing from a model identified in the base frame as well: seen from the turning A1 it
+    // is a first harmonic of A1's tilt, and with a path measured after the campaign
+    // `diagnose` rightly finds `tilt:A1` on it (later paths 30.1 → 23.8 µm RMS). It is a
+    // hidden effect of its own, so the clean robot has a perfectly registered tracker; the
+    // noise and the gross errors stay.
+    file.tracker.frame = None;
+    file.tracker.scale_ppm = 0.0;
     PhysicalRobot::new(file, &path).unwrap()
 }
 
@@ -177,10 +185,11 @@ fn draw(k: usize, rng: &mut ChaCha8Rng) -> Hidden {
     }
 }
 
-/// The paper's campaign and the three paths run after it, measured on `robot`.
+/// The paper's campaign and the three paths run after it, measured on `robot` (one list of
+/// stops per path, in time order).
 struct Measured {
     campaign: Vec<Stop>,
-    paths: Vec<Stop>,
+    paths: Vec<Vec<Stop>>,
 }
 
 fn measure(robot: &PhysicalRobot) -> Measured {
@@ -206,7 +215,11 @@ fn measure(robot: &PhysicalRobot) -> Measured {
         let rows = robot
             .measure(&physical::from_program(&visits, PTP_STEP_DEG))
             .unwrap();
-        paths.extend(rows.into_iter().filter(|r| r.measured_mm.is_some()));
+        paths.push(
+            rows.into_iter()
+                .filter(|r| r.measured_mm.is_some())
+                .collect(),
+        );
     }
     Measured { campaign, paths }
 }
@@ -255,29 +268,66 @@ fn effects_of(advice: &Finding) -> Effects {
     }
 }
 
-/// One draw: (first advice, RMS on the paths without it, with it).
-fn run(
-    robot: &PhysicalRobot,
-    base: &Measured,
-    hidden: Option<&Hidden>,
-) -> (Option<String>, f64, f64) {
+/// What one draw measured on the later paths (RMS 3-D, µm).
+struct Outcome {
+    advice: Option<String>,
+    /// The calibration identified on the campaign (adding nothing).
+    before: f64,
+    /// The paper's model re-identified on what `diagnose` saw, without the advice.
+    reidentified: f64,
+    /// The advice followed as printed.
+    after: f64,
+}
+
+/// One draw. `diagnose` is given the campaign and the first path measured after it, as a user
+/// who measured a validation path would (`diagnose -c paper.json campaign.csv path1.csv`);
+/// its first advice is followed exactly as printed (`identify -c paper.json campaign.csv
+/// path1.csv --effects …`) and judged on the two paths measured later still, which nothing
+/// learnt from.
+fn run(robot: &PhysicalRobot, base: &Measured, hidden: Option<&Hidden>) -> Outcome {
     let campaign = with_hidden(robot, &base.campaign, hidden);
-    let paths = files_of("paths.csv", with_hidden(robot, &base.paths, hidden));
-    let request = |effects: Effects, base: Option<Calibration>| Request {
+    let path1 = with_hidden(robot, &base.paths[0], hidden);
+    let later: Vec<Stop> = base.paths[1..]
+        .iter()
+        .flat_map(|p| with_hidden(robot, p, hidden))
+        .collect();
+    let later = files_of("later.csv", later);
+    let mut seen = campaign.clone();
+    seen.extend(path1.iter().cloned());
+    let mut file_of = vec![0; campaign.len()];
+    file_of.resize(seen.len(), 1);
+    let request = |effects: Effects, base: Option<Calibration>, two: bool| Request {
         effects: Some(effects),
         base,
-        sources: vec!["campaign.csv".into()],
+        sources: if two {
+            vec!["campaign.csv".into(), "path1.csv".into()]
+        } else {
+            vec!["campaign.csv".into()]
+        },
+        file_of: if two { file_of.clone() } else { Vec::new() },
+        max_points: Some(robopost::identify::thin::DEFAULT_MAX_POINTS),
         ..Request::default()
     };
-    let cal = identify(
-        &campaign,
-        &request(Effects::Exactly(expand_list(PAPER_EFFECTS).unwrap()), None),
-    )
-    .unwrap()
-    .calibration;
-    let before = rms_on(&cal, &paths);
-    let files = files_of("campaign.csv", campaign.clone());
+    let paper = || Effects::Exactly(expand_list(PAPER_EFFECTS).unwrap());
+    let cal = identify(&campaign, &request(paper(), None, false))
+        .unwrap()
+        .calibration;
+    let before = rms_on(&cal, &later);
+    let reidentified = identify(&seen, &request(paper(), Some(cal.clone()), true))
+        .map(|r| rms_on(&r.calibration, &later))
+        .unwrap_or(f64::NAN);
+    let mut files = files_of("campaign.csv", campaign);
+    files.extend(files_of("path1.csv", path1));
     let d = diagnose(&cal, &files, &DiagnoseOptions::default()).unwrap();
+    for f in d.considered.iter().take(4) {
+        println!(
+            "   considered: {} {:+.0}% t {:.1}{}",
+            f.effect,
+            100.0 * f.explained,
+            f.t_statistic,
+            if f.significant { ", significant" } else { "" }
+        );
+    }
     for f in d.considered.iter().filter(|f| f.vetoed.is_some()) {
         println!(
             "   not a finding: {} — {}",
@@ -286,17 +336,26 @@ fn run(
         );
     }
     let Some(advice) = d.candidates.first() else {
-        return (None, before, before);
+        return Outcome {
+            advice: None,
+            before,
+            reidentified,
+            after: before,
+        };
     };
     // Followed exactly as printed: it identifies, to a calibration `identify` writes.
-    let followed = identify(&campaign, &request(effects_of(advice), Some(cal.clone())))
+    let followed = identify(&seen, &request(effects_of(advice), Some(cal.clone()), true))
         .unwrap_or_else(|e| panic!("{hidden:?}: {} fails: {e}", advice.effect));
     followed
         .calibration
         .to_json(Path::new("NEW.json"))
         .unwrap_or_else(|e| panic!("{hidden:?}: {} is not physical: {e}", advice.effect));
-    let after = rms_on(&followed.calibration, &paths);
-    (Some(advice.effect.clone()), before, after)
+    Outcome {
+        advice: Some(advice.effect.clone()),
+        before,
+        reidentified,
+        after: rms_on(&followed.calibration, &later),
+    }
 }
 
 fn harness(draws: &[Hidden]) {
@@ -305,15 +364,29 @@ fn harness(draws: &[Hidden]) {
     let mut gains = Vec::new();
     let mut worse = Vec::new();
     for h in draws {
-        let (advice, before, after) = run(&robot, &base, Some(h));
-        let gain = 1.0 - (after / before).powi(2);
+        let o = run(&robot, &base, Some(h));
+        // Adding nothing: the calibration as it was, or the paper's model re-identified on
+        // the same files (what following the advice without its effect gives) — advice must
+        // not lose against either by more than the bound. No advice changes nothing.
+        let nothing = o.before.min(o.reidentified);
+        let gain = if o.advice.is_some() {
+            1.0 - (o.after / nothing).powi(2)
+        } else {
+            0.0
+        };
         println!(
-            "{h:?}: {} — later paths {before:.1} → {after:.1} µm RMS ({:+.0}%)",
-            advice.as_deref().unwrap_or("no advice"),
+            "{h:?}: {} — later paths {:.1} (re-identified {:.1}) → {:.1} µm RMS ({:+.0}%)",
+            o.advice.as_deref().unwrap_or("no advice"),
+            o.before,
+            o.reidentified,
+            o.after,
             100.0 * gain
         );
         if gain < WORSE {
-            worse.push(format!("{h:?}: {advice:?} {before:.1} → {after:.1} µm"));
+            worse.push(format!(
+                "{h:?}: {:?} {:.1} → {:.1} µm",
+                o.advice, nothing, o.after
+            ));
         }
         gains.push(gain);
     }
@@ -339,9 +412,12 @@ fn harness(draws: &[Hidden]) {
 fn clean_robot_gets_no_advice() {
     let robot = clean_truth();
     let base = measure(&robot);
-    let (advice, before, after) = run(&robot, &base, None);
-    println!("clean: {advice:?} — later paths {before:.1} → {after:.1} µm RMS");
-    assert_eq!(advice, None, "advice on the clean robot");
+    let o = run(&robot, &base, None);
+    println!(
+        "clean: {:?} — later paths {:.1} → {:.1} µm RMS",
+        o.advice, o.before, o.after
+    );
+    assert_eq!(o.advice, None, "advice on the clean robot");
 }
 
 /// Cases 1 and 2. Fails today on case 2: `diagnose` advises `tilt:A1`, which raises the later

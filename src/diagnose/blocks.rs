@@ -13,7 +13,11 @@
 //!   visited;
 //! - [`Scheme::Latest`]: the latest data predicted from the earlier only (forward chaining at
 //!   the half and at three quarters of the points in time): an effect that extrapolates in
-//!   time (drift) must predict what comes after what it learnt from.
+//!   time (drift) must predict what comes after what it learnt from;
+//! - [`Scheme::Files`]: with several files, the latest (by its median time) predicted from the
+//!   earlier ones: whole files from another part of the workspace and later in time, as the
+//!   user's programs will run after the campaign — advice that does not lower that error is
+//!   not given.
 
 /// How the folds are cut.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -22,6 +26,7 @@ pub enum Scheme {
     Stretches,
     Tests,
     Latest,
+    Files,
 }
 
 impl Scheme {
@@ -31,6 +36,7 @@ impl Scheme {
             Scheme::Stretches => "held-out stretches of every test",
             Scheme::Tests => "whole tests it did not learn from",
             Scheme::Latest => "the latest data, learnt from the earlier",
+            Scheme::Files => "the latest file, learnt from the earlier ones",
         }
     }
 }
@@ -195,6 +201,34 @@ pub fn latest(groups: &[usize], times_s: &[f64]) -> Option<Plan> {
     })
 }
 
+/// Fewest points the held-out latest file and the earlier files must each have.
+const MIN_FILE_POINTS: usize = 8;
+
+/// [`Scheme::Files`]: `files[i]` is point i's file, `times_s[i]` its time; the file with the
+/// latest median time held out, learnt from the others. `None` with fewer than two files or
+/// too few points on either side.
+pub fn later_file(files: &[usize], times_s: &[f64]) -> Option<Plan> {
+    let members = members(files);
+    if members.len() < 2 {
+        return None;
+    }
+    let median = |m: &Vec<usize>| {
+        let mut t: Vec<f64> = m.iter().map(|&i| times_s[i]).collect();
+        t.sort_by(f64::total_cmp);
+        t.get(t.len() / 2).copied().unwrap_or(f64::NEG_INFINITY)
+    };
+    let last = (0..members.len()).max_by(|&a, &b| {
+        median(&members[a])
+            .total_cmp(&median(&members[b]))
+            .then(a.cmp(&b))
+    })?;
+    let held = members[last].clone();
+    if held.len() < MIN_FILE_POINTS || files.len() - held.len() < MIN_FILE_POINTS {
+        return None;
+    }
+    Some(plan(Scheme::Files, files.len(), vec![held]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -272,5 +306,28 @@ mod tests {
         assert!(p.train[1][..12].iter().all(|x| *x) && !p.train[1][12]);
         // No clock: no plan.
         assert!(latest(&g, &[0.0; 16]).is_none());
+    }
+
+    #[test]
+    fn the_latest_file_is_held_out_whole() {
+        // File 0 (a campaign, times 0..20), file 1 (paths, times 100..110), file 2 (earlier
+        // than file 1 although listed after it).
+        let mut files = vec![0; 20];
+        files.extend([1; 10]);
+        files.extend([2; 10]);
+        let times: Vec<f64> = (0..20)
+            .map(f64::from)
+            .chain((100..110).map(f64::from))
+            .chain((50..60).map(f64::from))
+            .collect();
+        let p = later_file(&files, &times).unwrap();
+        assert_eq!(p.scheme, Scheme::Files);
+        assert_eq!(p.held, vec![(20..30).collect::<Vec<_>>()]);
+        assert_eq!(p.train[0].iter().filter(|t| **t).count(), 30);
+        assert!(later_file(&[0; 40], &times).is_none());
+        // Too few points in the latest file.
+        let mut few = vec![0; 36];
+        few.extend([1; 4]);
+        assert!(later_file(&few, &times).is_none());
     }
 }

@@ -157,6 +157,9 @@ pub struct Evaluation {
     /// Set when the score is of the whole model re-identified with it in place of the
     /// effects it replaces ([`super::replace`]), not of held-out predictions.
     pub reidentified: Option<super::replace::Reidentified>,
+    /// Set when the scores are of the candidate with the model's tables re-fitted beside it
+    /// ([`super::learn::EffectScreen`]): fitted alone on top of them it lost.
+    pub partialled: bool,
 }
 
 impl Evaluation {
@@ -300,6 +303,7 @@ pub fn evaluate(
         correction: vec![Vector3::zeros(); stops.len()],
         not_evaluated: None,
         reidentified: None,
+        partialled: false,
     };
     let (with, added) = match with_candidate(base, stops, name, grid) {
         Ok(w) => w,

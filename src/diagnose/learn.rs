@@ -262,23 +262,58 @@ struct ModelNormal {
 }
 
 impl ModelNormal {
-    fn new(points: &[Point], cell_of: &[usize], cells: usize) -> ModelNormal {
-        let m = points.first().map_or(0, |p| p.model.len());
-        let mut a = vec![DMatrix::zeros(m, m); cells];
-        let mut g = vec![DVector::zeros(m); cells];
-        for (i, pt) in points.iter().enumerate() {
-            let (a, g) = (&mut a[cell_of[i]], &mut g[cell_of[i]]);
-            for (j, cj) in pt.model.iter().enumerate() {
-                g[j] += cj.dot(&pt.residual);
-                for (k, ck) in pt.model.iter().enumerate().skip(j) {
-                    a[(j, k)] += cj.dot(ck);
-                }
-            }
-        }
-        for a in &mut a {
-            a.fill_lower_triangle_with_upper_triangle();
+    fn new(blocks: &Blocks) -> ModelNormal {
+        let m = blocks.model.first().map_or(0, |b| b.ncols());
+        let (mut a, mut g) = (Vec::new(), Vec::new());
+        for (mm, r) in blocks.model.iter().zip(&blocks.residual) {
+            let mt = mm.transpose();
+            a.push(&mt * mm);
+            g.push(mt * r);
         }
         ModelNormal { m, a, g }
+    }
+}
+
+/// The points of each cell of a fold plan, and the model's columns (one row per coordinate of
+/// each point) and the residuals there as dense blocks: the normal equations of the model and
+/// of every definition scored on the same cells are then matrix products, and the blocks are
+/// built once for all of them.
+struct Blocks {
+    members: Vec<Vec<usize>>,
+    model: Vec<DMatrix<f64>>,
+    residual: Vec<DVector<f64>>,
+}
+
+impl Blocks {
+    fn new(points: &[Point], cell_of: &[usize], cells: usize) -> Blocks {
+        let m = points.first().map_or(0, |p| p.model.len());
+        let mut members = vec![Vec::new(); cells];
+        for (i, &c) in cell_of.iter().enumerate() {
+            members[c].push(i);
+        }
+        let (mut model, mut residual) = (Vec::new(), Vec::new());
+        for cell in &members {
+            let mut mm = DMatrix::zeros(3 * cell.len(), m);
+            let mut r = DVector::zeros(3 * cell.len());
+            for (row, &i) in cell.iter().enumerate() {
+                let pt = &points[i];
+                for (j, mj) in pt.model.iter().enumerate() {
+                    for d in 0..3 {
+                        mm[(3 * row + d, j)] = mj[d];
+                    }
+                }
+                for d in 0..3 {
+                    r[3 * row + d] = pt.residual[d];
+                }
+            }
+            model.push(mm);
+            residual.push(r);
+        }
+        Blocks {
+            members,
+            model,
+            residual,
+        }
     }
 }
 
@@ -327,8 +362,7 @@ impl Normal {
         model: &Model,
         points: &[Point],
         spec: &Spec,
-        cell_of: &[usize],
-        cells: usize,
+        blocks: &Blocks,
     ) -> Normal {
         let outputs: Vec<Vec<(usize, f64)>> = spec
             .action
@@ -353,7 +387,7 @@ impl Normal {
             g: Vec::new(),
             c: Vec::new(),
         };
-        n.accumulate(points, cell_of, cells);
+        n.accumulate(points, blocks);
         n
     }
 
@@ -363,8 +397,7 @@ impl Normal {
         points: &[Point],
         states: &[AxisState],
         effect: &dyn crate::model::Effect,
-        cell_of: &[usize],
-        cells: usize,
+        blocks: &Blocks,
     ) -> Normal {
         let ctx = model.context();
         let p = effect.values().len();
@@ -390,7 +423,7 @@ impl Normal {
             g: Vec::new(),
             c: Vec::new(),
         };
-        n.accumulate(points, cell_of, cells);
+        n.accumulate(points, blocks);
         n
     }
 
@@ -408,27 +441,22 @@ impl Normal {
         out
     }
 
-    fn accumulate(&mut self, points: &[Point], cell_of: &[usize], cells: usize) {
+    fn accumulate(&mut self, points: &[Point], blocks: &Blocks) {
         let p = self.size();
-        let m = points.first().map_or(0, |p| p.model.len());
-        let mut a = vec![DMatrix::zeros(p, p); cells];
-        let mut g = vec![DVector::zeros(p); cells];
-        let mut c = vec![DMatrix::zeros(p, m); cells];
-        for (i, pt) in points.iter().enumerate() {
-            let cell = cell_of[i];
-            let xs = self.columns_at(pt, i);
-            for (r, xr) in xs.iter().enumerate() {
-                g[cell][r] += xr.dot(&pt.residual);
-                for (j, mj) in pt.model.iter().enumerate() {
-                    c[cell][(r, j)] += xr.dot(mj);
-                }
-                for (q, xq) in xs.iter().enumerate().skip(r) {
-                    a[cell][(r, q)] += xr.dot(xq);
+        let (mut a, mut g, mut c) = (Vec::new(), Vec::new(), Vec::new());
+        for ((members, m), r) in blocks.members.iter().zip(&blocks.model).zip(&blocks.residual) {
+            // Xᵀ, one column per coordinate of every point of the cell.
+            let mut xt = DMatrix::zeros(p, 3 * members.len());
+            for (row, &i) in members.iter().enumerate() {
+                for (q, x) in self.columns_at(&points[i], i).iter().enumerate() {
+                    for d in 0..3 {
+                        xt[(q, 3 * row + d)] = x[d];
+                    }
                 }
             }
-        }
-        for a in &mut a {
-            a.fill_lower_triangle_with_upper_triangle();
+            a.push(&xt * xt.transpose());
+            g.push(&xt * r);
+            c.push(&xt * m);
         }
         self.a = a;
         self.g = g;
@@ -544,15 +572,14 @@ fn model_part(pt: &Point, a: &DVector<f64>) -> Vector3<f64> {
 }
 
 /// The partialled correction X̃·w = X·w − M·(B·w) at point `i`.
-fn partial_predict(
-    normal: &Normal,
-    b: &DMatrix<f64>,
-    pt: &Point,
-    i: usize,
-    w: &[f64],
-) -> Vector3<f64> {
-    let bw = b * DVector::from_column_slice(w);
-    normal.predict(pt, i, w) - model_part(pt, &bw)
+/// `bw` is B·w ([`b_times`]), the same for every point.
+fn partial_predict(normal: &Normal, bw: &DVector<f64>, pt: &Point, i: usize, w: &[f64]) -> Vector3<f64> {
+    normal.predict(pt, i, w) - model_part(pt, bw)
+}
+
+/// B·w of [`partial_predict`].
+fn b_times(b: &DMatrix<f64>, w: &[f64]) -> DVector<f64> {
+    b * DVector::from_column_slice(w)
 }
 
 /// d(target)/d(output) at a point: the output's slots through the chain Jacobian.
@@ -595,8 +622,7 @@ impl Screening {
 struct Folds<'a> {
     within: &'a Plan,
     tests: &'a Plan,
-    cell_of: Vec<usize>,
-    cells: usize,
+    blocks: Blocks,
     model: ModelNormal,
     factor: ModelFactor,
 }
@@ -607,13 +633,13 @@ impl<'a> Folds<'a> {
         let kt = tests.folds();
         let cells = within.folds() * kt;
         let cell_of: Vec<usize> = (0..points.len()).map(|i| w_of[i] * kt + t_of[i]).collect();
-        let model = ModelNormal::new(points, &cell_of, cells);
+        let blocks = Blocks::new(points, &cell_of, cells);
+        let model = ModelNormal::new(&blocks);
         let factor = ModelFactor::new(&model);
         Folds {
             within,
             tests,
-            cell_of,
-            cells,
+            blocks,
             model,
             factor,
         }
@@ -624,7 +650,7 @@ impl<'a> Folds<'a> {
 /// model can take up partialled out of its columns: what it adds when the model is
 /// re-identified with it, predicted on blocks the fit did not see.
 fn screen(model: &Model, points: &[Point], spec: &Spec, folds: &Folds) -> Screening {
-    let normal = Normal::new(model, points, spec, &folds.cell_of, folds.cells);
+    let normal = Normal::new(model, points, spec, &folds.blocks);
     let (a_cells, g_cells, b) = normal.partialled(&folds.model, &folds.factor);
     let kt = folds.tests.folds();
     let before: Vec<Vector3<f64>> = points.iter().map(|p| p.residual).collect();
@@ -632,9 +658,10 @@ fn screen(model: &Model, points: &[Point], spec: &Spec, folds: &Folds) -> Screen
         let mut after = vec![None; points.len()];
         for (f, held) in plan.held.iter().enumerate() {
             let w = Normal::solve_cells(&a_cells, &g_cells, |cell| fold_of_cell(cell) != f);
+            let bw = b_times(&b, &w);
             for &i in held {
                 let pt = &points[i];
-                after[i] = Some(pt.residual - partial_predict(&normal, &b, pt, i, &w));
+                after[i] = Some(pt.residual - partial_predict(&normal, &bw, pt, i, &w));
             }
         }
         Score::new(plan, &before, &after)
@@ -930,13 +957,16 @@ fn points_of(model: &Model, rows: &[&Row]) -> Vec<Point> {
 }
 
 /// Screens the drivers on `rows` (the current model's residuals) under the stretches `plan`:
-/// the chosen definition with its drivers, shape and plot (not yet checked through the model).
+/// the chosen definition with its drivers, shape and plot (not yet checked through the model),
+/// scored on whole `tests`, on the `latest` data when it is a function of the clock, and on
+/// the `later_file` when there is one.
 pub fn screen_drivers(
     model: &Model,
     rows: &[&Row],
     plan: &Plan,
     tests: &Plan,
     latest: Option<&Plan>,
+    later_file: Option<&Plan>,
 ) -> Option<(Spec, LearnedDrivers)> {
     if rows.len() < 4 * plan.folds().max(2) {
         return None;
@@ -979,16 +1009,18 @@ pub fn screen_drivers(
     };
     // Fitted on every point together with the model: its shape, and the residual it explains.
     let all = vec![0; points.len()];
-    let normal = Normal::new(model, &points, &spec, &all, 1);
-    let model_normal = ModelNormal::new(&points, &all, 1);
+    let blocks = Blocks::new(&points, &all, 1);
+    let normal = Normal::new(model, &points, &spec, &blocks);
+    let model_normal = ModelNormal::new(&blocks);
     let (a_cells, g_cells, b) = normal.partialled(&model_normal, &ModelFactor::new(&model_normal));
     let w = Normal::solve_cells(&a_cells, &g_cells, |_| true);
+    let bw = b_times(&b, &w);
     // The part of the function the model does not already span, against which the residual
     // is plotted.
     let partial: Vec<Vector3<f64>> = points
         .iter()
         .enumerate()
-        .map(|(i, p)| partial_predict(&normal, &b, p, i, &w))
+        .map(|(i, p)| partial_predict(&normal, &bw, p, i, &w))
         .collect();
     let outputs: Vec<Vec<f64>> = (0..points.len()).map(|i| normal.values(i, &w)).collect();
     let main_output = (0..normal.outputs.len())
@@ -1071,6 +1103,7 @@ pub fn screen_drivers(
                     .filter(|_| uses_time(&spec))
                     .map(|l| latest_score(model, &points, rows, &spec, l)),
             )
+            .chain(later_file.map(|l| latest_score(model, &points, rows, &spec, l)))
             .collect(),
         vetoed: None,
         screened: results
@@ -1097,23 +1130,16 @@ fn latest_score(model: &Model, points: &[Point], rows: &[&Row], spec: &Spec, pla
     let mut after = vec![None; points.len()];
     for (held, train) in plan.held.iter().zip(&plan.train) {
         let fold_spec = rewindowed(spec, rows, train);
-        // Cells: 0 learnt from, 1 predicted, 2 neither.
-        let mut cell_of = vec![2; points.len()];
-        for (i, t) in train.iter().enumerate() {
-            if *t {
-                cell_of[i] = 0;
-            }
-        }
-        for &i in held {
-            cell_of[i] = 1;
-        }
-        let normal = Normal::new(model, points, &fold_spec, &cell_of, 3);
-        let model_normal = ModelNormal::new(points, &cell_of, 3);
+        let cell_of = cells_of(points.len(), held, train);
+        let blocks = Blocks::new(points, &cell_of, 3);
+        let normal = Normal::new(model, points, &fold_spec, &blocks);
+        let model_normal = ModelNormal::new(&blocks);
         let (a_cells, g_cells, b) =
             normal.partialled(&model_normal, &ModelFactor::new(&model_normal));
         let w = Normal::solve_cells(&a_cells, &g_cells, |cell| cell == 0);
+        let bw = b_times(&b, &w);
         for &i in held {
-            after[i] = Some(points[i].residual - partial_predict(&normal, &b, &points[i], i, &w));
+            after[i] = Some(points[i].residual - partial_predict(&normal, &bw, &points[i], i, &w));
         }
     }
     Score::new(plan, &before, &after)
@@ -1129,31 +1155,112 @@ pub fn latest_effect_score(
     name: &crate::model::EffectName,
     plan: &Plan,
 ) -> Option<Score> {
-    let effect = name.create(&Default::default(), &model.robot).ok()?;
-    let points = points_of(model, rows);
-    let states: Vec<AxisState> = rows.iter().map(|r| r.state).collect();
-    let before: Vec<Vector3<f64>> = points.iter().map(|p| p.residual).collect();
-    let mut after = vec![None; points.len()];
-    for (held, train) in plan.held.iter().zip(&plan.train) {
-        let mut cell_of = vec![2; points.len()];
-        for (i, t) in train.iter().enumerate() {
-            if *t {
-                cell_of[i] = 0;
-            }
-        }
-        for &i in held {
-            cell_of[i] = 1;
-        }
-        let normal = Normal::for_effect(model, &points, &states, effect.as_effect(), &cell_of, 3);
-        let model_normal = ModelNormal::new(&points, &cell_of, 3);
-        let (a_cells, g_cells, b) =
-            normal.partialled(&model_normal, &ModelFactor::new(&model_normal));
-        let w = Normal::solve_cells(&a_cells, &g_cells, |cell| cell == 0);
-        for &i in held {
-            after[i] = Some(points[i].residual - partial_predict(&normal, &b, &points[i], i, &w));
+    EffectScreen::new(model, rows).score(model, name, plan)
+}
+
+/// Per point its cell in a fold: 0 learnt from, 1 predicted, 2 neither.
+fn cells_of(n: usize, held: &[usize], train: &[bool]) -> Vec<usize> {
+    let mut cell_of = vec![2; n];
+    for (i, t) in train.iter().enumerate() {
+        if *t {
+            cell_of[i] = 0;
         }
     }
-    Some(Score::new(plan, &before, &after))
+    for &i in held {
+        cell_of[i] = 1;
+    }
+    cell_of
+}
+
+/// Effects of the table scored as they will be identified — with the model's tables
+/// re-fitted beside them — rather than fitted alone on top of the identified model: per fold,
+/// from the effect's own Jacobian with what the model's columns span partialled out (linear,
+/// at the current model). An effect whose shape a table has half taken up in one test (A3's
+/// gravity torque in the A3 sweep) is credited with what it adds elsewhere, not charged for
+/// counting that part twice. The points are built once for every candidate.
+pub struct EffectScreen {
+    points: Vec<Point>,
+    states: Vec<AxisState>,
+}
+
+impl EffectScreen {
+    pub fn new(model: &Model, rows: &[&Row]) -> EffectScreen {
+        EffectScreen {
+            points: points_of(model, rows),
+            states: rows.iter().map(|r| r.state).collect(),
+        }
+    }
+
+    /// Each of `names` scored under `plan` (the model's normal equations of each fold built
+    /// once for all); `None` for one that cannot be created.
+    pub fn scores(
+        &self,
+        model: &Model,
+        names: &[crate::model::EffectName],
+        plan: &Plan,
+    ) -> Vec<Option<Score>> {
+        let points = &self.points;
+        let folds: Vec<(Blocks, ModelNormal, ModelFactor)> = plan
+            .held
+            .iter()
+            .zip(&plan.train)
+            .map(|(held, train)| {
+                let cell_of = cells_of(points.len(), held, train);
+                let blocks = Blocks::new(points, &cell_of, 3);
+                let normal = ModelNormal::new(&blocks);
+                let factor = ModelFactor::new(&normal);
+                (blocks, normal, factor)
+            })
+            .collect();
+        let before: Vec<Vector3<f64>> = points.iter().map(|p| p.residual).collect();
+        names
+            .par_iter()
+            .map(|name| {
+                let effect = name.create(&Default::default(), &model.robot).ok()?;
+                let mut after = vec![None; points.len()];
+                for (held, (blocks, model_normal, factor)) in plan.held.iter().zip(&folds) {
+                    let normal =
+                        Normal::for_effect(model, points, &self.states, effect.as_effect(), blocks);
+                    let (a_cells, g_cells, b) = normal.partialled(model_normal, factor);
+                    let w = Normal::solve_cells(&a_cells, &g_cells, |cell| cell == 0);
+                    let bw = b_times(&b, &w);
+                    for &i in held {
+                        after[i] = Some(
+                            points[i].residual - partial_predict(&normal, &bw, &points[i], i, &w),
+                        );
+                    }
+                }
+                Some(Score::new(plan, &before, &after))
+            })
+            .collect()
+    }
+
+    /// `name` scored under `plan`; `None` when it cannot be created.
+    pub fn score(
+        &self,
+        model: &Model,
+        name: &crate::model::EffectName,
+        plan: &Plan,
+    ) -> Option<Score> {
+        let effect = name.create(&Default::default(), &model.robot).ok()?;
+        let points = &self.points;
+        let before: Vec<Vector3<f64>> = points.iter().map(|p| p.residual).collect();
+        let mut after = vec![None; points.len()];
+        for (held, train) in plan.held.iter().zip(&plan.train) {
+            let cell_of = cells_of(points.len(), held, train);
+            let blocks = Blocks::new(points, &cell_of, 3);
+            let normal = Normal::for_effect(model, points, &self.states, effect.as_effect(), &blocks);
+            let model_normal = ModelNormal::new(&blocks);
+            let (a_cells, g_cells, b) =
+                normal.partialled(&model_normal, &ModelFactor::new(&model_normal));
+            let w = Normal::solve_cells(&a_cells, &g_cells, |cell| cell == 0);
+            let bw = b_times(&b, &w);
+            for &i in held {
+                after[i] = Some(points[i].residual - partial_predict(&normal, &bw, &points[i], i, &w));
+            }
+        }
+        Some(Score::new(plan, &before, &after))
+    }
 }
 
 /// The learned definition with its clock window set to the training points' (a fit on the

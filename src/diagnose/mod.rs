@@ -3,8 +3,10 @@
 //! effect of the contract table the calibration lacks ([`candidates`]) by fitting it alone on
 //! top of the current model and scoring it on data the fit has not seen ([`crossval`] under the
 //! blocked plans of [`blocks`]: held-out stretches of every test; a finding is then checked on
-//! whole tests it did not learn from, and an effect that extrapolates in time on the latest
-//! data), ranks them by how much of the residual they explain, words the evidence from the data
+//! whole tests it did not learn from, an effect that extrapolates in time on the latest
+//! data — advised only where the data tell time from pose ([`clock`]) — and, given several
+//! files, every finding on the latest file learnt from the earlier ones: advice that does not
+//! lower the error on data measured later is not given), ranks them by how much of the residual they explain, words the evidence from the data
 //! ([`evidence`]) with the command that adds the effect, and learns from the residual which
 //! generic drivers carry what the table cannot explain ([`learn`]), as an effect the user can
 //! add (`learned:…`). A finding must be significant, stable across the folds and no worse
@@ -13,6 +15,7 @@
 
 pub mod blocks;
 pub mod candidates;
+pub mod clock;
 pub mod crossval;
 pub mod evidence;
 pub mod learn;
@@ -107,6 +110,10 @@ pub const MIN_LATEST_T: f64 = 2.0;
 /// A candidate re-identified in place of effects it replaces, with fewer parameters, must
 /// remove at least this share of the residual the model re-identified alone leaves.
 pub const MIN_REPLACING_EXPLAINED: f64 = 0.05;
+/// Most parameters of a candidate scored with the model's tables re-fitted beside it: a
+/// physical law with a few values (a compliance, a wobble, a drift) whose shape a table can
+/// half take up; a table of its own is judged fitted on top.
+pub const MAX_PARTIALLED_PARAMETERS: usize = 12;
 /// Two findings whose corrections agree this closely (cosine) explain the same residual.
 pub const SAME_RESIDUAL: f64 = 0.9;
 /// A significant candidate scoring at least this share of the best's `explained` on top of
@@ -252,6 +259,10 @@ struct Plans {
     within: Plan,
     tests: Plan,
     latest: Option<Plan>,
+    /// With several files, the latest learnt from the earlier ones.
+    files: Option<Plan>,
+    /// The data tell time from pose ([`clock`]).
+    tells_time: bool,
 }
 
 /// What a finding must pass on the held-out stretches.
@@ -271,8 +282,31 @@ fn passes_within(e: &Evaluation, rms: f64) -> bool {
         && e.within.as_ref().is_some_and(Score::stable)
 }
 
+/// The gain on the latest file is plain: advice that does not lower the error on data
+/// measured later, elsewhere, is not given.
+fn lowers_later(s: &Score) -> bool {
+    s.explained >= MIN_EXPLAINED && s.rms_before_um - s.rms_after_um >= MIN_RMS_GAIN_UM
+}
+
+/// What a candidate gains on the latest file learnt from the earlier ones, or without that
+/// check its held-out score.
+fn later_gain(e: &Evaluation) -> f64 {
+    e.check(Scheme::Files).map_or(e.explained, |f| f.explained)
+}
+
 /// Why a candidate that passes on the stretches is not a finding, if it is not.
-fn veto(e: &Evaluation, time: bool) -> Option<String> {
+fn veto(e: &Evaluation, time: bool, plans: &Plans) -> Option<String> {
+    if time && !plans.tells_time {
+        return Some(clock::cannot_tell());
+    }
+    if let Some(f) = e.check(Scheme::Files) {
+        if !lowers_later(f) {
+            return Some(format!(
+                "it does not lower the error on data measured later: {}",
+                f.describe()
+            ));
+        }
+    }
     if let Some(t) = e.check(Scheme::Tests) {
         if t.worse() {
             return Some(format!(
@@ -294,6 +328,76 @@ fn veto(e: &Evaluation, time: bool) -> Option<String> {
         }
     }
     None
+}
+
+/// A candidate that loses fitted alone on top of the model — where the model's tables have
+/// taken up part of its shape in the tests that sweep their axes — scored with the tables
+/// re-fitted beside it ([`learn::EffectScreen`]), as its printed command will identify it:
+/// on the held-out stretches, and where that passes, on whole tests, the latest data (an
+/// effect of the clock) and the latest file.
+fn partialled(
+    model: &Model,
+    screen: &[&Row],
+    plans: &Plans,
+    rms: f64,
+    evaluations: &mut [Evaluation],
+    options: &DiagnoseOptions,
+) {
+    let losing: Vec<usize> = (0..evaluations.len())
+        .filter(|&i| {
+            let e = &evaluations[i];
+            !passes_within(e, rms)
+                && e.not_evaluated.is_none()
+                && e.parameters <= MAX_PARTIALLED_PARAMETERS
+                && e.reidentified.is_none()
+                && crossval::replaced(model, &e.name).is_empty()
+        })
+        .collect();
+    if losing.is_empty() {
+        return;
+    }
+    tick(options, "re-fitting the tables beside", 0, 1);
+    let effects = learn::EffectScreen::new(model, screen);
+    let names: Vec<EffectName> = losing.iter().map(|&i| evaluations[i].name).collect();
+    let within = effects.scores(model, &names, &plans.within);
+    let passing: Vec<(usize, Score)> = losing
+        .iter()
+        .zip(within)
+        .filter_map(|(&i, s)| {
+            let s = s?;
+            let passes = s.explained >= MIN_EXPLAINED
+                && s.t >= MIN_T
+                && rms - s.rms_after_um >= MIN_RMS_GAIN_UM
+                && s.stable();
+            passes.then_some((i, s))
+        })
+        .collect();
+    if passing.is_empty() {
+        return;
+    }
+    let names: Vec<EffectName> = passing.iter().map(|(i, _)| evaluations[*i].name).collect();
+    let tests = effects.scores(model, &names, &plans.tests);
+    let files = plans
+        .files
+        .as_ref()
+        .map(|plan| effects.scores(model, &names, plan));
+    for (k, (i, s)) in passing.into_iter().enumerate() {
+        let e = &mut evaluations[i];
+        e.explained = s.explained;
+        e.t = s.t;
+        e.rms_after_um = s.rms_after_um;
+        e.within = Some(s);
+        e.partialled = true;
+        e.checks = tests[k].clone().into_iter().collect();
+        if extrapolates_in_time(&e.name) {
+            if let Some(plan) = &plans.latest {
+                e.checks.extend(effects.score(model, &e.name, plan));
+            }
+        }
+        if let Some(f) = files.as_ref().and_then(|f| f[k].clone()) {
+            e.checks.push(f);
+        }
+    }
 }
 
 /// Most candidates identified as their printed command would, looking for the first one
@@ -379,6 +483,9 @@ fn run_checks(
         if let Some(plan) = &plans.latest {
             out.extend(learn::latest_effect_score(model, rows, name, plan));
         }
+    }
+    if let Some(plan) = &plans.files {
+        out.extend(crossval::check(model, stops, before, name, plan, grid).ok());
     }
     out
 }
@@ -469,10 +576,13 @@ pub fn diagnose(
     let times: Vec<f64> = screen.iter().map(|r| r.state.time_s).collect();
     let latest = blocks::latest(&groups, &times);
     let grid = grid_choice(model);
+    let files = blocks::groups(screen.iter().map(|r| (r.source.as_str(), "")));
     let plans = Plans {
         within: blocks::stretches(&groups, options.folds),
         tests: blocks::tests(&groups, options.folds),
         latest,
+        files: blocks::later_file(&files, &times),
+        tells_time: clock::tells_time_from_pose(&rows),
     };
 
     let names = options
@@ -511,7 +621,13 @@ pub fn diagnose(
         .par_iter()
         .filter_map(|&i| {
             let name = evaluations[i].name;
-            replace::evaluate(model, &stops, &name, &plans.tests, &grid).map(|e| (i, e))
+            let mut e = replace::evaluate(model, &stops, &name, &plans.tests, &grid)?;
+            // Judged on the latest file as its printed command identifies it.
+            if let Some(plan) = plans.files.as_ref().filter(|_| passes_within(&e, screen_rms)) {
+                e.checks
+                    .extend(replace::on_plan(model, &stops, &name, plan, &grid));
+            }
+            Some((i, e))
         })
         .collect();
     for (i, e) in judged {
@@ -519,13 +635,15 @@ pub fn diagnose(
             evaluations[i] = e;
         }
     }
+    partialled(model, &screen, &plans, screen_rms, &mut evaluations, options);
     evaluations.sort_by(|a, b| b.explained.total_cmp(&a.explained));
 
     // Checks of those that pass on the stretches (a re-identified replacement has been
     // judged on all the data: fitted alone on top of the model it is known to lose).
     let to_check: Vec<usize> = (0..evaluations.len())
         .filter(|&i| {
-            passes_within(&evaluations[i], screen_rms) && evaluations[i].reidentified.is_none()
+            let e = &evaluations[i];
+            passes_within(e, screen_rms) && e.reidentified.is_none() && !e.partialled
         })
         .collect();
     tick(options, "checks", 0, to_check.len());
@@ -542,11 +660,16 @@ pub fn diagnose(
     for (i, checks) in checked {
         evaluations[i].checks = checks;
     }
+    // With a later file, candidates are credited with what they gain there: data from another
+    // part of the workspace, measured later, as the user's programs will run.
+    if plans.files.is_some() {
+        evaluations.sort_by(|a, b| later_gain(b).total_cmp(&later_gain(a)));
+    }
     let mut vetoes: Vec<Option<String>> = evaluations
         .iter()
         .map(|e| {
             passes_within(e, screen_rms)
-                .then(|| veto(e, extrapolates_in_time(&e.name)))
+                .then(|| veto(e, extrapolates_in_time(&e.name), &plans))
                 .flatten()
         })
         .collect();
@@ -753,12 +876,13 @@ fn learned_drivers(
     plans: &Plans,
     rms: f64,
 ) -> Option<LearnedDrivers> {
-    let (_, mut found) = learn::screen_drivers(
+    let (spec, mut found) = learn::screen_drivers(
         model,
         screen,
         &plans.within,
         &plans.tests,
         plans.latest.as_ref(),
+        plans.files.as_ref(),
     )?;
     let passes = found.explained >= MIN_EXPLAINED
         && found.t_statistic >= MIN_T
@@ -776,6 +900,19 @@ fn learned_drivers(
             }
         ));
         return Some(found);
+    }
+    if learn::uses_time(&spec) && !plans.tells_time {
+        found.vetoed = Some(clock::cannot_tell());
+        return Some(found);
+    }
+    if let Some(f) = found.checks.iter().find(|c| c.scheme == Scheme::Files) {
+        if !lowers_later(f) {
+            found.vetoed = Some(format!(
+                "it does not lower the error on data measured later: {}",
+                f.describe()
+            ));
+            return Some(found);
+        }
     }
     if let Some(t) = found.checks.iter().find(|c| c.scheme == Scheme::Tests) {
         if t.worse() {

@@ -40,26 +40,27 @@ pub fn parameters_of(effect: &dyn ModelEffect) -> usize {
 
 /// Residuals (measured − predicted, mm) of `model` re-identified on `stops`, one per stop.
 fn refit(model: &mut Model, stops: &[Stop]) -> Option<Vec<Vector3<f64>>> {
-    let options = RefineOptions {
-        standard_errors: false,
-        max_iterations: MAX_ITERATIONS,
-        ..RefineOptions::default()
-    };
-    let fit = refine(model, stops, &options).ok()?;
+    let fit = refine(model, stops, &refit_options()).ok()?;
     (fit.residuals_mm.len() == stops.len()).then_some(fit.residuals_mm)
 }
 
-/// `name` re-identified in place of the effects of `model` it [`crossval::replaced`], scored
-/// against `model` re-identified on the same `stops` (per-point gains grouped by the whole
-/// tests of `tests`); `None` when it replaces nothing, does not have fewer parameters than
-/// what it replaces, or a fit fails.
-pub fn evaluate(
+fn refit_options() -> RefineOptions {
+    RefineOptions {
+        standard_errors: false,
+        max_iterations: MAX_ITERATIONS,
+        ..RefineOptions::default()
+    }
+}
+
+/// `model` with `name` in place of the effects it [`crossval::replaced`], the names of those,
+/// the values they carried and the candidate's; `None` when it replaces nothing, is not shown
+/// by `stops`, does not have fewer parameters than what it replaces, or cannot be set up.
+fn replacing_model(
     model: &Model,
     stops: &[Stop],
     name: &EffectName,
-    tests: &Plan,
     grid: &GridChoice,
-) -> Option<Evaluation> {
+) -> Option<(Model, Vec<String>, usize, usize)> {
     let gone = crossval::replaced(model, name);
     if gone.is_empty() {
         return None;
@@ -84,6 +85,21 @@ pub fn evaluate(
     if parameters >= removed {
         return None;
     }
+    Some((with, gone, removed, parameters))
+}
+
+/// `name` re-identified in place of the effects of `model` it [`crossval::replaced`], scored
+/// against `model` re-identified on the same `stops` (per-point gains grouped by the whole
+/// tests of `tests`); `None` when it replaces nothing, does not have fewer parameters than
+/// what it replaces, or a fit fails.
+pub fn evaluate(
+    model: &Model,
+    stops: &[Stop],
+    name: &EffectName,
+    tests: &Plan,
+    grid: &GridChoice,
+) -> Option<Evaluation> {
+    let (mut with, gone, removed, parameters) = replacing_model(model, stops, name, grid)?;
     let mut held = model.clone();
     let before = refit(&mut held, stops)?;
     let after = refit(&mut with, stops)?;
@@ -109,6 +125,7 @@ pub fn evaluate(
             removed_parameters: removed,
             rms_before_um: crossval::rms_um(&before),
         }),
+        partialled: false,
     })
 }
 
@@ -121,4 +138,39 @@ pub struct Reidentified {
     pub removed_parameters: usize,
     /// RMS 3-D residual of the model re-identified alone on the same points, µm.
     pub rms_before_um: f64,
+}
+
+/// Under `plan` (whole files: the latest learnt from the earlier ones), the model
+/// re-identified with `name` in its place against the model re-identified alone, both on the
+/// training points, scored on the held-out points; `None` as [`evaluate`].
+pub fn on_plan(
+    model: &Model,
+    stops: &[Stop],
+    name: &EffectName,
+    plan: &Plan,
+    grid: &GridChoice,
+) -> Option<Score> {
+    let (with, ..) = replacing_model(model, stops, name, grid)?;
+    let mut before = vec![Vector3::zeros(); stops.len()];
+    let mut after = vec![None; stops.len()];
+    for (held, train) in plan.held.iter().zip(&plan.train) {
+        let training: Vec<Stop> = stops
+            .iter()
+            .zip(train)
+            .map(|(s, &t)| Stop {
+                measured_mm: if t { s.measured_mm } else { None },
+                ..s.clone()
+            })
+            .collect();
+        let (mut alone, mut replaced) = (model.clone(), with.clone());
+        refine(&mut alone, &training, &refit_options()).ok()?;
+        refine(&mut replaced, &training, &refit_options()).ok()?;
+        for &i in held {
+            if let Some(m) = stops[i].measured_mm {
+                before[i] = m - alone.target_position(&stops[i].state);
+                after[i] = Some(m - replaced.target_position(&stops[i].state));
+            }
+        }
+    }
+    Some(Score::new(plan, &before, &after))
 }

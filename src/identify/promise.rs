@@ -1,7 +1,7 @@
 //! The promise of `identify -c OLD --effects +X` checked: that the new model predicts data it
 //! has not seen better than the old one. Under the blocked plans of diagnosis
-//! (`diagnose::blocks`: held-out stretches of every test, whole tests, and the latest data when
-//! an added effect extrapolates in time) each model re-fits, on the points a fold may learn
+//! (`diagnose::blocks`: held-out stretches of every test, whole tests, the latest data when
+//! an added effect extrapolates in time, and with several files the latest file) each model re-fits, on the points a fold may learn
 //! from, its axis geometry (`geometric`) and the added effects — the old one its geometry
 //! alone — and predicts the points the fold holds out; both keep their tables as identified
 //! (re-fitting a table with stretches of its own axis held out leaves cells that no fold
@@ -133,6 +133,8 @@ pub fn check(
     if time {
         plans.extend(blocks::latest(&groups, &times));
     }
+    let files = blocks::groups(old_rows.iter().map(|r| (r.source.as_str(), "")));
+    plans.extend(blocks::later_file(&files, &times));
     let added: Vec<String> = new
         .model_ref()
         .effects()
@@ -176,6 +178,7 @@ fn words(scheme: Scheme) -> &'static str {
         Scheme::Stretches => "held-out stretches of every test",
         Scheme::Tests => "whole tests held out",
         Scheme::Latest => "the latest data from the earlier",
+        Scheme::Files => "the latest file from the earlier ones",
     }
 }
 
