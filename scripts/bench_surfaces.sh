@@ -7,6 +7,8 @@
 # Every time is also given as a ratio to `robopost check` of the same file, measured in the
 # same run just before it (machines differ, ratios travel). Usage:
 #   scripts/bench_surfaces.sh [WORKDIR]      (default /tmp/robopost-surfaces; POINTS=N to scale)
+# BEFORE=path/to/robopost also runs that binary right after each job (same file, same minute)
+# and says whether its output file is the same bytes (`same`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 W=${1:-/tmp/robopost-surfaces}
@@ -41,5 +43,10 @@ for name in $(printf '%s\n' "${!SURFACE[@]}" | sort); do
   for cal in example handset; do
     read -r w u m <<<"$(run "$BIN" "$src" -c "calibrations/kr30ha-$cal.json" -o "$W/out/$name.src")"
     printf '%-20s %-10s %8s %8s %8s %9.1f %7.2f\n' "$name" "$cal" "$w" "$u" "$m" "$mb" "$(echo "$w / $cw" | bc -l)"
+    if [ -n "${BEFORE:-}" ]; then
+      read -r w u m <<<"$(run "$BEFORE" "$src" -c "calibrations/kr30ha-$cal.json" -o "$W/out/$name.before.src")"
+      same=$(cmp -s "$W/out/$name.src" "$W/out/$name.before.src" && echo same || echo DIFFERS)
+      printf '%-20s %-10s %8s %8s %8s %9.1f %7.2f %s\n' "$name" "$cal:before" "$w" "$u" "$m" "$mb" "$(echo "$w / $cw" | bc -l)" "$same"
+    fi
   done
 done

@@ -951,6 +951,23 @@ struct Recheck<'a> {
     plays: [Option<WidthTable<'a>>; 6],
     /// Per axis, the play's output before the last point of the history evaluated last.
     before: [RefCell<PlayBefore>; 6],
+    /// The turns of the compensated motion worked out last for the target being settled
+    /// ([`compensated_turns`]), cleared as each target's settling starts.
+    turns: Cell<Option<TurnsKept>>,
+}
+
+/// A target's compensated turns kept ([`Recheck::turns`]): settling a target solved again
+/// asks for the turns of one command up to three times (the history its prediction is taken
+/// with, the next round's check, the state it leaves), each a walk of the interpolated path.
+/// Within one target's settling nothing else they read changes (the commands around it, the
+/// state it arrives from), so the command, the widths and the arrival are the whole key.
+#[derive(Clone, Copy)]
+struct TurnsKept {
+    k: usize,
+    from: [u64; 6],
+    command: [u64; 6],
+    widths: [u64; 6],
+    turns: interpolate::Turns,
 }
 
 impl<'a> std::ops::Deref for Recheck<'a> {
@@ -1081,6 +1098,7 @@ impl<'a> Recheck<'a> {
             ctx,
             plays,
             before: Default::default(),
+            turns: Cell::new(None),
         }
     }
 
@@ -1370,6 +1388,9 @@ fn settle_one(
     resolved: &mut bool,
     state: &mut AxisState,
 ) {
+    // The turns kept are those of another target's settling (or of this one's before the
+    // commands around it changed: a circle's auxiliary point settled again).
+    ctx.turns.set(None);
     // The outcome solved again, once it is (until then the slice's, read in place).
     let mut again: Option<Outcome> = None;
     let mut best: Option<Outcome> = None;
@@ -1452,6 +1473,33 @@ const CORRECTION_SHARE: f64 = 10.0;
 /// compensated commands (samples, exact rates at the ends). Elsewhere — and where the path
 /// cannot be built — the nominal turns, moved by the corrections interpolated to them.
 fn compensated_turns(
+    ctx: &Recheck,
+    k: usize,
+    previous: &AxisState,
+    (c, widths): (&[f64; 6], &[f64; 6]),
+    outcomes: &[Outcome],
+) -> interpolate::Turns {
+    let bits = |a: &[f64; 6]| a.map(f64::to_bits);
+    let (from, command, width_bits) = (bits(&previous.axes_deg), bits(c), bits(widths));
+    if let Some(kept) = ctx.turns.get() {
+        if kept.k == k && kept.from == from && kept.command == command && kept.widths == width_bits
+        {
+            return kept.turns;
+        }
+    }
+    let turns = compensated_turns_walked(ctx, k, previous, (c, widths), outcomes);
+    ctx.turns.set(Some(TurnsKept {
+        k,
+        from,
+        command,
+        widths: width_bits,
+        turns,
+    }));
+    turns
+}
+
+/// [`compensated_turns`], worked out.
+fn compensated_turns_walked(
     ctx: &Recheck,
     k: usize,
     previous: &AxisState,
@@ -1952,16 +2000,6 @@ fn solve_again(
     let (model, target, tool) = (ctx.model, ctx.target(k), ctx.tool(k));
     out.directions = flanks;
     // The held axes' plays where their commands leave them; the others on their flanks.
-    let mut commanded = *out;
-    commanded.axes_deg = start.into();
-    let exact = arrival_histories(ctx, k, previous, &commanded, outcomes);
-    let solving: [AxisHistory; 6] = std::array::from_fn(|n| {
-        if hold[n] {
-            exact[n]
-        } else {
-            AxisHistory::engaged(flanks[n])
-        }
-    });
     if !target.compensate || out.error.is_some() {
         // The command is the nominal one: only the prediction changes.
         let nominal = arrival_histories(ctx, k, previous, out, outcomes);
@@ -1969,6 +2007,17 @@ fn solve_again(
         out.residual = out.before;
         return;
     }
+    // Without an axis held, no play is taken where the commands leave it: the walk of the
+    // held command's motion is not needed.
+    let exact = hold.contains(&true).then(|| {
+        let mut commanded = *out;
+        commanded.axes_deg = start.into();
+        arrival_histories(ctx, k, previous, &commanded, outcomes)
+    });
+    let solving: [AxisHistory; 6] = std::array::from_fn(|n| match &exact {
+        Some(exact) if hold[n] => exact[n],
+        _ => AxisHistory::engaged(flanks[n]),
+    });
     match solve_target(model, tool, target, &solving, start, hold, ctx.method, None) {
         Ok((sol, turn_held)) => {
             out.axes_deg = sol.axes_deg.into();
