@@ -12,7 +12,7 @@ use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
 const CLAIMS: [(&str, &str); 37] = [
-    ("error-budget-offset", "tests/budget.rs"),
+    ("error-budget-time", "tests/budget.rs"),
     ("error-budget", "tests/budget.rs"),
     ("paper-table-1-floor", "tests/paper_experiment.rs"),
     ("recommended-campaign", "tests/paper_experiment.rs"),
