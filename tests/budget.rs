@@ -114,10 +114,9 @@ const REFERENCE_DEG: [f64; 6] = [0.0, -60.0, 100.0, 0.0, 45.0, 0.0];
 /// How often the validation measures the reference pose, at its start and at its end.
 const VALIDATION_REFERENCE_REPEATS: usize = 5;
 
-/// The paper's campaign with the reference pose measured at its start, before every test
-/// and at its end.
-fn campaign_plan() -> Vec<PlannedStop> {
-    let mut c = Campaign::paper();
+/// The campaign `c` with the reference pose measured at its start, before every test and at
+/// its end.
+fn campaign_plan(mut c: Campaign) -> Vec<PlannedStop> {
     c.reference = Some(ReferencePose {
         axes_deg: REFERENCE_DEG,
         repeats: 1,
@@ -149,10 +148,9 @@ fn validation_plan(campaign_end_s: f64) -> Vec<PlannedStop> {
 }
 
 /// A truth's campaign and validation measurements (the validation with other tracker draws).
-fn measured(truth: &Truth, name: &str) -> (Measurements, Measurements) {
-    let plan = campaign_plan();
+fn measured(truth: &Truth, name: &str, plan: &[PlannedStop]) -> (Measurements, Measurements) {
     let end = plan.last().unwrap().time_s;
-    let campaign = truth.measure(&plan).unwrap();
+    let campaign = truth.measure(plan).unwrap();
     let seed = match truth {
         Truth::Model(r) => r.seed,
         Truth::Physical(r) => r.seed(),
@@ -203,8 +201,7 @@ fn positions(truth: &Truth, plan: &[PlannedStop]) -> Vec<([f64; 6], Vector3<f64>
 /// warm-up's displacement there, averaged over the validation's visits less over the
 /// campaign's, mm) and the validation residual's true systematic mean square (its tracker
 /// noise taken away: the noise-free positions against the calibration, the drift taken off).
-fn truth_side(truth: &Truth, cal: &Calibration) -> (Vector3<f64>, f64) {
-    let plan = campaign_plan();
+fn truth_side(truth: &Truth, cal: &Calibration, plan: &[PlannedStop]) -> (Vector3<f64>, f64) {
     let later = validation_plan(plan.last().unwrap().time_s);
     let (warm, cold) = (quiet(truth, false), quiet(truth, true));
     let at_reference = |plan: &[PlannedStop]| -> Vector3<f64> {
@@ -220,7 +217,7 @@ fn truth_side(truth: &Truth, cal: &Calibration) -> (Vector3<f64>, f64) {
             .collect();
         moved.iter().sum::<Vector3<f64>>() / moved.len() as f64
     };
-    let drift = at_reference(&later) - at_reference(&plan);
+    let drift = at_reference(&later) - at_reference(plan);
     let quiet_validation = file("quiet-validation", warm.measure(&later).unwrap());
     let rows: Vec<Row> = compare::compare(cal, std::slice::from_ref(&quiet_validation))
         .into_iter()
@@ -238,17 +235,26 @@ fn truth_side(truth: &Truth, cal: &Calibration) -> (Vector3<f64>, f64) {
 fn budget_parts_account_for_the_measured_error_on_three_truths() {
     let load =
         |name: &str| Truth::load(&root().join(format!("fixtures/measurements/{name}"))).unwrap();
+    let (paper, recommended) = (
+        campaign_plan(Campaign::paper()),
+        campaign_plan(Campaign::recommended()),
+    );
     let truths = [
-        ("clean", load("kr30ha-truth.json")),
-        ("hidden effect", load("kr30ha-truth-hidden.json")),
-        ("physical", load("kr30ha-physical.json")),
+        ("clean", load("kr30ha-truth.json"), &paper),
+        ("hidden effect", load("kr30ha-truth-hidden.json"), &paper),
+        ("physical", load("kr30ha-physical.json"), &paper),
+        (
+            "recommended campaign (physical)",
+            load("kr30ha-physical.json"),
+            &recommended,
+        ),
     ];
     let results: Vec<(&str, Budget, Vector3<f64>, f64)> = truths
         .iter()
-        .map(|(name, truth)| {
-            let (c, v) = measured(truth, name);
+        .map(|(name, truth, plan)| {
+            let (c, v) = measured(truth, name, plan);
             let (cal, b) = budget_of(&c, &v);
-            let (drift, systematic) = truth_side(truth, &cal);
+            let (drift, systematic) = truth_side(truth, &cal, plan);
             (*name, b, drift, systematic)
         })
         .collect();
@@ -289,12 +295,19 @@ fn budget_parts_account_for_the_measured_error_on_three_truths() {
         assert!((0.9..=1.1).contains(&ratio), "{name}: {ratio} {p:?}");
         // The time part is the truth's own drift at the reference pose: none on the model
         // truths, the warm-up on the physical one. The two means differ by the tracker's
-        // noise (about 4 µm per coordinate: 15 and 10 readings at ~10 µm).
+        // noise (about 4 µm per coordinate: 15 and 10 readings at ~10 µm). The campaign
+        // measures the pose at its 7 reference visits (6 tests) and as the A1, A4, A5 and A6
+        // sweeps pass it up and down (8): 15; the recommended one runs 18 tests: 19 + 24.
         let t = b
             .time_reference
             .as_ref()
             .expect("the reference pose is found");
-        assert_eq!((t.campaign_repeats, t.validation_repeats), (15, 10));
+        let expected = if name.starts_with("recommended") {
+            43
+        } else {
+            15
+        };
+        assert_eq!((t.campaign_repeats, t.validation_repeats), (expected, 10));
         let measured_drift = Vector3::from(t.drift_um) * 1e-3;
         assert!(
             (measured_drift - drift).norm() < 0.010,
@@ -434,7 +447,7 @@ fn compare_budget_on_the_command_line() {
 #[test]
 fn a_constant_rate_drift_does_not_follow_a_warm_up() {
     let truth = Truth::load(&root().join("fixtures/measurements/kr30ha-physical.json")).unwrap();
-    let (c, v) = measured(&truth, "physical");
+    let (c, v) = measured(&truth, "physical", &campaign_plan(Campaign::paper()));
     let (_, without) = budget_with(PAPER_EFFECTS, &c, &v);
     let (cal, with) = budget_with(&format!("{PAPER_EFFECTS},drift"), &c, &v);
     // The thermal state at the validation's start, as campaign time: the least-squares time

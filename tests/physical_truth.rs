@@ -639,3 +639,84 @@ fn diagnose_names_what_the_physical_truth_has() {
         0.15,
     );
 }
+
+/// The error budget names the warm-up between the campaign and the paths, the identification's
+/// noise and the model form. The recommended campaign (the paper's tests run three times,
+/// the crosstalk at seven A3 angles: `Campaign::recommended`, 10.8 hours) answers the first
+/// two: the robot is warm for most of it, and four times the points average the tracker's
+/// noise down. Identified from it on the physical truth, the same three paths, compensated
+/// and run half an hour after it, with the same tracker draws as the tracker alone.
+#[test]
+fn the_recommended_campaign_on_the_physical_truth() {
+    let robot = truth();
+    let plan = Campaign::recommended().plan().unwrap();
+    let data = robot
+        .measure(&physical::from_stops(&plan, PTP_STEP_DEG))
+        .unwrap();
+    let end = data.last().unwrap().state.time_s;
+    let request = Request {
+        effects: Some(Effects::Exactly(expand_list(PAPER_EFFECTS).unwrap())),
+        ..Request::default()
+    };
+    let full = identify(&data, &request).unwrap();
+    println!(
+        "campaign {} rows, {:.1} h, fit {:.1} µm",
+        data.len(),
+        end / 3600.0,
+        full.fit.stats.rms_um
+    );
+    let error_free = robot.error_free();
+    let dir = tempfile::tempdir().unwrap();
+    let mut errors: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); 2];
+    for (k, (name, level_z)) in PATHS.iter().enumerate() {
+        let src = root().join(format!("fixtures/programs/{name}.src"));
+        let original = load(&src);
+        let t0 = end + 1800.0 + 900.0 * k as f64;
+        let seed = robot.seed() + 100 + k as u64;
+        let robot = robot.clone().with_seed(seed);
+        let error_free = error_free.clone().with_seed(seed);
+        let points = rectangle(&original, &robot, *level_z);
+        let (full_ws, turned) = compensated(&src, full.calibration.model_ref(), dir.path());
+        assert_eq!(turned, 0);
+        let runs = [run(&full_ws, &robot, t0), run(&original, &error_free, t0)];
+        for (c, measured) in runs.iter().enumerate() {
+            errors[c].extend(points.iter().map(|(i, p)| measured[*i].unwrap() - p));
+        }
+    }
+    // Stops with a gross tracker error, left out of both rows (as in Table 1).
+    let gross: Vec<usize> = (0..errors[1].len())
+        .filter(|&i| errors[1][i].norm() > 0.25)
+        .collect();
+    for e in &mut errors {
+        *e = e
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !gross.contains(i))
+            .map(|(_, v)| *v)
+            .collect();
+    }
+    let stats: Vec<ErrorStats> = errors.iter().map(|e| error_stats(e)).collect();
+    let labels = ["compensated, full model", "tracker alone"];
+    for (label, s) in labels.iter().zip(&stats) {
+        let v = values(s);
+        println!(
+            "| {label} | {:.0} | {:.0} | {:.0} | {:.0} |",
+            v[0], v[1], v[2], v[3]
+        );
+    }
+    readme::assert_rows(
+        "physical-table-1-recommended",
+        &labels
+            .iter()
+            .zip(&stats)
+            .map(|(l, s)| (*l, values(s).to_vec()))
+            .collect::<Vec<_>>(),
+        2.0,
+        0,
+    );
+    // Physical expectations, independent of the figures: the model still does not reach the
+    // tracker alone, and comes within the 1.15× of it in the XY mean.
+    let (model, tracker) = (stats[0], stats[1]);
+    assert!(model.xy_mean_um > tracker.xy_mean_um);
+    assert!(model.xy_mean_um < 1.15 * tracker.xy_mean_um);
+}
