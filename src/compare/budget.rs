@@ -242,10 +242,12 @@ pub fn budget(
     let neighbours: Vec<f64> = (0..points.len())
         .into_par_iter()
         .map(|i| match points.get(i + 1) {
-            Some(next) => covariance
-                .between_targets(model, &points[i].state, &next.state)
-                .trace(),
-            None => 0.0,
+            Some(next) if next.test == points[i].test && next.source == points[i].source => {
+                covariance
+                    .between_targets(model, &points[i].state, &next.state)
+                    .trace()
+            }
+            _ => 0.0,
         })
         .collect();
     let parts = |select: &dyn Fn(&Row) -> bool| -> Parts {
@@ -255,26 +257,24 @@ pub fn budget(
         let measured = mean(&|i| each[i].0);
         let tracker = mean(&|i| each[i].1);
         let identification = mean(&|i| each[i].2);
-        // Consecutive stops of one test of one file, time shift taken off.
-        let products: Vec<f64> = chosen
+        // Consecutive stops of one test of one file (one after the other in the file), time
+        // shift taken off.
+        let pairs: Vec<usize> = chosen
             .windows(2)
             .filter(|w| {
                 let (a, b) = (points[w[0]], points[w[1]]);
-                a.test == b.test && a.source == b.source
+                w[1] == w[0] + 1 && a.test == b.test && a.source == b.source
             })
-            .map(|w| (points[w[0]].residual() - shift).dot(&(points[w[1]].residual() - shift)))
+            .map(|w| w[0])
+            .collect();
+        let products: Vec<f64> = pairs
+            .iter()
+            .map(|&i| (points[i].residual() - shift).dot(&(points[i + 1].residual() - shift)))
             .collect();
         let systematic = products.iter().sum::<f64>() / products.len().max(1) as f64;
         // What the identification's errors share between the same neighbours (predicted).
-        let shared: Vec<f64> = chosen
-            .windows(2)
-            .filter(|w| {
-                let (a, b) = (points[w[0]], points[w[1]]);
-                a.test == b.test && a.source == b.source
-            })
-            .map(|w| neighbours[w[0]])
-            .collect();
-        let identification_shared = shared.iter().sum::<f64>() / shared.len().max(1) as f64;
+        let identification_shared =
+            pairs.iter().map(|&i| neighbours[i]).sum::<f64>() / pairs.len().max(1) as f64;
         let form = systematic - identification_shared;
         let explained = tracker + identification + form + time_ms;
         let offset = chosen.iter().map(|&i| points[i].residual()).sum::<Vector3<f64>>() / n;
