@@ -46,6 +46,7 @@ fn small_campaign() -> Campaign {
     };
     Campaign {
         reversals: Vec::new(),
+        reference: None,
         tests: vec![
             test(1, -30.0, 30.0, None),
             test(

@@ -31,7 +31,7 @@ use robopost::model::{expand_list, Model};
 use robopost::motion::{self, Workspace};
 use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::physical::{self, PhysicalRobot, PTP_STEP_DEG};
-use robopost::simulate::program::program_visits;
+use robopost::simulate::program::{program_visits, visit_states};
 use robopost::simulate::Campaign;
 use robopost::stats::{error_stats, ErrorStats};
 
@@ -150,6 +150,24 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> (Workspace, usize) {
     (load(&out), refused.len())
 }
 
+/// The compensation's own residual at each of `points` (programmed positions of the targets,
+/// by stop index): the calibrated model's prediction at the written program's commands, with
+/// the rotation directions of its motion, less the programmed position. What the iteration's
+/// tolerance, the play's inversion and the rounding of the written numbers leave.
+fn compensation_residual(
+    written: &Workspace,
+    model: &Model,
+    points: &[(usize, Vector3<f64>)],
+) -> Vec<Vector3<f64>> {
+    let sim = motion::simulate(written, &model.robot, &[]);
+    let visits = program_visits(&sim, "path", DEFAULT_DWELL_S, DEFAULT_AXIS_SPEED_DEG_S);
+    let states = visit_states(&visits);
+    points
+        .iter()
+        .map(|(i, p)| model.target_position(&states[*i]) - p)
+        .collect()
+}
+
 fn values(s: &ErrorStats) -> [f64; 4] {
     [s.xy_mean_um, s.xy_2sigma_um, s.z_mean_um, s.z_2sigma_um]
 }
@@ -181,6 +199,7 @@ fn paper_table_one_on_the_physical_truth() {
     ];
     let mut errors: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); conditions.len()];
     let mut turned = 0;
+    let mut compensation: Vec<Vector3<f64>> = Vec::new();
     for (k, (name, level_z)) in PATHS.iter().enumerate() {
         let src = root().join(format!("fixtures/programs/{name}.src"));
         let original = load(&src);
@@ -195,6 +214,11 @@ fn paper_table_one_on_the_physical_truth() {
         let (without_ws, n1) = compensated(&src, without.calibration.model_ref(), dir.path());
         let (full_ws, n2) = compensated(&src, full.calibration.model_ref(), dir.path());
         turned += n1 + n2;
+        compensation.extend(compensation_residual(
+            &full_ws,
+            full.calibration.model_ref(),
+            &points,
+        ));
         let runs = [
             run(&original, &robot, t0),
             run(&without_ws, &robot, t0),
@@ -222,6 +246,30 @@ fn paper_table_one_on_the_physical_truth() {
             .collect();
     }
     let stats: Vec<ErrorStats> = errors.iter().map(|e| error_stats(e)).collect();
+    // The compensation's own residual (full model), a part of the error budget of the
+    // compensated paths: at most the written numbers' rounding (three decimals of a mm, four
+    // of a degree: half a unit each, √3·0.5 µm in position and about as much again through
+    // the orientation's lever) on top of the solver's 0.1 µm.
+    let rms = (compensation.iter().map(|e| e.norm_squared()).sum::<f64>()
+        / compensation.len() as f64)
+        .sqrt()
+        * 1e3;
+    let worst = compensation.iter().map(|e| e.norm()).fold(0.0, f64::max) * 1e3;
+    let mut sizes: Vec<f64> = compensation.iter().map(|e| e.norm() * 1e3).collect();
+    sizes.sort_by(f64::total_cmp);
+    let median = sizes[sizes.len() / 2];
+    let off: Vec<usize> = (0..compensation.len())
+        .filter(|&i| compensation[i].norm() > 0.002)
+        .collect();
+    println!(
+        "compensation's own residual: {rms:.2} µm RMS, median {median:.2} µm, worst {worst:.2} µm; over 2 µm at targets {off:?}"
+    );
+    assert!(median < 1.0, "{median}");
+    // Known (reported): at three targets where A2 and A3 reverse on a path while A4, held near
+    // 0°, moves by hundredths of a degree, the model's prediction at the written command
+    // misses the target by 5–23 µm. The count is asserted, so a new case does not go unnoticed.
+    assert_eq!(off.len(), 3, "{off:?}");
+    readme::assert_prose("error-budget-compensation", &[rms, median, worst], 0.1);
     println!("| measured − programmed, µm | XY mean | XY 2σ | Z mean | Z 2σ |");
     println!("|---|---|---|---|---|");
     for (label, s) in conditions.iter().zip(&stats) {
@@ -590,4 +638,85 @@ fn diagnose_names_what_the_physical_truth_has() {
         ],
         0.15,
     );
+}
+
+/// The error budget names the warm-up between the campaign and the paths, the identification's
+/// noise and the model form. The recommended campaign (the paper's tests run three times,
+/// the crosstalk at seven A3 angles: `Campaign::recommended`, 10.8 hours) answers the first
+/// two: the robot is warm for most of it, and four times the points average the tracker's
+/// noise down. Identified from it on the physical truth, the same three paths, compensated
+/// and run half an hour after it, with the same tracker draws as the tracker alone.
+#[test]
+fn the_recommended_campaign_on_the_physical_truth() {
+    let robot = truth();
+    let plan = Campaign::recommended().plan().unwrap();
+    let data = robot
+        .measure(&physical::from_stops(&plan, PTP_STEP_DEG))
+        .unwrap();
+    let end = data.last().unwrap().state.time_s;
+    let request = Request {
+        effects: Some(Effects::Exactly(expand_list(PAPER_EFFECTS).unwrap())),
+        ..Request::default()
+    };
+    let full = identify(&data, &request).unwrap();
+    println!(
+        "campaign {} rows, {:.1} h, fit {:.1} µm",
+        data.len(),
+        end / 3600.0,
+        full.fit.stats.rms_um
+    );
+    let error_free = robot.error_free();
+    let dir = tempfile::tempdir().unwrap();
+    let mut errors: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); 2];
+    for (k, (name, level_z)) in PATHS.iter().enumerate() {
+        let src = root().join(format!("fixtures/programs/{name}.src"));
+        let original = load(&src);
+        let t0 = end + 1800.0 + 900.0 * k as f64;
+        let seed = robot.seed() + 100 + k as u64;
+        let robot = robot.clone().with_seed(seed);
+        let error_free = error_free.clone().with_seed(seed);
+        let points = rectangle(&original, &robot, *level_z);
+        let (full_ws, turned) = compensated(&src, full.calibration.model_ref(), dir.path());
+        assert_eq!(turned, 0);
+        let runs = [run(&full_ws, &robot, t0), run(&original, &error_free, t0)];
+        for (c, measured) in runs.iter().enumerate() {
+            errors[c].extend(points.iter().map(|(i, p)| measured[*i].unwrap() - p));
+        }
+    }
+    // Stops with a gross tracker error, left out of both rows (as in Table 1).
+    let gross: Vec<usize> = (0..errors[1].len())
+        .filter(|&i| errors[1][i].norm() > 0.25)
+        .collect();
+    for e in &mut errors {
+        *e = e
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !gross.contains(i))
+            .map(|(_, v)| *v)
+            .collect();
+    }
+    let stats: Vec<ErrorStats> = errors.iter().map(|e| error_stats(e)).collect();
+    let labels = ["compensated, full model", "tracker alone"];
+    for (label, s) in labels.iter().zip(&stats) {
+        let v = values(s);
+        println!(
+            "| {label} | {:.0} | {:.0} | {:.0} | {:.0} |",
+            v[0], v[1], v[2], v[3]
+        );
+    }
+    readme::assert_rows(
+        "physical-table-1-recommended",
+        &labels
+            .iter()
+            .zip(&stats)
+            .map(|(l, s)| (*l, values(s).to_vec()))
+            .collect::<Vec<_>>(),
+        2.0,
+        0,
+    );
+    // Physical expectations, independent of the figures: the model still does not reach the
+    // tracker alone, and comes within the 1.15× of it in the XY mean.
+    let (model, tracker) = (stats[0], stats[1]);
+    assert!(model.xy_mean_um > tracker.xy_mean_um);
+    assert!(model.xy_mean_um < 1.15 * tracker.xy_mean_um);
 }

@@ -11,9 +11,12 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 37] = [
-    ("error-budget-offset", "tests/budget.rs"),
+const CLAIMS: [(&str, &str); 40] = [
+    ("error-budget-time", "tests/budget.rs"),
     ("error-budget", "tests/budget.rs"),
+    ("physical-table-1-recommended", "tests/physical_truth.rs"),
+    ("error-budget-drift", "tests/budget.rs"),
+    ("error-budget-compensation", "tests/physical_truth.rs"),
     ("paper-table-1-floor", "tests/paper_experiment.rs"),
     ("recommended-campaign", "tests/paper_experiment.rs"),
     ("gross-thresholds", "tests/readme.rs"),

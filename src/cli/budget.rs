@@ -119,19 +119,23 @@ fn covariance_of_files(
     Ok(covariance)
 }
 
-/// The budget as a table: overall, then per test.
+/// The budget as a table: overall, then per test, then where the time part comes from.
 pub fn render(b: &crate::compare::budget::Budget) -> String {
     let mut out = String::from(
-        "error budget (3-D RMS, µm; the parts add in mean square, explained = their root-sum-square):\n\
-         | test | points | measured | tracker | identification | model form | explained | unexplained | offset |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+        "error budget (3-D RMS, µm; tracker, identification, time and model form add in mean \
+         square to explained; systematic: what neighbouring stops share, of which model form is \
+         the part the identification's errors do not share):\n\
+         | test | points | measured | tracker | time | systematic | identification | model form | explained | unexplained | offset |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let line = |name: &str, p: &crate::compare::budget::Parts| {
         format!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
             p.points,
             p.measured_um,
             p.tracker_um,
+            p.time_um,
+            p.systematic_um,
             p.identification_um,
             p.model_form_um,
             p.explained_um,
@@ -143,11 +147,27 @@ pub fn render(b: &crate::compare::budget::Budget) -> String {
     for (name, p) in &b.tests {
         out += &line(name, p);
     }
+    out += &match &b.time_reference {
+        Some(t) => format!(
+            "(time: the reference pose {:?}, measured {} times in the campaign and {} in the \
+             validation, moved by ({:.1}, {:.1}, {:.1}) µm; ",
+            t.axes_deg,
+            t.campaign_repeats,
+            t.validation_repeats,
+            t.drift_um[0],
+            t.drift_um[1],
+            t.drift_um[2]
+        ),
+        None => "(time: not measured — no pose the campaign measured at least 3 times is in the \
+                 validation; start the validation at the campaign's reference pose; "
+            .to_string(),
+    };
     out += &format!(
-        "(model form: the campaign fit's lack of fit, {:.1} µm RMS of which the tracker {:.1} µm; \
+        "systematic: the mean product of consecutive stops' residuals; the campaign fit's lack \
+         of fit, the model form the campaign sees: {:.1} µm of {:.1} µm RMS, the tracker {:.1} µm; \
          unexplained: measured less the parts, negative when they exceed it; offset: the mean \
          residual's length)\n",
-        b.campaign_rms_um, b.campaign_tracker_um
+        b.campaign_model_form_um, b.campaign_rms_um, b.campaign_tracker_um
     );
     out
 }

@@ -72,9 +72,9 @@ impl Covariance {
         self.col_of.len()
     }
 
-    /// The covariance (mm²) of a position whose derivative with respect to each flat model
-    /// parameter is `partials` (mm per stored unit, as [`Model::target_jacobian`] gives).
-    pub fn of_partials(&self, partials: &[(usize, Vector3<f64>)]) -> Matrix3<f64> {
+    /// The parameters' sensitivities `partials` as scaled columns of the system (`None` when
+    /// the fit holds every parameter they touch).
+    fn columns(&self, partials: &[(usize, Vector3<f64>)]) -> Option<faer::Mat<f64>> {
         let n = self.col_scale.len();
         let mut h = faer::Mat::<f64>::zeros(n, 3);
         let mut any = false;
@@ -86,18 +86,45 @@ impl Covariance {
                 any = true;
             }
         }
-        if !any {
+        any.then_some(h)
+    }
+
+    /// The covariance (mm²) of a position whose derivative with respect to each flat model
+    /// parameter is `partials` (mm per stored unit, as [`Model::target_jacobian`] gives).
+    pub fn of_partials(&self, partials: &[(usize, Vector3<f64>)]) -> Matrix3<f64> {
+        self.between_partials(partials, partials)
+    }
+
+    /// The cross-covariance (mm²) of two positions with sensitivities `a` and `b`: how the
+    /// identification's errors at the two go together (`E[δa δbᵀ]`).
+    pub fn between_partials(
+        &self,
+        a: &[(usize, Vector3<f64>)],
+        b: &[(usize, Vector3<f64>)],
+    ) -> Matrix3<f64> {
+        let (Some(ha), Some(hb)) = (self.columns(a), self.columns(b)) else {
             return Matrix3::zeros();
-        }
-        let mut z = h.clone();
+        };
+        let mut z = hb;
         self.solution.solve_normal_in_place(z.as_mut());
         let mut out = Matrix3::zeros();
-        for a in 0..3 {
-            for b in 0..3 {
-                out[(a, b)] = (0..n).map(|r| h[(r, a)] * z[(r, b)]).sum::<f64>();
+        for r in 0..3 {
+            for c in 0..3 {
+                out[(r, c)] = (0..ha.nrows()).map(|k| ha[(k, r)] * z[(k, c)]).sum::<f64>();
             }
         }
         out * self.sigma_mm.powi(2)
+    }
+
+    /// The cross-covariance (mm²) of the measurement target's positions `model` predicts at
+    /// two states (the identification's errors at two poses, e.g. neighbouring stops).
+    pub fn between_targets(&self, model: &Model, a: &AxisState, b: &AxisState) -> Matrix3<f64> {
+        let partials = |s: &AxisState| {
+            let mut p = Vec::new();
+            model.target_jacobian_into(s, &mut JacobianScratch::default(), &mut p);
+            p
+        };
+        self.between_partials(&partials(a), &partials(b))
     }
 
     /// The covariance (mm²) of the measurement target's position that `model` predicts at

@@ -57,6 +57,37 @@ pub struct ReversalTest {
     pub reference_deg: [f64; 6],
 }
 
+/// A reference pose measured at the start of the campaign, before every test and at its end,
+/// each time approached the same way (every axis from 2° below, so that every gear play is
+/// engaged on the same flank) and measured `repeats` times: the one pose whose measurements
+/// differ only by the time they were taken, from which the robot's drift between the
+/// campaign and its use is measured (`compare --budget`, when the validation starts with it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferencePose {
+    pub axes_deg: [f64; 6],
+    #[serde(default = "default_repeats")]
+    pub repeats: usize,
+}
+
+fn default_repeats() -> usize {
+    1
+}
+
+/// The test label of a reference pose's stops (as the real cell's campaign labels them).
+pub const REFERENCE_TEST: &str = "REF";
+
+impl ReferencePose {
+    /// The pose's visits `(test, axes, measured)`: the approach from below, then `repeats`
+    /// measurements.
+    pub fn visits(&self) -> Vec<(String, [f64; 6], bool)> {
+        let below = self.axes_deg.map(|a| a - 2.0);
+        std::iter::once((REFERENCE_TEST.to_string(), below, false))
+            .chain((0..self.repeats).map(|_| (REFERENCE_TEST.to_string(), self.axes_deg, true)))
+            .collect()
+    }
+}
+
 /// A whole campaign and the pace of the robot.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -65,6 +96,9 @@ pub struct Campaign {
     /// Reversal tests (none in the paper's campaign).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub reversals: Vec<ReversalTest>,
+    /// A reference pose measured through the campaign (none in the paper's campaign).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<ReferencePose>,
     /// Dwell per stop (settling + tracker measurement), seconds: the paper measured 186 points
     /// in about 10 minutes, i.e. about 3.2 s per stop.
     #[serde(default = "default_dwell")]
@@ -156,6 +190,7 @@ impl Campaign {
                 test(6, -180.0, 180.0, None),
             ],
             reversals: Vec::new(),
+            reference: None,
             dwell_s: default_dwell(),
             axis_speed_deg_s: default_speed(),
         }
@@ -283,7 +318,13 @@ impl Campaign {
     pub fn plan(&self) -> Result<Vec<PlannedStop>, CampaignError> {
         self.validate()?;
         let mut visits: Vec<(String, [f64; 6], bool)> = Vec::new();
+        let reference = |visits: &mut Vec<(String, [f64; 6], bool)>| {
+            if let Some(r) = &self.reference {
+                visits.extend(r.visits());
+            }
+        };
         for t in &self.tests {
+            reference(&mut visits);
             let n = t.axis as usize - 1;
             let others: Vec<(String, [f64; 6])> = match &t.repeat {
                 None => vec![(format!("A{}", t.axis), t.reference_deg)],
@@ -337,6 +378,7 @@ impl Campaign {
                 }
             }
         }
+        reference(&mut visits);
         Ok(paced(visits, self.dwell_s, self.axis_speed_deg_s))
     }
 }
@@ -406,6 +448,7 @@ mod tests {
                 approach_deg: 2.0,
             }],
             reversals: Vec::new(),
+            reference: None,
             dwell_s: 1.0,
             axis_speed_deg_s: 1.0,
         };
@@ -425,6 +468,36 @@ mod tests {
         assert_eq!(d[5..8], [Negative, Negative, Negative]);
         // time: dwell 1 s + travel |Δ| / 1 °/s between consecutive stops
         assert_eq!(stops[1].time_s, 1.0 + 2.0);
+    }
+
+    #[test]
+    fn a_reference_pose_is_measured_at_the_start_before_every_test_and_at_the_end() {
+        let reference = [0.0, -60.0, 100.0, 0.0, 45.0, 0.0];
+        let mut c = Campaign::paper();
+        c.reference = Some(ReferencePose {
+            axes_deg: reference,
+            repeats: 2,
+        });
+        let stops = c.plan().unwrap();
+        let refs: Vec<usize> = (0..stops.len())
+            .filter(|&i| stops[i].test == REFERENCE_TEST && stops[i].measured)
+            .collect();
+        // Six tests: before each of them and at the end, two readings each.
+        assert_eq!(refs.len(), 7 * 2);
+        assert_eq!(refs[..2], [1, 2]);
+        assert_eq!(refs[12..], [stops.len() - 2, stops.len() - 1]);
+        for &i in &refs {
+            assert_eq!(stops[i].axes_deg, reference);
+        }
+        // Each visit approached with every axis from 2° below, unmeasured.
+        for &i in refs.iter().step_by(2) {
+            assert!(!stops[i - 1].measured);
+            assert_eq!(stops[i - 1].axes_deg, reference.map(|a| a - 2.0));
+        }
+        // The paper's own stops are unchanged, in order.
+        let own: Vec<_> = stops.iter().filter(|s| s.test != REFERENCE_TEST).map(|s| s.axes_deg).collect();
+        let paper: Vec<_> = Campaign::paper().plan().unwrap().into_iter().map(|s| s.axes_deg).collect();
+        assert_eq!(own, paper);
     }
 
     #[test]

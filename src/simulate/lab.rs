@@ -147,6 +147,7 @@ fn stops_of(test: &IndexingTest) -> Vec<PlannedStop> {
     Campaign {
         tests: vec![test.clone()],
         reversals: Vec::new(),
+        reference: None,
         dwell_s: 0.0,
         axis_speed_deg_s: 1.0,
     }
@@ -290,6 +291,7 @@ pub fn fit(cell: &Cell, choices: &Choices) -> Result<LabCampaign, String> {
         visits.extend(of(Campaign {
             tests: vec![t.clone()],
             reversals: Vec::new(),
+            reference: None,
             dwell_s: 0.0,
             axis_speed_deg_s: 1.0,
         }));
@@ -299,6 +301,7 @@ pub fn fit(cell: &Cell, choices: &Choices) -> Result<LabCampaign, String> {
         let planned = of(Campaign {
             tests: Vec::new(),
             reversals: vec![r.clone()],
+            reference: None,
             dwell_s: 0.0,
             axis_speed_deg_s: 1.0,
         });
