@@ -121,9 +121,18 @@ impl Score {
 
     /// "explains 12% (stable over 4 folds)" or "… worse: −8%".
     pub fn describe(&self) -> String {
+        // A fit that extrapolates wildly is worse by a factor, not by a percentage of the sum
+        // of squares nobody can read.
+        let share = if self.explained > -9.0 {
+            format!("{:+.0}%", 100.0 * self.explained)
+        } else {
+            format!(
+                "{:.0} times the error",
+                self.rms_after_um / self.rms_before_um.max(f64::MIN_POSITIVE)
+            )
+        };
         format!(
-            "{:+.0}% on {} ({:.1} → {:.1} µm RMS)",
-            100.0 * self.explained,
+            "{share} on {} ({:.1} → {:.1} µm RMS)",
             self.scheme.describe(),
             self.rms_before_um,
             self.rms_after_um

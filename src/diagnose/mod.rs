@@ -1029,8 +1029,13 @@ fn finding(
                 );
             }
             s += &format!(
-                "; fitted without the stretches of the tests it is scored on, it explains {:.0}% \
-                 of their residual ({rms:.1} → {:.1} µm RMS)",
+                "; fitted without the stretches of the tests it is scored on{}, it explains \
+                 {:.0}% of their residual ({rms:.1} → {:.1} µm RMS)",
+                if e.partialled {
+                    " (the model's tables re-fitted beside it)"
+                } else {
+                    ""
+                },
                 100.0 * e.explained.max(0.0),
                 e.rms_after_um
             );
@@ -1042,6 +1047,16 @@ fn finding(
             }
             s
         }
+    };
+    let evidence = match e.check(Scheme::Files).filter(|_| vetoed.is_none()) {
+        Some(f) => format!(
+            "{evidence}; learnt from the earlier files it lowers the latest one's error \
+             {:.1} → {:.1} µm RMS ({:+.0}%)",
+            f.rms_before_um,
+            f.rms_after_um,
+            100.0 * f.explained
+        ),
+        None => evidence,
     };
     let within = e.within.as_ref();
     Finding {
