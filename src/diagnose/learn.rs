@@ -355,6 +355,8 @@ struct Normal {
     g: Vec<DVector<f64>>,
     /// Xᵀ M per cell (p × m).
     c: Vec<DMatrix<f64>>,
+    /// Xᵀ per cell, one column per coordinate of its points (in [`Blocks`] order).
+    xt: Vec<DMatrix<f64>>,
 }
 
 impl Normal {
@@ -386,6 +388,7 @@ impl Normal {
             a: Vec::new(),
             g: Vec::new(),
             c: Vec::new(),
+            xt: Vec::new(),
         };
         n.accumulate(points, blocks);
         n
@@ -422,6 +425,7 @@ impl Normal {
             a: Vec::new(),
             g: Vec::new(),
             c: Vec::new(),
+            xt: Vec::new(),
         };
         n.accumulate(points, blocks);
         n
@@ -443,7 +447,7 @@ impl Normal {
 
     fn accumulate(&mut self, points: &[Point], blocks: &Blocks) {
         let p = self.size();
-        let (mut a, mut g, mut c) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut a, mut g, mut c, mut xts) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for ((members, m), r) in blocks.members.iter().zip(&blocks.model).zip(&blocks.residual) {
             // Xᵀ, one column per coordinate of every point of the cell.
             let mut xt = DMatrix::zeros(p, 3 * members.len());
@@ -457,10 +461,12 @@ impl Normal {
             a.push(&xt * xt.transpose());
             g.push(&xt * r);
             c.push(&xt * m);
+            xts.push(xt);
         }
         self.a = a;
         self.g = g;
         self.c = c;
+        self.xt = xts;
     }
 
     fn size(&self) -> usize {
@@ -654,14 +660,25 @@ fn screen(model: &Model, points: &[Point], spec: &Spec, folds: &Folds) -> Screen
     let (a_cells, g_cells, b) = normal.partialled(&folds.model, &folds.factor);
     let kt = folds.tests.folds();
     let before: Vec<Vector3<f64>> = points.iter().map(|p| p.residual).collect();
+    // Each fold holds out whole cells: the partialled prediction X̃·w = X·w − M·(B·w) of a
+    // cell's points is two matrix-vector products of its blocks.
+    let blocks = &folds.blocks;
     let score = |plan: &Plan, fold_of_cell: &dyn Fn(usize) -> usize| {
         let mut after = vec![None; points.len()];
-        for (f, held) in plan.held.iter().enumerate() {
+        for f in 0..plan.folds() {
             let w = Normal::solve_cells(&a_cells, &g_cells, |cell| fold_of_cell(cell) != f);
             let bw = b_times(&b, &w);
-            for &i in held {
-                let pt = &points[i];
-                after[i] = Some(pt.residual - partial_predict(&normal, &bw, pt, i, &w));
+            let wv = DVector::from_column_slice(&w);
+            for cell in (0..blocks.members.len()).filter(|&c| fold_of_cell(c) == f) {
+                let predicted = normal.xt[cell].tr_mul(&wv) - &blocks.model[cell] * &bw;
+                for (row, &i) in blocks.members[cell].iter().enumerate() {
+                    let p = Vector3::new(
+                        predicted[3 * row],
+                        predicted[3 * row + 1],
+                        predicted[3 * row + 2],
+                    );
+                    after[i] = Some(points[i].residual - p);
+                }
             }
         }
         Score::new(plan, &before, &after)
