@@ -77,8 +77,9 @@ mod tests {
     #[test]
     fn a_pose_visited_through_the_campaign_tells_time_from_pose() {
         let home = [0.0, -60.0, 100.0, 0.0, 45.0, 0.0];
+        // A1 swept 1..100° (never the home pose's 0°), one pose every 10 s.
         let mut rows: Vec<Row> = (0..100)
-            .map(|k| row([k as f64, -60.0, 100.0, 0.0, 45.0, 0.0], 10.0 * k as f64))
+            .map(|k| row([k as f64 + 1.0, -60.0, 100.0, 0.0, 45.0, 0.0], 10.0 * k as f64))
             .collect();
         // Every pose once: the clock and the A1 angle are the same driver.
         assert!(!tells_time_from_pose(&rows));
