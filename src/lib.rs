@@ -37,10 +37,6 @@
 //! reach inside through the `internals` feature, which promises no stability.
 
 #![warn(missing_docs)]
-// Without `internals`, what only the tests, benches and fuzz targets call (the KRL dump, the
-// virtual robot's loaders, the single-program compensation entry points, …) is unused by the
-// library itself.
-#![cfg_attr(not(feature = "internals"), allow(dead_code, unused_imports))]
 
 mod api;
 mod cli;

@@ -188,6 +188,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Calibration, CalError> {
 }
 
 /// The JSON Schema of the format, as shipped in `calibrations/calibration.schema.json`.
+#[cfg(any(test, feature = "internals"))]
 pub fn json_schema() -> String {
     let schema = schemars::schema_for!(CalibrationFile);
     serde_json::to_string_pretty(&schema)

@@ -60,6 +60,7 @@ impl Driver {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn unit(&self) -> &'static str {
         match self {
             Driver::Angle(_) => "°",

@@ -111,6 +111,7 @@ impl EditList {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn len(&self) -> usize {
         self.segments.iter().map(|s| s.pieces.len()).sum()
     }

@@ -21,11 +21,16 @@ pub mod sequence;
 pub mod solve;
 pub mod taken;
 
-pub use crate::motion::frame::{self as pose, Frame};
 pub use program::{compensate_program, compensate_program_from, Calibrated, ProgramResult, Report};
-pub use sequence::{
-    compensate, nominal_directions, Interp, Keep, Options, Outcome, Resolution, Target,
-    TargetError, REST_DEG,
-};
 pub use taken::Taken;
-pub use solve::{Method, SolveError, TOL_POSITION_MM, TOL_ROTATION_RAD};
+pub use solve::Method;
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use {
+    crate::motion::frame::{self as pose, Frame},
+    sequence::{
+        compensate, nominal_directions, Interp, Keep, Options, Outcome, Resolution, Target,
+        TargetError, REST_DEG,
+    },
+    solve::{SolveError, TOL_POSITION_MM, TOL_ROTATION_RAD},
+};

@@ -32,14 +32,17 @@ impl Output {
     }
 
     /// The bytes in one buffer.
+    #[cfg(any(test, feature = "internals"))]
     pub fn to_vec(&self) -> Vec<u8> {
         self.pieces().concat()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn len(&self) -> usize {
         self.pieces().iter().map(|p| p.len()).sum()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -14,7 +14,10 @@ use super::output::Chunk;
 use super::taken::Taken;
 pub use super::output::Output;
 pub(super) use super::report::Tally;
-pub use super::report::{CalibrationRef, MaxMean, PointReport, PoseStats, Report, SplitReport};
+pub use super::report::{CalibrationRef, Report};
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use super::report::{MaxMean, PointReport, PoseStats, SplitReport};
 use super::rewrite;
 use super::segments::Segments;
 use super::sequence::{ArcAngle, Interp, Keep, Target};

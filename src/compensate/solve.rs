@@ -417,6 +417,7 @@ impl Chain {
 }
 
 /// [`solve`] of a target along a path, from the [`Chain`]'s prediction where it has one.
+#[cfg(any(test, feature = "internals"))]
 pub fn solve_in_chain(
     model: &Model,
     problem: &Problem,

@@ -88,6 +88,7 @@ pub struct DirectResult {
 }
 
 /// The indexing tests of `data` (see the module documentation), all from one file.
+#[cfg(any(test, feature = "internals"))]
 pub fn indexing_tests(data: &[Stop]) -> Vec<IndexingTest> {
     indexing_tests_grouped(data, &[])
 }
@@ -259,6 +260,7 @@ fn fit_geometry(
 /// Runs the direct method on `data` (positions in the base frame) and writes its estimates
 /// into the model's `geometric`, `map`, `backlash` and `crosstalk` effects. `None` when the
 /// data hold no indexing test.
+#[cfg(any(test, feature = "internals"))]
 pub fn direct_method(model: &mut Model, data: &[Stop]) -> Option<DirectResult> {
     direct_method_grouped(model, data, &[])
 }

@@ -44,7 +44,8 @@ impl Default for SparseLsq {
 /// The solution and the factorisation of the normal matrix it came from.
 pub struct LsqSolution {
     pub x: Vec<f64>,
-    /// Residual sum of squares ‖A x − b‖² at the solution.
+    /// Residual sum of squares ‖A x − b‖² at the solution (only the tests read it).
+    #[cfg(any(test, feature = "internals"))]
     pub rss: f64,
     llt: faer::sparse::linalg::solvers::Llt<usize, f64>,
     n: usize,
@@ -63,6 +64,7 @@ impl SparseLsq {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn parameters(&self) -> usize {
         self.n
     }
@@ -141,6 +143,7 @@ impl SparseLsq {
         if x.iter().any(|v| !v.is_finite()) {
             return Err(LsqError::Singular);
         }
+        #[cfg(any(test, feature = "internals"))]
         let rss = (0..rows)
             .map(|r| {
                 let ax: f64 = (self.row_ptr[r]..self.row_ptr[r + 1])
@@ -151,6 +154,7 @@ impl SparseLsq {
             .sum();
         Ok(LsqSolution {
             x,
+            #[cfg(any(test, feature = "internals"))]
             rss,
             llt,
             n: self.n,
@@ -180,6 +184,7 @@ impl LsqSolution {
 
     /// Column `i` of (AᵀA)⁻¹: multiplied by σ² it is the covariance of parameter `i` with all
     /// others (σ² = rss / (rows − parameters) for unit-weight measurement rows).
+    #[cfg(any(test, feature = "internals"))]
     pub fn inverse_normal_column(&self, i: usize) -> Vec<f64> {
         let mut e = Mat::<f64>::zeros(self.n, 1);
         if i < self.n {

@@ -16,6 +16,7 @@ pub mod setup;
 pub mod thin;
 pub mod verdict;
 
-pub use refine::{
-    refine, Fit, Free, IdentifyError, Progress, ProgressFn, RefineOptions, Status, Warning,
-};
+pub use refine::{refine, Free, IdentifyError, Progress, RefineOptions, Status, Warning};
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use refine::{Fit, ProgressFn};

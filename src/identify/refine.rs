@@ -49,7 +49,8 @@ pub enum Free {
     All,
     /// The parameters of these effects (contract names, any spelling `EffectName` accepts).
     Effects(Vec<String>),
-    /// One flag per parameter of the flat vector.
+    /// One flag per parameter of the flat vector (robopost's own tests choose parameters so).
+    #[cfg(any(test, feature = "internals"))]
     Mask(Vec<bool>),
 }
 
@@ -313,7 +314,9 @@ fn free_mask(model: &Model, free: &Free) -> Result<Vec<bool>, IdentifyError> {
     let n = model.n_parameters();
     match free {
         Free::All => Ok(vec![true; n]),
+        #[cfg(any(test, feature = "internals"))]
         Free::Mask(m) if m.len() == n => Ok(m.clone()),
+        #[cfg(any(test, feature = "internals"))]
         Free::Mask(m) => Err(IdentifyError::BadMask {
             expected: n,
             found: m.len(),

@@ -27,7 +27,9 @@ pub const THRESHOLD: f64 = 5.0;
 pub const MAX_SHARE: f64 = 0.05;
 /// Typical noise per coordinate of the default tracker (Leica AT960), µm, and its growth with
 /// distance, µm/m.
+#[cfg(any(test, feature = "internals"))]
 pub const SIGMA_UM: f64 = 5.0;
+#[cfg(any(test, feature = "internals"))]
 pub const SIGMA_UM_PER_M: f64 = 2.5;
 /// Median of the χ distribution with 3 degrees of freedom: the median length of a 3-D normal
 /// vector with unit standard deviation per coordinate.

@@ -188,6 +188,7 @@ pub fn forward(robot: &RobotDescription, axes_deg: &[f64; 6]) -> Frame {
 }
 
 /// The wrist point (intersection of A4, A5, A6) of `axes_deg`, base frame, mm.
+#[cfg(any(test, feature = "internals"))]
 pub fn wrist_point(robot: &RobotDescription, axes_deg: &[f64; 6]) -> Vector3<f64> {
     let g = Geometry::new(robot);
     let (s1, c1) = sin_cos(g.theta(0, axes_deg[0]));

@@ -15,10 +15,12 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::Frame;
 
-pub use super::branches::{
-    ELBOW_SINGULAR_DEG, REACH_TOLERANCE_MM, SHOULDER_SINGULAR_MM, WRIST_SINGULAR_SIN,
+// What only robopost's own tests name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use super::{
+    branches::{ELBOW_SINGULAR_DEG, REACH_TOLERANCE_MM, SHOULDER_SINGULAR_MM, WRIST_SINGULAR_SIN},
+    turns::LIMIT_TOLERANCE_DEG,
 };
-pub use super::turns::LIMIT_TOLERANCE_DEG;
 
 use super::branches::{a3, arm, join, shoulder, wrist, OutOfReach, Shoulder, Target};
 use super::fk::{Singularity, SingularityKind};

@@ -18,12 +18,20 @@ pub mod robot;
 pub mod trig;
 mod turns;
 
-pub use fk::{
-    flange_frame, forward, singularity, singularity_distances, singularity_with, status_turn,
-    wrist_point, Singularity, SingularityKind, SingularityThresholds,
-};
+pub use fk::{flange_frame, forward, singularity, status_turn, Singularity};
 pub use frame::Frame;
-pub use ik::{inverse, inverse_all, inverse_all_into, IkError, IkSolution, Select};
-pub use pose::{abc_to_matrix, matrix_to_abc, AxisAngles, E6Axis, E6Pos, Pose};
+pub use ik::{inverse, inverse_all, IkError, IkSolution, Select};
+pub use pose::{abc_to_matrix, matrix_to_abc, AxisAngles, Pose};
 pub use rates::ArmState;
-pub use robot::{Gravity, Links, Payload, RobotDescription};
+pub use robot::{Links, Payload, RobotDescription};
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use {
+    fk::{
+        singularity_distances, singularity_with, wrist_point, SingularityKind,
+        SingularityThresholds,
+    },
+    ik::inverse_all_into,
+    pose::{E6Axis, E6Pos},
+    robot::Gravity,
+};

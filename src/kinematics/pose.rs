@@ -195,6 +195,7 @@ impl PartialEq<AxisAngles> for [f64; 6] {
 
 /// An E6POS: a pose with the optional status and turn bits and the external axes E1..E6.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg(any(test, feature = "internals"))]
 pub struct E6Pos {
     pub pose: Pose,
     pub s: Option<u8>,
@@ -206,6 +207,7 @@ pub struct E6Pos {
 
 /// An E6AXIS: the robot axes A1..A6 and the external axes E1..E6, degrees (or mm).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg(any(test, feature = "internals"))]
 pub struct E6Axis {
     pub axes_deg: AxisAngles,
     pub external: [f64; 6],

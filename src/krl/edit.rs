@@ -2,6 +2,7 @@
 //! inserts). This is how a compensated program is written — only the numbers that change are
 //! touched, every other byte (comments, code page, line endings, spacing) is copied through.
 
+#[cfg(any(test, feature = "internals"))]
 use super::span::Span;
 use std::ops::Range;
 
@@ -14,6 +15,7 @@ pub struct Edit {
 
 /// A set of edits to one source, in any order.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[cfg(any(test, feature = "internals"))]
 pub struct Edits {
     edits: Vec<Edit>,
 }
@@ -30,6 +32,7 @@ pub enum EditError {
     },
 }
 
+#[cfg(any(test, feature = "internals"))]
 impl Edits {
     pub fn new() -> Edits {
         Edits::default()
@@ -73,6 +76,7 @@ impl Edits {
     }
 }
 
+#[cfg(any(test, feature = "internals"))]
 impl AsRef<[Edit]> for Edits {
     fn as_ref(&self) -> &[Edit] {
         &self.edits

@@ -58,6 +58,7 @@ pub struct ParseError {
 
 impl ParseError {
     /// The tree recovered from the malformed lines.
+    #[cfg(any(test, feature = "internals"))]
     pub fn recovered(&self) -> &SourceFile {
         &self.file
     }
@@ -75,6 +76,7 @@ impl ParseError {
     }
 
     /// Every error rendered: `error: …`, `--> name:line:col`, the line, a caret, the help.
+    #[cfg(any(test, feature = "internals"))]
     pub fn render(&self, name: &str) -> String {
         self.diagnostics(name)
             .iter()

@@ -181,6 +181,7 @@ impl BinOp {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn symbol(self) -> &'static str {
         use BinOp::*;
         match self {
@@ -326,6 +327,7 @@ impl Member<'_> {
 
 impl Aggregate {
     /// The `{`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn open(&self) -> Span {
         Span {
             start: self.span.start,
@@ -334,6 +336,7 @@ impl Aggregate {
     }
 
     /// The `}` (insert a missing member before it).
+    #[cfg(any(test, feature = "internals"))]
     pub fn close(&self) -> Span {
         Span {
             start: self.span.end - 1,
@@ -342,6 +345,7 @@ impl Aggregate {
     }
 
     /// `E6POS` in `{E6POS: …}`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn type_name(&self) -> Option<Span> {
         (self.type_len > 0).then_some(Span {
             start: self.type_start,
@@ -354,6 +358,7 @@ impl Aggregate {
         (self.len_nested & !NESTED_BIT) as usize
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

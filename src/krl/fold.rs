@@ -81,17 +81,20 @@ pub struct IlfFrame {
 
 impl IlfMotion {
     /// Name of the position variable of point `k` in the `.dat`: `X` + point name.
+    #[cfg(any(test, feature = "internals"))]
     pub fn position_var(&self, src: &[u8], k: usize) -> Option<Vec<u8>> {
         self.points.get(k).map(|p| prefixed(b"X", &src[p.range()]))
     }
 
     /// Name of the frame data (`FDAT`) of the target point: `F` + point name.
+    #[cfg(any(test, feature = "internals"))]
     pub fn frame_data_var(&self, src: &[u8]) -> Option<Vec<u8>> {
         self.points.last().map(|p| prefixed(b"F", &src[p.range()]))
     }
 
     /// Name of the motion data: `P` + data set (`PDAT`) for PTP forms, `L` + data set (`LDAT`)
     /// for path forms.
+    #[cfg(any(test, feature = "internals"))]
     pub fn motion_data_var(&self, src: &[u8]) -> Option<Vec<u8>> {
         let prefix: &[u8] = if self.kind.is_joint() { b"P" } else { b"L" };
         self.data.map(|d| prefixed(prefix, &src[d.range()]))
@@ -100,11 +103,13 @@ impl IlfMotion {
 
 impl Ilf {
     /// The `%P` parameter `n`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn param(&self, n: u32) -> Option<Span> {
         self.params.iter().find(|(k, _)| *k == n).map(|(_, s)| *s)
     }
 
     /// The value of setting `key` (case-insensitive) of the nested `Parameters` fold.
+    #[cfg(any(test, feature = "internals"))]
     pub fn setting<'s>(&self, src: &'s [u8], key: &str) -> Option<&'s [u8]> {
         self.settings
             .iter()
@@ -113,6 +118,7 @@ impl Ilf {
     }
 }
 
+#[cfg(any(test, feature = "internals"))]
 fn prefixed(p: &[u8], name: &[u8]) -> Vec<u8> {
     let mut v = p.to_vec();
     v.extend_from_slice(name);

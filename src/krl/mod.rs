@@ -79,6 +79,8 @@
 //! `motion_data_var` → `PPDAT1`/`LCPDAT1`).
 
 pub mod decl;
+// The tree printed for the parser's tests and fuzz targets.
+#[cfg(any(test, feature = "internals"))]
 pub mod dump;
 pub mod edit;
 pub mod error;
@@ -99,24 +101,34 @@ pub mod symbols;
 pub mod tree;
 mod trivia;
 
-pub use decl::{Decl, DeclVar, Dims, Param, ParamMode, RoutineHeader, TypeKind, TypeRef};
-pub use edit::{apply, Edit, EditError, Edits};
-pub use error::{ParseError, Problem, Severity};
-pub use expr::{Access, Aggregate, BinOp, Call, Expr, Member, Number, Path, UnOp};
-pub use fold::{Fold, FoldId, Ilf, IlfFrame, IlfMotion, IlfVelocity};
-pub use motion::{
-    Approx, ApproxKind, Approxes, Motion, MotionKind, RelFrame, RelFrameKind, WithItem,
-};
-pub use nodes::{AggregateId, Members, MotionId, RawMember, RawMembers};
-pub use program::{LoadError, Program};
+pub use decl::{ParamMode, RoutineHeader, TypeKind};
+pub use edit::{apply, Edit, EditError};
+pub use error::{ParseError, Severity};
+pub use expr::{Access, Aggregate, BinOp, Call, Expr, Number, Path, UnOp};
+pub use motion::{Motion, MotionKind, RelFrameKind, WithItem};
+pub use nodes::RawMember;
 pub use sniff::not_krl;
-pub use span::{LineIndex, Span};
-pub use stmt::{Action, Arm, ArmKind, Assign, Block, Clause, Directive, For, Stmt, StmtKind};
+pub use span::Span;
+pub use stmt::{ArmKind, Stmt, StmtKind};
 pub use stream::{StreamOptions, StreamedRun};
 pub use symbols::{Symbol, Symbols};
 pub use tree::{
-    parse, parse_recovering, parse_recovering_owned, parse_streaming, FileKind, SourceFile, Stats,
-    TileKind,
+    parse, parse_recovering, parse_recovering_owned, parse_streaming, FileKind, SourceFile,
+};
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use {
+    decl::{Decl, DeclVar, Dims, Param, TypeRef},
+    edit::Edits,
+    error::Problem,
+    expr::Member,
+    fold::{Fold, FoldId, Ilf, IlfFrame, IlfMotion, IlfVelocity},
+    motion::{Approx, ApproxKind, Approxes, RelFrame},
+    nodes::{AggregateId, Members, MotionId, RawMembers},
+    program::{LoadError, Program},
+    span::LineIndex,
+    stmt::{Action, Arm, Assign, Block, Clause, Directive, For},
+    tree::{Stats, TileKind},
 };
 
 /// The `.dat` beside a `.src` (same stem, `.dat` or `.DAT`), if there is anything of that

@@ -116,6 +116,7 @@ struct MotionExtra {
 
 impl Motion {
     /// The motion keyword as written (`LIN`, `lin`, `Ptp_Rel`…).
+    #[cfg(any(test, feature = "internals"))]
     pub fn keyword(&self) -> Span {
         let start = self.keyword_start;
         Span {
@@ -125,6 +126,7 @@ impl Motion {
     }
 
     /// Approximation keywords in order (`C_DIS C_DIS` gives two).
+    #[cfg(any(test, feature = "internals"))]
     pub fn approx(&self) -> Approxes {
         self.approx
     }
@@ -209,11 +211,13 @@ impl Approxes {
         usize::from(self.packed & 3)
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
     /// The `i`-th keyword.
+    #[cfg(any(test, feature = "internals"))]
     pub fn get(&self, i: usize) -> Option<Approx> {
         if i >= self.len() {
             return None;
@@ -236,6 +240,7 @@ impl Approxes {
     }
 
     /// The keywords in order.
+    #[cfg(any(test, feature = "internals"))]
     pub fn iter(&self) -> impl Iterator<Item = Approx> + '_ {
         (0..self.len()).filter_map(|i| self.get(i))
     }

@@ -71,6 +71,7 @@ impl Program {
     }
 
     /// Every problem of both files as diagnostics, including targets declared nowhere.
+    #[cfg(any(test, feature = "internals"))]
     pub fn diagnostics(&self) -> Vec<Diagnostic> {
         self.diagnostics_with(true)
     }
@@ -100,6 +101,7 @@ impl Program {
     }
 
     /// Whether either file has an error.
+    #[cfg(any(test, feature = "internals"))]
     pub fn has_errors(&self) -> bool {
         self.main.has_errors() || self.dat.as_ref().is_some_and(SourceFile::has_errors)
     }

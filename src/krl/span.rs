@@ -74,6 +74,7 @@ pub struct LineIndex {
 }
 
 impl LineIndex {
+    #[cfg(any(test, feature = "internals"))]
     pub fn new(src: &[u8]) -> LineIndex {
         let mut starts = Vec::with_capacity(src.len() / 40 + 1);
         starts.push(0);
@@ -109,6 +110,7 @@ impl LineIndex {
     }
 
     /// Number of lines (a final line without a newline counts; an empty file has one line).
+    #[cfg(any(test, feature = "internals"))]
     pub fn line_count(&self) -> usize {
         self.starts.len() + self.before as usize
     }
@@ -128,6 +130,7 @@ impl LineIndex {
     }
 
     /// The 1-based line of a byte offset.
+    #[cfg(any(test, feature = "internals"))]
     pub fn line_of(&self, offset: usize) -> usize {
         self.line_col(offset).0
     }

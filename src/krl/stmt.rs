@@ -219,6 +219,7 @@ impl Stmt {
     }
 
     /// Everything inside the block (body and arms), in order.
+    #[cfg(any(test, feature = "internals"))]
     pub fn children(&self) -> impl Iterator<Item = &Stmt> {
         self.block.iter().flat_map(|b| {
             b.body

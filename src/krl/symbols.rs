@@ -111,10 +111,12 @@ impl<'f> Symbols<'f> {
     }
 
     /// Number of declared names.
+    #[cfg(any(test, feature = "internals"))]
     pub fn len(&self) -> usize {
         self.names.len()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_empty(&self) -> bool {
         self.names.is_empty()
     }

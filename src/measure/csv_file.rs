@@ -117,6 +117,7 @@ struct Columns {
 }
 
 /// Parses measurement CSV bytes; `file` names the source in errors.
+#[cfg(any(test, feature = "internals"))]
 pub fn parse_csv(bytes: &[u8], file: &str) -> Result<Measurements, MeasureError> {
     parse_csv_within(bytes, file, None)
 }

@@ -16,9 +16,12 @@ pub mod text;
 pub mod tracker;
 
 pub use csv_file::{
-    parse_csv, parse_csv_within, read_csv, read_csv_within, write_csv, MeasureError,
-    ANGLE_RANGE_DEG, POSITION_RANGE_MM, TIME_RANGE_S,
+    read_csv, read_csv_within, write_csv, MeasureError, ANGLE_RANGE_DEG, POSITION_RANGE_MM,
+    TIME_RANGE_S,
 };
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use csv_file::{parse_csv, parse_csv_within};
 pub use columns::Columns;
 pub use directions::infer_histories;
 

@@ -40,6 +40,7 @@ impl Plan {
     }
 
     /// The measured stops (those with a point name).
+    #[cfg(any(test, feature = "internals"))]
     pub fn measured(&self) -> impl Iterator<Item = &PlanStop> {
         self.stops.iter().filter(|s| !s.point.is_empty())
     }

@@ -193,6 +193,7 @@ impl Merged {
     }
 
     /// Adds the merged tables' values at `axes_deg` with `histories`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn add_to(
         &self,
         axes_deg: &[f64; 6],

@@ -22,12 +22,19 @@ pub mod state;
 pub mod table;
 
 pub use effect::{
-    AxisSlopes, ChainErrors, Context, Effect, Observed, Parameter, Partial, RecordRange,
-    RecordValue, Role, Slot, JOINT_SLOTS, N_SLOTS,
+    AxisSlopes, ChainErrors, Effect, Observed, RecordRange, RecordValue, Role, Slot, N_SLOTS,
 };
 pub use effects::{EffectError, GridOptions, ModelEffect};
-pub use history::{AxisHistory, PlayAt, ENGAGING_RUN_DEG, MAX_PLAY_DEG};
+pub use history::{AxisHistory, PlayAt};
 pub use model::{JacobianScratch, Model};
-pub use record::{EffectRecord, RecordError, TableRecord};
-pub use registry::{expand_list, EffectName, NameError, RegisterError};
+pub use record::{EffectRecord, RecordError};
+pub use registry::{expand_list, EffectName, NameError};
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use {
+    effect::{Context, Parameter, Partial, JOINT_SLOTS},
+    history::{ENGAGING_RUN_DEG, MAX_PLAY_DEG},
+    record::TableRecord,
+    registry::RegisterError,
+};
 pub use state::{AxisState, Direction};

@@ -252,6 +252,7 @@ static REGISTERED: RwLock<Vec<&'static Kind>> = RwLock::new(Vec::new());
 /// Why [`register`] refused a kind.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
+#[cfg(any(test, feature = "internals"))]
 pub enum RegisterError {
     /// The prefix is empty or has characters other than lowercase letters, digits and `_`.
     #[error("an effect prefix of lowercase letters, digits and `_`, found `{prefix}`")]
@@ -265,6 +266,7 @@ pub enum RegisterError {
 /// names parse, calibration files carry it, identification and compensation use it, and a
 /// diagnosis tries it after the built-in kinds. Registering the same kind again is a no-op;
 /// a different kind with a prefix already taken is refused.
+#[cfg(any(test, feature = "internals"))]
 pub fn register(kind: &'static Kind) -> Result<(), RegisterError> {
     let valid = !kind.prefix.is_empty()
         && kind

@@ -15,8 +15,6 @@ use crate::kinematics::RobotDescription;
 /// Files of a cell by what they hold.
 #[derive(Clone, Debug, Default)]
 pub struct Cell {
-    /// The directory given with `--cell`, if any.
-    pub root: Option<PathBuf>,
     /// `$config.dat` (the one under `R1` when a tree holds several).
     pub config: Option<PathBuf>,
     /// Data lists with declarations every program sees: system data lists (`DEFDAT $…`)
@@ -146,10 +144,7 @@ impl Cell {
     /// A cell of the tree under `root` (if any) and of the files given one by one (data
     /// lists, `$config.dat`, modules), those taking precedence.
     pub fn scan(root: Option<&Path>, files: &[PathBuf]) -> Result<Cell, ScanError> {
-        let mut cell = Cell {
-            root: root.map(Path::to_path_buf),
-            ..Cell::default()
-        };
+        let mut cell = Cell::default();
         let mut found = Vec::new();
         if let Some(r) = root {
             walk(r, &mut found).map_err(|source| ScanError {
@@ -253,6 +248,7 @@ impl Cell {
     }
 
     /// Whether the cell holds nothing at all.
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_empty(&self) -> bool {
         self.config.is_none()
             && self.data.is_empty()

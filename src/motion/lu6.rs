@@ -23,6 +23,7 @@ pub struct Lu6 {
 }
 
 impl Lu6 {
+    #[cfg(any(test, feature = "internals"))]
     pub fn new(m: &Matrix6<f64>) -> Lu6 {
         let mut lu = Lu6::singular();
         lu.factor(m);

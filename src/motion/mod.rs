@@ -20,8 +20,11 @@ pub use assume::Assumption;
 pub use cell::Cell;
 pub use simulate::{
     simulate, simulate_streaming, CircularAngle, GivenFrame, Programmed, Rel, Role, RunSink,
-    Simulation, SplineEnds, Stop, Walked,
+    Simulation, Stop, Walked,
 };
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use simulate::SplineEnds;
 pub use workspace::{FileId, Workspace};
 
 /// The commanded axis states of a program run, in execution order: every target's nominal

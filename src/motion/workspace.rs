@@ -111,6 +111,7 @@ fn read(path: &Path, name: &str) -> Result<Vec<u8>, LoadError> {
 impl Workspace {
     /// The program `src` (read from `path`, or from standard input when `path` is `None`),
     /// with `dat` beside it when given, and `$config.dat` when given.
+    #[cfg(any(test, feature = "internals"))]
     pub fn load(
         src: (&[u8], Option<&Path>, &str),
         dat: Option<(&[u8], &Path, &str)>,
@@ -358,11 +359,13 @@ impl Workspace {
     }
 
     /// The main program's `.dat`, if any.
+    #[cfg(any(test, feature = "internals"))]
     pub fn main_dat(&self) -> Option<FileId> {
         self.files[self.main as usize].partner
     }
 
     /// The first shared data list (`$config.dat` when given), if any.
+    #[cfg(any(test, feature = "internals"))]
     pub fn config(&self) -> Option<FileId> {
         self.files
             .iter()

@@ -119,9 +119,11 @@ fn default_speed() -> f64 {
 /// the halfway angles between them and the lower end of the A3 test's range, so that no
 /// column is more than 24° from the next and none of the calibrated range is extrapolated
 /// (within 2° of its upper end).
+#[cfg(any(test, feature = "internals"))]
 pub const RECOMMENDED_CROSSTALK_A3_DEG: [f64; 7] = [10.0, 34.0, 58.0, 82.0, 105.0, 129.0, 153.0];
 
 /// How many times [`Campaign::recommended`] runs the paper's tests.
+#[cfg(any(test, feature = "internals"))]
 pub const RECOMMENDED_RUNS: usize = 3;
 
 /// One planned stop of a campaign, in the order the robot visits them.
@@ -234,6 +236,7 @@ impl Campaign {
     /// repeated runs (it prescribes five), so the tracker's noise in a 1° cell averages down.
     /// About 12,000 measured points, 11 hours at the paper's pace: an overnight campaign, over
     /// which a real robot's warm-up must be modelled (`drift`) or waited out.
+    #[cfg(any(test, feature = "internals"))]
     pub fn recommended() -> Campaign {
         let mut campaign = Campaign::paper();
         for t in campaign.tests.iter_mut().filter(|t| t.axis == 2) {

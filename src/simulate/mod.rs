@@ -16,6 +16,12 @@ pub mod truth;
 pub mod virtual_robot;
 
 pub use any_truth::Truth;
-pub use campaign::{paced, Campaign, PlannedStop};
-pub use truth::{TrackerNoise, TruthFile};
-pub use virtual_robot::{SimulateError, VirtualRobot};
+pub use campaign::{Campaign, PlannedStop};
+pub use virtual_robot::SimulateError;
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use {
+    campaign::paced,
+    truth::{TrackerNoise, TruthFile},
+    virtual_robot::VirtualRobot,
+};

@@ -6,13 +6,12 @@
 
 use std::path::Path;
 
-use rand::{Rng, SeedableRng};
-
 use super::campaign::{paced, PlannedStop};
 use crate::measure::MeasureError;
 
 /// The axis ranges the paper's campaign covers (degrees): A1 ±60, A2 and A3 between the
 /// indexing tests' extremes, the wrist ±90/±90/±180.
+#[cfg(any(test, feature = "internals"))]
 pub const CAMPAIGN_RANGES_DEG: [[f64; 2]; 6] = [
     [-60.0, 60.0],
     [-112.0, -19.0],
@@ -25,7 +24,9 @@ pub const CAMPAIGN_RANGES_DEG: [[f64; 2]; 6] = [
 /// `count` poses drawn uniformly inside [`CAMPAIGN_RANGES_DEG`] (seeded), all measured, labelled
 /// `label` and visited in order from `t0_s` (3.2 s dwell, 30°/s): the workspace poses with every
 /// axis moving that tell effects apart which one indexing pose cannot.
+#[cfg(any(test, feature = "internals"))]
 pub fn random_poses(seed: u64, count: usize, t0_s: f64, label: &str) -> Vec<PlannedStop> {
+    use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let visits: Vec<_> = (0..count)
         .map(|_| {

@@ -91,6 +91,7 @@ impl Default for TrackerNoise {
 
 impl TrackerNoise {
     /// No noise at all (for tests that need exact truth).
+    #[cfg(any(test, feature = "internals"))]
     pub const NONE: TrackerNoise = TrackerNoise {
         sigma_um: 0.0,
         sigma_um_per_m: 0.0,
@@ -195,6 +196,7 @@ pub fn parse(text: &str, path: &Path) -> Result<TruthFile, CalError> {
 }
 
 /// Reads and validates a truth file.
+#[cfg(any(test, feature = "internals"))]
 pub fn load(path: &Path) -> Result<TruthFile, CalError> {
     let text = crate::input::read_to_string(path).map_err(|source| CalError::Io {
         path: path.to_path_buf(),

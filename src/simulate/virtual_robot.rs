@@ -51,6 +51,7 @@ pub struct VirtualRobot {
 
 impl VirtualRobot {
     /// A robot measured in its base frame with the default tracker noise and seed 0.
+    #[cfg(any(test, feature = "internals"))]
     pub fn new(truth: Model) -> VirtualRobot {
         VirtualRobot {
             truth,
@@ -78,6 +79,7 @@ impl VirtualRobot {
     }
 
     /// Reads a truth file.
+    #[cfg(any(test, feature = "internals"))]
     pub fn load(path: &std::path::Path) -> Result<VirtualRobot, CalError> {
         Self::from_truth(&super::truth::load(path)?, path)
     }
@@ -87,12 +89,14 @@ impl VirtualRobot {
         self
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn with_noise(mut self, noise: TrackerNoise) -> VirtualRobot {
         self.noise = noise;
         self
     }
 
     /// Reports positions in a tracker frame whose pose in the base frame is `frame`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn with_tracker_frame(mut self, frame: Option<Frame>) -> VirtualRobot {
         self.tracker_frame = frame;
         self

@@ -36,10 +36,15 @@ use crate::motion::value::Origin;
 use crate::motion::{FileId, Role, Simulation, Stop, Workspace};
 
 use super::edits::EditList;
+// What only robopost's own tests name through this path.
+#[cfg(any(test, feature = "internals"))]
 pub use super::sequence::correction;
 use super::sequence::{Command, Outcome};
 use aggregate::{aggregate_edits, components, AggregateTarget};
-pub use aggregate::{file_separator, MIN_DECIMALS_DEG, MIN_DECIMALS_MM};
+pub use aggregate::file_separator;
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use aggregate::{MIN_DECIMALS_DEG, MIN_DECIMALS_MM};
 use shared::{keep_pinned, write_shared};
 use target::written;
 
@@ -138,6 +143,7 @@ struct Use<'f> {
 /// Computes the edits of every compensated target. `separator`: what goes between members
 /// added to a partial aggregate when it has no two of its own (found in the file when `None`;
 /// a streamed window is given its file's, see [`file_separator`]).
+#[cfg(any(test, feature = "internals"))]
 pub fn rewrite(
     ws: &Workspace,
     sim: &Simulation,

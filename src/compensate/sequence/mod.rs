@@ -285,6 +285,7 @@ fn arrive_signs(before: &[Direction; 6], v: Signs) -> [Direction; 6] {
 }
 
 /// Directions of the nominal motion at every target, from the directions before the first.
+#[cfg(any(test, feature = "internals"))]
 pub fn nominal_directions(targets: &[Target], start: [Direction; 6]) -> Vec<[Direction; 6]> {
     let signs: Vec<Signs> = targets.iter().map(|t| signs(t.arrival)).collect();
     directions_after(&signs, start)

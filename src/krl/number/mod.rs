@@ -14,7 +14,10 @@ mod read;
 mod write;
 
 pub(crate) use read::{plain_len, read_plain, scan, value, Literal};
-pub use write::{format_like, units, write_fixed, write_like};
+pub use write::{write_fixed, write_like};
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use write::{format_like, units};
 
 /// Exact powers of ten representable in f64: 10^22 = 2^22·5^22 and 5^22 < 2^53, so every
 /// power up to it is a double (Clinger's fast path works up to there), and so is every

@@ -46,6 +46,8 @@ pub(super) struct Parsed {
     pub(super) problems: Vec<Problem>,
     pub(super) folds: Vec<Fold>,
     pub(super) starts: Vec<u32>,
+    /// Where the file's trailing trivia starts (the tree keeps it only to emit itself).
+    #[cfg(any(test, feature = "internals"))]
     pub(super) pending: usize,
     pub(super) runs: Vec<StreamedRun>,
 }
@@ -206,6 +208,7 @@ impl<'s> LineParse<'s> {
             problems,
             folds,
             starts: self.starts,
+            #[cfg(any(test, feature = "internals"))]
             pending: self.pending,
             runs: self.runs,
         }

@@ -20,6 +20,8 @@ use std::cell::RefCell;
 use std::path::Path;
 use std::sync::Arc;
 
+#[cfg(any(test, feature = "internals"))]
+mod emit;
 mod lines;
 mod nesting;
 mod output;
@@ -28,7 +30,10 @@ mod queries;
 mod tests;
 
 use lines::LineParse;
-pub use output::TileKind;
+#[cfg(any(test, feature = "internals"))]
+pub use emit::TileKind;
+// What only robopost's own tests name through this path.
+#[cfg(any(test, feature = "internals"))]
 pub use queries::Statements;
 
 /// Which kind of KRL file.
@@ -57,6 +62,8 @@ pub struct SourceFile {
     src: Arc<Vec<u8>>,
     kind: FileKind,
     body: Vec<Stmt>,
+    /// The trivia after the last statement; only emitting the whole tree (tests, fuzz) reads it.
+    #[cfg(any(test, feature = "internals"))]
     trailing: Span,
     folds: Vec<Fold>,
     problems: Vec<Problem>,
@@ -117,6 +124,7 @@ pub fn parse_recovering_owned(src: Vec<u8>, kind: FileKind) -> SourceFile {
             src: Arc::default(),
             kind,
             body: Vec::new(),
+            #[cfg(any(test, feature = "internals"))]
             trailing: Span::default(),
             folds: Vec::new(),
             problems,
@@ -223,6 +231,7 @@ fn build_in(
         src: Arc::default(),
         kind,
         body: parsed.body,
+        #[cfg(any(test, feature = "internals"))]
         trailing: Span::new(parsed.pending, range.end),
         folds: parsed.folds,
         problems: parsed.problems,

@@ -1,19 +1,11 @@
-//! A [`SourceFile`] given back: its bytes (`emit`, byte for byte), its tiles of trivia and
-//! code, its problems as diagnostics, and counts of what it holds.
+//! A [`SourceFile`] given back: its problems as diagnostics, its line index, and counts of what
+//! it holds (its bytes and tiles are in `emit`).
 
 use super::{SourceFile, Stats};
 use crate::diagnostic::Diagnostic;
 use crate::krl::error::Problem;
-use crate::krl::memory::{extend_mapped, Ahead};
 use crate::krl::span::{LineIndex, Span};
-use crate::krl::stmt::{Clause, Stmt, StmtKind};
-
-/// What a tile of the file is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TileKind {
-    Trivia,
-    Code,
-}
+use crate::krl::stmt::StmtKind;
 
 impl SourceFile {
     /// Problems found, errors and warnings, in source order.
@@ -60,58 +52,6 @@ impl SourceFile {
             span.range(),
             message,
         )
-    }
-
-    /// The file again, byte for byte, from the tree's tiles.
-    pub fn emit(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(self.src.len());
-        self.emit_into(&mut out);
-        out
-    }
-
-    /// Appends the file's bytes, tile by tile, to `out` (adjacent tiles are copied together).
-    pub fn emit_into(&self, out: &mut Vec<u8>) {
-        let mut run = Span::default();
-        let mut ahead = Ahead::default();
-        self.for_each_tile(&mut |span, _| {
-            if span.start == run.end {
-                run.end = span.end;
-            } else {
-                extend_mapped(out, &mut ahead, &self.src[run.range()]);
-                run = span;
-            }
-        });
-        extend_mapped(out, &mut ahead, &self.src[run.range()]);
-    }
-
-    /// Every tile (trivia or code) of the file in order; together they cover it exactly.
-    pub fn tiles(&self) -> Vec<(Span, TileKind)> {
-        let mut v = Vec::new();
-        self.for_each_tile(&mut |s, k| v.push((s, k)));
-        v
-    }
-
-    fn for_each_tile(&self, f: &mut impl FnMut(Span, TileKind)) {
-        fn clause(c: &Clause, f: &mut impl FnMut(Span, TileKind)) {
-            f(c.leading, TileKind::Trivia);
-            f(c.span, TileKind::Code);
-        }
-        fn stmt(s: &Stmt, f: &mut impl FnMut(Span, TileKind)) {
-            f(s.leading, TileKind::Trivia);
-            f(s.head, TileKind::Code);
-            if let Some(b) = &s.block {
-                b.body.iter().for_each(|c| stmt(c, f));
-                for a in &b.arms {
-                    clause(&a.clause, f);
-                    a.body.iter().for_each(|c| stmt(c, f));
-                }
-                if let Some(e) = &b.end {
-                    clause(e, f);
-                }
-            }
-        }
-        self.body.iter().for_each(|s| stmt(s, f));
-        f(self.trailing, TileKind::Trivia);
     }
 
     /// Counts for reports.

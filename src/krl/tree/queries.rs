@@ -4,7 +4,9 @@
 use super::{build_in, BuildOptions, FileKind, SourceFile};
 use crate::krl::decl::{Decl, RoutineHeader};
 use crate::krl::error::{ParseError, Problem};
-use crate::krl::expr::{Aggregate, Expr, Member, Number};
+#[cfg(any(test, feature = "internals"))]
+use crate::krl::expr::Number;
+use crate::krl::expr::{Aggregate, Expr, Member};
 use crate::krl::fold::{Fold, FoldId, Ilf};
 use crate::krl::motion::Motion;
 use crate::krl::nodes::{AggregateId, Members, MotionId};
@@ -107,6 +109,7 @@ impl SourceFile {
     }
 
     /// Trivia after the last statement.
+    #[cfg(any(test, feature = "internals"))]
     pub fn trailing(&self) -> Span {
         self.trailing
     }
@@ -139,6 +142,7 @@ impl SourceFile {
     }
 
     /// The motion of `stmt`, if it is a motion statement.
+    #[cfg(any(test, feature = "internals"))]
     pub fn motion_of(&self, stmt: &Stmt) -> Option<&Motion> {
         stmt.as_motion().map(|m| self.motion(m))
     }
@@ -187,6 +191,7 @@ impl SourceFile {
     }
 
     /// The `[]` right after an array member's name (`POINT2[] " "`), if any.
+    #[cfg(any(test, feature = "internals"))]
     pub fn member_index(&self, m: &Member) -> Option<Span> {
         let at = m.name.end as usize;
         if self.src.get(at) != Some(&b'[') {
@@ -197,6 +202,7 @@ impl SourceFile {
     }
 
     /// The number of member `name` when it is a plain (possibly signed) literal.
+    #[cfg(any(test, feature = "internals"))]
     pub fn member_number(&self, a: &Aggregate, name: &str) -> Option<Number> {
         self.member(a, name)?.value.as_number().copied()
     }
@@ -302,6 +308,7 @@ impl SourceFile {
     }
 
     /// Every numeric literal in `e`, in source order.
+    #[cfg(any(test, feature = "internals"))]
     pub fn numbers(&self, e: &Expr) -> Vec<Number> {
         let mut out = Vec::new();
         self.visit_expr(e, &mut |x| {

@@ -120,6 +120,7 @@ pub enum Programmed {
 
 impl Programmed {
     /// An axis target (`A1..A6`).
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_axes(&self) -> bool {
         matches!(self, Programmed::Axes(_))
     }

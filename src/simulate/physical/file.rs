@@ -211,6 +211,7 @@ impl Default for Noise {
 
 impl Noise {
     /// No random error at all.
+    #[cfg(any(test, feature = "internals"))]
     pub const NONE: Noise = Noise {
         sigma_um: 0.0,
         sigma_um_per_m: 0.0,
@@ -416,6 +417,7 @@ impl PhysicalTruthFile {
     }
 
     /// Pretty JSON, newline-terminated.
+    #[cfg(any(test, feature = "internals"))]
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).map_or_else(|_| String::new(), |s| s + "\n")
     }

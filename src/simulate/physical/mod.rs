@@ -25,9 +25,10 @@ use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-pub use file::{
-    parse, Counterbalance, Gear, Growth, Harmonic, JointError, Noise, PhysicalTruthFile, Tracker, PHYSICAL_FORMAT,
-};
+pub use file::{parse, PhysicalTruthFile, PHYSICAL_FORMAT};
+// What only robopost's own tests, benches and fuzz targets name through this path.
+#[cfg(any(test, feature = "internals"))]
+pub use file::{Counterbalance, Gear, Growth, Harmonic, JointError, Noise, Tracker};
 pub use samples::{from_program, from_stops, CommandSample, SampleKind, PTP_STEP_DEG};
 
 use crate::calibration::CalError;
@@ -88,6 +89,7 @@ impl PhysicalRobot {
     }
 
     /// Reads a physical truth file.
+    #[cfg(any(test, feature = "internals"))]
     pub fn load(path: &Path) -> Result<PhysicalRobot, CalError> {
         let text = crate::input::read_to_string(path).map_err(|source| CalError::Io {
             path: path.to_path_buf(),
@@ -96,6 +98,7 @@ impl PhysicalRobot {
         PhysicalRobot::new(parse(&text, path)?, path)
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn file(&self) -> &PhysicalTruthFile {
         &self.file
     }
@@ -109,6 +112,7 @@ impl PhysicalRobot {
         Vector3::from(self.file.target_mm)
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn seed(&self) -> u64 {
         self.file.seed
     }
@@ -121,6 +125,7 @@ impl PhysicalRobot {
     /// A robot built without any error (nominal joint frames, perfect gears without play, rigid,
     /// no growth), with the same target, payload and tracker (frame, scale, noise, seed): the
     /// "tracker alone" reference of an experiment.
+    #[cfg(any(test, feature = "internals"))]
     pub fn error_free(&self) -> PhysicalRobot {
         let file = PhysicalTruthFile {
             joints: Default::default(),
@@ -167,6 +172,7 @@ impl PhysicalRobot {
     }
 
     /// The flange pose of the arm (no tracker) at output angles `output_deg`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn flange_at(&self, output_deg: &[f64; 6], time_s: f64) -> crate::kinematics::Frame {
         crate::kinematics::Frame::from_isometry(&self.arm.bodies(output_deg, time_s).flange)
     }
