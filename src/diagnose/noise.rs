@@ -23,12 +23,6 @@ use crate::calibration::MeasurementFrame;
 use crate::compare::Row;
 use crate::measure::tracker::Tracker;
 
-/// The default tracker's (Leica AT960) MPE: constant part (µm) and part per metre of
-/// distance (µm/m); `--tracker` gives another ([`Tracker`]).
-pub const MPE_UM: f64 = 15.0;
-pub const MPE_UM_PER_M: f64 = 6.0;
-/// The typical error is about half of the MPE (MODEL.md).
-pub const TYPICAL_FRACTION: f64 = 0.5;
 /// Where the tracker is assumed to stand when the data do not say: a typical set-up 3 m in
 /// front of the robot at the height of the A2 axis.
 pub const ASSUMED_STATION_MM: [f64; 3] = [3000.0, 0.0, 800.0];
