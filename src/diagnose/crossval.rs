@@ -261,14 +261,7 @@ fn held_out_or(
     };
     let mut after = vec![None; stops.len()];
     for (held, train) in plan.held.iter().zip(&plan.train) {
-        let training: Vec<Stop> = stops
-            .iter()
-            .zip(train)
-            .map(|(s, &t)| Stop {
-                measured_mm: if t { s.measured_mm } else { None },
-                ..s.clone()
-            })
-            .collect();
+        let training = training(stops, train);
         let mut model = with.clone();
         let fit = refine(&mut model, &training, &options)?;
         if let Some(w) = fit
@@ -288,6 +281,18 @@ fn held_out_or(
         }
     }
     Ok(after)
+}
+
+/// `stops` with the measurement of every point a fold may not learn from taken away.
+pub fn training(stops: &[Stop], train: &[bool]) -> Vec<Stop> {
+    stops
+        .iter()
+        .zip(train)
+        .map(|(s, &t)| Stop {
+            measured_mm: if t { s.measured_mm } else { None },
+            ..s.clone()
+        })
+        .collect()
 }
 
 /// Evaluates `name` on top of `base` under `plan`. `stops` are the measured points in the

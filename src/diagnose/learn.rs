@@ -1259,24 +1259,9 @@ impl EffectScreen {
         name: &crate::model::EffectName,
         plan: &Plan,
     ) -> Option<Score> {
-        let effect = name.create(&Default::default(), &model.robot).ok()?;
-        let points = &self.points;
-        let before: Vec<Vector3<f64>> = points.iter().map(|p| p.residual).collect();
-        let mut after = vec![None; points.len()];
-        for (held, train) in plan.held.iter().zip(&plan.train) {
-            let cell_of = cells_of(points.len(), held, train);
-            let blocks = Blocks::new(points, &cell_of, 3);
-            let normal = Normal::for_effect(model, points, &self.states, effect.as_effect(), &blocks);
-            let model_normal = ModelNormal::new(&blocks);
-            let (a_cells, g_cells, b) =
-                normal.partialled(&model_normal, &ModelFactor::new(&model_normal));
-            let w = Normal::solve_cells(&a_cells, &g_cells, |cell| cell == 0);
-            let bw = b_times(&b, &w);
-            for &i in held {
-                after[i] = Some(points[i].residual - partial_predict(&normal, &bw, &points[i], i, &w));
-            }
-        }
-        Some(Score::new(plan, &before, &after))
+        self.scores(model, std::slice::from_ref(name), plan)
+            .pop()
+            .flatten()
     }
 }
 

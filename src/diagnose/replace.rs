@@ -154,14 +154,7 @@ pub fn on_plan(
     let mut before = vec![Vector3::zeros(); stops.len()];
     let mut after = vec![None; stops.len()];
     for (held, train) in plan.held.iter().zip(&plan.train) {
-        let training: Vec<Stop> = stops
-            .iter()
-            .zip(train)
-            .map(|(s, &t)| Stop {
-                measured_mm: if t { s.measured_mm } else { None },
-                ..s.clone()
-            })
-            .collect();
+        let training = crossval::training(stops, train);
         let (mut alone, mut replaced) = (model.clone(), with.clone());
         refine(&mut alone, &training, &refit_options()).ok()?;
         refine(&mut replaced, &training, &refit_options()).ok()?;
