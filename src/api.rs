@@ -11,11 +11,11 @@ use std::path::Path;
 use nalgebra::Vector3;
 
 use crate::compensate::{self, files, program};
-use crate::diagnostic::Diagnostic;
-use crate::identify::pipeline;
-use crate::motion::{self, workspace::LoadError, Workspace};
 
-pub use crate::calibration::{CalError, Calibration};
+use crate::identify::pipeline;
+use crate::motion::{self, Workspace};
+
+pub use crate::calibration::{CalError, Calibration, ExcludedPoint, MeasurementFrame, Provenance};
 pub use crate::compensate::report::{CalibrationRef, MaxMean, PointReport, PoseStats, SplitReport};
 pub use crate::compensate::Report;
 pub use crate::compensate::Taken;
@@ -32,6 +32,33 @@ pub use crate::measure::tracker::Tracker;
 pub use crate::measure::{Columns as MeasurementColumns, Measurements, Stop as MeasuredStop};
 pub use crate::model::{AxisHistory, AxisState, Direction, EffectName, NameError, RecordError};
 pub use crate::stats::ErrorStats;
+
+// Plain data reachable from the types above: nameable, so that a caller can write them down.
+pub use crate::atomic_unit::WriteError;
+pub use crate::compensate::report::AssumptionUse;
+pub use crate::compensate::taken::{PointsTaken, Reason as TakenReason};
+pub use crate::diagnose::blocks::Scheme as HeldOutScheme;
+pub use crate::diagnose::crossval::Score as HeldOutScore;
+pub use crate::diagnose::learn::{Curve as LearnedCurve, Screened as LearnedScreened};
+pub use crate::diagnose::validate::ValidationGain;
+pub use crate::diagnose::DiagnoseError;
+pub use crate::diagnose::NoiseFloor;
+pub use crate::diagnostic::{Diagnostic, Severity};
+pub use crate::identify::circle::Circle3;
+pub use crate::identify::direct::{AxisLine, DeviationSample};
+pub use crate::identify::lsq::LsqError;
+pub use crate::identify::refine::{IdentifyError, Warning as IdentifyWarning};
+pub use crate::identify::screen::Structure;
+pub use crate::identify::setup::SetupError;
+pub use crate::identify::verdict::TestResidual;
+pub use crate::kinematics::frame::Frame;
+pub use crate::kinematics::pose::Pose;
+pub use crate::kinematics::robot::Gravity;
+pub use crate::kinematics::{AxisAngles, Links};
+pub use crate::measure::MeasureError;
+pub use crate::model::effects::{learned::SpecError, EffectError};
+pub use crate::model::table::GridError;
+pub use crate::motion::workspace::LoadError;
 
 /// Why a call could not do its job.
 #[derive(Debug, thiserror::Error)]
@@ -401,26 +428,20 @@ pub fn identify_with(
     }
     let effects = match options.effects.as_deref() {
         None => None,
-        Some(list) => {
-            let items: Vec<&str> = list
-                .split(',')
-                .map(str::trim)
-                .filter(|s| !s.is_empty())
-                .collect();
-            let adds = items.iter().filter(|s| s.starts_with('+')).count();
-            if adds > 0 && (adds < items.len() || options.calibration.is_none()) {
+        Some(list) => match pipeline::Effects::parse(list) {
+            Ok(pipeline::Effects::Add(_)) if options.calibration.is_none() => {
                 return Err(Error::Option(
-                    "effects `+NAME` add to an existing calibration: every name starts with `+` and a calibration is given".into(),
+                    "effects `+NAME` add to an existing calibration: give one".into(),
                 ));
             }
-            let stripped: Vec<&str> = items.iter().map(|s| s.trim_start_matches('+')).collect();
-            let names = crate::model::expand_list(&stripped.join(","))?;
-            Some(if adds > 0 {
-                pipeline::Effects::Add(names)
-            } else {
-                pipeline::Effects::Exactly(names)
-            })
-        }
+            Ok(effects) => Some(effects),
+            Err(pipeline::EffectsListError::Mixed) => {
+                return Err(Error::Option(
+                    "effects: either every name starts with `+` (added to the calibration) or none does".into(),
+                ));
+            }
+            Err(pipeline::EffectsListError::Name(e)) => return Err(Error::Effects(e)),
+        },
     };
     let mut tracker = match &options.tracker {
         Some(spec) => crate::measure::tracker::Tracker::parse(spec).map_err(Error::Option)?,

@@ -44,12 +44,15 @@ pub struct Staged<'a> {
 #[derive(Debug, thiserror::Error)]
 #[error("writing {}: {source}", path.display())]
 pub struct WriteError {
+    /// The file that could not be written.
     pub path: PathBuf,
     #[source]
+    /// What the system said.
     pub source: io::Error,
 }
 
 impl WriteError {
+    /// The error of writing `path`, for `map_err`.
     pub fn at(path: &Path) -> impl FnOnce(io::Error) -> WriteError + '_ {
         move |source| WriteError {
             path: path.to_path_buf(),

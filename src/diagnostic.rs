@@ -16,7 +16,9 @@ pub const MAX_UNDERLINE: usize = 80;
 /// How serious a diagnostic is: errors reject the input, warnings only inform.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Severity {
+    /// The input is rejected (exit status 1 for a program, 2 for a file that cannot be read).
     Error,
+    /// Worth knowing; the job goes on.
     Warning,
 }
 
@@ -32,6 +34,7 @@ impl fmt::Display for Severity {
 /// One located message about an input file.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Diagnostic {
+    /// Error or warning.
     pub severity: Severity,
     /// File name as the user gave it.
     pub file: String,
@@ -39,6 +42,7 @@ pub struct Diagnostic {
     pub line: usize,
     /// 1-based column in characters of the shown line.
     pub col: usize,
+    /// The first line: what is wrong.
     pub message: String,
     /// The offending line as shown (empty when there is none).
     pub source_line: String,
@@ -128,12 +132,14 @@ impl Diagnostic {
         }
     }
 
+    /// The same diagnostic with a label under the marked span (an empty one leaves none).
     pub fn with_label(mut self, label: impl Into<String>) -> Diagnostic {
         let label = label.into();
         self.label = (!label.is_empty()).then_some(label);
         self
     }
 
+    /// The same diagnostic with a `help:` line (an empty one leaves none).
     pub fn with_help(mut self, help: impl Into<String>) -> Diagnostic {
         let help = help.into();
         self.help = (!help.is_empty()).then_some(help);

@@ -37,6 +37,9 @@
 //! reach inside through the `internals` feature, which promises no stability.
 
 #![warn(missing_docs)]
+// Every type a public signature mentions can be written down by a caller: the check that the
+// library's surface is the API of `api.rs` and nothing that leaks from the rooms behind it.
+#![deny(unnameable_types)]
 
 mod api;
 mod cli;

@@ -53,7 +53,7 @@ fn with_effect(mut truth: Model, name: &str, values: &[f64]) -> Model {
 fn without(truth: &Model, name: &str) -> Model {
     let mut m = Model::new(truth.robot, truth.payload, truth.target_mm);
     for e in truth.effects().iter().filter(|e| e.name() != name) {
-        m.push(e.clone());
+        m.push(e.clone_model_effect());
     }
     m
 }

@@ -84,9 +84,6 @@ impl Effect for WavyBearing {
             out.push(Partial { param, slot, value });
         }
     }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
-    }
 }
 
 impl ToRecord for WavyBearing {

@@ -99,7 +99,7 @@ fn errors_and_sigmas(robot: &VirtualRobot, seed: u64, dir: &Path) -> Vec<(f64, f
     };
     let identified = identify(&campaign, &request).unwrap();
     let model = identified.calibration.model_ref();
-    let cov = identified.fit.covariance.clone().expect("a covariance");
+    let cov = identified.fit.covariance().cloned().expect("a covariance");
     let exact = robot.clone().with_noise(TrackerNoise::NONE);
     let mut out = Vec::new();
     for (name, level_z) in PATHS {
@@ -183,7 +183,7 @@ fn report_gives_each_target_its_uncertainty_from_the_campaign() {
         ..Request::default()
     };
     let identified = identify(&campaign.stops, &request).unwrap();
-    let own = identified.fit.covariance.clone().unwrap();
+    let own = identified.fit.covariance().cloned().unwrap();
     let cal_path = root().join("calibrations/kr30ha-example.json");
     let cal = robopost::calibration::load(&cal_path).unwrap();
     let rebuilt = covariance::of_calibration(&cal, std::slice::from_ref(&campaign)).unwrap();

@@ -98,6 +98,7 @@ pub struct ExcludedPoint {
     pub source: String,
     /// 1-based line of the row in that file.
     pub line: usize,
+    /// The point's test (the CSV's `test` column).
     pub test: String,
     /// The point's residual against the model fitted without it, µm.
     pub size_um: f64,

@@ -81,7 +81,8 @@ pub struct Calibration {
 
 impl Calibration {
     /// A calibration of `model`, named and described.
-    pub fn from_model(
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn from_model(
         robot_name: &str,
         model: Model,
         frame: MeasurementFrame,
@@ -96,12 +97,14 @@ impl Calibration {
     }
 
     /// The error model (a copy; identification changes its own).
-    pub fn model(&self) -> Model {
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn model(&self) -> Model {
         self.model.clone()
     }
 
     /// The error model, borrowed (what compensation evaluates).
-    pub fn model_ref(&self) -> &Model {
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn model_ref(&self) -> &Model {
         &self.model
     }
 
@@ -111,7 +114,8 @@ impl Calibration {
     }
 
     /// The file contents for this calibration.
-    pub fn to_file(&self) -> CalibrationFile {
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn to_file(&self) -> CalibrationFile {
         let m = &self.model;
         CalibrationFile {
             format: FORMAT.to_string(),
@@ -128,7 +132,8 @@ impl Calibration {
     }
 
     /// Validates `file` (read from `path`) and builds its model.
-    pub fn from_file(file: CalibrationFile, path: &Path) -> Result<Calibration, CalError> {
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn from_file(file: CalibrationFile, path: &Path) -> Result<Calibration, CalError> {
         let model = validate(&file, path)?;
         Ok(Calibration {
             robot_name: file.robot.name,

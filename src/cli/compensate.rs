@@ -112,9 +112,9 @@ pub enum PointOrigin {
     Taught,
 }
 
-impl From<PointOrigin> for crate::compensate::Taken {
-    fn from(p: PointOrigin) -> Self {
-        match p {
+impl PointOrigin {
+    fn taken(self) -> crate::compensate::Taken {
+        match self {
             PointOrigin::Auto => crate::compensate::Taken::Auto,
             PointOrigin::Offline => crate::compensate::Taken::Offline,
             PointOrigin::Taught => crate::compensate::Taken::Taught,
@@ -144,7 +144,7 @@ impl ProgramArgs {
             points,
             stretching: Default::default(),
             assumptions: self.assume.clone(),
-            taken: self.point_origin.into(),
+            taken: self.point_origin.taken(),
             uncertainty: None,
         }
     }

@@ -14,13 +14,12 @@ use std::sync::Arc;
 use super::Exit;
 use crate::identify::direct::TARGET_HINT_TOLERANCE_MM;
 use crate::identify::pipeline::{
-    identify, Effects, Identified, Request, TargetSource, PAPER_EFFECTS,
+    identify, Effects, EffectsListError, Identified, Request, TargetSource, PAPER_EFFECTS,
 };
 use crate::identify::setup::GridChoice;
 use crate::identify::{Progress, Status};
 use crate::kinematics::RobotDescription;
 use crate::measure::read_csv_within;
-use crate::model::expand_list;
 use crate::stats::ErrorStats;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -164,30 +163,20 @@ pub fn run(args: Args) -> Exit {
     }
     let effects = match args.effects.as_deref() {
         None => None,
-        Some(list) => {
-            let items: Vec<&str> = list
-                .split(',')
-                .map(str::trim)
-                .filter(|s| !s.is_empty())
-                .collect();
-            let adds = items.iter().filter(|s| s.starts_with('+')).count();
-            if adds > 0 && adds < items.len() {
-                return usage(
-                    "--effects: either every name starts with `+` (add to -c) or none does",
-                );
-            }
-            if adds > 0 && base.is_none() {
+        Some(list) => match Effects::parse(list) {
+            Ok(Effects::Add(_)) if base.is_none() => {
                 return usage(
                     "--effects +NAME adds to an existing calibration: give it with -c OLD.json",
                 );
             }
-            let stripped: Vec<&str> = items.iter().map(|s| s.trim_start_matches('+')).collect();
-            match expand_list(&stripped.join(",")) {
-                Ok(names) if adds > 0 => Some(Effects::Add(names)),
-                Ok(names) => Some(Effects::Exactly(names)),
-                Err(e) => return usage(&format!("--effects: {e}")),
+            Ok(effects) => Some(effects),
+            Err(EffectsListError::Mixed) => {
+                return usage(
+                    "--effects: either every name starts with `+` (add to -c) or none does",
+                );
             }
-        }
+            Err(EffectsListError::Name(e)) => return usage(&format!("--effects: {e}")),
+        },
     };
     let target_mm = match args.target.as_deref() {
         None => None,

@@ -134,7 +134,9 @@ pub struct Report {
 /// One `--assume NAME=VALUE` and how often the walk used it.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct AssumptionUse {
+    /// `NAME=VALUE` as given.
     pub assumption: String,
+    /// How many times the walk read the assumed value.
     pub uses: u64,
 }
 

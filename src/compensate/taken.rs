@@ -128,7 +128,9 @@ pub struct PointsTaken {
 pub struct Reason {
     /// `taught` or `offline`.
     pub taken: &'static str,
+    /// The evidence, in words (e.g. the header that says the points were taught).
     pub why: String,
+    /// How many targets this reason took.
     pub targets: usize,
     /// The first target's motion statement: `file:line`.
     pub first: String,

@@ -23,9 +23,13 @@
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Scheme {
+    /// Held-out stretches of every test.
     Stretches,
+    /// Whole tests held out.
     Tests,
+    /// The latest data, learnt from the earlier.
     Latest,
+    /// The latest file, learnt from the earlier ones.
     Files,
 }
 

@@ -52,11 +52,13 @@ pub const WORSE_EXPLAINED: f64 = -0.02;
 /// The held-out score of one candidate under one scheme.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Score {
+    /// How the held-out points were chosen.
     pub scheme: Scheme,
     /// Fraction of the held-out residual sum of squares removed (negative: worse).
     pub explained: f64,
-    /// RMS 3-D residual of the held-out points before and after, µm.
+    /// RMS 3-D residual of the held-out points before, µm …
     pub rms_before_um: f64,
+    /// … and after, µm.
     pub rms_after_um: f64,
     /// Paired t statistic of the per-point gains.
     pub t: f64,
@@ -65,12 +67,14 @@ pub struct Score {
     /// Share of the total gain carried by the fold that gains most (1/folds: evenly spread;
     /// 1: all in one fold).
     pub best_fold_share: f64,
+    /// Held-out points scored.
     pub points: usize,
 }
 
 impl Score {
     /// Scores held-out predictions `after` (`None`: not predicted) against `before`.
-    pub fn new(plan: &Plan, before: &[Vector3<f64>], after: &[Option<Vector3<f64>>]) -> Score {
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn new(plan: &Plan, before: &[Vector3<f64>], after: &[Option<Vector3<f64>>]) -> Score {
         let mut gains = Vec::new();
         let (mut ss_before, mut ss_after) = (0.0, 0.0);
         let mut fold_gain = Vec::new();
@@ -212,7 +216,7 @@ fn with_candidate(
     let gone = replaced(base, name);
     let mut with = Model::new(base.robot, base.payload, base.target_mm);
     for e in base.effects().iter().filter(|e| !gone.contains(&e.name())) {
-        with.push(e.clone());
+        with.push(e.clone_model_effect());
     }
     add_effects(&mut with, &[*name], stops, grid)?;
     let canonical = name.to_string();

@@ -49,12 +49,15 @@ const CURVE_POINTS: usize = 900;
 /// One screened definition.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Screened {
+    /// The definition, as `learned:ACTION(DRIVERS)`.
     pub effect: String,
     /// On held-out stretches of every test.
     pub explained: f64,
     /// On whole tests held out.
     pub explained_tests: f64,
+    /// Its values.
     pub parameters: usize,
+    /// Positive in all folds but at most one, no fold carrying most of the gain.
     pub stable: bool,
 }
 

@@ -219,6 +219,7 @@ pub struct Diagnosis {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DiagnoseError {
     #[error("the measurement files hold no measured row")]
+    /// No file holds a measured row.
     NoMeasurements,
 }
 

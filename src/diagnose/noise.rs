@@ -82,7 +82,9 @@ impl NoiseSource {
 /// The noise floor as an RMS of the 3-D residual, µm.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct NoiseFloor {
+    /// The floor, µm RMS 3-D.
     pub rms_um: f64,
+    /// Where the figure comes from.
     pub source: NoiseSource,
 }
 

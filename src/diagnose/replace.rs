@@ -67,7 +67,7 @@ fn replacing_model(
     }
     let mut with = Model::new(model.robot, model.payload, model.target_mm);
     for e in model.effects().iter().filter(|e| !gone.contains(&e.name())) {
-        with.push(e.clone());
+        with.push(e.clone_model_effect());
     }
     add_effects(&mut with, &[*name], stops, grid).ok()?;
     let canonical = name.to_string();

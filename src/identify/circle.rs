@@ -15,10 +15,12 @@ use nalgebra::{Matrix3, Unit, Vector2, Vector3};
 /// A circle in space.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Circle3 {
+    /// The centre, mm.
     pub centre: Vector3<f64>,
     /// Unit normal of the circle's plane (sign as the points' sense of rotation is unknown
     /// here: callers orient it).
     pub normal: Unit<Vector3<f64>>,
+    /// The radius, mm.
     pub radius: f64,
     /// RMS of the points' distances from the circle (in-plane and out-of-plane), mm.
     pub rms: f64,

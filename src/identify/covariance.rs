@@ -68,6 +68,7 @@ impl Covariance {
     }
 
     /// Number of flat model parameters this covariance belongs to.
+    #[cfg(any(test, feature = "internals"))]
     pub fn parameters(&self) -> usize {
         self.col_of.len()
     }

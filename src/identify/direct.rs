@@ -43,10 +43,13 @@ const MAX_MODEL_CIRCLE_ROWS: usize = 240;
 /// One indexing test found in the data.
 #[derive(Clone, Debug, PartialEq)]
 pub struct IndexingTest {
+    /// The indexing test.
     pub test: String,
     /// The indexed axis (1..=6).
+    /// The indexed axis, 1..=6.
     pub axis: u8,
     /// Angles of all axes during the test (the indexed one at its first measured value).
+    /// The other axes' angles during the test, degrees.
     pub reference_deg: [f64; 6],
     /// Indices into the data of the test's measured rows.
     pub rows: Vec<usize>,
@@ -57,8 +60,11 @@ pub struct IndexingTest {
 /// The measured average line of an axis in one test.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AxisLine {
+    /// The indexing test.
     pub test: String,
+    /// The indexed axis, 1..=6.
     pub axis: u8,
+    /// The other axes' angles during the test, degrees.
     pub reference_deg: [f64; 6],
     /// Normal oriented along a positive KUKA rotation of the axis.
     pub circle: Circle3,
@@ -69,10 +75,15 @@ pub struct AxisLine {
 /// One measured angular positioning deviation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DeviationSample {
+    /// The indexing test.
     pub test: String,
+    /// The indexed axis, 1..=6.
     pub axis: u8,
+    /// The other axes' angles during the test, degrees.
     pub reference_deg: [f64; 6],
+    /// The indexed axis's command angle, degrees.
     pub command_deg: f64,
+    /// The direction it arrived in.
     pub direction: Direction,
     /// Actual minus command angle, degrees, KUKA sign.
     pub deviation_deg: f64,
@@ -143,7 +154,7 @@ pub fn indexing_tests_grouped(data: &[Stop], group_of: &[usize]) -> Vec<Indexing
 fn geometric_only(model: &Model) -> Option<(Model, usize)> {
     let g = axis_lines(model)?;
     let mut m = Model::new(model.robot, model.payload, model.target_mm);
-    m.push(model.effects()[g].clone());
+    m.push(model.effects()[g].clone_model_effect());
     Some((m, model.effect_start(g)))
 }
 
@@ -487,7 +498,7 @@ fn without_axis_tables(model: &Model, axis: u8) -> Model {
     let mut m = Model::new(model.robot, model.payload, model.target_mm);
     for e in model.effects() {
         if e.role().angle_of() != Some(axis) {
-            m.push(e.clone());
+            m.push(e.clone_model_effect());
         }
     }
     m

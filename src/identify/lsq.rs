@@ -13,12 +13,20 @@ use faer::{Mat, Par, Side};
 /// Why a least-squares system could not be solved.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LsqError {
+    /// The normal matrix is singular: parameters the data do not determine.
     #[error("the normal matrix is not positive definite: some parameters are not determined by the data (add damping or pin them)")]
     Singular,
     #[error("least-squares system too large for memory")]
+    /// The system does not fit in memory.
     OutOfMemory,
     #[error("row entry refers to parameter {index}, but the system has {n} parameters")]
-    BadIndex { index: usize, n: usize },
+    /// A row names a parameter the system does not have.
+    BadIndex {
+        /// The parameter named.
+        index: usize,
+        /// The system's parameters.
+        n: usize,
+    },
 }
 
 /// A sparse system `min ‖A x − b‖²` assembled row by row, stored by rows (CSR), which is

@@ -52,6 +52,39 @@ pub enum Effects {
     Add(Vec<EffectName>),
 }
 
+/// Why an `--effects` list is not one.
+#[derive(Debug)]
+pub enum EffectsListError {
+    /// Some names start with `+` and some do not.
+    Mixed,
+    /// A name that is not an effect's.
+    Name(crate::model::NameError),
+}
+
+impl Effects {
+    /// The `--effects` list (`NAME,…`, `map:A1..A6` expanded; every name with `+`: added to
+    /// the base calibration's). Whether a base calibration is there to add to is the caller's
+    /// to check ([`Effects::Add`]).
+    pub fn parse(list: &str) -> Result<Effects, EffectsListError> {
+        let items: Vec<&str> = list
+            .split(',')
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+            .collect();
+        let adds = items.iter().filter(|s| s.starts_with('+')).count();
+        if adds > 0 && adds < items.len() {
+            return Err(EffectsListError::Mixed);
+        }
+        let stripped: Vec<&str> = items.iter().map(|s| s.trim_start_matches('+')).collect();
+        let names = crate::model::expand_list(&stripped.join(",")).map_err(EffectsListError::Name)?;
+        Ok(if adds > 0 {
+            Effects::Add(names)
+        } else {
+            Effects::Exactly(names)
+        })
+    }
+}
+
 /// What to identify and from what.
 #[derive(Clone, Default)]
 pub struct Request {
@@ -196,7 +229,7 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
             let mut kept = Model::new(model.robot, model.payload, model.target_mm);
             for e in model.effects() {
                 if wanted.contains(&e.name()) {
-                    kept.push(e.clone());
+                    kept.push(e.clone_model_effect());
                 }
             }
             model = kept;

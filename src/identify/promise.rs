@@ -89,7 +89,7 @@ fn held_out_rms(
                     fold_free.push(effect.to_string());
                 }
                 _ => {
-                    fold_model.push(e.clone());
+                    fold_model.push(e.clone_model_effect());
                     if free.contains(&name) || e.role() == crate::model::Role::AxisLines {
                         fold_free.push(name);
                     }

@@ -147,22 +147,42 @@ impl std::fmt::Debug for RefineOptions {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum IdentifyError {
     #[error("no measured stop in the data (every row has empty x, y, z)")]
+    /// No row has a measured position.
     NoMeasurements,
     #[error("{points} measured stops give {rows} equations for {parameters} free parameters: measure more points or free fewer effects")]
+    /// Fewer equations than free parameters.
     TooFewPoints {
+        /// Measured stops.
         points: usize,
+        /// Equations they give (three per stop).
         rows: usize,
+        /// Free parameters.
         parameters: usize,
     },
     #[error("the free-parameter mask has {found} entries, the model has {expected} parameters")]
-    BadMask { expected: usize, found: usize },
+    /// A mask of free parameters of the wrong length.
+    BadMask {
+        /// The model's parameters.
+        expected: usize,
+        /// The mask's entries.
+        found: usize,
+    },
     #[error("`{name}` is not an effect of the model (it has: {available})")]
-    UnknownEffect { name: String, available: String },
+    /// An effect named that the model does not have.
+    UnknownEffect {
+        /// The name given.
+        name: String,
+        /// The model's effects, comma-separated.
+        available: String,
+    },
     #[error("cannot start the tracker-frame registration: the measured points are collinear or fewer than three")]
+    /// The tracker frame has no starting value: fewer than three points, or collinear.
     FrameStart,
     #[error("cannot set up the effect: {0}")]
+    /// An effect could not be built.
     Setup(#[from] super::setup::SetupError),
     #[error("least squares failed: {0}")]
+    /// The least-squares solve failed.
     Lsq(#[from] LsqError),
 }
 
@@ -171,13 +191,19 @@ pub enum IdentifyError {
 pub enum Warning {
     /// No measured stop depends on this effect (or this scalar parameter of an effect): it
     /// was held at its current values.
-    Unobserved { effect: String },
+    Unobserved {
+        /// The effect (or `effect:parameter`).
+        effect: String,
+    },
     /// These parameters are not determined by the data (VIF above the limit); they were held
     /// near their starting values. `correlated_with` are the parameters they trade off
     /// against.
     Unidentifiable {
+        /// The parameters held.
         parameters: Vec<String>,
+        /// What they trade off against.
         correlated_with: Vec<String>,
+        /// The largest variance inflation factor among them.
         vif: f64,
     },
 }
@@ -269,7 +295,7 @@ pub struct Fit {
     pub converged: bool,
     /// The parameters' covariance at the solution (with the standard errors), for the
     /// uncertainty of predicted positions.
-    pub covariance: Option<Arc<super::covariance::Covariance>>,
+    pub(crate) covariance: Option<Arc<super::covariance::Covariance>>,
 }
 
 impl Fit {
@@ -285,6 +311,12 @@ impl Fit {
         v.sort_by(|a, b| b.1.total_cmp(&a.1));
         v.truncate(n);
         v
+    }
+
+    /// The parameters' covariance at the solution (robopost's own tests read it).
+    #[cfg(any(test, feature = "internals"))]
+    pub fn covariance(&self) -> Option<&Arc<super::covariance::Covariance>> {
+        self.covariance.as_ref()
     }
 }
 

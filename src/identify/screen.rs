@@ -321,6 +321,7 @@ pub struct Structure {
     pub rows: Vec<usize>,
     /// Tests of that axis showing it, and the axis's indexing tests in all.
     pub tests: usize,
+    /// The axis's indexing tests in all.
     pub of_tests: usize,
     /// Whether it shows in both rotation directions.
     pub both_directions: bool,

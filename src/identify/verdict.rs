@@ -17,9 +17,11 @@ pub const NOTE_RATIO: f64 = 3.0;
 /// One test's residual after the fit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TestResidual {
+    /// The test (the CSV's `test` column).
     pub test: String,
     /// Points without gross errors, and the gross errors.
     pub points: usize,
+    /// Its points left out as gross errors.
     pub gross: usize,
     /// RMS of the 3-D residual of the points without gross errors, µm.
     pub rms_um: f64,

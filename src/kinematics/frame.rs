@@ -13,11 +13,14 @@ use super::pose::{abc_to_matrix, Pose};
 /// A rigid frame: `x ↦ rotation · x + position`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
+    /// The rotation.
     pub rotation: Matrix3<f64>,
+    /// The position, mm.
     pub position: Vector3<f64>,
 }
 
 impl Frame {
+    /// The identity: no rotation, at the origin.
     pub fn identity() -> Frame {
         Frame {
             rotation: Matrix3::identity(),
@@ -39,6 +42,7 @@ impl Frame {
         Pose::from_parts(&self.rotation, &self.position)
     }
 
+    /// The frame of nalgebra's isometry.
     pub fn from_isometry(iso: &Isometry3<f64>) -> Frame {
         Frame {
             rotation: *iso.rotation.to_rotation_matrix().matrix(),
@@ -65,6 +69,7 @@ impl Frame {
         }
     }
 
+    /// The inverse transform.
     pub fn inverse(&self) -> Frame {
         let rt = self.rotation.transpose();
         Frame {

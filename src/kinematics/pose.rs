@@ -20,15 +20,22 @@ const GIMBAL_COS_B: f64 = 1e-10;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Pose {
+    /// X, mm.
     pub x: f64,
+    /// Y, mm.
     pub y: f64,
+    /// Z, mm.
     pub z: f64,
+    /// A: rotation about Z, degrees.
     pub a: f64,
+    /// B: rotation about the new Y, degrees.
     pub b: f64,
+    /// C: rotation about the newest X, degrees.
     pub c: f64,
 }
 
 impl Pose {
+    /// No rotation, at the origin.
     pub const IDENTITY: Pose = Pose {
         x: 0.0,
         y: 0.0,
@@ -79,6 +86,7 @@ impl Pose {
         }
     }
 
+    /// X, Y, Z as a vector, mm.
     pub fn position(&self) -> Vector3<f64> {
         Vector3::new(self.x, self.y, self.z)
     }

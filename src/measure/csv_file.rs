@@ -12,12 +12,17 @@ use std::path::Path;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{file}:{line}:{col}: {message}")]
 pub struct MeasureError {
+    /// The file, as given.
     pub file: String,
+    /// 1-based line.
     pub line: usize,
+    /// 1-based column (characters).
     pub col: usize,
     /// The offending source line (lossily decoded), empty when not applicable.
     pub source_line: String,
+    /// What is wrong.
     pub message: String,
+    /// What to do about it, if robopost knows.
     pub help: Option<String>,
 }
 

@@ -284,6 +284,7 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     }
     /// Whether `state` lies outside this effect's table range (the value was clamped to the
     /// edge), so that reports can count such points.
+    #[cfg(any(test, feature = "internals"))]
     fn clamped(&self, _state: &AxisState) -> bool {
         false
     }
@@ -332,11 +333,5 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn parameters_are_cells(&self) -> bool {
         false
     }
-    fn clone_box(&self) -> Box<dyn Effect>;
 }
 
-impl Clone for Box<dyn Effect> {
-    fn clone(&self) -> Self {
-        self.clone_box()
-    }
-}

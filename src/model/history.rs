@@ -274,7 +274,8 @@ impl AxisHistory {
 
     /// The play of width `width(angle)` (degrees, ≥ 0 for a physical play) evaluated at
     /// command `at_deg`.
-    pub fn play(&self, at_deg: f64, width: impl Fn(f64) -> f64) -> PlayAt {
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn play(&self, at_deg: f64, width: impl Fn(f64) -> f64) -> PlayAt {
         // Not clamped at zero: an identification passes through negative widths, where the
         // engaged flanks continue linearly (a leading difference) and the fit stays smooth.
         let half = |x: f64| 0.5 * width(x);
@@ -293,7 +294,8 @@ impl AxisHistory {
     /// axis's memory changes mostly in its last point (the run goes on), so the clamps before
     /// it are the same, done once. The same play to the bit (the same clamps in the same
     /// order).
-    pub fn play_keeping(
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn play_keeping(
         &self,
         at_deg: f64,
         width: impl Fn(f64) -> f64,

@@ -25,7 +25,9 @@ pub use effect::{
     AxisSlopes, ChainErrors, Effect, Observed, RecordRange, RecordValue, Role, Slot, N_SLOTS,
 };
 pub use effects::{EffectError, GridOptions, ModelEffect};
-pub use history::{AxisHistory, PlayAt};
+pub use history::AxisHistory;
+#[cfg(any(test, feature = "internals"))]
+pub use history::PlayAt;
 pub use model::{JacobianScratch, Model};
 pub use record::{EffectRecord, RecordError};
 pub use registry::{expand_list, EffectName, NameError};

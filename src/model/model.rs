@@ -10,8 +10,11 @@ use nalgebra::{Vector3, Vector6};
 
 use super::chain::{self, a6_to_flange, flange_to_a6, ChainFrames};
 use super::effect::{AxisSlopes, ChainErrors, Context, Parameter, Partial, Slot};
-use super::effects::{EffectError, GridOptions, ModelEffect};
+use super::effects::ModelEffect;
+#[cfg(any(test, feature = "internals"))]
+use super::effects::{EffectError, GridOptions};
 use super::merged::{Cells, Merged};
+#[cfg(any(test, feature = "internals"))]
 use super::registry::EffectName;
 use super::AxisState;
 use crate::kinematics::{Frame, Payload, RobotDescription};
@@ -21,7 +24,7 @@ use crate::kinematics::{Frame, Payload, RobotDescription};
 pub const TOOL_MATCH_MM: f64 = 0.001;
 
 /// A robot with its error effects. `Send + Sync`: share one across rayon workers.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Model {
     pub robot: RobotDescription,
     pub payload: Payload,
@@ -34,6 +37,23 @@ pub struct Model {
     varying: Vec<usize>,
     /// The solver's merged angle tables, built on first use after any change.
     merged: OnceLock<Merged>,
+}
+
+/// By hand because a boxed effect clones through [`ModelEffect::clone_model_effect`]: a
+/// `Clone` impl on `Box<dyn ModelEffect>` would make the effect traits part of the library's
+/// public interface (lib.rs keeps it nameable).
+impl Clone for Model {
+    fn clone(&self) -> Model {
+        Model {
+            robot: self.robot,
+            payload: self.payload,
+            target_mm: self.target_mm,
+            effects: self.effects.iter().map(|e| e.clone_model_effect()).collect(),
+            starts: self.starts.clone(),
+            varying: self.varying.clone(),
+            merged: self.merged.clone(),
+        }
+    }
 }
 
 impl Model {
@@ -62,6 +82,7 @@ impl Model {
     }
 
     /// Appends a zero effect of `name` for identification.
+    #[cfg(any(test, feature = "internals"))]
     pub fn push_named(
         &mut self,
         name: &EffectName,
@@ -106,6 +127,7 @@ impl Model {
     /// at `state`'s time: a solver evaluating many commands sums them once and adds
     /// [`Self::add_varying_errors`] per command. At time 0 (compensation) they are summed once
     /// per model.
+    #[cfg(any(test, feature = "internals"))]
     pub fn fixed_errors(&self, state: &AxisState) -> ChainErrors {
         if state.time_s == 0.0 {
             return self.merged().fixed_at_time_zero;
@@ -145,6 +167,7 @@ impl Model {
     /// Adds the errors of the effects that depend on the axis angles: `fixed_errors(s)` plus
     /// these is `chain_errors(s)` to rounding (the `map` and `backlash` tables of an axis are
     /// looked up merged, see [`Merged`]).
+    #[cfg(any(test, feature = "internals"))]
     pub fn add_varying_errors(&self, state: &AxisState, errors: &mut ChainErrors) {
         self.add_varying_errors_near(state, errors, &mut [0; 6]);
     }
@@ -192,6 +215,7 @@ impl Model {
     /// [`Self::add_varying_errors`] with how those errors change with the axes (see
     /// [`AxisSlopes`]): the fixed errors do not change, so these are the slopes of the whole
     /// model.
+    #[cfg(any(test, feature = "internals"))]
     pub fn add_varying_errors_with_slopes(
         &self,
         state: &AxisState,
@@ -220,6 +244,7 @@ impl Model {
 
     /// The gear play of axis n+1 (index `n`) at `state`, when the model has one: where its
     /// output stands against the command (see [`AxisHistory::play`](super::AxisHistory::play)).
+    #[cfg(any(test, feature = "internals"))]
     pub fn play(&self, state: &AxisState, n: usize) -> Option<super::PlayAt> {
         let width = self.merged().play_width(n)?;
         Some(state.history[n].play(state.axes_deg[n], |a| width.eval(a).0))
@@ -232,6 +257,7 @@ impl Model {
     }
 
     /// The width (degrees) of axis n+1's gear play at command `angle_deg` (0 without one).
+    #[cfg(any(test, feature = "internals"))]
     pub fn play_width_deg(&self, n: usize, angle_deg: f64) -> f64 {
         self.merged()
             .play_width(n)
@@ -282,12 +308,14 @@ impl Model {
     }
 
     /// Whether any table effect held `state` at its edge.
+    #[cfg(any(test, feature = "internals"))]
     pub fn clamped(&self, state: &AxisState) -> bool {
         self.effects.iter().any(|e| e.clamped(state))
     }
 
     /// Indices (into [`Self::effects`]) of the table effects that held `state` at a table
     /// edge, so that a report can count the points outside each table's range.
+    #[cfg(any(test, feature = "internals"))]
     pub fn clamped_effects<'a>(&'a self, state: &'a AxisState) -> impl Iterator<Item = usize> + 'a {
         self.effects
             .iter()

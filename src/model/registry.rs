@@ -307,9 +307,9 @@ pub fn kinds() -> Vec<&'static Kind> {
 #[derive(Clone, Copy)]
 pub struct EffectName {
     /// The kind of effect (its prefix, arity, meaning and constructor).
-    pub kind: &'static Kind,
+    pub(crate) kind: &'static Kind,
     /// The axis or axes it is of (none, one, or a pair for crosstalk).
-    pub axes: Axes,
+    pub(crate) axes: Axes,
 }
 
 impl PartialEq for EffectName {
@@ -448,7 +448,8 @@ impl EffectName {
     }
 
     /// A zero effect of this name for identification.
-    pub fn create(
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn create(
         &self,
         options: &GridOptions,
         robot: &RobotDescription,
@@ -457,7 +458,8 @@ impl EffectName {
     }
 
     /// The effect a calibration record describes (its name already parsed into `self`).
-    pub fn decode(
+    #[cfg_attr(feature = "internals", visibility::make(pub))]
+    pub(crate) fn decode(
         &self,
         record: &EffectRecord,
         robot: &RobotDescription,

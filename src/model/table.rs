@@ -32,21 +32,37 @@ pub struct Cell {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum GridError {
+    /// No point.
     #[error("a grid needs at least one point")]
     Empty,
+    /// A point that is not a finite number.
     #[error("grid point {index} is {found}, not finite")]
-    NotFinite { index: usize, found: f64 },
-    #[error("grid point {index} is {found}, not greater than the previous point {previous}")]
-    NotIncreasing {
+    NotFinite {
+        /// The point's index.
         index: usize,
-        previous: f64,
+        /// Its value.
         found: f64,
     },
+    /// A point not above the one before.
+    #[error("grid point {index} is {found}, not greater than the previous point {previous}")]
+    NotIncreasing {
+        /// The point's index.
+        index: usize,
+        /// The point before it, degrees.
+        previous: f64,
+        /// Its value, degrees.
+        found: f64,
+    },
+    /// More points than a table may have, or a pitch finer than the finest.
     #[error("a grid from {lo}° to {hi}° every {pitch}° would have {points} points; at most {MAX_POINTS} are allowed and the pitch must be at least {MIN_PITCH_DEG}°")]
     TooFine {
+        /// The range's start, degrees.
         lo: f64,
+        /// The range's end, degrees.
         hi: f64,
+        /// The pitch asked for, degrees.
         pitch: f64,
+        /// The points it would have.
         points: f64,
     },
 }
@@ -115,11 +131,13 @@ impl Grid {
         self.points.len()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }
 
     /// Whether `x` lies outside `[first, last]`.
+    #[cfg(any(test, feature = "internals"))]
     pub fn outside(&self, x: f64) -> bool {
         x < self.points[0] || x > self.points[self.points.len() - 1]
     }

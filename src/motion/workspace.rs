@@ -57,17 +57,27 @@ pub struct Workspace {
 /// A file that could not be read or parsed: the program is rejected.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
+    /// The file could not be read.
     #[error("{name}: {source}")]
     Io {
+        /// The file, as given.
         name: String,
+        /// What the system said.
         source: std::io::Error,
     },
+    /// Syntax errors.
     #[error("{}", .diagnostics.iter().map(|d| d.render()).collect::<Vec<_>>().join("\n"))]
-    Parse { diagnostics: Vec<Diagnostic> },
+    Parse {
+        /// Each error, located.
+        diagnostics: Vec<Diagnostic>,
+    },
     /// Not a KRL file at all (binary data, or text without a KRL statement): like an
     /// unreadable file, a usage error.
     #[error("{}", .diagnostic.render())]
-    NotKrl { diagnostic: Box<Diagnostic> },
+    NotKrl {
+        /// What was seen, located.
+        diagnostic: Box<Diagnostic>,
+    },
 }
 
 impl LoadError {

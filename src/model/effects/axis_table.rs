@@ -130,6 +130,7 @@ impl AxisTable {
         }
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn clamped(&self, state: &AxisState) -> bool {
         self.table.grid.outside(self.command(state))
     }

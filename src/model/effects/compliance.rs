@@ -158,9 +158,6 @@ impl Effect for Compliance {
             RecordValue::Table => RecordRange::Finite,
         }
     }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
-    }
 }
 
 impl ToRecord for Compliance {

@@ -179,6 +179,7 @@ impl Effect for Crosstalk {
             }
         }
     }
+    #[cfg(any(test, feature = "internals"))]
     fn clamped(&self, state: &AxisState) -> bool {
         self.lookup(state).2
     }
@@ -196,9 +197,6 @@ impl Effect for Crosstalk {
     }
     fn parameters_are_cells(&self) -> bool {
         true
-    }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
     }
 }
 

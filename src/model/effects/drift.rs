@@ -90,9 +90,6 @@ impl Effect for Drift {
             RecordValue::Table => RecordRange::Finite,
         }
     }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
-    }
 }
 
 impl ToRecord for Drift {

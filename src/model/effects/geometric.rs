@@ -156,9 +156,6 @@ impl Effect for Geometric {
             }
         }
     }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
-    }
 }
 
 impl ToRecord for Geometric {

@@ -339,29 +339,52 @@ fn axis_number(text: &str) -> Option<u8> {
 pub enum SpecError {
     /// Not `<action>(<drivers>)`.
     #[error("`{definition}`: expected <action>(<drivers>)")]
-    Shape { definition: String },
+    Shape {
+        /// The definition given.
+        definition: String,
+    },
     /// Not one of the actions.
     #[error(
         "`{action}` is not an action (angle@An, rotation@An, rotation@arm, offset@An, offset@tool)"
     )]
-    UnknownAction { action: String },
+    UnknownAction {
+        /// The action given.
+        action: String,
+    },
     /// Not one of the drivers.
     #[error(
         "`{driver}` is not a driver (An, reach, height, gravity, torque:An, time[T0:T1h], dir:An)"
     )]
-    UnknownDriver { driver: String },
+    UnknownDriver {
+        /// The driver given.
+        driver: String,
+    },
     /// A driver of one axis (`torque:An`, `dir:An`) without an axis 1..6 after `prefix`.
     #[error("`{driver}`: expected {prefix}An with n in 1..6")]
-    DriverAxis { driver: String, prefix: String },
+    DriverAxis {
+        /// The driver given.
+        driver: String,
+        /// Its prefix (`torque:`, `dir:`).
+        prefix: String,
+    },
     /// A time window that is not `time[T0:T1h]` with finite `T0 < T1`.
     #[error("`{driver}`: expected time[T0:T1h] with T0 < T1 in hours")]
-    TimeWindow { driver: String },
+    TimeWindow {
+        /// The driver given.
+        driver: String,
+    },
     /// No driver, or more than two.
     #[error("`{definition}`: one driver or two joined by `*`")]
-    DriverCount { definition: String },
+    DriverCount {
+        /// The definition given.
+        definition: String,
+    },
     /// The same driver twice (`A2*A2`).
     #[error("`{definition}`: the same driver twice")]
-    SameDriver { definition: String },
+    SameDriver {
+        /// The definition given.
+        definition: String,
+    },
 }
 
 fn parse_driver(text: &str) -> Result<Driver, SpecError> {
@@ -675,6 +698,7 @@ impl Effect for Learned {
             }
         }
     }
+    #[cfg(any(test, feature = "internals"))]
     fn clamped(&self, state: &AxisState) -> bool {
         let h = state.time_s / 3600.0;
         self.spec.drivers.iter().any(|d| match *d {
@@ -694,9 +718,6 @@ impl Effect for Learned {
     }
     fn parameters_are_cells(&self) -> bool {
         true
-    }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
     }
 }
 

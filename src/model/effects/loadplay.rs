@@ -497,9 +497,6 @@ impl Effect for LoadPlay {
             )
         })
     }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
-    }
 }
 
 impl ToRecord for LoadPlay {

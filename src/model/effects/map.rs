@@ -63,6 +63,7 @@ impl Effect for AngleMap {
     fn own_axis_table(&self) -> Option<(u8, &Table1, AxisFactor)> {
         Some((self.0.axis, &self.0.table, AxisFactor::One))
     }
+    #[cfg(any(test, feature = "internals"))]
     fn clamped(&self, state: &AxisState) -> bool {
         self.0.clamped(state)
     }
@@ -77,9 +78,6 @@ impl Effect for AngleMap {
     }
     fn parameters_are_cells(&self) -> bool {
         true
-    }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
     }
 }
 

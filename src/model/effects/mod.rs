@@ -28,19 +28,32 @@ pub enum EffectError {
     /// `lo_deg..hi_deg` at `pitch_deg`.
     #[error("grid {lo_deg}..{hi_deg} step {pitch_deg}: {source}")]
     Grid {
+        /// The axis, 1..=6.
         axis: u8,
+        /// The range's start, degrees.
         lo_deg: f64,
+        /// The range's end, degrees.
         hi_deg: f64,
+        /// The pitch, degrees.
         pitch_deg: f64,
+        /// Why not.
         source: GridError,
     },
     /// One grid of a crosstalk table, the one over axis `axis`, cannot be laid out.
     #[error("grid of A{axis}: {source}")]
-    PairGrid { axis: u8, source: GridError },
+    PairGrid {
+        /// The axis, 1..=6.
+        axis: u8,
+        /// Why not.
+        source: GridError,
+    },
     /// The effect `effect` (its contract name) evaluates the gravity torque and the robot has
     /// no link masses.
     #[error("{effect} needs the link masses (robot.gravity) to compute gravity torques")]
-    NeedsGravity { effect: String },
+    NeedsGravity {
+        /// The effect.
+        effect: String,
+    },
     /// A `learned:` definition that does not parse.
     #[error(transparent)]
     Spec(#[from] learned::SpecError),
@@ -73,11 +86,6 @@ impl<T: Effect + ToRecord + Clone + 'static> ModelEffect for T {
     }
 }
 
-impl Clone for Box<dyn ModelEffect> {
-    fn clone(&self) -> Self {
-        self.clone_model_effect()
-    }
-}
 
 /// Grid choices for a table effect created for identification (all tables start at zero).
 ///

@@ -146,6 +146,7 @@ impl Effect for GearPlay {
     fn own_axis_table(&self) -> Option<(u8, &Table1, AxisFactor)> {
         Some((self.0.axis, &self.0.table, AxisFactor::Play))
     }
+    #[cfg(any(test, feature = "internals"))]
     fn clamped(&self, state: &AxisState) -> bool {
         self.0.clamped(state)
     }
@@ -191,9 +192,6 @@ impl Effect for GearPlay {
     }
     fn parameters_are_cells(&self) -> bool {
         true
-    }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
     }
 }
 

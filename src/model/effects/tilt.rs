@@ -146,9 +146,6 @@ impl Effect for Tilt {
             RecordValue::Table => RecordRange::Finite,
         }
     }
-    fn clone_box(&self) -> Box<dyn Effect> {
-        Box::new(self.clone())
-    }
 }
 
 impl ToRecord for Tilt {
