@@ -11,7 +11,8 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 42] = [
+const CLAIMS: [(&str, &str); 43] = [
+    ("error-budget-fine", "tests/budget.rs"),
     ("error-budget-time", "tests/budget.rs"),
     ("physical-table-1-fine", "tests/physical_truth.rs"),
     ("physical-model-form", "tests/physical_truth.rs"),
