@@ -11,8 +11,11 @@ use std::path::Path;
 use std::process::Command;
 
 /// Every asserted block and the test file that asserts it.
-const CLAIMS: [(&str, &str); 40] = [
+const CLAIMS: [(&str, &str); 43] = [
+    ("error-budget-fine", "tests/budget.rs"),
     ("error-budget-time", "tests/budget.rs"),
+    ("physical-table-1-fine", "tests/physical_truth.rs"),
+    ("physical-model-form", "tests/physical_truth.rs"),
     ("error-budget", "tests/budget.rs"),
     ("physical-table-1-recommended", "tests/physical_truth.rs"),
     ("error-budget-drift", "tests/budget.rs"),
