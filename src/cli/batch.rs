@@ -177,7 +177,7 @@ fn run_in_pool(
     cal: &crate::calibration::Calibration,
     cal_bytes: &[u8],
     plan: &batch::Plan,
-    cell: Option<&crate::motion::Cell>,
+    cell: Option<&crate::krl::interpret::Cell>,
 ) -> Exit {
     let calibrated = calibrated(cal, &args.cal, cal_bytes);
     let options = args.program.options(true, false);

@@ -96,7 +96,7 @@ pub struct ProgramArgs {
     /// A value the walk cannot know before run time, `NAME=VALUE` (repeatable): a variable
     /// (`lnUsedBase=2`), an array element or input (`$IN[5]=TRUE`), an enum (`side=#LEFT`).
     #[arg(long = "assume", value_name = "NAME=VALUE", allow_hyphen_values = true)]
-    pub assume: Vec<crate::motion::Assumption>,
+    pub assume: Vec<crate::krl::interpret::Assumption>,
     /// Which points to compensate: `offline` (computed away from the robot: every point),
     /// `taught` (taught on the robot: none, unless --from), `auto` (each point as the
     /// evidence in its files says).
@@ -180,7 +180,7 @@ pub fn stated_robots(robot: Option<&str>, cell: Option<&Cell>) -> Result<Vec<Sta
         }
     }
     if let Some(path) = cell.and_then(|c| c.machine.as_deref()) {
-        match crate::motion::cell::machine_robot(path) {
+        match crate::krl::interpret::cell::machine_robot(path) {
             Ok((name, robot)) => out.push(StatedRobot {
                 name,
                 robot,
@@ -408,11 +408,11 @@ pub fn run(args: Args) -> Exit {
         .in_scope(|| files::load_program_in(input, bytes, cell.as_ref(), stream));
     let mut ws = match loaded {
         Ok(ws) => ws,
-        Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
+        Err(e @ crate::krl::interpret::workspace::LoadError::Io { .. }) => {
             eprintln!("error: {e}");
             return Exit::Usage;
         }
-        Err(e @ crate::motion::workspace::LoadError::NotKrl { .. }) => {
+        Err(e @ crate::krl::interpret::workspace::LoadError::NotKrl { .. }) => {
             eprint!("{e}");
             return Exit::Usage;
         }

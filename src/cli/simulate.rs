@@ -10,8 +10,8 @@ use super::Exit;
 use crate::calibration::{KukaFrame, MeasurementFrame};
 use crate::compensate::files;
 use crate::diagnostic::Severity;
+use crate::krl::interpret::workspace::LoadError;
 use crate::measure::{write_csv, Stop};
-use crate::motion::workspace::LoadError;
 use crate::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use crate::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, Truth};
 

@@ -4,20 +4,16 @@
 //! (from the simulated interpolation), together with where in the source its numbers live.
 //! Knows nothing of error models; `compensate` consumes what it yields.
 
-pub mod assume;
-pub mod cell;
 pub mod frame;
 pub mod interpolate;
 pub mod lu6;
 pub mod nominal;
-pub mod provenance;
-pub mod simulate;
 pub mod spline;
-pub mod value;
-pub mod workspace;
 
-pub use assume::Assumption;
-pub use cell::Cell;
+// Moved to the KRL front end (`krl::interpret`); named here until the seam's next commit.
+pub use crate::krl::interpret as simulate;
+pub use crate::krl::interpret::workspace;
+pub use crate::krl::interpret::{Assumption, Cell};
 pub use simulate::{
     simulate, simulate_streaming, CircularAngle, GivenFrame, Programmed, Rel, Role, RunSink,
     Simulation, Stop, Walked,
