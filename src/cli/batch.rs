@@ -13,9 +13,9 @@ use rayon::prelude::*;
 
 use super::compensate::{calibrated, cell_fitted, load_calibration, robot_label, ProgramArgs};
 use super::Exit;
-use crate::compensate::batch::{self, Done, Kept};
-use crate::compensate::files;
 use crate::krl;
+use crate::krl::job::batch::{self, Done, Kept};
+use crate::krl::job::files;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {

@@ -5,7 +5,9 @@
 //! followed twice, as a cycle), variable, array element and structure member assignments,
 //! frames (`$BASE`, `$TOOL`, `BASE_DATA[n]`, `FDAT_ACT` + `BAS(...)` of inline forms, `WITH`
 //! clauses) — and records every
-//! motion's target as a [`Stop`]: goal TCP pose in the robot base frame, the controller's
+//! motion's target as a [`Stop`] of the language-neutral motion form (`motion::form`) with
+//! KRL's [`Handle`] (file, statement, keyword, where its numbers are written), which only
+//! `krl::rewrite` and `krl::job` read: goal TCP pose in the robot base frame, the controller's
 //! nominal axes (IK with S/T, or by nearness and the start's S for path motions), and the
 //! arrival motion of every axis from the sampled interpolation (along the curve for the `SPL`
 //! segments of spline blocks). Whatever depends on run time
@@ -15,14 +17,14 @@
 use std::collections::{HashMap, HashSet};
 
 use crate::diagnostic::{Diagnostic, Severity};
-use crate::kinematics::{AxisAngles, Pose, RobotDescription};
+use crate::kinematics::{Pose, RobotDescription};
 use crate::krl::{MotionKind, RoutineHeader, SourceFile, Span, Stmt, Symbols};
 
 use crate::motion::frame::Frame;
 use crate::motion::interpolate::{self, Cartesian, Path};
 use crate::motion::nominal::{Arm, Nominal};
-use value::{Fdat, Naming, Origin, Value};
-use workspace::{FileId, Workspace};
+use value::{Fdat, Origin, Value};
+pub use workspace::{FileId, Workspace};
 
 pub mod assume;
 pub mod cell;
@@ -39,14 +41,13 @@ mod spline;
 mod stream;
 mod target;
 
-pub use spline::SplineEnds;
+pub use crate::motion::form::{
+    CircularAngle, Interpolation, Programmed, Rel, Role, SplineEnds, CARRIED_STOPS,
+};
 pub use stream::{simulate_streaming, RunSink, Walked};
 pub use assume::Assumption;
 pub use cell::Cell;
 
-/// Stops executed before a cut that the segment after it needs: a circle's end looks back to
-/// its start through its auxiliary point (see `stream`); the compensation carries as many.
-pub const CARRIED_STOPS: usize = 2;
 /// Calls nested deeper than this are not followed (recursion).
 const MAX_CALL_DEPTH: usize = 64;
 /// Statements executed before the simulation gives up (an endless loop).
@@ -72,125 +73,32 @@ pub struct GivenFrame {
     pub pose: Pose,
 }
 
-/// What the target of a stop is relative to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Rel {
-    /// `_REL … #BASE` (the default): offset along the base axes, rotation about them.
-    Base,
-    /// `_REL … #TOOL`: `current · offset`.
-    Tool,
-    /// Axis-specific `PTP_REL {A1 …}`: added to the current axes.
-    Axis,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Role {
-    Target,
-    /// The auxiliary point of a circular motion.
-    Aux,
-    /// Where a circular motion with `CA` ends when its numbers are compensated as a plain
-    /// circle's (a whole turn, see [`CircularAngle`]): not written, there for the directions
-    /// and the start of the next motion.
-    End,
-}
-
-/// A circular motion with `CA` whose end stop is compensated as a target of its own and
-/// written by constructing the circle (see `compensate::rewrite`): the nominal circle
-/// through start S, auxiliary point A and target T, right-hand `normal` (S → A → T turns
-/// positively), the angles of A and T from S on it and the written `CA`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CircularAngle {
-    /// Index of the end stop (its auxiliary point's is the one before).
-    pub end: u32,
-    pub angle_deg: f64,
-    pub aux_deg: f64,
-    pub target_deg: f64,
-    pub normal: nalgebra::Vector3<f64>,
-    /// The sign making `sense · (A − S) × (E − S)` point along `normal` (E the end).
-    pub sense: f64,
-    /// Whether S, A and E define their plane well (`interpolate::plane_well_defined`): the
-    /// written circle then lies in the plane of their compensated positions, else in the
-    /// nominal plane carried over.
-    pub from_points: bool,
-}
-
-/// What a motion target programs, as the controller completes it: axis angles or a KUKA
-/// pose, never six numbers a reader must guess the meaning of.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Programmed {
-    /// An axis target `{A1 …, A6 …}`: the axis angles, degrees (a relative target's: the
-    /// start's plus the offsets).
-    Axes(AxisAngles),
-    /// A Cartesian target `{X …, C …}`: the pose in the base, mm and degrees (a relative
-    /// target's: where its offset takes the start).
-    Pose(Pose),
-}
-
-impl Programmed {
-    /// An axis target (`A1..A6`).
-    #[cfg(any(test, feature = "internals"))]
-    pub fn is_axes(&self) -> bool {
-        matches!(self, Programmed::Axes(_))
-    }
-
-    /// How the target's aggregate names its components.
-    pub fn naming(&self) -> Naming {
-        match self {
-            Programmed::Axes(_) => Naming::Axes,
-            Programmed::Pose(_) => Naming::Cartesian,
-        }
-    }
-
-    /// The six numbers in the order the target's aggregate names them: `A1..A6`, or
-    /// `X Y Z A B C` — for reading and writing the aggregate, which knows which by its names.
-    pub fn components(&self) -> [f64; 6] {
-        match self {
-            Programmed::Axes(q) => q.0,
-            Programmed::Pose(p) => p.to_array(),
-        }
-    }
-}
-
-/// One executed motion target.
+/// KRL's handle of a stop (`motion::form::Stop::handle`): where in the program the stop comes
+/// from and where its numbers are written — read by the rewriter and the program job only.
 #[derive(Clone, Copy, Debug)]
-pub struct Stop<'f> {
+pub struct Handle<'f> {
     pub file: FileId,
     pub stmt: &'f Stmt,
     pub kind: MotionKind,
-    pub role: Role,
-    /// The programmed TCP pose in the robot base frame.
-    pub goal: Frame,
-    /// Index in [`Simulation::frames`] of the tool (flange → TCP) and of the base.
-    pub tool: u32,
-    pub base: u32,
-    /// The controller's axes for the programmed target.
-    pub nominal_axes: AxisAngles,
-    /// Arrival motion of each axis (see `interpolate`); `None` after an unknown position.
-    pub arrival: Option<[f64; 6]>,
-    /// Each axis's last turning point inside the motion that reaches this stop (see
-    /// `interpolate::Arrival::turns`).
-    pub turns: interpolate::Turns,
-    /// The programmed values as the controller completes them, absolute (missing components
-    /// from the start; a relative target's missing offsets zero).
-    pub programmed: Programmed,
-    pub keep_t: bool,
-    pub rel: Option<Rel>,
     /// Where the numbers are written.
     pub origin: Option<Origin<'f>>,
     /// The variable name in the motion statement, when the target is a plain variable.
     pub reference: Option<Span>,
-    /// The stop this motion starts from.
-    pub prev: Option<u32>,
-    /// False when the target must be left as written (a warning says why).
-    pub compensable: bool,
-    /// The arrival is computed after the walk (short LIN segment, see `simulate`).
-    deferred: bool,
-    /// An `SPL` segment that follows the block's curve: where it lies in its chain.
-    pub spline: Option<SplineEnds>,
-    /// A copy of a stop executed before a streamed segment began (see `simulate_streaming`):
-    /// there for continuity, not a target of this segment.
-    pub ghost: bool,
 }
+
+/// How a KRL motion moves the robot, in the motion form's words.
+pub fn interpolation(kind: MotionKind) -> Interpolation {
+    if kind.is_joint() {
+        Interpolation::Joint
+    } else if kind.is_circular() {
+        Interpolation::Circular
+    } else {
+        Interpolation::Linear
+    }
+}
+
+/// One executed motion target of a KRL program: the motion form with KRL's handle.
+pub type Stop<'f> = crate::motion::form::Stop<Handle<'f>>;
 
 /// The simulated program.
 #[derive(Debug, Default)]
@@ -234,18 +142,13 @@ pub struct Pinned<'f> {
 impl Simulation<'_> {
     /// The `CA` circle ending at stop `end`, if it is one compensated by construction.
     pub fn arc_ending_at(&self, end: usize) -> Option<&CircularAngle> {
-        self.arcs
-            .binary_search_by_key(&(end as u32), |a| a.end)
-            .ok()
-            .map(|i| &self.arcs[i])
+        crate::motion::form::arc_ending_at(&self.arcs, end)
     }
-}
 
-impl Simulation<'_> {
     /// Whether the robot passes stop `i` by without visiting it: the auxiliary point of a
     /// circle with `CA` only sets the circle's plane (the circle starts from the stop before).
     pub fn passes_by(&self, i: usize) -> bool {
-        self.stops[i].role == Role::Aux && self.arc_ending_at(i + 1).is_some()
+        crate::motion::form::passes_by(&self.stops, &self.arcs, i)
     }
 
     /// Whether an error rejects the program.

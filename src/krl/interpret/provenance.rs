@@ -138,7 +138,7 @@ impl Facts {
 
     /// What the files say about `stop`'s numbers.
     pub fn evidence(&self, ws: &Workspace, stop: &Stop) -> Evidence {
-        let Some(origin) = stop.origin else {
+        let Some(origin) = stop.handle.origin else {
             return Evidence::Computed;
         };
         let Some(var) = origin.var else {
@@ -147,7 +147,7 @@ impl Facts {
         if var.element || var.declared.is_some() || origin.prefix.is_some() {
             return Evidence::Computed;
         }
-        if self.header(ws, var.file).is_some() || self.header(ws, stop.file).is_some() {
+        if self.header(ws, var.file).is_some() || self.header(ws, stop.handle.file).is_some() {
             return Evidence::Generator;
         }
         let declaring = ws.get(var.file);
@@ -155,9 +155,9 @@ impl Facts {
             return Evidence::NoSign;
         }
         let in_form = ws
-            .get(stop.file)
+            .get(stop.handle.file)
             .file
-            .inline_form(stop.stmt)
+            .inline_form(stop.handle.stmt)
             .is_some_and(|(_, ilf)| ilf.motion.is_some());
         if in_form {
             return Evidence::InlineForm;
@@ -219,6 +219,6 @@ fn header(file: &SourceFile) -> Option<Header> {
 /// Where a stop's point is named, for the report: the variable's name, or `None` for a
 /// literal.
 pub fn point_name(stop: &Stop) -> Option<(FileId, Span)> {
-    let var = stop.origin?.var?;
+    let var = stop.handle.origin?.var?;
     Some((var.file, var.name))
 }

@@ -11,15 +11,6 @@ use super::*;
 use crate::krl::MotionKind;
 use crate::motion::spline;
 
-/// Where an `SPL` segment lies in its chain of points (see `Simulator::spline_block`): the
-/// curve's tangents at its ends depend on the point before its start (none when the start is
-/// the chain's `first` point) and on the point after its end (none when it is the `last`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SplineEnds {
-    pub first: bool,
-    pub last: bool,
-}
-
 /// An `SPL` segment: the stop it reaches and the curve's tangents (per unit chord length) at
 /// its start and its end.
 pub(super) struct SplineSegment {
@@ -63,7 +54,7 @@ impl Simulator<'_> {
             for i in k..j {
                 let at = i - k + offset;
                 let stop = &mut self.out.stops[i];
-                if stop.kind != MotionKind::Spl || stop.role != Role::Target || at == 0 {
+                if stop.handle.kind != MotionKind::Spl || stop.role != Role::Target || at == 0 {
                     continue;
                 }
                 stop.deferred = false;

@@ -53,7 +53,9 @@ pub fn simulate_streaming<'f>(
     sim.into_simulation()
 }
 
-/// A stop as a placeholder for the segment after a cut.
+/// A stop as a placeholder for the segment after a cut. Its handle keeps the file and keyword
+/// but names an empty statement and no numbers: a ghost is never rewritten nor reported, and
+/// the statement it copies belongs to a window already dropped.
 fn ghost(stop: &Stop) -> Stop<'static> {
     static GHOST: std::sync::OnceLock<Stmt> = std::sync::OnceLock::new();
     let stmt = GHOST.get_or_init(|| Stmt {
@@ -66,9 +68,12 @@ fn ghost(stop: &Stop) -> Stop<'static> {
         block: None,
     });
     Stop {
-        stmt,
-        origin: None,
-        reference: None,
+        handle: Handle {
+            stmt,
+            origin: None,
+            reference: None,
+            ..stop.handle
+        },
         prev: None,
         compensable: false,
         deferred: false,

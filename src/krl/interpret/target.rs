@@ -354,7 +354,7 @@ impl<'f> Simulator<'f> {
         // `CA`: the motion ends on the circle at that angle from the start (towards the
         // auxiliary point when positive), with the target's orientation, not at the target.
         // Two ways to compensate it (`ArcMode`): the end as a target of its own, the circle
-        // written through it (`compensate::rewrite`); or, where the end is (nearly) the start
+        // written through it (`crate::krl::rewrite`); or, where the end is (nearly) the start
         // again, the auxiliary point and target as a plain circle's, the end recorded after
         // them for the directions and the next motion's start.
         let mut through = None;
@@ -412,7 +412,7 @@ impl<'f> Simulator<'f> {
             .origin
             .is_some_and(|o| self.ws.get(o.file).role == crate::krl::interpret::workspace::Role::Config);
         // A point of `$config.dat` is shared by every program of the cell: its compensated
-        // copy goes into this module's data list under a new name (see `compensate::rewrite`),
+        // copy goes into this module's data list under a new name (see `crate::krl::rewrite`),
         // which needs a data list and a point named here.
         let localizable = in_config
             && self
@@ -436,8 +436,8 @@ impl<'f> Simulator<'f> {
         stop.turns = turns;
         stop.programmed = programmed;
         stop.keep_t = !pos.v.is_axes() && m.kind.is_joint() && s_t.1.is_some();
-        stop.origin = pos.origin;
-        stop.reference = reference;
+        stop.handle.origin = pos.origin;
+        stop.handle.reference = reference;
         stop.prev = aux_stop.or(current.and_then(|c| c.stop));
         stop.compensable = compensable;
         stop.deferred = deferred;
@@ -549,11 +549,13 @@ impl<'f> Simulator<'f> {
             arrival,
             turns,
             programmed: aux_prog,
-            origin: aux.origin,
-            reference: aux_ref,
             prev: cur.stop,
             compensable: aux.origin.is_some(),
-            ..self.stop_of(file, s, m.kind, rel, (base, tool))
+            ..with_place(
+                self.stop_of(file, s, m.kind, rel, (base, tool)),
+                aux.origin,
+                aux_ref,
+            )
         };
         Some((self.push_stop(stop), cart))
     }
@@ -651,9 +653,12 @@ impl<'f> Simulator<'f> {
                     );
                 }
                 let stop = Stop {
-                    origin: pos.origin,
-                    reference,
                     compensable: pos.origin.is_some() && !in_config && aux_written,
+                    handle: Handle {
+                        origin: pos.origin,
+                        reference,
+                        ..end_stop.handle
+                    },
                     ..end_stop
                 };
                 let idx = self.push_stop(stop);
@@ -938,6 +943,18 @@ impl ArcMode {
     }
 }
 
+/// `stop` with its numbers written at `origin`, its target naming variable `reference`.
+fn with_place<'f>(stop: Stop<'f>, origin: Option<Origin<'f>>, reference: Option<Span>) -> Stop<'f> {
+    Stop {
+        handle: Handle {
+            origin,
+            reference,
+            ..stop.handle
+        },
+        ..stop
+    }
+}
+
 /// A stop of motion statement `s` in the interned base and tool `(base, tool)`, as a target
 /// left unchanged until the caller says otherwise.
 #[inline]
@@ -949,9 +966,7 @@ fn blank_stop<'f>(
     (base, tool): (u32, u32),
 ) -> Stop<'f> {
     Stop {
-        file,
-        stmt: s,
-        kind,
+        interpolation: interpolation(kind),
         role: Role::Target,
         goal: Frame::identity(),
         tool,
@@ -962,12 +977,17 @@ fn blank_stop<'f>(
         programmed: Programmed::Pose(Pose::IDENTITY),
         keep_t: false,
         rel,
-        origin: None,
-        reference: None,
         prev: None,
         compensable: false,
         deferred: false,
         spline: None,
         ghost: false,
+        handle: Handle {
+            file,
+            stmt: s,
+            kind,
+            origin: None,
+            reference: None,
+        },
     }
 }

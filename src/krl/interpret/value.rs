@@ -217,6 +217,14 @@ pub enum Naming {
 }
 
 impl Naming {
+    /// How a target's aggregate names what it programs: axes `A1..A6` or `X … C`.
+    pub fn of(programmed: &crate::motion::form::Programmed) -> Naming {
+        match programmed {
+            crate::motion::form::Programmed::Axes(_) => Naming::Axes,
+            crate::motion::form::Programmed::Pose(_) => Naming::Cartesian,
+        }
+    }
+
     /// The member names of the components.
     pub fn names(self) -> [&'static str; 6] {
         match self {

@@ -128,7 +128,7 @@ impl Workspace {
     /// [`Workspace::load`] taking the program's bytes and the robot's cell; with `stream`,
     /// the plain stretches of its main routine are left out of the tree as runs
     /// (`krl::parse_streaming`), to be walked window by window with
-    /// `motion::simulate_streaming`.
+    /// `crate::krl::interpret::simulate_streaming`.
     pub fn load_streaming(
         src: (Vec<u8>, Option<&Path>, &str),
         dat: Option<(&[u8], &Path, &str)>,

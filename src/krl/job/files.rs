@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use crate::krl;
 use crate::krl::interpret::workspace::{LoadError, Role};
-use crate::motion::{Cell, FileId, Workspace};
+use crate::krl::interpret::{Cell, FileId, Workspace};
 
 use super::program::FileOutput;
 

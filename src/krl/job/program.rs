@@ -8,7 +8,8 @@ use crate::diagnostic::{Diagnostic, Severity};
 use crate::krl::{self, StmtKind};
 use crate::model::Model;
 use crate::krl::interpret::workspace::Role as FileRole;
-use crate::motion::{self, FileId, GivenFrame, Programmed, Role, Simulation, Workspace};
+use crate::motion::{Interpolation, Programmed, Role};
+use crate::krl::interpret::{FileId, GivenFrame, Simulation, Workspace};
 
 use crate::krl::rewrite::output::Chunk;
 use super::taken::Taken;
@@ -62,7 +63,7 @@ pub struct Options {
     pub stretching: crate::compensate::sequence::Stretching,
     /// What the user states about run time (`--assume`); the caller puts them in the
     /// workspace (`Workspace::assumptions`), where the walk reads them.
-    pub assumptions: Vec<motion::Assumption>,
+    pub assumptions: Vec<crate::krl::interpret::Assumption>,
     /// Which points are taken as taught (left as they are) and which as offline
     /// (compensated): `--points`.
     pub taken: Taken,
@@ -108,7 +109,7 @@ pub struct ProgramResult {
 pub fn targets(
     sim: &Simulation,
     range: std::ops::Range<usize>,
-    taught: impl Fn(&motion::Stop) -> bool + Sync,
+    taught: impl Fn(&crate::krl::interpret::Stop) -> bool + Sync,
 ) -> Vec<Target> {
     use rayon::prelude::*;
     let from = range.start;
@@ -122,18 +123,18 @@ pub fn targets(
             nominal_axes: s.nominal_axes,
             arrival: s.arrival,
             turns: s.turns,
-            interp: match (s.kind.is_joint(), s.kind.is_circular(), s.role) {
-                (true, _, _) => Interp::Joint,
+            interp: match (s.interpolation, s.role) {
+                (Interpolation::Joint, _) => Interp::Joint,
                 // A `CA` circle written by construction (see `Writer::circular_angle` in `rewrite/target.rs`).
-                (false, true, Role::Aux) if sim.arc_ending_at(from + i + 1).is_some() => {
+                (Interpolation::Circular, Role::Aux) if sim.arc_ending_at(from + i + 1).is_some() => {
                     Interp::CircAngleAux
                 }
-                (false, true, Role::Target | Role::End) => match sim.arc_ending_at(from + i) {
+                (Interpolation::Circular, Role::Target | Role::End) => match sim.arc_ending_at(from + i) {
                     Some(a) => Interp::CircAngle(ArcAngle::new(a)),
                     None => Interp::CircEnd,
                 },
-                (false, true, Role::Aux) => Interp::CircAux,
-                (false, false, _) => match s.spline {
+                (Interpolation::Circular, Role::Aux) => Interp::CircAux,
+                (Interpolation::Linear, _) => match s.spline {
                     Some(e) => Interp::Curve {
                         first: e.first,
                         last: e.last,
@@ -143,7 +144,7 @@ pub fn targets(
             },
             compensate: s.compensable && !taught(s),
             written_base: match s.programmed {
-                Programmed::Pose(_) if s.compensable && s.origin.is_some() => Some(s.base),
+                Programmed::Pose(_) if s.compensable && s.handle.origin.is_some() => Some(s.base),
                 _ => None,
             },
             keep: Keep {
@@ -276,7 +277,7 @@ pub fn compensate_program_from(
     }
     let mut seg = Segments::new(ws, model, options, &taking);
     let sim = tracing::info_span!("simulate and compensate").in_scope(|| {
-        motion::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg))
+        crate::krl::interpret::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg))
     });
     if sim.needs_whole_tree {
         drop((sim, seg));
@@ -332,7 +333,7 @@ fn taught_places(
     options: &Options,
     taking: &super::taken::Taking,
 ) -> Vec<Option<crate::motion::frame::Frame>> {
-    let sim = motion::simulate(ws, &from.robot, &options.frames);
+    let sim = crate::krl::interpret::simulate(ws, &from.robot, &options.frames);
     let all = targets(&sim, 0..sim.stops.len(), |_| true);
     let outcomes = crate::compensate::sequence::compensate(
         from,

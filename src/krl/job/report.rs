@@ -8,7 +8,8 @@ use crate::diagnostic::{Diagnostic, Severity};
 use crate::identify::covariance::{sigma_um, Covariance};
 use crate::model::{AxisState, Direction, Model};
 use crate::motion::frame;
-use crate::motion::{self, Role, Simulation, Workspace};
+use crate::motion::Role;
+use crate::krl::interpret::{Simulation, Workspace};
 
 use crate::krl::rewrite::Rewrite;
 use crate::compensate::sequence::{Command, Outcome, Resolution};
@@ -301,7 +302,7 @@ pub(super) struct Listing<'a> {
 fn target_sigma_um(
     (covariance, model): Uncertainty<'_>,
     sim: &Simulation,
-    stop: &motion::Stop,
+    stop: &crate::krl::interpret::Stop,
     o: &Outcome,
 ) -> [f64; 3] {
     let state = AxisState::with_directions(o.axes_deg.0, o.directions);
@@ -404,7 +405,7 @@ impl Tally {
                         values[0] / 1000.0,
                         values[1] / 1000.0
                     );
-                    let d = ws.diagnostic(Severity::Warning, s.file, s.stmt.head, message);
+                    let d = ws.diagnostic(Severity::Warning, s.handle.file, s.handle.stmt.head, message);
                     self.large_shown.push(d);
                 }
             }
@@ -487,7 +488,7 @@ impl Tally {
 
 fn point_report(
     ws: &Workspace,
-    stop: &motion::Stop,
+    stop: &crate::krl::interpret::Stop,
     o: &Outcome,
     (correction_um, correction_mdeg): (f64, f64),
     compensated: bool,
@@ -496,9 +497,9 @@ fn point_report(
     let (rp, rr) = frame::norms(&o.residual);
     let flipped = o.flipped();
     PointReport {
-        file: ws.get(stop.file).name.clone(),
-        line: stop.stmt.line,
-        motion: stop.kind.keyword(),
+        file: ws.get(stop.handle.file).name.clone(),
+        line: stop.handle.stmt.line,
+        motion: stop.handle.kind.keyword(),
         role: match stop.role {
             Role::Target => "target",
             Role::Aux => "aux",

@@ -14,7 +14,7 @@ use crate::diagnostic::{Diagnostic, Severity};
 use crate::kinematics::Singularity;
 use crate::krl::Span;
 use crate::model::{Direction, Model};
-use crate::motion::{RunSink, Simulation, Walked, Workspace};
+use crate::krl::interpret::{RunSink, Simulation, Walked, Workspace};
 
 use super::program::{targets, Options, Tally};
 use super::report::Listing;
@@ -70,7 +70,7 @@ impl Preparer<'_> {
         let ghosts = sim.stops[from..].iter().take_while(|s| s.ghost).count();
         let first = from + ghosts;
         let taking = self.taking;
-        let leaves = |s: &crate::motion::Stop| !taking.moves() && taking.taught(ws, s);
+        let leaves = |s: &crate::krl::interpret::Stop| !taking.moves() && taking.taught(ws, s);
         let mut targets = targets(sim, first..sim.stops.len(), leaves);
         if taking.moves() {
             // `--from`: a taught target goes where the robot it was taught on reaches it.
@@ -268,18 +268,18 @@ impl<'a> Segments<'a> {
         let mut seen = std::collections::HashSet::new();
         for ((stop, o), sing) in stops.iter().zip(outcomes).zip(singular) {
             if let Some(sing) = sing {
-                if seen.insert((stop.file, stop.stmt.head.start)) {
+                if seen.insert((stop.handle.file, stop.handle.stmt.head.start)) {
                     self.singular.push(ws.diagnostic(
                         Severity::Warning,
-                        stop.file,
-                        stop.stmt.head,
+                        stop.handle.file,
+                        stop.handle.stmt.head,
                         format!("the target is near a singularity ({sing}): compensated in the least-squares sense where the pose cannot be reached exactly"),
                     ));
                 }
             }
             if let Some(e) = &o.error {
                 // A line executed many times (a loop) says it once, with the count.
-                let at = (stop.file, stop.stmt.head.start);
+                let at = (stop.handle.file, stop.handle.stmt.head.start);
                 if let Some((_, n)) = self.errors_at.get_mut(&at) {
                     *n += 1;
                     continue;
@@ -288,8 +288,8 @@ impl<'a> Segments<'a> {
                 self.target_errors.push(
                     ws.diagnostic(
                         Severity::Error,
-                        stop.file,
-                        stop.stmt.head,
+                        stop.handle.file,
+                        stop.handle.stmt.head,
                         format!("target not compensated: {e}"),
                     )
                     .with_help(

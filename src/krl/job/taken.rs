@@ -1,6 +1,6 @@
 //! Which targets are compensated as offline points and which are left as taught ones
 //! (`--points offline|taught|auto`): `auto` takes each target as its files' evidence says
-//! (`motion::provenance`), the others every target alike. A taught point is already where
+//! (`crate::krl::interpret::provenance`), the others every target alike. A taught point is already where
 //! the operator put it: compensating it would move the robot away by the model's correction.
 //! The tally says, per kind of evidence, how many targets were taken as which, and names the
 //! declared points taken as taught.
@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use crate::motion::frame::Frame;
 use crate::krl::interpret::provenance::{self, Evidence, Facts};
-use crate::motion::{Stop, Workspace};
+use crate::krl::interpret::{Stop, Workspace};
 
 /// `--points`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -96,11 +96,11 @@ impl Taking {
 
     /// The generator header of a file of `ws`, for the report's wording.
     pub fn header_of(&self, ws: &Workspace, stop: &Stop) -> Option<String> {
-        let file = stop.origin.and_then(|o| o.var).map_or(stop.file, |v| v.file);
+        let file = stop.handle.origin.and_then(|o| o.var).map_or(stop.handle.file, |v| v.file);
         let (f, h) = self
             .facts
             .header(ws, file)
-            .or_else(|| self.facts.header(ws, stop.file))?;
+            .or_else(|| self.facts.header(ws, stop.handle.file))?;
         Some(format!("{}:{} (\"{}\")", ws.get(f).name, h.line, h.word))
     }
 }
@@ -153,7 +153,7 @@ impl Tally {
             let entry = self.by.entry((taught, evidence)).or_insert_with(|| {
                 let header =
                     (evidence == Evidence::Generator).then(|| taking.header_of(ws, s)).flatten();
-                (0, format!("{}:{}", ws.get(s.file).name, s.stmt.line), header)
+                (0, format!("{}:{}", ws.get(s.handle.file).name, s.handle.stmt.line), header)
             });
             entry.0 += 1;
             if taught {

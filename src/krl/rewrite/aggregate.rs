@@ -390,17 +390,17 @@ mod tests {
         let (mut taken, mut files) = (0, 0);
         for path in &programs {
             let bytes = std::fs::read(path).expect("a fixture");
-            let Ok(ws) = crate::compensate::files::load_program(Some(path), &bytes, None) else {
+            let Ok(ws) = crate::krl::job::files::load_program(Some(path), &bytes, None) else {
                 continue;
             };
             files += 1;
-            let sim = crate::motion::simulate(&ws, &robot, &[]);
+            let sim = crate::krl::interpret::simulate(&ws, &robot, &[]);
             for stop in &sim.stops {
-                let Some(origin) = stop.origin.filter(|_| stop.rel.is_none()) else {
+                let Some(origin) = stop.handle.origin.filter(|_| stop.rel.is_none()) else {
                     continue;
                 };
                 let file = &ws.get(origin.file).file;
-                let naming = stop.programmed.naming();
+                let naming = crate::krl::interpret::value::Naming::of(&stop.programmed);
                 let read = components(file, origin.agg, naming, None);
                 let values = stop.programmed.components();
                 let given = Some((&values, origin.literals));
@@ -463,7 +463,7 @@ mod tests {
                 "DEF t ( )\nLIN {{X {},Y {},Z {},A {},B {},C {}}} C_DIS\nEND\n",
                 texts[0], texts[1], texts[2], texts[3], texts[4], texts[5]
             );
-            let ws = crate::compensate::files::load_program(None, program.as_bytes(), None)
+            let ws = crate::krl::job::files::load_program(None, program.as_bytes(), None)
                 .expect("the program loads");
             let file = &ws.get(0).file;
             let agg = first_aggregate(&ws);

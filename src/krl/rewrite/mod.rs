@@ -35,7 +35,8 @@ use crate::krl::{Edit, Span};
 use crate::motion::frame::Frame;
 use crate::motion::nominal::{Arm, Nominal};
 use crate::krl::interpret::value::Origin;
-use crate::motion::{FileId, Role, Simulation, Stop, Workspace};
+use crate::motion::{Role};
+use crate::krl::interpret::{FileId, Simulation, Stop, Workspace};
 
 use self::edits::EditList;
 // What only robopost's own tests name through this path.
@@ -213,7 +214,7 @@ enum Skip {
 
 impl Skip {
     fn diagnostic(self, ws: &Workspace, sim: &Simulation) -> Diagnostic {
-        let at_stop = |i: usize| (sim.stops[i].file, sim.stops[i].stmt.head);
+        let at_stop = |i: usize| (sim.stops[i].handle.file, sim.stops[i].handle.stmt.head);
         let ((file, span), why) = match self {
             Skip::Relative(i) => (
                 at_stop(i),
@@ -224,7 +225,7 @@ impl Skip {
                 "no circle turns by this CA from the compensated start to the compensated end (its start unknown, or start and end together): left unchanged",
             ),
             Skip::NotLiteral(i) => {
-                let origin = sim.stops[i].origin.expect("skipped for its origin");
+                let origin = sim.stops[i].handle.origin.expect("skipped for its origin");
                 (
                     (origin.file, origin.agg.span),
                     "this position's numbers are not plain literals: left unchanged",
@@ -287,7 +288,7 @@ impl Default for EulerTally {
 
 impl EulerTally {
     fn place(stop: &Stop) -> u64 {
-        (u64::from(stop.file) << 32) | u64::from(stop.stmt.head.start)
+        (u64::from(stop.handle.file) << 32) | u64::from(stop.handle.stmt.head.start)
     }
 
     fn record(&self, stop: &Stop, left_rad: f64) {
@@ -311,7 +312,7 @@ impl EulerTally {
         Some(EulerLeft {
             count,
             max_rad: f64::from_bits(self.max_left_bits.into_inner()),
-            first: ws.diagnostic(Severity::Warning, stop.file, stop.stmt.head, String::new()),
+            first: ws.diagnostic(Severity::Warning, stop.handle.file, stop.handle.stmt.head, String::new()),
         })
     }
 }
@@ -335,7 +336,7 @@ impl<'a> Writer<'a> {
             .into_par_iter()
             .with_min_len(1024)
             .filter_map(|i| {
-                let origin = sim.stops[i].origin.as_ref()?;
+                let origin = sim.stops[i].handle.origin.as_ref()?;
                 written(sim, outcomes, i).then_some(UseKey {
                     file: origin.file,
                     agg_start: origin.agg.span.start,
@@ -410,8 +411,8 @@ impl<'a> Writer<'a> {
                     let u = Use {
                         stop: i,
                         edits: list.to_edits(),
-                        site: (stop.file, stop.reference),
-                        origin: stop.origin.expect("written for its origin"),
+                        site: (stop.handle.file, stop.handle.reference),
+                        origin: stop.handle.origin.expect("written for its origin"),
                     };
                     match shared.last_mut() {
                         Some(s) if last.is_some_and(|l| l.same_aggregate(&keys[k])) => {
@@ -452,7 +453,7 @@ impl<'a> Writer<'a> {
     /// Appends to `list` the edits writing target `i`'s command into its aggregate.
     fn target_edits(&self, i: usize, list: &mut EditList) -> TargetWrite {
         let (sim, stop) = (self.sim, &self.sim.stops[i]);
-        let Some(origin) = stop.origin.as_ref().filter(|_| written(sim, self.outcomes, i)) else {
+        let Some(origin) = stop.handle.origin.as_ref().filter(|_| written(sim, self.outcomes, i)) else {
             return TargetWrite::Unwritten;
         };
         let commanded = match self.circular_angle(i) {
@@ -464,10 +465,10 @@ impl<'a> Writer<'a> {
             None => self.commanded(i),
         };
         let file = &self.ws.get(origin.file).file;
-        // An absolute target's programmed values are its position's (`motion::simulate`).
+        // An absolute target's programmed values are its position's (`crate::krl::interpret::simulate`).
         let programmed = stop.programmed.components();
         let read = stop.rel.is_none().then_some((&programmed, origin.literals));
-        let present = components(file, origin.agg, stop.programmed.naming(), read);
+        let present = components(file, origin.agg, crate::krl::interpret::value::Naming::of(&stop.programmed), read);
         let original = present.map(|c| c.and_then(|c| c.value));
         let axes = &self.outcomes[i].axes_deg;
         let Some((values, left)) = self.new_values(stop, axes, &commanded, &original) else {
@@ -480,7 +481,7 @@ impl<'a> Writer<'a> {
         let target = AggregateTarget {
             file,
             agg: origin.agg,
-            naming: stop.programmed.naming(),
+            naming: crate::krl::interpret::value::Naming::of(&stop.programmed),
             relative: stop.rel.is_some(),
             file_sep: self.separator,
         };

@@ -9,7 +9,7 @@ use std::collections::HashSet;
 use crate::diagnostic::Severity;
 use crate::krl::{self, Edit, Expr, SourceFile, Span};
 use crate::krl::interpret::value::{Declared, VarRef};
-use crate::motion::{FileId, Simulation, Workspace};
+use crate::krl::interpret::{FileId, Simulation, Workspace};
 
 use super::{Rewrite, SharedOrigin, Site, TargetEdits, Use};
 
@@ -80,7 +80,7 @@ pub(super) fn write_last(
         format!(
             "this position is reached {} times with different rotation directions, so its compensations differ; it is written for its last use (line {}) — give each use its own point to compensate all",
             uses.len(),
-            stop.stmt.line
+            stop.handle.stmt.line
         ),
     ));
 }

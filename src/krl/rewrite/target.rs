@@ -5,7 +5,8 @@
 use crate::kinematics::{AxisAngles, Pose};
 use crate::motion::frame::{abc_continuous, abc_jumps, kuka_near, Frame};
 use crate::motion::nominal::{Arm, Nominal};
-use crate::motion::{Programmed, Rel, Role, Simulation, Stop};
+use crate::motion::{Programmed, Rel, Role};
+use crate::krl::interpret::{Simulation, Stop};
 
 use crate::compensate::sequence::Outcome;
 use super::{Commanded, Writer};
@@ -89,7 +90,7 @@ impl Writer<'_> {
             original[5].unwrap_or(programmed.c),
         ];
         let operators = stop
-            .origin
+            .handle.origin
             .as_ref()
             .map_or((None, None), |o| (o.prefix, o.suffix));
         let mut v = match (operators, &command.unchosen) {

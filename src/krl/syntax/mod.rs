@@ -1,10 +1,12 @@
-//! The KUKA KRL front end: a lossless parser of `.src` and `.dat` files (nom over bytes, never
+//! The KRL front end's reader: a lossless parser of `.src` and `.dat` files (nom over bytes, never
 //! decoding), the syntax tree it builds, and byte edits to rewrite a program. Every byte of a
 //! file belongs to a statement or to trivia, so `parse(b)?.emit() == b` for any input; lines
 //! the parser does not understand are kept as opaque statements. Malformed motions,
 //! declarations and aggregates are errors with a line, column and hint. This module knows
-//! nothing of kinematics: it only says what the program says, with the byte span of every
-//! number so another module can compute new values and write them back with [`edit`].
+//! nothing of kinematics (`tests/seam.rs` holds it to that: it names nothing of the crate but
+//! itself, the diagnostics and the input reader): it only says what the program says, with
+//! the byte span of every number so another module can compute new values and write them
+//! back with [`edit`]. Its items are re-exported at `krl::` (`krl::parse`, `krl::Span` …).
 //!
 //! # How to walk a program
 //!

@@ -466,7 +466,7 @@ fn with_item<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, WithItem> {
 
 #[cfg(test)]
 mod tests {
-    use crate::krl::syntax::{self, ApproxKind, FileKind, RelFrameKind};
+    use crate::krl::syntax::{self as krl, ApproxKind, FileKind, RelFrameKind};
 
     #[test]
     fn packed_keyword_approx_and_frame_spans_are_the_written_text() {
