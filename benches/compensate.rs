@@ -14,14 +14,15 @@ use std::path::Path;
 
 use cpu_time::ThreadCpuTime;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use robopost::compensate::{self, files, program, Calibrated};
+use robopost::compensate::{self};
+use robopost::krl::job::{files, program, Calibrated};
 
 use cam_fixture::PROGRAM;
 
 fn phases(c: &mut Criterion<ThreadCpuTime>) {
     let (model, cal_bytes, bytes, ws) = cam_fixture::load();
     let calibrated = Calibrated::new(&model, "kr30ha-handset.json", &cal_bytes);
-    let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(&ws, &model.robot, &[]);
     let targets = program::targets(&sim, 0..sim.stops.len(), |_| false);
     let n = targets.len();
     let serial = compensate::Options {
@@ -40,7 +41,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
         b.iter(|| black_box(files::load_program(Some(Path::new(PROGRAM)), &bytes, None).unwrap()))
     });
     g.bench_function("simulate", |b| {
-        b.iter(|| black_box(robopost::motion::simulate(&ws, &model.robot, &[])))
+        b.iter(|| black_box(robopost::krl::interpret::simulate(&ws, &model.robot, &[])))
     });
     g.bench_function("compensate targets (1 thread)", |b| {
         b.iter(|| {
@@ -62,7 +63,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
     );
     g.bench_function("rewrite", |b| {
         b.iter(|| {
-            black_box(compensate::rewrite::rewrite(
+            black_box(robopost::krl::rewrite::rewrite(
                 &ws,
                 &sim,
                 &outcomes,
@@ -72,7 +73,13 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
         })
     });
     g.bench_function("whole program in process (1 thread)", |b| {
-        b.iter(|| black_box(compensate::compensate_program(&ws, &calibrated, &options)))
+        b.iter(|| {
+            black_box(robopost::krl::job::compensate_program(
+                &ws,
+                &calibrated,
+                &options,
+            ))
+        })
     });
     g.finish();
 }

@@ -12,7 +12,8 @@ mod cpu_time;
 
 use cpu_time::ThreadCpuTime;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use robopost::compensate::{self, program, Calibrated};
+use robopost::compensate::{self};
+use robopost::krl::job::{program, Calibrated};
 
 fn phases(c: &mut Criterion<ThreadCpuTime>) {
     let (model, cal_bytes, _, ws) = cam_fixture::load();
@@ -23,7 +24,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
         .build_global()
         .expect("the global pool is this thread");
     {
-        let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
+        let sim = robopost::krl::interpret::simulate(&ws, &model.robot, &[]);
         let targets = program::targets(&sim, 0..sim.stops.len(), |_| false);
         let n = targets.len();
         let outcomes = compensate::compensate(
@@ -33,7 +34,7 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
             [Default::default(); 6],
             &compensate::Options::default(),
         );
-        let rw = compensate::rewrite::rewrite(&ws, &sim, &outcomes, &model.robot, None);
+        let rw = robopost::krl::rewrite::rewrite(&ws, &sim, &outcomes, &model.robot, None);
         let edits = rw.edits.values().next().expect("the program is rewritten");
         let header = robopost::krl::Edit {
             range: 0..0,
@@ -42,11 +43,11 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
         let mut g = c.benchmark_group(format!("pipeline 1 thread, pocket_milling ({n} targets)"));
         g.sample_size(10);
         g.bench_function("simulate", |b| {
-            b.iter(|| black_box(robopost::motion::simulate(&ws, &model.robot, &[])))
+            b.iter(|| black_box(robopost::krl::interpret::simulate(&ws, &model.robot, &[])))
         });
         g.bench_function("rewrite", |b| {
             b.iter(|| {
-                black_box(compensate::rewrite::rewrite(
+                black_box(robopost::krl::rewrite::rewrite(
                     &ws,
                     &sim,
                     &outcomes,
@@ -60,7 +61,13 @@ fn phases(c: &mut Criterion<ThreadCpuTime>) {
         });
         let options = program::Options::default();
         g.bench_function("whole program in process", |b| {
-            b.iter(|| black_box(compensate::compensate_program(&ws, &calibrated, &options)))
+            b.iter(|| {
+                black_box(robopost::krl::job::compensate_program(
+                    &ws,
+                    &calibrated,
+                    &options,
+                ))
+            })
         });
         g.finish();
     }

@@ -1,6 +1,6 @@
 //! The walker's CPU per target on the CAM fixture `fixtures/programs/cam/pocket_milling.src`
 //! (22 506 LIN targets): parsing the program (the code every streamed window goes through),
-//! walking it with the deferred arrival rates (`motion::simulate`: statement dispatch,
+//! walking it with the deferred arrival rates (`robopost::krl::interpret::simulate`: statement dispatch,
 //! aggregate evaluation, IK, arrivals) and building the solver's targets from its stops
 //! (`program::targets`). rayon's global pool is this one thread, so the benchmark thread's CPU
 //! time is all the work: divide by the target count for the CPU per target.
@@ -12,7 +12,7 @@ mod cpu_time;
 
 use cpu_time::ThreadCpuTime;
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use robopost::compensate::program;
+use robopost::krl::job::program;
 
 fn walker(c: &mut Criterion<ThreadCpuTime>) {
     let (model, _, bytes, ws) = cam_fixture::load();
@@ -21,7 +21,7 @@ fn walker(c: &mut Criterion<ThreadCpuTime>) {
         .use_current_thread()
         .build_global()
         .expect("the global pool is this thread");
-    let sim = robopost::motion::simulate(&ws, &model.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(&ws, &model.robot, &[]);
     let n = sim.stops.len();
     let mut g = c.benchmark_group(format!("walker 1 thread, pocket_milling ({n} stops)"));
     g.sample_size(10);
@@ -34,7 +34,7 @@ fn walker(c: &mut Criterion<ThreadCpuTime>) {
         })
     });
     g.bench_function("simulate (walk + arrivals)", |b| {
-        b.iter(|| black_box(robopost::motion::simulate(&ws, &model.robot, &[])))
+        b.iter(|| black_box(robopost::krl::interpret::simulate(&ws, &model.robot, &[])))
     });
     g.bench_function("targets", |b| {
         b.iter(|| black_box(program::targets(&sim, 0..n, |_| false)))

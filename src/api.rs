@@ -10,15 +10,11 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use crate::compensate::{self, files, program};
-
 use crate::identify::pipeline;
-use crate::motion::{self, Workspace};
+use crate::krl::interpret::Workspace;
+use crate::krl::job::{files, program};
 
 pub use crate::calibration::{CalError, Calibration, ExcludedPoint, MeasurementFrame, Provenance};
-pub use crate::compensate::report::{CalibrationRef, MaxMean, PointReport, PoseStats, SplitReport};
-pub use crate::compensate::Report;
-pub use crate::compensate::Taken;
 pub use crate::diagnose::{
     DiagnoseOptions, Diagnosis, Finding, LearnedDrivers, NoiseSource, ProgressSink, TestShare,
 };
@@ -28,6 +24,9 @@ pub use crate::identify::refine::{Fit, Status as ParameterStatus};
 pub use crate::identify::thin::Thinning;
 pub use crate::identify::verdict::Verdict;
 pub use crate::kinematics::{Payload, RobotDescription};
+pub use crate::krl::job::report::{CalibrationRef, MaxMean, PointReport, PoseStats, SplitReport};
+pub use crate::krl::job::Report;
+pub use crate::krl::job::Taken;
 pub use crate::measure::tracker::Tracker;
 pub use crate::measure::{Columns as MeasurementColumns, Measurements, Stop as MeasuredStop};
 pub use crate::model::{AxisHistory, AxisState, Direction, EffectName, NameError, RecordError};
@@ -35,8 +34,6 @@ pub use crate::stats::ErrorStats;
 
 // Plain data reachable from the types above: nameable, so that a caller can write them down.
 pub use crate::atomic_unit::WriteError;
-pub use crate::compensate::report::AssumptionUse;
-pub use crate::compensate::taken::{PointsTaken, Reason as TakenReason};
 pub use crate::diagnose::blocks::Scheme as HeldOutScheme;
 pub use crate::diagnose::crossval::Score as HeldOutScore;
 pub use crate::diagnose::learn::{Curve as LearnedCurve, Screened as LearnedScreened};
@@ -55,10 +52,12 @@ pub use crate::kinematics::frame::Frame;
 pub use crate::kinematics::pose::Pose;
 pub use crate::kinematics::robot::Gravity;
 pub use crate::kinematics::{AxisAngles, Links};
+pub use crate::krl::interpret::workspace::LoadError;
+pub use crate::krl::job::report::AssumptionUse;
+pub use crate::krl::job::taken::{PointsTaken, Reason as TakenReason};
 pub use crate::measure::MeasureError;
 pub use crate::model::effects::{learned::SpecError, EffectError};
 pub use crate::model::table::GridError;
-pub use crate::motion::workspace::LoadError;
 
 /// Why a call could not do its job.
 #[derive(Debug, thiserror::Error)]
@@ -217,7 +216,7 @@ pub fn compensate_in_cell(
         frames: context
             .frames
             .iter()
-            .map(|f| motion::GivenFrame {
+            .map(|f| crate::krl::interpret::GivenFrame {
                 base: f.base,
                 index: f.index,
                 pose: crate::kinematics::Pose::from_array(f.xyzabc),
@@ -254,7 +253,7 @@ fn compensated(
 ) -> Result<(Workspace, program::ProgramResult), Error> {
     ws.robot = calibration.robot_name.clone();
     let calibrated = program::Calibrated::new(calibration.model_ref(), header_name, header_bytes);
-    let result = compensate::compensate_program(&ws, &calibrated, options);
+    let result = crate::krl::job::compensate_program(&ws, &calibrated, options);
     if result.rejected {
         return Err(Error::Rejected(result.diagnostics));
     }
@@ -323,7 +322,7 @@ pub fn simulate_source(
     robot: &RobotDescription,
 ) -> Result<Simulated, Error> {
     let ws = Workspace::load_streaming((source.to_vec(), None, name), None, None, None)?;
-    let sim = motion::simulate(&ws, robot, &[]);
+    let sim = crate::krl::interpret::simulate(&ws, robot, &[]);
     if sim.rejected() {
         return Err(Error::Rejected(sim.diagnostics));
     }
@@ -332,7 +331,7 @@ pub fn simulate_source(
             .stops
             .iter()
             .map(|s| ProgramStop {
-                line: s.stmt.line as usize,
+                line: s.handle.stmt.line as usize,
                 axes_deg: s.nominal_axes.into(),
                 tcp_mm: s.goal.position.into(),
             })

@@ -29,10 +29,11 @@
 //! ```
 //!
 //! Data flows one way inside:
-//! `bytes → krl (lossless syntax) → motion (targets, joints, axis histories) → model (error
-//! effects) → compensate → krl edits → bytes`, and `csv → identify → model`,
-//! `model + csv → report`. `krl` knows nothing of kinematics; `kinematics` knows nothing of
-//! KRL. Those modules are private: the API above and [`run_command_line`] (the `robopost`
+//! `bytes → krl::syntax (lossless syntax) → krl::interpret → motion::form (targets, joints,
+//! axis histories; language-neutral) → model (error effects) → compensate → krl::rewrite →
+//! bytes`, and `csv → identify → model`, `model + csv → report` (docs/architecture.md: the
+//! rooms and the seam). The KRL syntax knows nothing of kinematics; `kinematics`, `motion`,
+//! `model` and `compensate` know nothing of KRL. Those modules are private: the API above and [`run_command_line`] (the `robopost`
 //! command itself, `src/cli/`) are all there is. robopost's own tests, benches and fuzz targets
 //! reach inside through the `internals` feature, which promises no stability.
 

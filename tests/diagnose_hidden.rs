@@ -31,12 +31,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use robopost::calibration::Calibration;
 use robopost::compare;
-use robopost::compensate::files;
 use robopost::diagnose::{diagnose, DiagnoseOptions, Finding};
 use robopost::identify::pipeline::{identify, Effects, Request, PAPER_EFFECTS};
+use robopost::krl::job::files;
 use robopost::measure::{Measurements, Stop};
 use robopost::model::expand_list;
-use robopost::motion;
 use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::physical::{self, PhysicalRobot, PTP_STEP_DEG};
 use robopost::simulate::program::program_visits;
@@ -211,7 +210,7 @@ fn measure(robot: &PhysicalRobot) -> Measured {
         let src = root().join(format!("fixtures/programs/{name}.src"));
         let bytes = std::fs::read(&src).unwrap();
         let ws = files::load_program(Some(&src), &bytes, None).unwrap();
-        let sim = motion::simulate(&ws, robot.robot(), &[]);
+        let sim = robopost::krl::interpret::simulate(&ws, robot.robot(), &[]);
         let mut visits = program_visits(&sim, "path", DEFAULT_DWELL_S, DEFAULT_AXIS_SPEED_DEG_S);
         for v in &mut visits {
             v.stop.time_s += end + 1800.0 + 900.0 * k as f64;

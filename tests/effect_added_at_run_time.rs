@@ -4,7 +4,7 @@
 //!
 //! - identification (`identify::pipeline::identify` with it in the effect list) recovers its
 //!   amplitude from virtual-robot data whose error motion is added by an independent formula;
-//! - compensation (`compensate::compensate_program`) moves a program's targets by the
+//! - compensation (`robopost::krl::job::compensate_program`) moves a program's targets by the
 //!   displacement the formula gives, with the orientation untouched;
 //! - diagnosis tries it among its candidates and names it when the calibration lacks it.
 //!
@@ -19,17 +19,17 @@ mod calibrate;
 
 use nalgebra::Vector3;
 use robopost::calibration::{Calibration, MeasurementFrame, Provenance};
-use robopost::compensate::{files, program, Method};
+use robopost::compensate::Method;
 use robopost::diagnose::{diagnose, DiagnoseOptions};
 use robopost::identify::pipeline::PAPER_EFFECTS;
 use robopost::kinematics::{Payload, RobotDescription};
+use robopost::krl::job::{files, program};
 use robopost::measure::{Measurements, Stop};
 use robopost::model::effects::{EffectError, ToRecord};
 use robopost::model::record::{self, EffectRecord, RecordError};
 use robopost::model::registry::{self, Arity, Evidence, Kind, RegisterError};
 use robopost::model::{AxisState, ChainErrors, Context, Effect, EffectName, Parameter, Partial};
 use robopost::model::{Model, Slot};
-use robopost::motion;
 use robopost::simulate::campaign::Campaign;
 use robopost::simulate::paper;
 use robopost::simulate::virtual_robot::VirtualRobot;
@@ -309,8 +309,8 @@ fn compensation_moves_each_target_against_the_bearing_motion() {
     model.push(effect);
 
     let ws = files::load_program(None, PROGRAM.as_bytes(), None).unwrap();
-    let sim = motion::simulate(&ws, &robot, &[]);
-    let c = robopost::compensate::Calibrated::new(&model, "wavy.json", b"wavy");
+    let sim = robopost::krl::interpret::simulate(&ws, &robot, &[]);
+    let c = robopost::krl::job::Calibrated::new(&model, "wavy.json", b"wavy");
     let options = program::Options {
         method: Method::Iterate,
         parallel: false,
@@ -319,7 +319,7 @@ fn compensation_moves_each_target_against_the_bearing_motion() {
         points: false,
         ..program::Options::default()
     };
-    let result = robopost::compensate::compensate_program(&ws, &c, &options);
+    let result = robopost::krl::job::compensate_program(&ws, &c, &options);
     assert!(!result.rejected, "{:?}", result.report.errors);
     let written = String::from_utf8(result.files[0].bytes.to_vec()).unwrap();
 

@@ -18,10 +18,13 @@ use std::path::{Path, PathBuf};
 
 use robopost::model::registry::KINDS;
 
-const SCANNED: [&str; 5] = [
+const SCANNED: [&str; 7] = [
     "src/identify",
     "src/diagnose",
     "src/compensate",
+    // The program job and the rewrite, which were in `src/compensate/` before issue 39.
+    "src/krl/job",
+    "src/krl/rewrite",
     "src/calibration",
     "src/cli",
 ];

@@ -26,12 +26,13 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 use robopost::calibration::Calibration;
-use robopost::compensate::{self, files, program, Calibrated};
 use robopost::diagnose::{diagnose, DiagnoseOptions};
 use robopost::identify::pipeline::{identify, Effects, Identified, Request, PAPER_EFFECTS};
+use robopost::krl::interpret::Workspace;
+use robopost::krl::job::{files, program, Calibrated};
 use robopost::measure::{Measurements, Stop};
 use robopost::model::{expand_list, Model};
-use robopost::motion::{self, Workspace};
+use robopost::motion::{self};
 use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::physical::{self, Counterbalance, PhysicalRobot, PTP_STEP_DEG};
 use robopost::simulate::program::program_visits;
@@ -193,7 +194,7 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> Workspace {
     let bytes = std::fs::read(src).unwrap();
     let ws = files::load_program(Some(src), &bytes, None).unwrap();
     let cal = Calibrated::new(model, "identified", b"");
-    let result = compensate::compensate_program(
+    let result = robopost::krl::job::compensate_program(
         &ws,
         &cal,
         &program::Options {
@@ -216,17 +217,18 @@ fn path_errors(robot: &PhysicalRobot, model: &Model, end_s: f64, dir: &Path) -> 
         let src = root().join(format!("fixtures/programs/{name}.src"));
         let bytes = std::fs::read(&src).unwrap();
         let original = files::load_program(Some(&src), &bytes, None).unwrap();
-        let points: Vec<(usize, Vector3<f64>)> = motion::simulate(&original, robot.robot(), &[])
-            .stops
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| {
-                s.role == motion::Role::Target && (s.goal.position.z - level_z).abs() < 1e-6
-            })
-            .map(|(i, s)| (i, s.goal.position))
-            .collect();
+        let points: Vec<(usize, Vector3<f64>)> =
+            robopost::krl::interpret::simulate(&original, robot.robot(), &[])
+                .stops
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| {
+                    s.role == motion::Role::Target && (s.goal.position.z - level_z).abs() < 1e-6
+                })
+                .map(|(i, s)| (i, s.goal.position))
+                .collect();
         let ws = compensated(&src, model, dir);
-        let sim = motion::simulate(&ws, robot.robot(), &[]);
+        let sim = robopost::krl::interpret::simulate(&ws, robot.robot(), &[]);
         assert!(
             !sim.rejected() && sim.unreachable == 0,
             "{:?}",

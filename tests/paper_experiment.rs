@@ -20,12 +20,13 @@ use tooled::with_identified_tool;
 use std::path::Path;
 
 use nalgebra::Vector3;
-use robopost::compensate::{self, files, program, Calibrated};
 use robopost::identify::pipeline::{identify, Effects, Request, PAPER_EFFECTS};
 use robopost::kinematics::{Payload, RobotDescription};
+use robopost::krl::interpret::Workspace;
+use robopost::krl::job::{files, program, Calibrated};
 use robopost::measure::read_csv;
 use robopost::model::{expand_list, Model};
-use robopost::motion::{self, Workspace};
+use robopost::motion::{self};
 use robopost::simulate::campaign::{Campaign, DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::poses::read_poses;
 use robopost::simulate::program::{program_visits, rows_with_turns, tool_warnings};
@@ -53,7 +54,7 @@ fn load(path: &Path) -> Workspace {
 /// The measured positions of every stop (in order; `None` where not measured) when `ws` runs
 /// on `robot`.
 fn run(ws: &Workspace, robot: &VirtualRobot) -> Vec<Option<Vector3<f64>>> {
-    let sim = motion::simulate(ws, &robot.truth.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(ws, &robot.truth.robot, &[]);
     assert!(
         !sim.rejected() && sim.unreachable == 0,
         "{:?}",
@@ -70,7 +71,7 @@ fn run(ws: &Workspace, robot: &VirtualRobot) -> Vec<Option<Vector3<f64>>> {
 
 /// The original program's stops on its rectangle: (index in the run, programmed TCP position).
 fn rectangle(ws: &Workspace, robot: &RobotDescription, level_z: f64) -> Vec<(usize, Vector3<f64>)> {
-    motion::simulate(ws, robot, &[])
+    robopost::krl::interpret::simulate(ws, robot, &[])
         .stops
         .iter()
         .enumerate()
@@ -86,7 +87,7 @@ fn rectangle(ws: &Workspace, robot: &RobotDescription, level_z: f64) -> Vec<(usi
 fn compensated(src: &Path, model: &Model, dir: &Path) -> Workspace {
     let ws = load(src);
     let cal = Calibrated::new(model, "identified", b"");
-    let result = compensate::compensate_program(
+    let result = robopost::krl::job::compensate_program(
         &ws,
         &cal,
         &program::Options {
@@ -186,7 +187,7 @@ fn paper_table_one_in_simulation() {
             let m = measured[*i].unwrap();
             assert!((m - programmed).norm() < 1e-6, "{name}: {programmed} → {m}");
         }
-        let sim = motion::simulate(&original, &exact.truth.robot, &[]);
+        let sim = robopost::krl::interpret::simulate(&original, &exact.truth.robot, &[]);
         // The programs' TCP is the tracker's target: measured − programmed is the error.
         assert!(tool_warnings(&original, &sim, &truth.truth.target_mm).is_empty());
         for (i, _) in &points {
@@ -428,7 +429,7 @@ fn simulate_program_on_the_command_line() {
     let file = read_csv(&out).unwrap();
     let ws = load(&src);
     let truth = VirtualRobot::load(&truth_path).unwrap().with_seed(9);
-    let sim = motion::simulate(&ws, &truth.truth.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(&ws, &truth.truth.robot, &[]);
     let visits = program_visits(
         &sim,
         "paper_path2",
@@ -584,7 +585,7 @@ fn compensation_with_the_true_model_reaches_every_stop() {
     std::fs::create_dir(&out_dir).unwrap();
     for src in &programs {
         let original = load(src);
-        let sim = motion::simulate(&original, &truth.truth.robot, &[]);
+        let sim = robopost::krl::interpret::simulate(&original, &truth.truth.robot, &[]);
         let goals: Vec<(usize, Vector3<f64>)> = sim
             .stops
             .iter()
@@ -609,7 +610,7 @@ fn compensation_with_the_true_model_reaches_every_stop() {
                 e < 2e-3,
                 "{}: stop {i} (line {}) off by {:.2} µm",
                 src.display(),
-                sim.stops[*i].stmt.line,
+                sim.stops[*i].handle.stmt.line,
                 e * 1e3
             );
         }

@@ -24,11 +24,12 @@ use tooled::with_identified_tool;
 use std::path::Path;
 
 use nalgebra::Vector3;
-use robopost::compensate::{self, files, program, Calibrated};
 use robopost::identify::pipeline::{identify, Effects, Request, PAPER_EFFECTS};
+use robopost::krl::interpret::Workspace;
+use robopost::krl::job::{files, program, Calibrated};
 use robopost::measure::{read_csv, Stop};
 use robopost::model::{expand_list, Model};
-use robopost::motion::{self, Workspace};
+use robopost::motion::{self};
 use robopost::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::physical::{self, PhysicalRobot, PTP_STEP_DEG};
 use robopost::simulate::program::{program_visits, visit_states};
@@ -64,7 +65,7 @@ fn campaign(robot: &PhysicalRobot) -> Vec<Stop> {
 
 /// The measured positions of every stop of `ws` run on `robot`, starting at `t0_s`.
 fn run(ws: &Workspace, robot: &PhysicalRobot, t0_s: f64) -> Vec<Option<Vector3<f64>>> {
-    let sim = motion::simulate(ws, robot.robot(), &[]);
+    let sim = robopost::krl::interpret::simulate(ws, robot.robot(), &[]);
     assert!(
         !sim.rejected() && sim.unreachable == 0,
         "{:?}",
@@ -83,7 +84,7 @@ fn run(ws: &Workspace, robot: &PhysicalRobot, t0_s: f64) -> Vec<Option<Vector3<f
 }
 
 fn rectangle(ws: &Workspace, robot: &PhysicalRobot, level_z: f64) -> Vec<(usize, Vector3<f64>)> {
-    motion::simulate(ws, robot.robot(), &[])
+    robopost::krl::interpret::simulate(ws, robot.robot(), &[])
         .stops
         .iter()
         .enumerate()
@@ -108,7 +109,7 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> (Workspace, usize) {
     let src = &with_identified_tool(src, model, &tooled);
     let ws = load(src);
     let cal = Calibrated::new(model, "identified", b"");
-    let result = compensate::compensate_program(
+    let result = robopost::krl::job::compensate_program(
         &ws,
         &cal,
         &program::Options {
@@ -121,7 +122,7 @@ fn compensated(src: &Path, model: &Model, dir: &Path) -> (Workspace, usize) {
     let out = dir.join(src.file_name().unwrap());
     files::write_atomic_pieces(&files::outputs(&ws, &result.files, &out)).unwrap();
     let written = load(&out);
-    let sim = motion::simulate(&written, &model.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(&written, &model.robot, &[]);
     let refused: Vec<(String, usize, String)> = sim
         .diagnostics
         .iter()
@@ -159,7 +160,7 @@ fn compensation_residual(
     model: &Model,
     points: &[(usize, Vector3<f64>)],
 ) -> Vec<Vector3<f64>> {
-    let sim = motion::simulate(written, &model.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(written, &model.robot, &[]);
     let visits = program_visits(&sim, "path", DEFAULT_DWELL_S, DEFAULT_AXIS_SPEED_DEG_S);
     let states = visit_states(&visits);
     points
@@ -394,7 +395,7 @@ fn joint_frame_errors_alone_are_what_the_paper_model_describes() {
     for (name, level_z) in PATHS {
         let src = root().join(format!("fixtures/programs/{name}.src"));
         let original = load(&src);
-        let sim = motion::simulate(&original, robot.robot(), &[]);
+        let sim = robopost::krl::interpret::simulate(&original, robot.robot(), &[]);
         for (i, p) in rectangle(&original, &robot, level_z) {
             let axes: [f64; 6] = sim.stops[i].nominal_axes.into();
             let truth = robot.target_at(&axes, 0.0);

@@ -16,12 +16,13 @@ use std::path::Path;
 use std::sync::Arc;
 
 use nalgebra::Vector3;
-use robopost::compensate::{self, files, program, Calibrated};
 use robopost::identify::covariance::{self, Covariance};
 use robopost::identify::pipeline::{identify, Effects, Request, PAPER_EFFECTS};
+use robopost::krl::interpret::Workspace;
+use robopost::krl::job::{files, program, Calibrated};
 use robopost::measure::read_csv;
 use robopost::model::{expand_list, Model};
-use robopost::motion::{self, Workspace};
+use robopost::motion::{self};
 use robopost::simulate::campaign::{Campaign, DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use robopost::simulate::program::program_visits;
 use robopost::simulate::{TrackerNoise, VirtualRobot};
@@ -49,7 +50,7 @@ fn compensated(
     model: &Model,
     covariance: &Arc<Covariance>,
     dir: &Path,
-) -> (Workspace, compensate::Report) {
+) -> (Workspace, robopost::krl::job::Report) {
     let tooled_dir = dir.join("tooled");
     let out_dir = dir.join("out");
     std::fs::create_dir_all(&tooled_dir).unwrap();
@@ -57,7 +58,7 @@ fn compensated(
     let tooled = with_identified_tool(src, model, &tooled_dir);
     let ws = load(&tooled);
     let cal = Calibrated::new(model, "identified", b"");
-    let result = compensate::compensate_program(
+    let result = robopost::krl::job::compensate_program(
         &ws,
         &cal,
         &program::Options {
@@ -75,7 +76,7 @@ fn compensated(
 
 /// Where `robot` puts every stop of `ws` (measured as its tracker measures).
 fn run(ws: &Workspace, robot: &VirtualRobot) -> Vec<Option<Vector3<f64>>> {
-    let sim = motion::simulate(ws, &robot.truth.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(ws, &robot.truth.robot, &[]);
     assert!(!sim.rejected() && sim.unreachable == 0);
     let visits = program_visits(&sim, "path", DEFAULT_DWELL_S, DEFAULT_AXIS_SPEED_DEG_S);
     robot
@@ -105,7 +106,7 @@ fn errors_and_sigmas(robot: &VirtualRobot, seed: u64, dir: &Path) -> Vec<(f64, f
     for (name, level_z) in PATHS {
         let src = root().join(format!("fixtures/programs/{name}.src"));
         let original = load(&src);
-        let sim = motion::simulate(&original, &robot.truth.robot, &[]);
+        let sim = robopost::krl::interpret::simulate(&original, &robot.truth.robot, &[]);
         let (ws, report) = compensated(&src, model, &cov, &dir.join(format!("{seed}-{name}")));
         assert_eq!(report.points.len(), sim.stops.len());
         let measured = run(&ws, &exact);
@@ -215,7 +216,7 @@ fn report_gives_each_target_its_uncertainty_from_the_campaign() {
     let points = report["points"].as_array().unwrap();
     // The same program compensated in the library with the identification's own covariance.
     let ws = load(&tooled);
-    let library = compensate::compensate_program(
+    let library = robopost::krl::job::compensate_program(
         &ws,
         &Calibrated::new(cal.model_ref(), "example", b""),
         &program::Options {

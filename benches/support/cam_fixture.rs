@@ -3,9 +3,9 @@
 
 use std::path::Path;
 
-use robopost::compensate::files;
+use robopost::krl::interpret::Workspace;
+use robopost::krl::job::files;
 use robopost::model::Model;
-use robopost::motion::Workspace;
 
 pub const PROGRAM: &str = "fixtures/programs/cam/pocket_milling.src";
 pub const CAL: &str = "calibrations/kr30ha-handset.json";

@@ -13,9 +13,9 @@ use rayon::prelude::*;
 
 use super::compensate::{calibrated, cell_fitted, load_calibration, robot_label, ProgramArgs};
 use super::Exit;
-use crate::compensate::batch::{self, Done, Kept};
-use crate::compensate::files;
 use crate::krl;
+use crate::krl::job::batch::{self, Done, Kept};
+use crate::krl::job::files;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -177,7 +177,7 @@ fn run_in_pool(
     cal: &crate::calibration::Calibration,
     cal_bytes: &[u8],
     plan: &batch::Plan,
-    cell: Option<&crate::motion::Cell>,
+    cell: Option<&crate::krl::interpret::Cell>,
 ) -> Exit {
     let calibrated = calibrated(cal, &args.cal, cal_bytes);
     let options = args.program.options(true, false);

@@ -6,10 +6,11 @@ use std::path::{Path, PathBuf};
 
 use super::Exit;
 use crate::calibration;
-use crate::compensate::{self, files, program, Calibrated, Method};
+use crate::compensate::Method;
 use crate::diagnostic::Severity;
 use crate::kinematics::{Pose, RobotDescription};
-use crate::motion::{Cell, GivenFrame};
+use crate::krl::interpret::{Cell, GivenFrame};
+use crate::krl::job::{files, program, Calibrated};
 
 /// How a program's frames and shared data are found: shared by the main job, `batch`,
 /// `check` and `simulate program` (which runs a program as the main job reads it).
@@ -96,7 +97,7 @@ pub struct ProgramArgs {
     /// A value the walk cannot know before run time, `NAME=VALUE` (repeatable): a variable
     /// (`lnUsedBase=2`), an array element or input (`$IN[5]=TRUE`), an enum (`side=#LEFT`).
     #[arg(long = "assume", value_name = "NAME=VALUE", allow_hyphen_values = true)]
-    pub assume: Vec<crate::motion::Assumption>,
+    pub assume: Vec<crate::krl::interpret::Assumption>,
     /// Which points to compensate: `offline` (computed away from the robot: every point),
     /// `taught` (taught on the robot: none, unless --from), `auto` (each point as the
     /// evidence in its files says).
@@ -113,11 +114,11 @@ pub enum PointOrigin {
 }
 
 impl PointOrigin {
-    fn taken(self) -> crate::compensate::Taken {
+    fn taken(self) -> crate::krl::job::Taken {
         match self {
-            PointOrigin::Auto => crate::compensate::Taken::Auto,
-            PointOrigin::Offline => crate::compensate::Taken::Offline,
-            PointOrigin::Taught => crate::compensate::Taken::Taught,
+            PointOrigin::Auto => crate::krl::job::Taken::Auto,
+            PointOrigin::Offline => crate::krl::job::Taken::Offline,
+            PointOrigin::Taught => crate::krl::job::Taken::Taught,
         }
     }
 }
@@ -180,7 +181,7 @@ pub fn stated_robots(robot: Option<&str>, cell: Option<&Cell>) -> Result<Vec<Sta
         }
     }
     if let Some(path) = cell.and_then(|c| c.machine.as_deref()) {
-        match crate::motion::cell::machine_robot(path) {
+        match crate::krl::interpret::cell::machine_robot(path) {
             Ok((name, robot)) => out.push(StatedRobot {
                 name,
                 robot,
@@ -408,11 +409,11 @@ pub fn run(args: Args) -> Exit {
         .in_scope(|| files::load_program_in(input, bytes, cell.as_ref(), stream));
     let mut ws = match loaded {
         Ok(ws) => ws,
-        Err(e @ crate::motion::workspace::LoadError::Io { .. }) => {
+        Err(e @ crate::krl::interpret::workspace::LoadError::Io { .. }) => {
             eprintln!("error: {e}");
             return Exit::Usage;
         }
-        Err(e @ crate::motion::workspace::LoadError::NotKrl { .. }) => {
+        Err(e @ crate::krl::interpret::workspace::LoadError::NotKrl { .. }) => {
             eprint!("{e}");
             return Exit::Usage;
         }
@@ -453,7 +454,7 @@ pub fn run(args: Args) -> Exit {
         }
     }
     let calibrated = calibrated(&cal, &args.cal, &cal_bytes);
-    let result = compensate::compensate_program_from(
+    let result = crate::krl::job::compensate_program_from(
         &ws,
         &calibrated,
         from.as_ref().map(|a| a.model_ref()),
@@ -527,7 +528,7 @@ pub fn run(args: Args) -> Exit {
     status
 }
 
-fn exit_status(result: &compensate::ProgramResult) -> Exit {
+fn exit_status(result: &crate::krl::job::ProgramResult) -> Exit {
     let errors = result
         .diagnostics
         .iter()
@@ -540,7 +541,7 @@ fn exit_status(result: &compensate::ProgramResult) -> Exit {
 }
 
 /// One line on standard error.
-pub fn summary(r: &compensate::Report) {
+pub fn summary(r: &crate::krl::job::Report) {
     eprintln!(
         "{}: {} (correction max {:.1} µm / {:.2} mdeg, mean {:.1} µm), {} direction flips, {} held axes kept, {} reversals inside the play{}",
         r.program,
@@ -639,7 +640,8 @@ pub fn check_programs(programs: &[PathBuf], cal_path: Option<&Path>, args: &Prog
         };
         ws.robot = label.clone();
         ws.assumptions.clone_from(&args.assume);
-        let result = compensate::compensate_program(&ws, &calibrated, &args.options(true, false));
+        let result =
+            crate::krl::job::compensate_program(&ws, &calibrated, &args.options(true, false));
         for d in &result.diagnostics {
             eprintln!("{}", d.render());
         }

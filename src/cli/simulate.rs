@@ -8,10 +8,10 @@ use std::path::{Path, PathBuf};
 use super::compensate::FrameArgs;
 use super::Exit;
 use crate::calibration::{KukaFrame, MeasurementFrame};
-use crate::compensate::files;
 use crate::diagnostic::Severity;
+use crate::krl::interpret::workspace::LoadError;
+use crate::krl::job::files;
 use crate::measure::{write_csv, Stop};
-use crate::motion::workspace::LoadError;
 use crate::simulate::campaign::{DEFAULT_AXIS_SPEED_DEG_S, DEFAULT_DWELL_S};
 use crate::simulate::{paper, poses, program, Campaign, PlannedStop, SimulateError, Truth};
 
@@ -290,7 +290,7 @@ fn run_program(
         return exit;
     }
     ws.robot = format!("the truth {}", truth.display());
-    let sim = crate::motion::simulate(&ws, robot.robot(), &frames.given());
+    let sim = crate::krl::interpret::simulate(&ws, robot.robot(), &frames.given());
     for d in &sim.diagnostics {
         eprintln!("{}", d.render());
     }
@@ -326,8 +326,8 @@ fn run_program(
             let s = &sim.stops[*index];
             let d = ws.diagnostic(
                 Severity::Error,
-                s.file,
-                s.stmt.head,
+                s.handle.file,
+                s.handle.stmt.head,
                 format!("the robot would not go here: {e}"),
             );
             eprintln!("{}", d.render());

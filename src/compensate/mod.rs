@@ -3,26 +3,14 @@
 //! motion. This module owns the solver ([`solve`]: the paper's equation (3) iterated to a
 //! fixed point, or one step of it), the sequence logic ([`sequence`]: nominal directions,
 //! parallel solving, the sequential direction re-check and the resolution of backlash-branch
-//! oscillation), the program pipeline ([`program`]: compensated segment by segment as the walk
-//! hands over the stops — the whole program at once, or a streamed run window by window) and
-//! the rewrite. The solver and sequence logic know nothing of KRL: their
-//! input is a list of goal poses with nominal axes and arrival motions (from `motion`), its
-//! output the command axes per target (turned into KRL edits by `rewrite`).
+//! oscillation). It knows no robot language: its input is a list of goal poses with nominal
+//! axes and arrival motions (built from the motion form, `motion::form`), its output the
+//! command axes per target, which a front end's rewriter places back into the program (KRL's:
+//! `krl::rewrite`; the program job that drives both is `krl::job`).
 
-pub mod batch;
-pub mod edits;
-pub mod files;
-pub mod output;
-pub mod program;
-pub mod report;
-pub mod rewrite;
-mod segments;
 pub mod sequence;
 pub mod solve;
-pub mod taken;
 
-pub use program::{compensate_program, compensate_program_from, Calibrated, ProgramResult, Report};
-pub use taken::Taken;
 pub use solve::Method;
 // What only robopost's own tests, benches and fuzz targets name through this path.
 #[cfg(any(test, feature = "internals"))]

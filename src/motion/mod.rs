@@ -1,50 +1,20 @@
-//! Motion simulation: follows a KRL program as the controller does and yields, for every
-//! executed motion, its target as a TCP pose in the robot base frame (or an axis set), the
-//! nominal axis angles the controller computes for it, and the arrival motion of every axis
-//! (from the simulated interpolation), together with where in the source its numbers live.
-//! Knows nothing of error models; `compensate` consumes what it yields.
+//! Motion, language-neutral: the motion form a front end's interpreter yields ([`form`]: for
+//! every executed motion, its target as a TCP pose in the robot base frame or an axis set,
+//! the interpolation into it, the nominal axis angles the controller computes for it and the
+//! arrival motion of every axis, with an opaque handle the front end's rewriter places the
+//! new numbers with), and the planning the interpreter computes them with: frames and poses
+//! ([`frame`]), the controller's nominal axes ([`nominal`]), the sampled interpolation
+//! ([`interpolate`], [`spline`]). Knows nothing of error models nor of any robot language:
+//! KRL's interpreter is `krl::interpret`; `compensate` consumes what it yields.
 
-pub mod assume;
-pub mod cell;
+pub mod form;
 pub mod frame;
 pub mod interpolate;
 pub mod lu6;
 pub mod nominal;
-pub mod provenance;
-pub mod simulate;
 pub mod spline;
-pub mod value;
-pub mod workspace;
 
-pub use assume::Assumption;
-pub use cell::Cell;
-pub use simulate::{
-    simulate, simulate_streaming, CircularAngle, GivenFrame, Programmed, Rel, Role, RunSink,
-    Simulation, Stop, Walked,
-};
+pub use form::{program_states, CircularAngle, Interpolation, Programmed, Rel, Role};
 // What only robopost's own tests, benches and fuzz targets name through this path.
 #[cfg(any(test, feature = "internals"))]
-pub use simulate::SplineEnds;
-pub use workspace::{FileId, Workspace};
-
-/// The commanded axis states of a program run, in execution order: every target's nominal
-/// axes with each axis's history as the simulated motion leaves it (rotation direction on
-/// arrival, the turning points inside the interpolated motions; see `model::AxisHistory`).
-/// Histories start unmoved, and again after a position the simulation could not follow.
-pub fn program_states(sim: &Simulation) -> Vec<crate::model::AxisState> {
-    let mut previous: Option<crate::model::AxisState> = None;
-    sim.stops
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let state = match (s.arrival, &previous) {
-                (Some(_), Some(p)) => p.then_through(&s.turns.angle_deg, s.nominal_axes.into()),
-                _ => crate::model::AxisState::new(s.nominal_axes.into()),
-            };
-            if !sim.passes_by(i) {
-                previous = Some(state);
-            }
-            state
-        })
-        .collect()
-}
+pub use form::{SplineEnds, Stop};

@@ -1,5 +1,5 @@
 //! A KRL program as the virtual robot runs it: the motion simulation of the main job
-//! (`motion::simulate`, the controller's nominal IK with S/T and continuity, LIN/CIRC
+//! (`crate::krl::interpret::simulate`, the controller's nominal IK with S/T and continuity, LIN/CIRC
 //! interpolation) turned into the robot's visiting sequence — one stop per executed target,
 //! the command axes the controller computes for it, the axis histories its simulated motion
 //! arrives with (directions and turning points inside the interpolated motions), a clock paced as the campaign's — together with where each target was
@@ -17,7 +17,8 @@ use nalgebra::Vector3;
 use super::campaign::{paced, PlannedStop};
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::model::AxisState;
-use crate::motion::{program_states, Role, Simulation, Workspace};
+use crate::motion::{program_states, Role};
+use crate::krl::interpret::{Simulation, Workspace};
 
 /// Tools within this distance of the measurement target (mm) are taken as the target: the
 /// rounding of a `$TOOL` written to the micrometre.
@@ -53,7 +54,7 @@ pub fn program_visits(
     dwell_s: f64,
     axis_speed_deg_s: f64,
 ) -> Vec<ProgramVisit> {
-    let states = program_states(sim);
+    let states = program_states(&sim.stops, &sim.arcs);
     let stops = paced(
         sim.stops
             .iter()
@@ -74,7 +75,7 @@ pub fn program_visits(
             passed_by: sim.passes_by(i),
             programmed_mm: s.goal.position,
             tool_mm: sim.frames[s.tool as usize].position,
-            line: s.stmt.line,
+            line: s.handle.stmt.line,
         })
         .collect()
 }
@@ -178,8 +179,8 @@ pub fn tool_warnings(
         out.push(
             ws.diagnostic(
                 Severity::Warning,
-                s.file,
-                s.stmt.head,
+                s.handle.file,
+                s.handle.stmt.head,
                 format!(
                     "the TCP of this motion is {} on the flange (the tool's X, Y, Z), but the \
                      tracker measures the truth's target at {}: for the motions with this tool \

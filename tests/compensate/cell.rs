@@ -10,11 +10,12 @@ use std::process::Command;
 
 use nalgebra::{Rotation3, Vector3};
 use robopost::calibration;
-use robopost::compensate::{self, files, program, Calibrated, ProgramResult};
+use robopost::compensate::{self};
 use robopost::diagnostic::Severity;
 use robopost::kinematics::RobotDescription;
+use robopost::krl::interpret::{Cell, Simulation, Workspace};
+use robopost::krl::job::{files, program, Calibrated, ProgramResult};
 use robopost::model::Model;
-use robopost::motion::{self, Cell, Simulation, Workspace};
 
 pub const CELL: &str = "fixtures/cells/kr16_line";
 
@@ -63,12 +64,12 @@ fn kr16() -> RobotDescription {
 }
 
 fn simulate(ws: &Workspace) -> Simulation<'_> {
-    motion::simulate(ws, &kr16(), &[])
+    robopost::krl::interpret::simulate(ws, &kr16(), &[])
 }
 
 fn compensate_with(ws: &Workspace, model: &Model, bytes: &[u8]) -> ProgramResult {
     let c = Calibrated::new(model, "kr16-handset.json", bytes);
-    compensate::compensate_program(
+    robopost::krl::job::compensate_program(
         ws,
         &c,
         &program::Options {
@@ -80,7 +81,7 @@ fn compensate_with(ws: &Workspace, model: &Model, bytes: &[u8]) -> ProgramResult
             assumptions: Vec::new(),
             // The points of every fixture rewritten, taught ones too: these tests are of
             // the walk and the rewrite (`taken.rs` tests which points `auto` leaves).
-            taken: compensate::Taken::Offline,
+            taken: robopost::krl::job::Taken::Offline,
             uncertainty: None,
         },
     )
@@ -130,7 +131,8 @@ fn the_cell_finds_config_data_modules_and_machine_data() {
         assert_eq!(c.routines[r.as_bytes()], vec![lib.clone()], "{r}");
     }
     // The machine data describe the KR 16-2 of the shipped description.
-    let (name, robot) = motion::cell::machine_robot(c.machine.as_deref().unwrap()).unwrap();
+    let (name, robot) =
+        robopost::krl::interpret::cell::machine_robot(c.machine.as_deref().unwrap()).unwrap();
     assert_eq!(name, "KR16_2 C4 FLR ZH16");
     assert_eq!(robot.links, kr16().links);
     assert_eq!(robot.limits_deg, kr16().limits_deg);
@@ -148,9 +150,9 @@ fn a_palletiser_s_machine_data_are_refused_with_the_reason() {
         );
     let path = dir.path().join("$machine.dat");
     std::fs::write(&path, text).unwrap();
-    let err = motion::cell::machine_robot(&path).unwrap_err();
+    let err = robopost::krl::interpret::cell::machine_robot(&path).unwrap_err();
     match &err {
-        motion::cell::MachineDataError::NotModelled { robot, why, .. } => {
+        robopost::krl::interpret::cell::MachineDataError::NotModelled { robot, why, .. } => {
             assert_eq!(robot, "KR120R3200PA C4 FLR");
             assert!(why.contains("offset ($DH_5 = A 265"), "{why}");
         }
@@ -171,7 +173,11 @@ fn item01_routine_parameters_in_and_out() {
     let ws = load(&items("item01_params.src"), &c);
     let sim = simulate(&ws);
     assert!(!sim.rejected(), "{:?}", messages(&sim));
-    let drops: Vec<_> = sim.stops.iter().filter(|s| s.stmt.line == 22).collect();
+    let drops: Vec<_> = sim
+        .stops
+        .iter()
+        .filter(|s| s.handle.stmt.line == 22)
+        .collect();
     assert_eq!(drops.len(), 6, "{:?}", messages(&sim));
     let mut k = 0;
     for row in 1..=2 {
@@ -200,7 +206,12 @@ fn item02_member_assignments_move_the_target() {
     let c = cell();
     let ws = load(&items("item02_members.src"), &c);
     let sim = simulate(&ws);
-    let at = |line: u32| sim.stops.iter().find(|s| s.stmt.line == line).unwrap();
+    let at = |line: u32| {
+        sim.stops
+            .iter()
+            .find(|s| s.handle.stmt.line == line)
+            .unwrap()
+    };
     // xPick[2] = {X 150, Y 190, Z 60} raised by 40.
     assert!(close(
         &at(21).goal.position,
@@ -255,10 +266,10 @@ fn item03_a_member_set_at_run_time_makes_the_position_unknown() {
         msgs.contains("26:warning: the target is not known before run time (xBack.Z may be set"),
         "{msgs}"
     );
-    let lines: Vec<u32> = sim.stops.iter().map(|s| s.stmt.line).collect();
+    let lines: Vec<u32> = sim.stops.iter().map(|s| s.handle.stmt.line).collect();
     assert_eq!(lines, [18, 19, 27, 28, 29], "{msgs}");
     // After the known xSafe = {X 250, Y 100, Z 200} the partial {Z 300} is its X, Y.
-    let last = sim.stops.iter().find(|s| s.stmt.line == 28).unwrap();
+    let last = sim.stops.iter().find(|s| s.handle.stmt.line == 28).unwrap();
     assert!(close(
         &last.goal.position,
         &in_base(BASE1, [250.0, 100.0, 300.0])
@@ -277,7 +288,7 @@ fn item04_user_functions_give_positions_and_frames() {
     let at = |line: u32| {
         sim.stops
             .iter()
-            .filter(|s| s.stmt.line == line)
+            .filter(|s| s.handle.stmt.line == line)
             .collect::<Vec<_>>()
     };
     // Lifted(xPlace, 100): xPlace = {X 220, Y 60, Z 40} raised by 100, computed.
@@ -310,7 +321,11 @@ fn item05_structure_member_targets() {
     let c = cell();
     let ws = load(&items("item05_struc.src"), &c);
     let sim = simulate(&ws);
-    let tops: Vec<_> = sim.stops.iter().filter(|s| s.stmt.line == 20).collect();
+    let tops: Vec<_> = sim
+        .stops
+        .iter()
+        .filter(|s| s.handle.stmt.line == 20)
+        .collect();
     assert_eq!(tops.len(), 3);
     for (k, s) in tops.iter().enumerate() {
         let want = in_base(BASE1, [120.0 + 100.0 * k as f64, 60.0, 90.0]);
@@ -320,7 +335,7 @@ fn item05_structure_member_targets() {
             k + 1
         );
     }
-    let shared = sim.stops.iter().find(|s| s.stmt.line == 22).unwrap();
+    let shared = sim.stops.iter().find(|s| s.handle.stmt.line == 22).unwrap();
     assert!(close(
         &shared.goal.position,
         &in_base(BASE1, [150.0, 40.0, 60.0])
@@ -390,7 +405,7 @@ fn reached(
 ) -> (f64, f64) {
     assert_eq!(again.stops.len(), original.stops.len());
     // The compensated motion's own axis histories (turning points included).
-    let states = robopost::motion::program_states(again);
+    let states = robopost::motion::program_states(&again.stops, &again.arcs);
     let (mut dp, mut dr) = (0.0f64, 0.0f64);
     for (k, (a, o)) in again.stops.iter().zip(&original.stops).enumerate() {
         let point = &result.report.points[k];
@@ -440,7 +455,7 @@ fn item07_a_point_used_alone_and_with_an_offset_gets_a_copy_per_use() {
     assert!(r.report.split_points.iter().any(|s| s.point == "xPlace"));
     let original = simulate(&ws);
     let ws2 = rewalk(&ws, &r, dir.path(), &c);
-    let again = motion::simulate(&ws2, &m.robot, &[]);
+    let again = robopost::krl::interpret::simulate(&ws2, &m.robot, &[]);
     let (dp, dr) = reached(&m, &original, &again, &r);
     assert!(dp < 3e-3 && dr < 5e-5, "{dp} mm, {dr} rad");
 }
@@ -462,7 +477,7 @@ fn item08_loops_on_signals_are_followed_twice() {
         msgs.contains("30:warning: nothing in this loop changes what ends it"),
         "{msgs}"
     );
-    let lines: Vec<u32> = sim.stops.iter().map(|s| s.stmt.line).collect();
+    let lines: Vec<u32> = sim.stops.iter().map(|s| s.handle.stmt.line).collect();
     assert_eq!(lines, [18, 20, 21, 20, 21, 33, 34], "{msgs}");
 }
 
@@ -497,7 +512,7 @@ fn item09_euler_angles_stay_continuous_at_b_90() {
     assert_eq!(seen, 3);
     let original = simulate(&ws);
     let ws2 = rewalk(&ws, &r, dir.path(), &c);
-    let again = motion::simulate(&ws2, &m.robot, &[]);
+    let again = robopost::krl::interpret::simulate(&ws2, &m.robot, &[]);
     let (dp, dr) = reached(&m, &original, &again, &r);
     assert!(dp < 3e-3, "{dp} mm");
     // The orientation to the written decimals (3 × 0.5e-4° in A, B, C) and the solver's.
@@ -584,7 +599,7 @@ fn item11_system_forms() {
     let sim = simulate(&ws);
     assert!(sim.diagnostics.is_empty(), "{:?}", messages(&sim));
     // FillMatrix filled nMatrix through its `:OUT` array: the IF on nMatrix[2,3] = 23 holds.
-    assert!(sim.stops.iter().any(|s| s.stmt.line == 23));
+    assert!(sim.stops.iter().any(|s| s.handle.stmt.line == 23));
 }
 
 fn robopost() -> Command {
@@ -779,7 +794,7 @@ fn item07_an_offset_that_is_also_a_target_keeps_its_numbers() {
     );
     let original = simulate(&ws);
     let ws2 = rewalk(&ws, &r, dir.path(), &c);
-    let again = motion::simulate(&ws2, &m.robot, &[]);
+    let again = robopost::krl::interpret::simulate(&ws2, &m.robot, &[]);
     let (dp, dr) = reached(&m, &original, &again, &r);
     assert!(dp < 3e-3 && dr < 5e-5, "{dp} mm, {dr} rad");
 }

@@ -509,9 +509,9 @@ fn truth_model(path: &str) -> robopost::model::Model {
 /// gear-play history of the simulated motion (`program_states`), then the stop's tool.
 fn reached(
     m: &robopost::model::Model,
-    sim: &robopost::motion::Simulation,
+    sim: &robopost::krl::interpret::Simulation,
 ) -> Vec<robopost::motion::frame::Frame> {
-    let states = robopost::motion::program_states(sim);
+    let states = robopost::motion::program_states(&sim.stops, &sim.arcs);
     sim.stops
         .iter()
         .zip(&states)
@@ -527,7 +527,7 @@ fn reached(
 /// them by A's and B's errors together.
 #[test]
 fn a_program_taught_on_one_robot_reaches_its_places_on_another() {
-    use robopost::compensate::{files, program, Calibrated};
+    use robopost::krl::job::{files, program, Calibrated};
     let a_true = truth_model("fixtures/measurements/kr30ha-truth-hidden.json");
     let b_true = truth_model("fixtures/measurements/kr30ha-truth.json");
     let b_cal = robopost::calibration::load(Path::new(CAL)).unwrap().model();
@@ -538,7 +538,7 @@ fn a_program_taught_on_one_robot_reaches_its_places_on_another() {
     };
     let ws = load(&src);
     let robot = b_cal.robot;
-    let taught = robopost::motion::simulate(&ws, &robot, &[]);
+    let taught = robopost::krl::interpret::simulate(&ws, &robot, &[]);
     // The check of `reached` itself: the nominal model reaches the programmed poses.
     let nominal = robopost::calibration::load(Path::new("calibrations/kr30ha-nominal.json"))
         .unwrap()
@@ -554,7 +554,7 @@ fn a_program_taught_on_one_robot_reaches_its_places_on_another() {
         parallel: true,
         ..program::Options::default()
     };
-    let result = robopost::compensate::compensate_program_from(&ws, &c, Some(&a_true), &options);
+    let result = robopost::krl::job::compensate_program_from(&ws, &c, Some(&a_true), &options);
     assert!(
         !result.rejected && result.target_errors == 0,
         "{:?}",
@@ -566,7 +566,7 @@ fn a_program_taught_on_one_robot_reaches_its_places_on_another() {
     std::fs::create_dir_all(out.parent().unwrap()).unwrap();
     files::write_atomic_pieces(&files::outputs(&ws, &result.files, &out)).unwrap();
     let written = load(&out);
-    let moved = robopost::motion::simulate(&written, &robot, &[]);
+    let moved = robopost::krl::interpret::simulate(&written, &robot, &[]);
     assert_eq!(moved.stops.len(), taught.stops.len());
     let on_b = reached(&b_true, &moved);
     let predicted_b = reached(&b_cal, &moved);

@@ -6,10 +6,12 @@
 //! against an independent circumcircle computation.
 
 use nalgebra::{Rotation3, Unit, Vector3};
-use robopost::compensate::{files, program, solve, Method};
+use robopost::compensate::{solve, Method};
 use robopost::kinematics::RobotDescription;
+use robopost::krl::interpret::{Simulation, Workspace};
+use robopost::krl::job::{files, program};
 use robopost::model::Model;
-use robopost::motion::{self, frame::Frame, Role, Simulation, Workspace};
+use robopost::motion::{self, frame::Frame, Role};
 
 use super::pipeline::{cal, run};
 
@@ -44,7 +46,9 @@ fn circles(sim: &Simulation) -> Vec<(usize, usize)> {
         if s.role == Role::Aux {
             // The last stop of the same statement: the end (or a full circle's End).
             let mut j = i + 1;
-            while j + 1 < sim.stops.len() && std::ptr::eq(sim.stops[j + 1].stmt, s.stmt) {
+            while j + 1 < sim.stops.len()
+                && std::ptr::eq(sim.stops[j + 1].handle.stmt, s.handle.stmt)
+            {
                 j += 1;
             }
             out.push((i, j));
@@ -77,11 +81,11 @@ fn error_at(
 /// Every stop's axis histories as the simulated motion leaves them (turning points inside the
 /// interpolated motions included): where each gear play really stands.
 fn directions(sim: &Simulation) -> Vec<robopost::model::AxisState> {
-    motion::program_states(sim)
+    motion::program_states(&sim.stops, &sim.arcs)
 }
 
 /// The position a Cartesian stop programs (in its base).
-fn programmed_position(stop: &motion::Stop) -> Vector3<f64> {
+fn programmed_position(stop: &robopost::krl::interpret::Stop) -> Vector3<f64> {
     match stop.programmed {
         motion::Programmed::Pose(p) => p.position(),
         motion::Programmed::Axes(_) => panic!("a circle's target is Cartesian"),
@@ -133,7 +137,7 @@ const HALF_DEG: f64 = 0.5e-4;
 fn compensated(text: &[u8], stream: Option<robopost::krl::StreamOptions>) -> Vec<u8> {
     let (model, bytes) = cal("kr30ha-example.json");
     let ws = files::load_program_streaming(None, text.to_vec(), None, stream).unwrap();
-    let c = robopost::compensate::Calibrated::new(&model, "kr30ha-example.json", &bytes);
+    let c = robopost::krl::job::Calibrated::new(&model, "kr30ha-example.json", &bytes);
     let options = program::Options {
         method: Method::Iterate,
         parallel: true,
@@ -142,7 +146,7 @@ fn compensated(text: &[u8], stream: Option<robopost::krl::StreamOptions>) -> Vec
         points: false,
         ..program::Options::default()
     };
-    let result = robopost::compensate::compensate_program(&ws, &c, &options);
+    let result = robopost::krl::job::compensate_program(&ws, &c, &options);
     assert!(!result.rejected, "{:?}", result.report.errors);
     result.files[0].bytes.to_vec()
 }
@@ -175,9 +179,9 @@ fn circles_with_ca_end_where_the_model_predicts_the_nominal_end() {
     assert_eq!(ca_of(&text), ca_of(PROGRAM));
     assert_eq!(ca_of(&text), ["90", "-45", "120", "90", "360"]);
 
-    let sim0 = motion::simulate(&ws, &robot, &[]);
+    let sim0 = robopost::krl::interpret::simulate(&ws, &robot, &[]);
     let out = load(&written);
-    let sim1 = motion::simulate(&out, &robot, &[]);
+    let sim1 = robopost::krl::interpret::simulate(&out, &robot, &[]);
     assert!(!sim1.rejected());
     let (dirs0, dirs1) = (directions(&sim0), directions(&sim1));
     let (c0, c1) = (circles(&sim0), circles(&sim1));
@@ -303,8 +307,8 @@ END
     let written = compensated(program.as_bytes(), None);
     let out = load(&written);
     let (sim0, sim1) = (
-        motion::simulate(&ws, &robot, &[]),
-        motion::simulate(&out, &robot, &[]),
+        robopost::krl::interpret::simulate(&ws, &robot, &[]),
+        robopost::krl::interpret::simulate(&out, &robot, &[]),
     );
     let dirs1 = directions(&sim1);
     let end = sim0.stops.len() - 1;
@@ -348,8 +352,8 @@ END
     assert!(!result.rejected, "{:?}", result.report.errors);
     let out = load(&result.files[0].bytes.to_vec());
     let (sim0, sim1) = (
-        motion::simulate(&ws, &robot, &[]),
-        motion::simulate(&out, &robot, &[]),
+        robopost::krl::interpret::simulate(&ws, &robot, &[]),
+        robopost::krl::interpret::simulate(&out, &robot, &[]),
     );
     let (dirs0, dirs1) = (directions(&sim0), directions(&sim1));
     let (c0, c1) = (circles(&sim0), circles(&sim1));

@@ -5,10 +5,12 @@ use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
 use robopost::calibration;
-use robopost::compensate::{self, files, program, Calibrated, ProgramResult};
+use robopost::compensate::{self};
 use robopost::kinematics::{Payload, RobotDescription};
+use robopost::krl::interpret::Workspace;
+use robopost::krl::job::{files, program, Calibrated, ProgramResult};
 use robopost::model::{AxisState, Model};
-use robopost::motion::{self, Workspace};
+use robopost::motion::{self};
 
 pub const CONFIG: &str = "fixtures/config/$config.dat";
 
@@ -52,7 +54,7 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
     let (model, bytes) = cal(cal_name);
     // The model must outlive the result only while compensating.
     let c = Calibrated::new(&model, cal_name, &bytes);
-    compensate::compensate_program(
+    robopost::krl::job::compensate_program(
         ws,
         &c,
         &program::Options {
@@ -64,7 +66,7 @@ pub fn run(ws: &Workspace, cal_name: &str, method: compensate::Method) -> Progra
             assumptions: Vec::new(),
             // The points of every fixture rewritten, taught ones too: these tests are of
             // the walk and the rewrite (`taken.rs` tests which points `auto` leaves).
-            taken: compensate::Taken::Offline,
+            taken: robopost::krl::job::Taken::Offline,
             uncertainty: None,
         },
     )
@@ -272,7 +274,7 @@ fn compensated_paths_reach_the_programmed_poses() {
         let name = path.display().to_string();
         let ws = load(&path);
         let robot: RobotDescription = model.robot;
-        let original = motion::simulate(&ws, &robot, &[]);
+        let original = robopost::krl::interpret::simulate(&ws, &robot, &[]);
         let result = run(&ws, "kr30ha-handset.json", compensate::Method::Iterate);
         if original.rejected() || original.unreachable > 0 || result.report.compensated == 0 {
             // The parser's fixtures (encodings, line endings, language coverage) hold targets
@@ -292,12 +294,12 @@ fn compensated_paths_reach_the_programmed_poses() {
         let out = dir.path().join(path.file_name().unwrap());
         files::write_atomic_pieces(&files::outputs(&ws, &result.files, &out)).unwrap();
         let ws2 = load(&out);
-        let again = motion::simulate(&ws2, &robot, &[]);
+        let again = robopost::krl::interpret::simulate(&ws2, &robot, &[]);
         assert_eq!(again.stops.len(), original.stops.len());
         // The compensated motion's axis histories (commands and the turning points of the
         // interpolated motions) from the re-simulated program, so every gear play is
         // evaluated where the compensated motion really leaves it.
-        let states = motion::program_states(&again);
+        let states = motion::program_states(&again.stops, &again.arcs);
         // Points written for their last use only: (name, line of that use).
         let last_use: Vec<(String, usize)> = result
             .diagnostics
@@ -333,10 +335,10 @@ fn compensated_paths_reach_the_programmed_poses() {
             let statement = if last_use.is_empty() {
                 String::new()
             } else {
-                let source = ws.get(o.file).file.source();
+                let source = ws.get(o.handle.file).file.source();
                 let text = String::from_utf8_lossy(source);
                 text.lines()
-                    .nth(o.stmt.line as usize - 1)
+                    .nth(o.handle.stmt.line as usize - 1)
                     .unwrap_or("")
                     .to_string()
             };
@@ -346,7 +348,7 @@ fn compensated_paths_reach_the_programmed_poses() {
                         .starts_with(|c: char| c.is_alphanumeric() || c == '_')
             });
             if let Some((_, last)) = shared {
-                if o.stmt.line as usize != *last {
+                if o.handle.stmt.line as usize != *last {
                     written_for_another_use += 1;
                     continue;
                 }
@@ -364,7 +366,7 @@ fn compensated_paths_reach_the_programmed_poses() {
                 assert!(
                     (dp * 1000.0 - point.residual_um).abs() < 3.0,
                     "{name} target {k} (line {}): {dp} mm, reported {} µm",
-                    a.stmt.line,
+                    a.handle.stmt.line,
                     point.residual_um
                 );
             } else if point.compensated
@@ -403,7 +405,7 @@ fn compensated_paths_reach_the_programmed_poses() {
                     eprintln!(
                         "{name} target {k} (line {}): {:.3} µm (bound {:.3}), {dr:.2e} rad \
                          (bound {bound_rad:.2e})",
-                        a.stmt.line,
+                        a.handle.stmt.line,
                         dp * 1e3,
                         bound_mm * 1e3
                     );
@@ -449,7 +451,7 @@ fn compensated_paths_reach_the_programmed_poses() {
 fn mask_added_numbers(diff: &str) -> String {
     diff.lines()
         .map(|line| {
-            let header = line.contains(robopost::compensate::program::HEADER_MARK);
+            let header = line.contains(robopost::krl::job::program::HEADER_MARK);
             if !line.starts_with('+') || line.starts_with("+++") || header {
                 return line.to_string();
             }
@@ -776,7 +778,7 @@ fn programmed_values_are_axis_angles_or_a_pose() {
         "{HEAD}LIN {{X 300, Y 200, Z 0, A 0, B 0, C 180}}\nLIN {{Z -50}}\nPTP_REL {{A1 5}}\nEND\n"
     );
     let ws = files::load_program(None, src.as_bytes(), None).expect("loads");
-    let sim = motion::simulate(&ws, &RobotDescription::kr30ha(), &[]);
+    let sim = robopost::krl::interpret::simulate(&ws, &RobotDescription::kr30ha(), &[]);
     assert_eq!(sim.stops.len(), 4);
     let home = [0.0, -80.0, 100.0, 0.0, 60.0, 0.0];
     assert_eq!(sim.stops[0].programmed, Programmed::Axes(home.into()));
@@ -915,14 +917,14 @@ fn one_step_versus_iteration() {
     // oscillation ("held…"): both keep a residual whatever the method. Found by their nominal
     // axes and the report's resolution, not by line.
     let (model, _) = cal("kr30ha-handset.json");
-    let sim = motion::simulate(&ws, &model.robot, &[]);
+    let sim = robopost::krl::interpret::simulate(&ws, &model.robot, &[]);
     assert_eq!(sim.stops.len(), it.report.points.len());
     let exact: Vec<bool> = sim
         .stops
         .iter()
         .zip(&it.report.points)
         .map(|(s, p)| {
-            assert_eq!(s.stmt.line, p.line);
+            assert_eq!(s.handle.stmt.line, p.line);
             !p.resolution.starts_with("held")
                 && robopost::kinematics::singularity(&model.robot, &s.nominal_axes).is_none()
         })
@@ -939,7 +941,7 @@ fn one_step_versus_iteration() {
         excluded.len() * 4 < exact.len(),
         "three quarters of the targets are checked: excluded lines {excluded:?}"
     );
-    let mean = |r: &ProgramResult, f: fn(&robopost::compensate::program::PointReport) -> f64| {
+    let mean = |r: &ProgramResult, f: fn(&robopost::krl::job::program::PointReport) -> f64| {
         let v: Vec<f64> = r
             .report
             .points
@@ -1016,7 +1018,7 @@ proptest! {
         let (model, bytes) = cal(cal_name);
         let c = Calibrated::new(&model, cal_name, &bytes);
         let with = |parallel: bool, stretching| {
-            compensate::compensate_program(&ws, &c, &program::Options {
+            robopost::krl::job::compensate_program(&ws, &c, &program::Options {
                 method: compensate::Method::Iterate,
                 parallel,
                 stretching,

@@ -7,7 +7,7 @@ use std::path::Path;
 use nalgebra::Vector3;
 use robopost::kinematics::{inverse, status_turn, RobotDescription, Select};
 use robopost::krl::MotionKind;
-use robopost::motion::{self, frame::Frame};
+use robopost::motion::frame::Frame;
 
 use super::pipeline::{load, run};
 use robopost::compensate::Method;
@@ -35,12 +35,12 @@ fn barry_goldman(p: &[Vector3<f64>; 4], u: f64) -> Vector3<f64> {
 fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
     let robot = RobotDescription::kr30ha();
     let ws = load(Path::new("fixtures/programs/spline/turn_at_spl.src"));
-    let sim = motion::simulate(&ws, &robot, &[]);
+    let sim = robopost::krl::interpret::simulate(&ws, &robot, &[]);
     assert!(!sim.rejected());
     let spl: Vec<_> = sim
         .stops
         .iter()
-        .filter(|s| s.kind == MotionKind::Spl)
+        .filter(|s| s.handle.kind == MotionKind::Spl)
         .collect();
     assert_eq!(spl.len(), 3);
     let stop = spl[1]; // SPL {X 1000, Y 300, …}
@@ -107,7 +107,7 @@ fn an_axis_turning_round_at_an_spl_point_arrives_the_curve_s_way() {
         .report
         .points
         .iter()
-        .find(|p| p.line == stop.stmt.line)
+        .find(|p| p.line == stop.handle.stmt.line)
         .expect("the SPL point is reported");
     assert!(point.compensated && point.flipped.is_empty(), "{point:?}");
     let a1 = point.directions.chars().next().unwrap();

@@ -1,5 +1,5 @@
 //! `grammars/krl.ebnf` and the parser stay in step: every production named in the grammar is
-//! a parser function (a `fn` in src/krl/ returning `PResult`) and every parser function is a
+//! a parser function (a `fn` in src/krl/syntax/ returning `PResult`) and every parser function is a
 //! production.
 
 use super::root;
@@ -76,7 +76,7 @@ fn grammar_names_exactly_the_parser_functions() {
     let ebnf = std::fs::read_to_string(root().join("grammars/krl.ebnf")).unwrap();
     let grammar = productions(&ebnf);
     let mut code = BTreeSet::new();
-    let mut dirs = vec![root().join("src/krl")];
+    let mut dirs = vec![root().join("src/krl/syntax")];
     while let Some(dir) = dirs.pop() {
         for e in std::fs::read_dir(dir).unwrap() {
             let p = e.unwrap().path();

@@ -410,7 +410,7 @@ pub fn compensate_counted(
 /// How far back a segment's targets need the targets before them: the stops the walk carries
 /// across a cut (a circle's end looks back to its start), of which the re-check needs the
 /// last's state.
-pub const LOOK_BACK: usize = crate::motion::simulate::CARRIED_STOPS;
+pub const LOOK_BACK: usize = crate::motion::form::CARRIED_STOPS;
 
 /// [`compensate`] of a sequence cut in segments: `history` holds the last (up to
 /// [`LOOK_BACK`]) targets before `targets`, already compensated; `start` counts only when
