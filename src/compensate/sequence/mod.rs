@@ -1,21 +1,20 @@
 //! Compensation of a sequence of targets, with each axis's gear play where the compensated
 //! motion leaves it.
 //!
-//! Where an axis's gear play stands depends on the commands before, so the work runs in
-//! three passes: (1) the nominal directions from the simulated nominal motion (sequential,
-//! cheap); (2) every target solved with the gear of every axis engaged on the flank of its
-//! nominal direction, in parallel (rayon) — after any motion longer than the play, that is
-//! where it is; (3) a sequential re-check that walks the *compensated* commands through each
-//! axis's [`AxisHistory`] (the command before, the turning points of the interpolated motion
-//! moved by the correction) and evaluates the play exactly. Where it disagrees with the flank
-//! assumed, the target is solved again from the *output* the pose needs: the output must
-//! move up (the command drives the lower flank, `c = o + b/2`), move down (`c = o − b/2`),
-//! or — for an axis the program holds, when the output need not move — stay put, and then the
-//! command is kept exactly where it was (inside the play, any command there gives the same
-//! output; a held command does not jitter). A lagging play always has such a solution and it
-//! is found in one step, so nothing oscillates. A target whose output must move back by less
-//! than the play makes the command travel the play; such targets are counted and reported.
-
+//! Where an axis's gear play stands depends on the commands before, so the work runs in three
+//! passes: (1) the nominal directions from the simulated nominal motion (sequential, cheap); (2)
+//! every target solved with the gear of every axis engaged on the flank of its nominal direction,
+//! in parallel (rayon) — after any motion longer than the play, that is where it is; (3) a
+//! sequential re-check that walks the *compensated* commands through each axis's history
+//! ([`AxisHistory`](crate::model::AxisHistory): the command before, the turning points of the
+//! interpolated motion moved by the correction) and evaluates the play exactly. Where it disagrees
+//! with the flank assumed, the target is solved again from the *output* the pose needs: the output
+//! must move up (the command drives the lower flank, `c = o + b/2`), move down (`c = o − b/2`), or
+//! — for an axis the program holds, when the output need not move — stay put, and then the command
+//! is kept exactly where it was (inside the play, any command there gives the same output; a held
+//! command does not jitter). A lagging play always has such a solution and it is found in one step,
+//! so nothing oscillates. A target whose output must move back by less than the play makes the
+//! command travel the play; such targets are counted and reported.
 //!
 //! The files of this folder, one job each: [`passes`] (passes 1 and 2, and where they run),
 //! [`solving`] (one target solved within its limits, keeping its configuration and turn),
