@@ -413,6 +413,43 @@ pub fn circle_by_angle(
     arc_about(start, end, angle_deg, &normal)
 }
 
+/// The course of a Cartesian motion between two stops: which path the controller interpolates
+/// for each kind of motion ([`course`]).
+#[derive(Clone, Copy, Debug)]
+pub enum Course<'p> {
+    /// LIN: the straight line.
+    Line,
+    /// An `SPL` segment: the curve whose ends' tangents are those of the spline through
+    /// `points` ([`super::spline::tangents`]) at the segment's ends; the segment ends at the
+    /// first of them at the end's position.
+    Spline { points: &'p [Vector3<f64>] },
+    /// CIRC: the arc through the auxiliary position `aux`.
+    Circle { aux: Vector3<f64> },
+    /// CIRC with `CA`: the circle by its angle ([`circle_by_angle`]).
+    CircleByAngle { angle_deg: f64, plane: ArcPlane },
+}
+
+/// The path of a motion from `start` to `end` along `course` (`None` where it has none: a
+/// circle through points on a line, a spline whose points do not hold the end after another).
+pub fn course(start: &Frame, end: &Frame, course: Course) -> Option<Cartesian> {
+    match course {
+        Course::Line => Cartesian::new(start, end, &Path::Lin).ok(),
+        Course::Spline { points } => {
+            let at = points.iter().position(|q| *q == end.position)?;
+            let before = at.checked_sub(1)?;
+            let tangents = super::spline::tangents(points);
+            Some(Cartesian::cubic(
+                start,
+                end,
+                &tangents[before],
+                &tangents[at],
+            ))
+        }
+        Course::Circle { aux } => Cartesian::new(start, end, &Path::Circ { aux }).ok(),
+        Course::CircleByAngle { angle_deg, plane } => circle_by_angle(start, end, angle_deg, plane),
+    }
+}
+
 /// How a segment arrives at its end.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Arrival {

@@ -16,9 +16,10 @@
 //! A round holds [`Stretching::per_round`] stretches, so that the guessed walks' copies of
 //! their outcomes stay small (a window of a streamed program is a round or two).
 
-use super::{
-    AxisState, Counts, Ctx, Interp, Outcome, Recheck, Signs, Span, States, LOOK_BACK,
-};
+use super::passes::Signs;
+use super::recheck::{Recheck, Span};
+use super::timeline::States;
+use super::{AxisState, Counts, Ctx, Interp, Outcome, LOOK_BACK};
 use std::ops::Range;
 
 /// How the re-check cuts a long sequence into stretches walked beside each other.
@@ -141,13 +142,25 @@ pub(super) fn recheck(
                     *slot = Some(walk_guessed(&ctx, guess, seed, nominal, stretching.warm_up));
                 });
             }
-            counts += span.settle(ctx, states, first, outcomes, nominal, resolved, |_, _, _| {});
+            counts += span.settle(
+                ctx,
+                states,
+                first,
+                outcomes,
+                nominal,
+                resolved,
+                |_, _, _| {},
+            );
         });
         for guessed in found.into_iter().flatten() {
             let stretch = guessed.guess.stretch.clone();
             let (adopted, met) = adopt(ctx, span, states, guessed, outcomes, nominal, resolved);
             counts += adopted;
-            tracing::trace!(?stretch, walked_for_real = met - stretch.start, "guessed stretch");
+            tracing::trace!(
+                ?stretch,
+                walked_for_real = met - stretch.start,
+                "guessed stretch"
+            );
         }
         k = round_end(k, n, stretching);
     }
