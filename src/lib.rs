@@ -46,37 +46,96 @@ mod api;
 mod cli;
 pub use api::*;
 
-/// Declares the modules behind the API: private, unless the `internals` feature (robopost's own
-/// tests, benches and fuzz targets turn it on) opens them, hidden from the docs and unstable.
-macro_rules! rooms {
-    ($($room:ident),* $(,)?) => {
-        $(
-            #[cfg(feature = "internals")]
-            #[doc(hidden)]
-            pub mod $room;
-            #[cfg(not(feature = "internals"))]
-            mod $room;
-        )*
-    };
-}
-
-rooms!(
-    atomic_file,
-    atomic_unit,
-    input,
-    calibration,
-    compare,
-    compensate,
-    diagnose,
-    diagnostic,
-    identify,
-    kinematics,
-    krl,
-    measure,
-    model,
-    motion,
-    paths,
-    report,
-    simulate,
-    stats,
-);
+// The modules behind the API: private, unless the `internals` feature (robopost's own tests,
+// benches and fuzz targets turn it on) opens them, hidden from the docs and unstable. Written
+// out twice rather than by a macro so that rustfmt (which does not expand macros) formats them.
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod atomic_file;
+#[cfg(not(feature = "internals"))]
+mod atomic_file;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod atomic_unit;
+#[cfg(not(feature = "internals"))]
+mod atomic_unit;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod input;
+#[cfg(not(feature = "internals"))]
+mod input;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod calibration;
+#[cfg(not(feature = "internals"))]
+mod calibration;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod compare;
+#[cfg(not(feature = "internals"))]
+mod compare;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod compensate;
+#[cfg(not(feature = "internals"))]
+mod compensate;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod diagnose;
+#[cfg(not(feature = "internals"))]
+mod diagnose;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod diagnostic;
+#[cfg(not(feature = "internals"))]
+mod diagnostic;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod identify;
+#[cfg(not(feature = "internals"))]
+mod identify;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod kinematics;
+#[cfg(not(feature = "internals"))]
+mod kinematics;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod krl;
+#[cfg(not(feature = "internals"))]
+mod krl;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod measure;
+#[cfg(not(feature = "internals"))]
+mod measure;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod model;
+#[cfg(not(feature = "internals"))]
+mod model;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod motion;
+#[cfg(not(feature = "internals"))]
+mod motion;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod paths;
+#[cfg(not(feature = "internals"))]
+mod paths;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod report;
+#[cfg(not(feature = "internals"))]
+mod report;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod simulate;
+#[cfg(not(feature = "internals"))]
+mod simulate;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod stats;
+#[cfg(not(feature = "internals"))]
+mod stats;
