@@ -789,22 +789,23 @@ fn repeated_member(cx: Cx<'_>, nested: bool, mark: usize) -> Option<usize> {
     } else {
         &n.members[mark..]
     };
-    repeated_name(&n, members, cx.base(), 0)
+    repeated_name(members, |m| n.member_name(m), cx.base(), 0)
 }
 
 /// The source offset of the second name of a member given twice among `members`, compared as
-/// KRL does, ignoring case (`src`: the source from offset `offset` on, holding the names).
+/// KRL does, ignoring case (`name_of`: a member's name; `src`: the source from offset
+/// `offset` on, holding the names).
 /// One-letter names (`X`, `A`, `S`: nearly every member of a position) are checked by a bit
 /// each; the others pair by pair, few in any aggregate. An indexed member (`NAME[] "text"`)
 /// names an element, not the member: not compared.
 pub(crate) fn repeated_name(
-    n: &Nodes,
     members: &[Packed],
+    name_of: impl Fn(Packed) -> Span,
     src: &[u8],
     offset: usize,
 ) -> Option<usize> {
     let name = |m| {
-        let span = n.member_name(m);
+        let span = name_of(m);
         let (a, b) = (span.start as usize - offset, span.end as usize - offset);
         (span.start as usize, &src[a..b], src.get(b) == Some(&b'['))
     };
@@ -869,8 +870,9 @@ enum Members<'a> {
 fn plain_members<'a>(cx: Cx<'a>, mut j: &'a [u8]) -> Members<'a> {
     let mut n = cx.nodes.borrow_mut();
     let keep = n.keep_values;
-    while let Some((k, m, value)) = plain_member(cx, j, keep) {
+    while let Some((len, m, value)) = plain_member(j, cx.off(j), keep) {
         n.push_member(m, value);
+        let k = &j[len..];
         let k = &k[blanks(k)..];
         if k[0] != b',' {
             return Members::Closed(&k[1..]);
@@ -928,11 +930,14 @@ fn close_aggregate(
 }
 
 /// `NAME number` followed by blanks and `,` or `}` (not consumed), the number plain enough
-/// for `number::read_plain` (`number::plain_len`); `None` sends the member to the general `member` parser, which
-/// reads these the same way. With `keep`, the number's value (else 0): `read_plain` takes
-/// the numbers `plain_len` does.
+/// for `number::read_plain` (`number::plain_len`); `None` sends the member to the general
+/// `member` parser, which reads these the same way. `start`: where `i` starts in the source.
+/// Gives the length read, the member and, with `keep`, the number's value (else 0:
+/// `read_plain` takes the numbers `plain_len` does). Hand-written, not combinators: it is the
+/// inner loop of a CAM program's parse (a million lines of six members; BENCH.md, "KRL front
+/// end"), and the fast path of `plain` reads its members with it too.
 #[inline]
-fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8], keep: bool) -> Option<(&'a [u8], Packed, f64)> {
+pub(crate) fn plain_member(i: &[u8], start: usize, keep: bool) -> Option<(usize, Packed, f64)> {
     if !is_ident_start(*i.first()?) {
         return None;
     }
@@ -948,12 +953,11 @@ fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8], keep: bool) -> Option<(&'a [u8], Pa
     if !matches!(rest.get(blanks(rest)), Some(b',' | b'}')) {
         return None;
     }
-    let start = cx.off(i);
     let packed = Packed::plain(
         Span::new(start, start + name_end),
         Span::new(start + at, start + at + len),
     )?;
-    Some((rest, packed, value))
+    Some((at + len, packed, value))
 }
 
 /// `NAME[[…]] value`: the name's span and the value.
