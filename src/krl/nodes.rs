@@ -247,15 +247,13 @@ impl Nodes {
         }
     }
 
-    /// Adds members of an outermost aggregate; `values`: theirs, in step (read only with
-    /// `keep_values`).
+    /// The members pool and its values (`member_values`, pushed in step only with
+    /// `keep_values`), the pages of the next `n` members mapped: for a reader that writes
+    /// them itself (`plain::read`).
     #[inline]
-    pub fn extend_members(&mut self, m: &[Packed], values: &[f64]) {
-        self.ahead.members.before_extend(&self.members, m.len());
-        self.members.extend_from_slice(m);
-        if self.keep_values {
-            self.member_values.extend_from_slice(values);
-        }
+    pub fn members_for(&mut self, n: usize) -> (&mut Vec<Packed>, &mut Vec<f64>) {
+        self.ahead.members.before_extend(&self.members, n);
+        (&mut self.members, &mut self.member_values)
     }
 
     #[inline]

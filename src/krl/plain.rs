@@ -9,7 +9,7 @@
 //! first and the parser after it:
 //!
 //! - [`read`]: the line's statement for the tree. A motion the look took is built here into
-//!   the very nodes the parser builds for it (its members read by the parser's own
+//!   the very nodes the parser builds for it (its members read into the pool by the parser's own
 //!   `expr::plain_member`, so the values are the parser's bit for bit); any other line is the
 //!   parser's.
 //! - [`streams`]: whether the line may be left to a streamed run (see `stream`): the look's
@@ -29,7 +29,8 @@ use super::stmt::{self, Line, LineError, StmtKind};
 use super::tree::FileKind;
 use std::cell::RefCell;
 
-/// The members the look read, its buffer reused from line to line.
+/// A buffer for the members the look reads when it builds no tree (the parallel pass,
+/// `streams`), reused from line to line.
 #[derive(Default)]
 pub(crate) struct Members {
     packed: Vec<Packed>,
@@ -55,11 +56,12 @@ pub(crate) struct Seen {
     approx: Approxes,
 }
 
-/// An aggregate the look read; its members are the next `members` of [`Members`].
+/// An aggregate the look read; its `members` start at `first` where the look wrote them.
 #[derive(Clone, Copy, Default)]
 struct SeenAggregate {
     span: Span,
     type_name: Option<Span>,
+    first: u32,
     members: u32,
 }
 
@@ -69,6 +71,18 @@ struct SeenAggregate {
 pub(crate) fn look(code: &[u8], base: usize, keep: bool, members: &mut Members) -> Option<Shape> {
     members.packed.clear();
     members.values.clear();
+    look_into(code, base, keep, &mut members.packed, &mut members.values)
+}
+
+/// [`look`], the members pushed onto `packed` (and `values` with `keep`); on `None`, both as
+/// they were.
+fn look_into(
+    code: &[u8],
+    base: usize,
+    keep: bool,
+    packed: &mut Vec<Packed>,
+    values: &mut Vec<f64>,
+) -> Option<Shape> {
     if code.first() == Some(&b'$') {
         return Scan { b: code, p: 0 }
             .system_assignment()
@@ -80,23 +94,29 @@ pub(crate) fn look(code: &[u8], base: usize, keep: bool, members: &mut Members) 
         return Scan { b: code, p: end }.wait_sec().then_some(Shape::Setting);
     }
     let kind = motion_keyword(word)?;
-    Reader { b: code, p: end, base }
-        .motion(kind, keep, members)
-        .map(Shape::Motion)
+    let (n, v) = (packed.len(), values.len());
+    let seen = Reader { b: code, p: end, base }.motion(kind, keep, packed, values);
+    if seen.is_none() {
+        packed.truncate(n);
+        values.truncate(v);
+    }
+    seen.map(Shape::Motion)
 }
 
 /// The statement of a line of code (a sub-slice of the source): the look's motion built into
 /// the pools, or the parser's line.
-pub(crate) fn read<'a>(
-    cx: Cx<'a>,
-    file: FileKind,
-    code: &'a [u8],
-    members: &mut Members,
-) -> Result<Line, LineError<'a>> {
-    let keep = cx.nodes.borrow().keep_values;
-    match look(code, cx.off(code), keep, members) {
-        Some(Shape::Motion(seen)) => Ok(build(&mut cx.nodes.borrow_mut(), &seen, members)),
-        _ => stmt::line(cx, file, code),
+pub(crate) fn read<'a>(cx: Cx<'a>, file: FileKind, code: &'a [u8]) -> Result<Line, LineError<'a>> {
+    let mut guard = cx.nodes.borrow_mut();
+    let nodes = &mut *guard;
+    let keep = nodes.keep_values;
+    // Straight into the pool (a CAM line has a handful of members; more only map later).
+    let (packed, values) = nodes.members_for(16);
+    match look_into(code, cx.off(code), keep, packed, values) {
+        Some(Shape::Motion(seen)) => Ok(build(nodes, &seen)),
+        _ => {
+            drop(guard);
+            stmt::line(cx, file, code)
+        }
     }
 }
 
@@ -124,19 +144,14 @@ pub(crate) fn streams(
     plain
 }
 
-/// The motion the look read, into the pools as the parser puts it there.
-fn build(nodes: &mut Nodes, seen: &Seen, members: &Members) -> Line {
+/// The motion the look read (its members already in the pool), into the pools as the parser
+/// puts it there.
+fn build(nodes: &mut Nodes, seen: &Seen) -> Line {
     nodes.new_line();
     let mut exprs = [None, None];
-    let mut from = 0;
     for (a, e) in seen.aggregates[..seen.count].iter().zip(&mut exprs) {
-        let to = from + a.members as usize;
-        let first = nodes.members.len() as u32;
-        let values = members.values.get(from..to).unwrap_or_default();
-        nodes.extend_members(&members.packed[from..to], values);
-        from = to;
         let id = AggregateId(nodes.aggregates.len() as u32);
-        nodes.push_aggregate(Aggregate::outermost(a.span, a.type_name, first, a.members));
+        nodes.push_aggregate(Aggregate::outermost(a.span, a.type_name, a.first, a.members));
         *e = Some(Expr::Aggregate(a.span, id));
     }
     let motion = match exprs {
@@ -242,7 +257,13 @@ impl Reader<'_> {
 
     /// `aggregate [, aggregate] { approximation }` to the end (two aggregates for a circular
     /// motion: its auxiliary point and target).
-    fn motion(mut self, kind: MotionKind, keep: bool, members: &mut Members) -> Option<Seen> {
+    fn motion(
+        mut self,
+        kind: MotionKind,
+        keep: bool,
+        packed: &mut Vec<Packed>,
+        values: &mut Vec<f64>,
+    ) -> Option<Seen> {
         let mut seen = Seen {
             kind,
             keyword_start: self.base as u32,
@@ -260,15 +281,21 @@ impl Reader<'_> {
                 self.p += 1;
                 self.blanks();
             }
-            seen.aggregates[seen.count] = self.aggregate(keep, members)?;
+            seen.aggregates[seen.count] = self.aggregate(keep, packed, values)?;
             seen.count += 1;
         }
         seen.approx = self.approximations()?;
         Some(seen)
     }
 
-    /// `{ [TYPE :] NAME number {, NAME number} }`, its members pushed to `members`.
-    fn aggregate(&mut self, keep: bool, members: &mut Members) -> Option<SeenAggregate> {
+    /// `{ [TYPE :] NAME number {, NAME number} }`, its members pushed onto `packed` (and
+    /// their values onto `values` with `keep`).
+    fn aggregate(
+        &mut self,
+        keep: bool,
+        packed: &mut Vec<Packed>,
+        values: &mut Vec<f64>,
+    ) -> Option<SeenAggregate> {
         let open = self.p;
         if self.b.get(open) != Some(&b'{') {
             return None;
@@ -276,17 +303,15 @@ impl Reader<'_> {
         self.p += 1;
         self.blanks();
         let type_name = self.type_prefix();
-        let first = members.packed.len();
+        let first = packed.len();
         loop {
-            let (len, packed, value) =
-                expr::plain_member(&self.b[self.p..], self.base + self.p, keep)?;
-            members.packed.push(packed);
+            let (sep, member, value) = expr::plain_member(self.b, self.p, self.base, keep)?;
+            packed.push(member);
             if keep {
-                members.values.push(value);
+                values.push(value);
             }
-            self.p += len;
-            self.blanks();
-            // `plain_member` saw a `,` or `}` here.
+            // At the `,` or `}` `plain_member` found.
+            self.p = sep;
             let close = self.b[self.p] == b'}';
             self.p += 1;
             if close {
@@ -295,13 +320,14 @@ impl Reader<'_> {
             self.blanks();
         }
         // A member given twice is an error: the grammar's parser says so.
-        let read = &members.packed[first..];
+        let read = &packed[first..];
         if expr::repeated_name(read, Packed::plain_name, self.b, self.base).is_some() {
             return None;
         }
         Some(SeenAggregate {
             span: self.span(open, self.p),
             type_name,
+            first: first as u32,
             members: read.len() as u32,
         })
     }
@@ -539,7 +565,7 @@ mod tests {
         };
         let direct_nodes = fresh();
         let cx = Cx::new(src.as_bytes(), &direct_nodes);
-        let direct = read(cx, FileKind::Src, text, &mut members).ok();
+        let direct = read(cx, FileKind::Src, text).ok();
         let want = state(&parsed, &parser_nodes.borrow());
         let got = state(&direct, &direct_nodes.borrow());
         assert_eq!(got, want, "{code}");

@@ -36,7 +36,7 @@ pub(super) struct LineParse<'s> {
     /// Plain lines of the main routine collected for a run (see `stream`).
     stretch: Option<Stretch>,
     runs: Vec<StreamedRun>,
-    /// The fast path's buffer of members (`plain::look`).
+    /// The fast path's buffer of members when it decides whether a line streams.
     members: Members,
     /// The pool the fallback parses into when it decides whether a line streams
     /// (`plain::streams`), emptied after each line.
@@ -142,7 +142,7 @@ impl<'s> LineParse<'s> {
     fn feed(&mut self, code: Span, leading: Span, line: u32, fold: Option<FoldId>) {
         let src = self.src;
         let text = &src[code.range()];
-        let read = plain::read(self.cx, self.kind, text, &mut self.members);
+        let read = plain::read(self.cx, self.kind, text);
         let parsed = match read {
             Ok(parsed) => parsed,
             Err(Some(e)) => {
