@@ -134,3 +134,20 @@ fn only_plain_lines_of_the_main_routine_stream() {
     assert_eq!(f.streamed_runs().len(), 1);
     assert_eq!(f.emit(), src);
 }
+
+/// A line the parser rejects is never streamed: a motion with three approximation keywords or
+/// a member given twice fails the streamed parse as it fails the whole one (the old streaming
+/// look took both for plain lines, and the streamed job then left them uncompensated).
+#[test]
+fn malformed_motions_are_not_streamed() {
+    let opts = StreamOptions {
+        min_run: 1,
+        window: 2,
+    };
+    for bad in ["LIN {X 1, Y 2} C_DIS C_DIS C_DIS", "LIN {X 1, x 2} C_DIS"] {
+        let src = format!("DEF m()\r\n  LIN {{X 0}}\r\n  {bad}\r\n  LIN {{X 3}}\r\nEND\r\n");
+        assert!(krl::parse(src.as_bytes(), FileKind::Src).is_err(), "{bad}");
+        let streamed = krl::parse_streaming(src.into_bytes(), FileKind::Src, opts);
+        assert!(streamed.is_err(), "{bad}");
+    }
+}

@@ -4,8 +4,8 @@
 //! table. Every node keeps the byte span of its text so any number can be replaced in place.
 
 use super::lex::{
-    backtrack, bits, blanks, enum_literal, expecting, fail, ident, is_ident_char, is_ident_start,
-    keyword, number_literal, punct, string, ws, Cx, Fails, PResult,
+    backtrack, bits, blanks, enum_literal, expecting, fail, ident, is_blank, is_ident_char,
+    is_ident_start, keyword, number_literal, punct, string, ws, Cx, Fails, PResult,
 };
 use super::nodes::{AggregateId, Nodes, Packed};
 use super::number;
@@ -789,22 +789,23 @@ fn repeated_member(cx: Cx<'_>, nested: bool, mark: usize) -> Option<usize> {
     } else {
         &n.members[mark..]
     };
-    repeated_name(&n, members, cx.base(), 0)
+    repeated_name(members, |m| n.member_name(m), cx.base(), 0)
 }
 
 /// The source offset of the second name of a member given twice among `members`, compared as
-/// KRL does, ignoring case (`src`: the source from offset `offset` on, holding the names).
+/// KRL does, ignoring case (`name_of`: a member's name; `src`: the source from offset
+/// `offset` on, holding the names).
 /// One-letter names (`X`, `A`, `S`: nearly every member of a position) are checked by a bit
 /// each; the others pair by pair, few in any aggregate. An indexed member (`NAME[] "text"`)
 /// names an element, not the member: not compared.
 pub(crate) fn repeated_name(
-    n: &Nodes,
     members: &[Packed],
+    name_of: impl Fn(Packed) -> Span,
     src: &[u8],
     offset: usize,
 ) -> Option<usize> {
     let name = |m| {
-        let span = n.member_name(m);
+        let span = name_of(m);
         let (a, b) = (span.start as usize - offset, span.end as usize - offset);
         (span.start as usize, &src[a..b], src.get(b) == Some(&b'['))
     };
@@ -869,9 +870,9 @@ enum Members<'a> {
 fn plain_members<'a>(cx: Cx<'a>, mut j: &'a [u8]) -> Members<'a> {
     let mut n = cx.nodes.borrow_mut();
     let keep = n.keep_values;
-    while let Some((k, m, value)) = plain_member(cx, j, keep) {
+    while let Some((sep, m, value)) = plain_member(j, 0, cx.off(j), keep) {
         n.push_member(m, value);
-        let k = &k[blanks(k)..];
+        let k = &j[sep..];
         if k[0] != b',' {
             return Members::Closed(&k[1..]);
         }
@@ -928,32 +929,52 @@ fn close_aggregate(
 }
 
 /// `NAME number` followed by blanks and `,` or `}` (not consumed), the number plain enough
-/// for `number::read_plain` (`number::plain_len`); `None` sends the member to the general `member` parser, which
-/// reads these the same way. With `keep`, the number's value (else 0): `read_plain` takes
-/// the numbers `plain_len` does.
-#[inline]
-fn plain_member<'a>(cx: Cx<'a>, i: &'a [u8], keep: bool) -> Option<(&'a [u8], Packed, f64)> {
-    if !is_ident_start(*i.first()?) {
+/// for `number::read_plain` (`number::plain_len`); `None` sends the member to the general
+/// `member` parser, which reads these the same way: the member at `p` in `b` (`base`: where
+/// `b` starts in the source). Gives where the `,` or `}` is, the member and, with `keep`, the
+/// number's value (else 0: `read_plain` takes the numbers `plain_len` does). Hand-written,
+/// not combinators: it is the inner loop of a CAM program's parse (a million lines of six
+/// members; BENCH.md, "KRL front end"), and the fast path of `plain` reads its members with
+/// it too.
+// Always inlined: called from the parser too, it stopped being inlined into the look
+// (+3.8 % of `check`'s instructions; BENCH.md).
+#[inline(always)]
+pub(crate) fn plain_member(
+    b: &[u8],
+    p: usize,
+    base: usize,
+    keep: bool,
+) -> Option<(usize, Packed, f64)> {
+    // On local indices, not sub-slices: fewer bounds checks in the hottest loop (BENCH.md).
+    let blanks = |mut q: usize| {
+        while q < b.len() && is_blank(b[q]) {
+            q += 1;
+        }
+        q
+    };
+    if p >= b.len() || !is_ident_start(b[p]) {
         return None;
     }
-    let name_end = 1 + i[1..].iter().take_while(|&&b| is_ident_char(b)).count();
-    let at = name_end + blanks(&i[name_end..]);
+    let mut name_end = p + 1;
+    while name_end < b.len() && is_ident_char(b[name_end]) {
+        name_end += 1;
+    }
+    let at = blanks(name_end);
     let (len, value) = if keep {
-        let (len, value, _) = number::read_plain(&i[at..])?;
+        let (len, value, _) = number::read_plain(&b[at..])?;
         (len, value)
     } else {
-        (number::plain_len(&i[at..])?, 0.0)
+        (number::plain_len(&b[at..])?, 0.0)
     };
-    let rest = &i[at + len..];
-    if !matches!(rest.get(blanks(rest)), Some(b',' | b'}')) {
+    let sep = blanks(at + len);
+    if !matches!(b.get(sep), Some(b',' | b'}')) {
         return None;
     }
-    let start = cx.off(i);
     let packed = Packed::plain(
-        Span::new(start, start + name_end),
-        Span::new(start + at, start + at + len),
+        Span::new(base + p, base + name_end),
+        Span::new(base + at, base + at + len),
     )?;
-    Some((rest, packed, value))
+    Some((sep, packed, value))
 }
 
 /// `NAME[[…]] value`: the name's span and the value.

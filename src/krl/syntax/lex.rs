@@ -154,6 +154,24 @@ macro_rules! expecting {
 }
 pub(crate) use expecting;
 
+/// `p` after optional blanks (blanks may stand between any two tokens of the grammar).
+pub(crate) fn tok<'a, T>(
+    p: impl FnMut(&'a [u8]) -> PResult<'a, T>,
+) -> impl FnMut(&'a [u8]) -> PResult<'a, T> {
+    nom::sequence::preceded(ws, p)
+}
+
+/// `p`, its failures turned into backtracks: an alternative whose failure must not stop the
+/// next one from being tried.
+pub(crate) fn only_backtracks<'a, T>(
+    mut p: impl FnMut(&'a [u8]) -> PResult<'a, T>,
+) -> impl FnMut(&'a [u8]) -> PResult<'a, T> {
+    move |i| match p(i) {
+        Err(nom::Err::Failure(e)) => Err(nom::Err::Error(e)),
+        other => other,
+    }
+}
+
 /// Byte classes, one table lookup per byte in the hot loops.
 const BLANK: u8 = 1;
 const IDENT_START: u8 = 2;

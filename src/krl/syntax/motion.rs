@@ -172,6 +172,27 @@ impl Motion {
             extra: None,
         }
     }
+
+    /// A circular motion with only its auxiliary point, target and approximation keywords
+    /// (no `CA`, `WITH` nor relative frame), as `motion` builds it.
+    pub(crate) fn circular(
+        kind: MotionKind,
+        aux: Expr,
+        target: Expr,
+        keyword_start: u32,
+        approx: Approxes,
+    ) -> Motion {
+        Motion {
+            kind,
+            target,
+            keyword_start,
+            approx,
+            extra: Some(Box::new(MotionExtra {
+                aux: Some(aux),
+                ..MotionExtra::default()
+            })),
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]

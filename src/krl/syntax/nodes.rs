@@ -100,6 +100,17 @@ impl Nodes {
         self.agg_depth = 0;
     }
 
+    /// Empties the pools (a pool reused line after line).
+    pub fn clear(&mut self) {
+        self.reset(Mark {
+            motions: 0,
+            aggregates: 0,
+            members: 0,
+            nested_members: 0,
+            outline: 0,
+        });
+    }
+
     /// Starts a line: nothing is open.
     pub fn new_line(&mut self) {
         self.scratch.clear();
@@ -236,6 +247,15 @@ impl Nodes {
         }
     }
 
+    /// The members pool and its values (`member_values`, pushed in step only with
+    /// `keep_values`), the pages of the next `n` members mapped: for a reader that writes
+    /// them itself (`plain::read`).
+    #[inline]
+    pub fn members_for(&mut self, n: usize) -> (&mut Vec<Packed>, &mut Vec<f64>) {
+        self.ahead.members.before_extend(&self.members, n);
+        (&mut self.members, &mut self.member_values)
+    }
+
     #[inline]
     pub fn push_motion(&mut self, m: Motion) {
         self.motions_own_heap |= m.owns_heap();
@@ -273,6 +293,13 @@ pub(crate) struct Packed {
 }
 
 impl Packed {
+    /// A plain member's name (`name_len` ≥ 1; an out-of-line member's is in `Nodes::outline`).
+    #[inline]
+    pub fn plain_name(self) -> Span {
+        debug_assert!(self.name_len != 0);
+        Span::new(self.at as usize, self.at as usize + usize::from(self.name_len))
+    }
+
     /// A plain member's record, if its lengths fit.
     #[inline]
     pub fn plain(name: Span, number: Span) -> Option<Packed> {

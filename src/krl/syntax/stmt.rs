@@ -11,9 +11,13 @@ use super::decl::{
 use super::expr::{call, expr, path, Call, Expr};
 use super::fold::FoldId;
 use super::lex::{
-    backtrack, fail, first_word, ident, is_ident_char, keyword, list, punct, sep, ws, Cx, PErr,
-    PResult,
+    backtrack, expecting, first_word, ident, is_ident_char, keyword, list, only_backtracks, punct,
+    sep, tok, ws, Cx, PErr, PResult,
 };
+use nom::branch::alt;
+use nom::combinator::{all_consuming, eof, map, not, opt, value};
+use nom::multi::{fold_many0, many0};
+use nom::sequence::{pair, preceded, separated_pair, terminated, tuple};
 use super::motion::{motion, with_clause, MotionKind, WithItem};
 use super::nodes::MotionId;
 use super::span::Span;
@@ -486,12 +490,9 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
         b"ON_ERROR_PROCEED" => alone(Line::Simple(K::OnErrorProceed)),
         b"BRAKE" => brake_line(cx, i),
         b"RETURN" => return_line(cx, i),
-        b"GOTO" => {
-            let (j, _) = keyword("GOTO")(i)?;
-            let (j, _) = ws(j)?;
-            let (r, l) = ident(j)?;
-            Ok((r, Line::Simple(K::Goto(cx.span_of(l)))))
-        }
+        b"GOTO" => map(preceded(keyword("GOTO"), tok(ident)), |l| {
+            Line::Simple(K::Goto(cx.span_of(l)))
+        })(i),
         b"WAIT" => wait_line(cx, i),
         b"INTERRUPT" => interrupt_line(cx, None, i),
         b"TRIGGER" => trigger_line(cx, i),
@@ -499,15 +500,10 @@ fn statement<'a>(cx: Cx<'a>, file: FileKind, word: &[u8], i: &'a [u8]) -> PResul
     }
 }
 
-/// A keyword alone on its line.
+/// keyword_alone: a keyword alone on its line.
 fn keyword_alone(i: &[u8], l: Line) -> PResult<'_, Line> {
-    let (r, _) = ident(i)?;
-    let (r, _) = ws(r)?;
-    if r.is_empty() {
-        Ok((r, l))
-    } else {
-        backtrack(i)
-    }
+    let (r, _) = all_consuming(terminated(ident, ws))(i)?;
+    Ok((r, l))
 }
 
 /// An expression spanning the whole slice, or an opaque one; malformed aggregates still fail.
@@ -516,91 +512,93 @@ fn lenient<'a>(cx: Cx<'a>, i: &'a [u8]) -> Result<Expr, nom::Err<PErr<'a>>> {
     if j.is_empty() {
         return backtrack(j).map(|(_, e)| e);
     }
-    match expr(cx, 0, j) {
-        Ok((r, e)) if ws(r)?.0.is_empty() => Ok(e),
+    match terminated(|x| expr(cx, 0, x), ws)(j) {
+        Ok((r, e)) if r.is_empty() => Ok(e),
         Err(nom::Err::Failure(f)) if is_hard(&f) => Err(nom::Err::Failure(f)),
         _ => Ok(Expr::Opaque(cx.span_of(j))),
     }
 }
 
-/// `&NAME value`.
+/// directive: `&NAME value` (the value: the rest of the line).
 fn directive<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, name) = ident(&i[1..])?;
-    let (value, _) = ws(j)?;
+    let (value, name) = preceded(punct(b'&'), terminated(ident, ws))(i)?;
+    let d = Directive {
+        name: cx.span_of(name),
+        value: cx.span_of(value),
+    };
     Ok((
         &i[i.len()..],
-        Line::Simple(StmtKind::Directive(Box::new(Directive {
-            name: cx.span_of(name),
-            value: cx.span_of(value),
-        }))),
+        Line::Simple(StmtKind::Directive(Box::new(d))),
     ))
 }
 
-/// `[GLOBAL] DEF …` / `DEFFCT …`.
+/// routine_line: `[GLOBAL] DEF …` / `DEFFCT …`, nothing after the header.
 fn routine_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (r, h) = routine_header(cx, i)?;
-    let (r, _) = ws(r)?;
-    if !r.is_empty() {
-        return fail!(
-            r,
-            "unexpected text after the routine header",
-            "a routine header reads DEF name(p1:IN, p2:OUT)",
-        );
-    }
-    Ok((
-        r,
-        Line::Open(StmtKind::Routine(Box::new(h)), BlockKind::Routine),
-    ))
+    let nothing_after = expecting!(
+        "unexpected text after the routine header",
+        "a routine header reads DEF name(p1:IN, p2:OUT)",
+        eof,
+    );
+    map(
+        terminated(|x| routine_header(cx, x), tok(nothing_after)),
+        |h| Line::Open(StmtKind::Routine(Box::new(h)), BlockKind::Routine),
+    )(i)
 }
 
-/// A variable declaration line; trailing text is an error.
+/// decl_line: a variable declaration, nothing after it.
 fn decl_line<'a>(cx: Cx<'a>, file: FileKind, i: &'a [u8]) -> PResult<'a, Line> {
-    let (r, d) = declaration(cx, file == FileKind::Dat, i)?;
-    let (r, _) = ws(r)?;
-    if !r.is_empty() {
-        return fail!(
-            r,
-            "unexpected text after the declaration",
-            "separate several variables with commas; give an initial value with =",
-        );
-    }
-    Ok((r, Line::Simple(StmtKind::Decl(Box::new(d)))))
+    let nothing_after = expecting!(
+        "unexpected text after the declaration",
+        "separate several variables with commas; give an initial value with =",
+        eof,
+    );
+    map(
+        terminated(
+            |x| declaration(cx, file == FileKind::Dat, x),
+            tok(nothing_after),
+        ),
+        |d| Line::Simple(StmtKind::Decl(Box::new(d))),
+    )(i)
 }
 
-/// `GLOBAL` before `DEF`, `DEFFCT`, `DECL`, a type, `STRUC`, `ENUM`, `SIGNAL`, `INTERRUPT`.
+/// global_line: `GLOBAL` before `DEF`, `DEFFCT`, `DECL`, a type, `STRUC`, `ENUM`, `SIGNAL`,
+/// `INTERRUPT` (dispatched on the word after it, as `statement` is on the first).
 fn global_line<'a>(cx: Cx<'a>, file: FileKind, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, g) = keyword("GLOBAL")(i)?;
-    let (j, _) = ws(j)?;
+    let (j, g) = terminated(keyword("GLOBAL"), ws)(i)?;
     let mut buf = [0u8; 16];
-    let w = first_word(j, &mut buf);
-    match w {
+    let simple = |k| Line::Simple(k);
+    match first_word(j, &mut buf) {
         b"DEF" | b"DEFFCT" => routine_line(cx, i),
-        b"STRUC" => struc(cx, i).map(|(r, s)| (r, Line::Simple(StmtKind::Struc(Box::new(s))))),
-        b"ENUM" => enum_decl(cx, i).map(|(r, e)| (r, Line::Simple(StmtKind::Enum(Box::new(e))))),
-        b"SIGNAL" => signal(cx, i).map(|(r, s)| (r, Line::Simple(StmtKind::Signal(Box::new(s))))),
+        b"STRUC" => map(|x| struc(cx, x), |s| simple(StmtKind::Struc(Box::new(s))))(i),
+        b"ENUM" => map(|x| enum_decl(cx, x), |e| simple(StmtKind::Enum(Box::new(e))))(i),
+        b"SIGNAL" => map(|x| signal(cx, x), |s| simple(StmtKind::Signal(Box::new(s))))(i),
         b"INTERRUPT" => interrupt_line(cx, Some(cx.span_of(g)), j),
         _ => decl_line(cx, file, i),
     }
 }
 
-/// `SPLINE [WITH …]` / `PTP_SPLINE [WITH …]`.
+/// spline_line: `SPLINE [WITH …]` / `PTP_SPLINE [WITH …]`.
 fn spline_line<'a>(cx: Cx<'a>, ptp: bool, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, _) = ident(i)?;
-    let (j, _) = ws(j)?;
-    let (r, with) = match keyword("WITH")(j) {
-        Ok((k, _)) => with_clause(cx, k)?,
-        Err(_) => (j, Vec::new()),
-    };
-    Ok((
-        r,
-        Line::Open(
-            StmtKind::Spline(Box::new(SplineHead { ptp, with })),
-            BlockKind::Spline,
+    // `with_clause` never backtracks (a malformed clause is a failure), so `opt` only
+    // decides whether a `WITH` is there.
+    map(
+        preceded(
+            terminated(ident, ws),
+            opt(preceded(keyword("WITH"), |x| with_clause(cx, x))),
         ),
-    ))
+        move |with| {
+            let head = SplineHead {
+                ptp,
+                with: with.unwrap_or_default(),
+            };
+            Line::Open(StmtKind::Spline(Box::new(head)), BlockKind::Spline)
+        },
+    )(i)
 }
 
-/// `IF cond THEN` — the condition may stay opaque, the block structure does not.
+/// if_line: `IF cond THEN` — the condition may stay opaque, the block structure does not.
+/// Hand-written: `THEN` is found from the end of the line, so a condition the expression
+/// grammar does not read still opens the block.
 fn if_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
     let n = i.len();
     let then_at = n
@@ -616,268 +614,210 @@ fn if_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
     ))
 }
 
-/// `CASE v {, v}`.
+/// case_line: `CASE v {, v}`.
 fn case_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, _) = keyword("CASE")(i)?;
-    let (j, _) = sep(j)?;
-    let (k, values) = list(j, |x| expr(cx, 0, x))?;
-    Ok((k, Line::Arm(BlockKind::Switch, ArmKind::Case(values))))
+    map(
+        preceded(pair(keyword("CASE"), sep), |x| list(x, |y| expr(cx, 0, y))),
+        |values| Line::Arm(BlockKind::Switch, ArmKind::Case(values)),
+    )(i)
 }
 
-/// `FOR var = from TO to [STEP step]`; an unreadable header keeps the block.
+/// for_line: `FOR var = from TO to [STEP step]`; an unreadable header keeps the block.
 fn for_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
     let open = |f| Line::Open(StmtKind::For(f), BlockKind::For);
-    match for_header(cx, i) {
-        Ok((r, f)) if ws(r)?.0.is_empty() => Ok((&i[i.len()..], open(Some(Box::new(f))))),
+    match terminated(|x| for_header(cx, x), ws)(i) {
+        Ok((r, f)) if r.is_empty() => Ok((r, open(Some(Box::new(f))))),
         Err(nom::Err::Failure(e)) if is_hard(&e) => Err(nom::Err::Failure(e)),
         _ => Ok((&i[i.len()..], open(None))),
     }
 }
 
+/// for_header: `FOR var = from TO to [STEP step]`.
 fn for_header<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, For> {
-    let (j, _) = keyword("FOR")(i)?;
-    let (j, _) = ws(j)?;
-    let (j, var) = ident(j)?;
-    let (j, _) = ws(j)?;
-    let (j, _) = punct(b'=')(j)?;
-    let (j, _) = ws(j)?;
-    let (j, from) = expr(cx, 0, j)?;
-    let (j, _) = ws(j)?;
-    let (j, _) = keyword("TO")(j)?;
-    let (j, _) = ws(j)?;
-    let (mut j, to) = expr(cx, 0, j)?;
-    let mut step = None;
-    let (k, _) = ws(j)?;
-    if let Ok((k, _)) = keyword("STEP")(k) {
-        let (k, _) = ws(k)?;
-        let (k, s) = expr(cx, 0, k)?;
-        step = Some(s);
-        j = k;
-    }
-    Ok((
-        j,
-        For {
+    let e = |x| expr(cx, 0, x);
+    map(
+        tuple((
+            preceded(keyword("FOR"), tok(ident)),
+            preceded(tok(punct(b'=')), tok(e)),
+            preceded(tok(keyword("TO")), tok(e)),
+            opt(preceded(tok(keyword("STEP")), tok(e))),
+        )),
+        |(var, from, to, step)| For {
             var: cx.span_of(var),
             from,
             to,
             step,
         },
-    ))
+    )(i)
 }
 
-/// `ANOUT ON signal = value {option = value}` / `ANOUT OFF signal`, and the same with `ANIN`.
+/// anout_line: `ANOUT ON signal = value {option = value}` / `ANOUT OFF signal`, and the same
+/// with `ANIN`.
 fn anout_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, word) = ident(i)?;
-    let input = word.eq_ignore_ascii_case(b"ANIN");
-    let (j, _) = ws(j)?;
-    let (j, op) = ident(j)?;
-    let on = op.eq_ignore_ascii_case(b"ON");
-    if !on && !op.eq_ignore_ascii_case(b"OFF") {
-        return backtrack(j);
-    }
-    let (j, _) = ws(j)?;
-    let (mut j, signal) = path(cx, 0, j)?;
-    let mut value = None;
-    let mut options = Vec::new();
-    if on {
-        let (k, _) = ws(j)?;
-        let (k, _) = punct(b'=')(k)?;
-        let (k, _) = ws(k)?;
-        let (k, v) = expr(cx, 0, k)?;
-        value = Some(v);
-        j = k;
-        loop {
-            let (k, _) = ws(j)?;
-            let Ok((k2, name)) = ident(k) else { break };
-            let (k2, _) = ws(k2)?;
-            let (k2, _) = punct(b'=')(k2)?;
-            let (k2, _) = ws(k2)?;
-            let (k2, v) = expr(cx, 0, k2)?;
-            options.push((cx.span_of(name), v));
-            j = k2;
-        }
-    }
-    let (r, _) = ws(j)?;
+    let e = |x| expr(cx, 0, x);
+    let signal = |x| path(cx, 0, x);
+    let option = separated_pair(ident, tok(punct(b'=')), tok(e));
+    let on = map(
+        preceded(
+            keyword("ON"),
+            tuple((
+                tok(signal),
+                preceded(tok(punct(b'=')), tok(e)),
+                many0(tok(option)),
+            )),
+        ),
+        |(signal, value, options)| (true, signal, Some(value), options),
+    );
+    let off = map(preceded(keyword("OFF"), tok(signal)), |signal| {
+        (false, signal, None, Vec::new())
+    });
+    let (r, (word, (on, signal, value, options))) =
+        terminated(pair(terminated(ident, ws), alt((on, off))), ws)(i)?;
     let a = Anout {
-        input,
+        input: word.eq_ignore_ascii_case(b"ANIN"),
         on,
         signal,
         value,
-        options,
+        options: options
+            .into_iter()
+            .map(|(name, v)| (cx.span_of(name), v))
+            .collect(),
     };
     Ok((r, Line::Simple(StmtKind::Anout(Box::new(a)))))
 }
 
+/// brake_line: `BRAKE` or `BRAKE F`.
 fn brake_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, _) = keyword("BRAKE")(i)?;
-    let (j, _) = ws(j)?;
-    if j.is_empty() {
-        return Ok((j, Line::Simple(StmtKind::Brake(None))));
-    }
-    let (r, f) = keyword("F")(j)?;
-    Ok((r, Line::Simple(StmtKind::Brake(Some(cx.span_of(f))))))
+    map(preceded(keyword("BRAKE"), tok(opt(keyword("F")))), |f| {
+        Line::Simple(StmtKind::Brake(f.map(|f| cx.span_of(f))))
+    })(i)
 }
 
+/// return_line: `RETURN [value]`.
 fn return_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, _) = keyword("RETURN")(i)?;
-    let (j, _) = ws(j)?;
-    if j.is_empty() {
-        return Ok((j, Line::Simple(StmtKind::Return(None))));
-    }
-    let (r, e) = expr(cx, 0, j)?;
-    Ok((r, Line::Simple(StmtKind::Return(Some(Box::new(e))))))
+    map(
+        preceded(keyword("RETURN"), tok(opt(|x| expr(cx, 0, x)))),
+        |e| Line::Simple(StmtKind::Return(e.map(Box::new))),
+    )(i)
 }
 
-/// `WAIT FOR cond` / `WAIT SEC time`.
+/// wait_line: `WAIT FOR cond` / `WAIT SEC time`.
 fn wait_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, _) = keyword("WAIT")(i)?;
-    let (j, _) = ws(j)?;
-    if let Ok((k, _)) = keyword("FOR")(j) {
+    let wait_for = |k: &'a [u8]| -> PResult<'a, Line> {
         let e = lenient(cx, k)?;
-        return Ok((&i[i.len()..], Line::Simple(StmtKind::WaitFor(Box::new(e)))));
-    }
-    let (k, _) = keyword("SEC")(j)?;
-    let (k, _) = ws(k)?;
-    let (r, e) = expr(cx, 0, k)?;
-    Ok((r, Line::Simple(StmtKind::WaitSec(Box::new(e)))))
+        Ok((&k[k.len()..], Line::Simple(StmtKind::WaitFor(Box::new(e)))))
+    };
+    let wait_sec = map(preceded(keyword("SEC"), tok(|x| expr(cx, 0, x))), |e| {
+        Line::Simple(StmtKind::WaitSec(Box::new(e)))
+    });
+    preceded(
+        keyword("WAIT"),
+        tok(alt((preceded(keyword("FOR"), wait_for), wait_sec))),
+    )(i)
 }
 
-/// `INTERRUPT DECL prio WHEN cond DO action` / `INTERRUPT ON|OFF|ENABLE|DISABLE [n]`.
+/// interrupt_line: `INTERRUPT DECL prio WHEN cond DO action` / `INTERRUPT
+/// ON|OFF|ENABLE|DISABLE [n]`.
 fn interrupt_line<'a>(cx: Cx<'a>, global: Option<Span>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, _) = keyword("INTERRUPT")(i)?;
-    let (j, _) = ws(j)?;
-    if let Ok((k, _)) = keyword("DECL")(j) {
-        let (k, _) = ws(k)?;
-        let (k, prio) = expr(cx, 0, k)?;
-        let (k, _) = ws(k)?;
-        let (k, _) = keyword("WHEN")(k)?;
-        let (k, _) = ws(k)?;
-        let (k, cond) = expr(cx, 0, k)?;
-        let (k, _) = ws(k)?;
-        let (k, _) = keyword("DO")(k)?;
-        let (k, _) = ws(k)?;
-        let (r, action) = action(cx, k)?;
-        let it = Interrupt::Decl {
+    let e = |x| expr(cx, 0, x);
+    let decl = map(
+        tuple((
+            preceded(keyword("DECL"), tok(e)),
+            preceded(tok(keyword("WHEN")), tok(e)),
+            preceded(tok(keyword("DO")), tok(|x| action(cx, x))),
+        )),
+        |(prio, cond, action)| Interrupt::Decl {
             global,
             prio,
             cond,
             action,
-        };
-        return Ok((r, Line::Simple(StmtKind::Interrupt(Box::new(it)))));
-    }
-    let (k, op) = ident(j)?;
-    if ![&b"ON"[..], b"OFF", b"ENABLE", b"DISABLE"]
-        .iter()
-        .any(|w| op.eq_ignore_ascii_case(w))
-    {
-        return backtrack(j);
-    }
-    let (k, _) = ws(k)?;
-    let (r, number) = if k.is_empty() {
-        (k, None)
-    } else {
-        let (r, e) = expr(cx, 0, k)?;
-        (r, Some(e))
-    };
-    let it = Interrupt::Control {
+        },
+    );
+    let op = alt((
+        keyword("ON"),
+        keyword("OFF"),
+        keyword("ENABLE"),
+        keyword("DISABLE"),
+    ));
+    let control = map(pair(op, tok(opt(e))), |(op, number)| Interrupt::Control {
         op: cx.span_of(op),
         number,
-    };
-    Ok((r, Line::Simple(StmtKind::Interrupt(Box::new(it)))))
+    });
+    map(preceded(keyword("INTERRUPT"), tok(alt((decl, control)))), |it| {
+        Line::Simple(StmtKind::Interrupt(Box::new(it)))
+    })(i)
 }
 
-/// `TRIGGER WHEN (DISTANCE|PATH) = v [ONSTART] [DELAY = d] DO action [PRIO = p]`.
+/// trigger_line: `TRIGGER WHEN (DISTANCE|PATH) = v [ONSTART] [DELAY = d] DO action
+/// [PRIO = p]`.
 fn trigger_line<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Line> {
-    let (j, _) = keyword("TRIGGER")(i)?;
-    let (j, _) = ws(j)?;
-    let (j, _) = keyword("WHEN")(j)?;
-    let (j, _) = ws(j)?;
-    let (j, w) = ident(j)?;
-    let when = if w.eq_ignore_ascii_case(b"DISTANCE") {
-        TriggerWhen::Distance
-    } else if w.eq_ignore_ascii_case(b"PATH") {
-        TriggerWhen::Path
-    } else {
-        return backtrack(j);
-    };
-    let (j, _) = ws(j)?;
-    let (j, _) = punct(b'=')(j)?;
-    let (j, _) = ws(j)?;
-    let (mut j, value) = expr(cx, 0, j)?;
-    let mut onstart = None;
-    let mut delay = None;
-    loop {
-        let (k, _) = ws(j)?;
-        if let Ok((k2, o)) = keyword("ONSTART")(k) {
-            onstart = Some(cx.span_of(o));
-            j = k2;
-        } else if let Ok((k2, _)) = keyword("DELAY")(k) {
-            let (k2, _) = ws(k2)?;
-            let (k2, _) = punct(b'=')(k2)?;
-            let (k2, _) = ws(k2)?;
-            let (k2, d) = expr(cx, 0, k2)?;
-            delay = Some(d);
-            j = k2;
-        } else {
-            j = k;
-            break;
-        }
-    }
-    let (j, _) = keyword("DO")(j)?;
-    let (j, _) = ws(j)?;
-    let (mut r, act) = action(cx, j)?;
-    let mut prio = None;
-    let (k, _) = ws(r)?;
-    if let Ok((k, _)) = keyword("PRIO")(k) {
-        let (k, _) = ws(k)?;
-        let (k, _) = punct(b'=')(k)?;
-        let (k, _) = ws(k)?;
-        let (k, p) = expr(cx, 0, k)?;
-        prio = Some(p);
-        r = k;
-    }
+    let e = |x| expr(cx, 0, x);
+    let setting = |word| preceded(pair(keyword(word), tok(punct(b'='))), tok(e));
+    let when = alt((
+        value(TriggerWhen::Distance, keyword("DISTANCE")),
+        value(TriggerWhen::Path, keyword("PATH")),
+    ));
+    // `ONSTART` and `DELAY = d` in any order, the last of each kept.
+    let options = fold_many0(
+        tok(alt((
+            map(keyword("ONSTART"), |o| (Some(o), None)),
+            map(setting("DELAY"), |d| (None, Some(d))),
+        ))),
+        || (None, None),
+        |(onstart, delay), (o, d)| (o.or(onstart), d.or(delay)),
+    );
+    let (r, (when, value, (onstart, delay), action, prio)) = preceded(
+        pair(keyword("TRIGGER"), tok(keyword("WHEN"))),
+        tuple((
+            tok(when),
+            preceded(tok(punct(b'=')), tok(e)),
+            options,
+            preceded(tok(keyword("DO")), tok(|x| action(cx, x))),
+            opt(tok(setting("PRIO"))),
+        )),
+    )(i)?;
     let t = Trigger {
         when,
         value,
-        onstart,
+        onstart: onstart.map(|o| cx.span_of(o)),
         delay,
-        action: act,
+        action,
         prio,
     };
     Ok((r, Line::Simple(StmtKind::Trigger(Box::new(t)))))
 }
 
-/// A call or an assignment (the `DO` part of interrupts and triggers).
+/// action: a call or an assignment (the `DO` part of interrupts and triggers). An assignment
+/// that fails in any way leaves the line to the call.
 fn action<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Action> {
-    if let Ok((r, a)) = assignment(cx, i) {
-        return Ok((r, Action::Assign(a)));
-    }
-    let (r, c) = call(cx, 0, i)?;
-    Ok((r, Action::Call(c)))
+    alt((
+        map(only_backtracks(|x| assignment(cx, x)), Action::Assign),
+        map(|x| call(cx, 0, x), Action::Call),
+    ))(i)
 }
 
-/// `path = expr`.
+/// assignment: `path = expr` (not `==`).
 fn assignment<'a>(cx: Cx<'a>, i: &'a [u8]) -> PResult<'a, Assign> {
-    let (j, lhs) = path(cx, 0, i)?;
-    let (j, _) = ws(j)?;
-    let (j, _) = punct(b'=')(j)?;
-    if j.first() == Some(&b'=') {
-        return backtrack(j);
-    }
-    let (j, _) = ws(j)?;
-    let (r, rhs) = expr(cx, 0, j)?;
-    Ok((r, Assign { lhs, rhs }))
+    map(
+        separated_pair(
+            |x| path(cx, 0, x),
+            tok(terminated(punct(b'='), not(punct(b'=')))),
+            tok(|x| expr(cx, 0, x)),
+        ),
+        |(lhs, rhs)| Assign { lhs, rhs },
+    )(i)
 }
 
-/// Labels, assignments, calls, user-type declarations; anything else is opaque.
+/// other_line: labels, assignments, calls, user-type declarations; anything else is opaque.
+/// Dispatched on what follows the first name, as `statement` is on the first word.
 fn other_line<'a>(cx: Cx<'a>, file: FileKind, i: &'a [u8]) -> PResult<'a, Line> {
     let (j, name) = ident(i)?;
     let (k, blanks) = ws(j)?;
     match k.first() {
-        Some(b':') if ws(&k[1..])?.0.is_empty() => Ok((
-            &i[i.len()..],
-            Line::Simple(StmtKind::Label(cx.span_of(name))),
-        )),
+        Some(b':') => {
+            let (r, _) = all_consuming(preceded(punct(b':'), ws))(k)?;
+            Ok((r, Line::Simple(StmtKind::Label(cx.span_of(name)))))
+        }
         Some(b'(') => {
             let (r, c) = call(cx, 0, i)?;
             let Expr::Call(c) = c else {
@@ -888,9 +828,9 @@ fn other_line<'a>(cx: Cx<'a>, file: FileKind, i: &'a [u8]) -> PResult<'a, Line> 
         Some(&b) if !blanks.is_empty() && (b.is_ascii_alphabetic() || b == b'_' || b == b'$') => {
             decl_line(cx, file, i)
         }
-        _ => {
-            let (r, a) = assignment(cx, i)?;
-            Ok((r, Line::Simple(StmtKind::Assign(Box::new(a)))))
-        }
+        _ => map(
+            |x| assignment(cx, x),
+            |a| Line::Simple(StmtKind::Assign(Box::new(a))),
+        )(i),
     }
 }

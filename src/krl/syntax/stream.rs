@@ -6,14 +6,12 @@
 //! byte for byte) and records it as a [`StreamedRun`] cut into windows of whole lines;
 //! [`super::SourceFile::window`] parses one window into a file of its own that shares the
 //! source bytes, with the spans and line numbers of the whole-file parse. Only lines whose
-//! meaning depends on nothing but themselves qualify (see `is_plain`), so the statements of
-//! a run can be executed in order without the variables of the routine around them.
+//! meaning depends on nothing but themselves qualify (`plain::streams` decides), so the
+//! statements of a run can be executed in order without the variables of the routine around
+//! them.
 
-use super::expr::Expr;
-use super::motion::MotionKind;
-use super::nodes::Nodes;
+use super::plain::{look, Members};
 use super::span::Span;
-use super::stmt::{Line, StmtKind};
 use super::trivia::{split_line, RawLine};
 
 /// How runs are found and cut.
@@ -64,56 +62,6 @@ impl StreamedRun {
             (Span::new(start as usize, end as usize), line)
         })
     }
-}
-
-/// System variables whose assignment changes the motion (the walker follows them).
-const MOVING_SYSTEM_VARIABLES: [&[u8]; 3] = [b"$BASE", b"$TOOL", b"$IPO_MODE"];
-
-/// Whether a parsed line means the same wherever it stands: a `PTP`/`LIN`/`CIRC` (or their
-/// `_REL` forms, relative to where the robot is) to literal aggregates (numbers only; no
-/// `CA`, `WITH` or `:` chain), an assignment to a system
-/// variable that does not move the robot (`$VEL.CP = 0.2`, `$OUT[3] = TRUE`), `WAIT SEC`.
-pub(crate) fn is_plain(line: &Line, nodes: &Nodes, src: &[u8]) -> bool {
-    match line {
-        Line::Simple(kind) => is_plain_kind(kind, nodes, src),
-        _ => false,
-    }
-}
-
-/// [`is_plain`] of a statement's kind.
-pub(crate) fn is_plain_kind(kind: &StmtKind, nodes: &Nodes, src: &[u8]) -> bool {
-    match kind {
-        StmtKind::Motion(id) => {
-            let m = &nodes.motions[id.0 as usize];
-            use MotionKind::*;
-            matches!(m.kind, Ptp | Lin | Circ | PtpRel | LinRel | CircRel)
-                && literal(&m.target, nodes)
-                && m.aux().map_or(true, |a| literal(a, nodes))
-                && m.angle().is_none()
-                && m.with().is_empty()
-        }
-        StmtKind::Assign(a) => a.lhs.as_path().is_some_and(|p| {
-            let root = &src[p.root.range()];
-            root.first() == Some(&b'$')
-                && !MOVING_SYSTEM_VARIABLES
-                    .iter()
-                    .any(|v| root.eq_ignore_ascii_case(v))
-        }),
-        StmtKind::WaitSec(_) => true,
-        _ => false,
-    }
-}
-
-/// An aggregate of numbers only.
-fn literal(e: &Expr, nodes: &Nodes) -> bool {
-    let Expr::Aggregate(_, id) = e else {
-        return false;
-    };
-    let a = &nodes.aggregates[id.0 as usize];
-    nodes
-        .members_of(a)
-        .iter()
-        .all(|&p| nodes.member_is_number(p))
 }
 
 /// A line of a stretch not yet long enough to be a run (parsed again into the tree if the
@@ -187,7 +135,8 @@ impl Stretch {
 }
 
 /// One line as `split_line` cuts it, in 32-bit offsets (a streamed file is under 4 GiB),
-/// with its [`looks_plain`] verdict: what [`plain_lines`] hands the sequential pass.
+/// with the verdict of the fast path's look (`plain::look`): what [`plain_lines`] hands the
+/// sequential pass.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct LookedLine {
     code_start: u32,
@@ -195,18 +144,20 @@ pub(crate) struct LookedLine {
     /// The comment's span; empty for none (a comment holds at least its `;`).
     comment: (u32, u32),
     newline: u32,
+    /// The look took the line (else the sequential pass asks the parser).
     pub plain: bool,
 }
 
 impl LookedLine {
-    fn new(src: &[u8], l: &RawLine) -> LookedLine {
+    fn new(src: &[u8], l: &RawLine, members: &mut Members) -> LookedLine {
         let (c0, c1) = l.comment.unwrap_or((0, 0));
         LookedLine {
             code_start: l.code_start as u32,
             code_end: l.code_end as u32,
             comment: (c0 as u32, c1 as u32),
             newline: l.newline as u32,
-            plain: l.code_start < l.code_end && looks_plain(&src[l.code_start..l.code_end]),
+            plain: l.code_start < l.code_end
+                && look(&src[l.code_start..l.code_end], l.code_start, false, members).is_some(),
         }
     }
 
@@ -224,7 +175,7 @@ impl LookedLine {
 }
 
 /// Every line of `src[range]` cut (as `split_line` cuts them, from `range.start`, a line
-/// start) and looked at ([`looks_plain`]), in order, piece by piece: worked in parallel over
+/// start) and looked at (`plain::look`), in order, piece by piece: worked in parallel over
 /// pieces of about `piece` bytes cut at line starts, so that loading a CAM program does not
 /// cut and scan its millions of lines on one core. `src` is under 4 GiB.
 pub(crate) fn plain_lines(
@@ -250,9 +201,10 @@ pub(crate) fn plain_lines(
         .map(|w| {
             let (mut pos, end) = (w[0], w[1]);
             let mut out = Vec::with_capacity((end - pos) / 32 + 1);
+            let mut members = Members::default();
             while pos < end {
                 let l = split_line(src, pos);
-                out.push(LookedLine::new(src, &l));
+                out.push(LookedLine::new(src, &l, &mut members));
                 pos = l.next.max(pos + 1);
             }
             out
@@ -260,291 +212,11 @@ pub(crate) fn plain_lines(
         .collect()
 }
 
-/// A fast look at a line of code: `true` only for the shapes CAM systems write by the million
-/// that surely parse as plain lines — `LIN {X 1.5,Y -2,…} C_DIS` (any of `PTP`/`LIN`/`CIRC`
-/// and their `_REL` forms, an optional type before `:`, numbers `[+-]d[.d]`, approximation
-/// keywords), `$VEL.CP = 0.2`, `WAIT SEC 1`. Anything else goes to the parser and
-/// [`is_plain`]; a window checks every statement again when it is parsed (`SourceFile::window`).
-pub(crate) fn looks_plain(code: &[u8]) -> bool {
-    let mut s = Scan { b: code, p: 0 };
-    if s.b.first() == Some(&b'$') {
-        return s.system_assignment();
-    }
-    let word = s.word();
-    if word.eq_ignore_ascii_case(b"WAIT") {
-        return s.blanks()
-            && s.word().eq_ignore_ascii_case(b"SEC")
-            && s.blanks()
-            && s.number()
-            && s.end();
-    }
-    let aggregates = match word.len() {
-        3 | 4 | 7 | 8 => {
-            let kw = match word.len() {
-                7 | 8 if word[word.len() - 4..].eq_ignore_ascii_case(b"_REL") => {
-                    &word[..word.len() - 4]
-                }
-                _ => word,
-            };
-            if kw.eq_ignore_ascii_case(b"LIN") || kw.eq_ignore_ascii_case(b"PTP") {
-                1
-            } else if kw.eq_ignore_ascii_case(b"CIRC") {
-                2
-            } else {
-                return false;
-            }
-        }
-        _ => return false,
-    };
-    if !s.blanks() || !s.aggregate() {
-        return false;
-    }
-    if aggregates == 2 {
-        s.blanks();
-        if !s.eat(b',') {
-            return false;
-        }
-        s.blanks();
-        if !s.aggregate() {
-            return false;
-        }
-    }
-    loop {
-        let had_blank = s.blanks();
-        if s.end() {
-            return true;
-        }
-        let w = s.word();
-        if !had_blank || !APPROX.iter().any(|a| w.eq_ignore_ascii_case(a)) {
-            return false;
-        }
-    }
-}
-
-const APPROX: [&[u8]; 4] = [b"C_DIS", b"C_PTP", b"C_VEL", b"C_ORI"];
-
-struct Scan<'a> {
-    b: &'a [u8],
-    p: usize,
-}
-
-impl Scan<'_> {
-    fn peek(&self) -> Option<u8> {
-        self.b.get(self.p).copied()
-    }
-
-    fn end(&self) -> bool {
-        self.p == self.b.len()
-    }
-
-    fn eat(&mut self, c: u8) -> bool {
-        let yes = self.peek() == Some(c);
-        self.p += usize::from(yes);
-        yes
-    }
-
-    /// Skips spaces and tabs; whether there were any.
-    fn blanks(&mut self) -> bool {
-        let at = self.p;
-        let mut p = at;
-        while p < self.b.len() && matches!(self.b[p], b' ' | b'\t') {
-            p += 1;
-        }
-        self.p = p;
-        p > at
-    }
-
-    /// An identifier (empty when none starts here).
-    fn word(&mut self) -> &[u8] {
-        let at = self.p;
-        let b = self.b;
-        if b.get(at)
-            .is_some_and(|&c| c.is_ascii_alphabetic() || c == b'_')
-        {
-            let mut p = at + 1;
-            while p < b.len() && is_word(b[p]) {
-                p += 1;
-            }
-            self.p = p;
-        }
-        &b[at..self.p]
-    }
-
-    fn digits(&mut self) -> usize {
-        let at = self.p;
-        // On a local index: `self.p` stored back once, not at every digit.
-        let mut p = at;
-        while p < self.b.len() && self.b[p].is_ascii_digit() {
-            p += 1;
-        }
-        self.p = p;
-        p - at
-    }
-
-    /// `[+-] d+ [. d+]` or `[+-] . d+`, at most 15 digits, not followed by a name character.
-    fn number(&mut self) -> bool {
-        match number_end(self.b, self.p) {
-            Some(end) => {
-                self.p = end;
-                true
-            }
-            None => false,
-        }
-    }
-
-    /// `{ [TYPE:] NAME number {, NAME number} }`.
-    fn aggregate(&mut self) -> bool {
-        if !self.eat(b'{') {
-            return false;
-        }
-        self.blanks();
-        let save = self.p;
-        if !self.word().is_empty() {
-            self.blanks();
-            if self.eat(b':') {
-                self.blanks();
-            } else {
-                self.p = save;
-            }
-        }
-        // The members on a local index: the look's hot loop (a CAM program is made of them).
-        let b = self.b;
-        let blanks = |mut p: usize| {
-            while p < b.len() && matches!(b[p], b' ' | b'\t') {
-                p += 1;
-            }
-            p
-        };
-        let mut p = self.p;
-        loop {
-            if p >= b.len() || !(b[p].is_ascii_alphabetic() || b[p] == b'_') {
-                return false;
-            }
-            p += 1;
-            while p < b.len() && is_word(b[p]) {
-                p += 1;
-            }
-            let at = blanks(p);
-            if at == p {
-                return false;
-            }
-            let Some(end) = number_end(b, at) else {
-                return false;
-            };
-            // The usual next member, right after the number's `,`.
-            if b.get(end) == Some(&b',') {
-                p = blanks(end + 1);
-                continue;
-            }
-            p = blanks(end);
-            match b.get(p) {
-                Some(b'}') => {
-                    self.p = p + 1;
-                    return true;
-                }
-                Some(b',') => p = blanks(p + 1),
-                _ => return false,
-            }
-        }
-    }
-
-    /// `$NAME{.NAME|[d]} = number|TRUE|FALSE` to a system variable that does not move the
-    /// robot.
-    fn system_assignment(&mut self) -> bool {
-        self.p = 1;
-        let root = self.word();
-        if root.is_empty()
-            || MOVING_SYSTEM_VARIABLES
-                .iter()
-                .any(|v| root.eq_ignore_ascii_case(&v[1..]))
-        {
-            return false;
-        }
-        loop {
-            if self.eat(b'.') {
-                if self.word().is_empty() {
-                    return false;
-                }
-            } else if self.eat(b'[') {
-                if self.digits() == 0 || !self.eat(b']') {
-                    return false;
-                }
-            } else {
-                break;
-            }
-        }
-        self.blanks();
-        if !self.eat(b'=') {
-            return false;
-        }
-        self.blanks();
-        let save = self.p;
-        let w = self.word();
-        if w.eq_ignore_ascii_case(b"TRUE") || w.eq_ignore_ascii_case(b"FALSE") {
-            return self.end();
-        }
-        self.p = save;
-        self.number() && self.end()
-    }
-}
-
-/// Bytes of a name: `A-Z a-z 0-9 _`.
-static WORD: [bool; 256] = {
-    let mut t = [false; 256];
-    let mut b = 0;
-    while b < 256 {
-        let c = b as u8;
-        t[b] = c.is_ascii_alphanumeric() || c == b'_';
-        b += 1;
-    }
-    t
-};
-
-/// A byte of a name (one table lookup in the look's loops).
-#[inline]
-fn is_word(c: u8) -> bool {
-    WORD[usize::from(c)]
-}
-
-/// Where the number [`Scan::number`] takes at `p` ends: `[+-] d+ [. d+]` or `[+-] . d+`, at
-/// most 15 digits, not followed by a name character or a dot.
-fn number_end(b: &[u8], mut p: usize) -> Option<usize> {
-    if p < b.len() && matches!(b[p], b'+' | b'-') {
-        p += 1;
-    }
-    let digits = |mut p: usize| {
-        while p < b.len() && b[p].is_ascii_digit() {
-            p += 1;
-        }
-        p
-    };
-    let int_end = digits(p);
-    let int = int_end - p;
-    p = int_end;
-    let dot = p < b.len() && b[p] == b'.';
-    let frac = if dot {
-        let end = digits(p + 1);
-        let frac = end - (p + 1);
-        p = end;
-        frac
-    } else {
-        0
-    };
-    let ok = (int > 0 || frac > 0) && int + frac <= 15 && (frac > 0 || !dot);
-    let glued = p < b.len() && (is_word(b[p]) || b[p] == b'.');
-    (ok && !glued).then_some(p)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::krl::syntax::lex::Cx;
-    use crate::krl::syntax::stmt;
-    use crate::krl::syntax::tree::FileKind;
-    use proptest::prelude::*;
-    use std::cell::RefCell;
 
-    /// The parallel look gives each line's `looks_plain`, cut in pieces of any size: CRLF
+    /// The parallel look gives each line's `plain::look`, cut in pieces of any size: CRLF
     /// and LF lines, blank and comment lines, a `;` in a string, a last line without a
     /// newline, a BOM.
     #[test]
@@ -556,7 +228,9 @@ mod tests {
         let mut pos = 0;
         while pos < src.len() {
             let l = split_line(src, pos);
-            want.push(l.code_start < l.code_end && looks_plain(&src[l.code_start..l.code_end]));
+            let code = &src[l.code_start..l.code_end];
+            let mut members = Members::default();
+            want.push(!code.is_empty() && look(code, l.code_start, false, &mut members).is_some());
             cuts.push(l);
             pos = l.next.max(pos + 1);
         }
@@ -577,182 +251,6 @@ mod tests {
             let lines = flat(&plain_lines(src, from..src.len(), piece));
             assert_eq!(verdicts(&lines), want[skip..]);
             assert_eq!(cut(&lines), cuts[skip..]);
-        }
-    }
-
-    /// What the parser says of a line: plain or not.
-    fn parsed_plain(code: &[u8]) -> bool {
-        let nodes = RefCell::new(Nodes::default());
-        let cx = Cx::new(code, &nodes);
-        match stmt::line(cx, FileKind::Src, code) {
-            Ok(l) => is_plain(&l, &nodes.borrow(), code),
-            Err(_) => false,
-        }
-    }
-
-    #[test]
-    fn the_quick_look_knows_cam_lines() {
-        for yes in [
-            "LIN {X 0.000,Y 0.000,Z -1.000,A 0.000,B 94.500,C 0.000} C_DIS",
-            "lin {x 1, y -2.5} c_dis C_ORI",
-            "PTP {E6AXIS: A1 -12.5,A2 -85,A3 105,A4 0,A5 70,A6 -12.5,E1 0}",
-            "CIRC {X 1,Y 2}, {X 3,Y 4}",
-            "LIN_REL {Z 5.000} C_DIS",
-            "$VEL.CP = 0.080",
-            "$OUT[12] = TRUE",
-            "WAIT SEC 2.0",
-        ] {
-            assert!(looks_plain(yes.as_bytes()), "{yes}");
-            assert!(parsed_plain(yes.as_bytes()), "{yes}");
-        }
-        for no in [
-            "LIN P1",
-            "LIN {X 1} C_DIS C_FOO",
-            "LIN {X a}",
-            "LIN {X 1E3}",
-            "LIN {X 1.}",
-            "LIN_REL {Z 5} #TOOL",
-            "CIRC {X 1,Y 2}, {X 3,Y 4}, CA 90",
-            "$BASE = {X 1}",
-            "$TOOL.X = 3",
-            "$VEL.CP = speed",
-            "LIN {X 1}:{X 2}",
-            "SLIN {X 1}",
-        ] {
-            assert!(!looks_plain(no.as_bytes()), "{no}");
-        }
-    }
-
-    /// The look's aggregate and number as first written (a cursor stepped byte by byte),
-    /// which the scan on a local index must agree with.
-    struct Stepped<'a> {
-        b: &'a [u8],
-        p: usize,
-    }
-
-    impl Stepped<'_> {
-        fn peek(&self) -> Option<u8> {
-            self.b.get(self.p).copied()
-        }
-
-        fn eat(&mut self, c: u8) -> bool {
-            let yes = self.peek() == Some(c);
-            self.p += usize::from(yes);
-            yes
-        }
-
-        fn blanks(&mut self) -> bool {
-            let at = self.p;
-            while matches!(self.peek(), Some(b' ' | b'\t')) {
-                self.p += 1;
-            }
-            self.p > at
-        }
-
-        fn word(&mut self) -> bool {
-            let at = self.p;
-            if self
-                .peek()
-                .is_some_and(|c| c.is_ascii_alphabetic() || c == b'_')
-            {
-                self.p += 1;
-                while self
-                    .peek()
-                    .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_')
-                {
-                    self.p += 1;
-                }
-            }
-            self.p > at
-        }
-
-        fn digits(&mut self) -> usize {
-            let at = self.p;
-            while self.peek().is_some_and(|c| c.is_ascii_digit()) {
-                self.p += 1;
-            }
-            self.p - at
-        }
-
-        fn number(&mut self) -> bool {
-            if matches!(self.peek(), Some(b'+' | b'-')) {
-                self.p += 1;
-            }
-            let int = self.digits();
-            let frac = if self.eat(b'.') { self.digits() } else { 0 };
-            let ok = (int > 0 || frac > 0)
-                && int + frac <= 15
-                && (frac > 0 || self.b[self.p - 1] != b'.');
-            ok && !self
-                .peek()
-                .is_some_and(|c| c.is_ascii_alphanumeric() || c == b'_' || c == b'.')
-        }
-
-        fn aggregate(&mut self) -> bool {
-            if !self.eat(b'{') {
-                return false;
-            }
-            self.blanks();
-            let save = self.p;
-            if self.word() {
-                self.blanks();
-                if self.eat(b':') {
-                    self.blanks();
-                } else {
-                    self.p = save;
-                }
-            }
-            loop {
-                if !self.word() || !self.blanks() || !self.number() {
-                    return false;
-                }
-                self.blanks();
-                if self.eat(b'}') {
-                    return true;
-                }
-                if !self.eat(b',') {
-                    return false;
-                }
-                self.blanks();
-            }
-        }
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(4000))]
-        /// The look's aggregate and number take what the byte-stepped cursor takes, and stop
-        /// where it stops.
-        #[test]
-        fn the_scan_is_the_stepped_cursor(
-            text in "\\{[ \t]{0,2}([A-Za-z_][A-Za-z0-9_]{0,3}[ ]?:[ ]?)?([A-Za-z_0-9][A-Za-z0-9_]{0,2}[ \t]{0,2}[-+]?[0-9]{0,9}\\.?[0-9]{0,9}[A-Za-z_.]?[ \t]{0,2}[,}]?[ ]?){0,7}[} ]?[A-Z ]{0,3}",
-            number in "[ ]?[-+]?[0-9]{0,10}\\.?[0-9]{0,9}[.A-Za-z_ ,}]?",
-        ) {
-            for (t, is_number) in [(&text, false), (&number, true)] {
-                let mut old = Stepped { b: t.as_bytes(), p: 0 };
-                let mut new = Scan { b: t.as_bytes(), p: 0 };
-                let (a, b) = if is_number {
-                    (old.number(), new.number())
-                } else {
-                    (old.aggregate(), new.aggregate())
-                };
-                prop_assert_eq!(a, b, "{}", t);
-                if a {
-                    prop_assert_eq!(old.p, new.p, "{}", t);
-                }
-            }
-        }
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(2000))]
-        /// Never plain by the quick look where the parser says otherwise.
-        #[test]
-        fn the_quick_look_is_sound(
-            line in "(LIN|PTP|CIRC|lin|Ptp_Rel|LIN_REL|WAIT SEC|\\$VEL\\.CP|\\$BASE|\\$OUT\\[1\\])[ \t]{0,2}[=]?[ ]?\\{?[A-Za-z0-9_:, .+\\-]{0,30}\\}?[ ,]{0,2}\\{?[A-Z0-9 ,.\\-]{0,12}\\}?( C_DIS| C_PTP| CA 9| #TOOL)?",
-        ) {
-            if looks_plain(line.as_bytes()) {
-                prop_assert!(parsed_plain(line.as_bytes()), "{line}");
-            }
         }
     }
 }

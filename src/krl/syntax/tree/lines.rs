@@ -9,12 +9,10 @@ use crate::krl::syntax::error::Problem;
 use crate::krl::syntax::fold::{Fold, FoldId, FoldTracker};
 use crate::krl::syntax::lex::Cx;
 use crate::krl::syntax::nodes::Nodes;
-use crate::krl::syntax::plain;
+use crate::krl::syntax::plain::{self, Members};
 use crate::krl::syntax::span::Span;
-use crate::krl::syntax::stmt::{self, Line, Stmt, StmtKind};
-use crate::krl::syntax::stream::{
-    is_plain, looks_plain, Held, LookedLine, StreamOptions, StreamedRun, Stretch,
-};
+use crate::krl::syntax::stmt::{Line, Stmt, StmtKind};
+use crate::krl::syntax::stream::{Held, LookedLine, StreamOptions, StreamedRun, Stretch};
 use crate::krl::syntax::trivia::RawLine;
 use std::cell::RefCell;
 
@@ -38,6 +36,11 @@ pub(super) struct LineParse<'s> {
     /// Plain lines of the main routine collected for a run (see `stream`).
     stretch: Option<Stretch>,
     runs: Vec<StreamedRun>,
+    /// The fast path's buffer of members when it decides whether a line streams.
+    members: Members,
+    /// The pool the fallback parses into when it decides whether a line streams
+    /// (`plain::streams`), emptied after each line.
+    scratch: RefCell<Nodes>,
 }
 
 /// What a finished [`LineParse`] gives the file.
@@ -76,6 +79,8 @@ impl<'s> LineParse<'s> {
             pending: range.start,
             stretch: None,
             runs: Vec::new(),
+            members: Members::default(),
+            scratch: RefCell::default(),
         }
     }
 
@@ -114,9 +119,9 @@ impl<'s> LineParse<'s> {
         if !self.blocks.in_main_body() || self.folds.current().is_some() {
             return false;
         }
-        let src = self.src;
-        let text = &src[code.range()];
-        let plain = hint.map_or_else(|| looks_plain(text), |h| h.plain) || self.parses_plain(text);
+        let looked = hint.map(|h| h.plain);
+        let (src, kind) = (self.src, self.kind);
+        let plain = plain::streams(src, kind, code, looked, &self.scratch, &mut self.members);
         if plain {
             let held = Held {
                 code,
@@ -133,23 +138,11 @@ impl<'s> LineParse<'s> {
         plain
     }
 
-    /// Whether a line the quick look declined is plain after all, parsed (its nodes dropped).
-    fn parses_plain(&self, text: &[u8]) -> bool {
-        let nodes = self.cx.nodes;
-        let mark = nodes.borrow().mark();
-        let parsed = stmt::line(self.cx, self.kind, text);
-        let plain = parsed.is_ok_and(|parsed| is_plain(&parsed, &nodes.borrow(), self.src));
-        nodes.borrow_mut().reset(mark);
-        plain
-    }
-
     /// A line of code into the tree (parsed; an unreadable line recorded as a problem).
     fn feed(&mut self, code: Span, leading: Span, line: u32, fold: Option<FoldId>) {
         let src = self.src;
         let text = &src[code.range()];
-        // A CAM motion line is read directly (the nodes the parser would build).
-        let read = plain::motion_line(self.cx, text)
-            .map_or_else(|| stmt::line(self.cx, self.kind, text), Ok);
+        let read = plain::read(self.cx, self.kind, text);
         let parsed = match read {
             Ok(parsed) => parsed,
             Err(Some(e)) => {

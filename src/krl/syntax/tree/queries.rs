@@ -12,7 +12,8 @@ use crate::krl::syntax::motion::Motion;
 use crate::krl::syntax::nodes::{AggregateId, Members, MotionId};
 use crate::krl::syntax::span::Span;
 use crate::krl::syntax::stmt::{Stmt, StmtKind};
-use crate::krl::syntax::stream::{is_plain_kind, StreamedRun};
+use crate::krl::syntax::plain::is_plain_kind;
+use crate::krl::syntax::stream::StreamedRun;
 use std::borrow::Cow;
 use std::sync::Arc;
 
@@ -78,7 +79,7 @@ impl SourceFile {
     ///
     /// Every statement of a window must be plain (the reason it was left out of the tree);
     /// one that is not, or a line that does not parse, is an error of the window (a bug of
-    /// the quick look that chose the run's lines: the caller must not use the window).
+    /// `plain::streams`, which chose the run's lines: the caller must not use the window).
     pub fn window(&self, (bytes, first_line): (Span, u32)) -> SourceFile {
         // Walked at once: the plain members' values are kept (`Nodes::member_values`).
         let opts = BuildOptions {
