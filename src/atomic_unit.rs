@@ -86,11 +86,7 @@ pub fn hold(dir: &Path) {
 }
 
 fn held(dir: &Path) -> bool {
-    dir_id(dir).is_some_and(|id| {
-        HELD.lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .contains(&id)
-    })
+    dir_id(dir).is_some_and(|id| HELD.lock().unwrap_or_else(|p| p.into_inner()).contains(&id))
 }
 
 /// `path`'s directory (`.` for a bare name).

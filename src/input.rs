@@ -53,7 +53,10 @@ pub fn read(path: &Path) -> io::Result<Vec<u8>> {
     if meta.is_file() {
         // Read straight into a buffer of the file's size.
         let mut buf = Vec::with_capacity(meta.len() as usize);
-        reader.get_mut().take(limit().saturating_add(1)).read_to_end(&mut buf)?;
+        reader
+            .get_mut()
+            .take(limit().saturating_add(1))
+            .read_to_end(&mut buf)?;
         if buf.len() as u64 > limit() {
             return Err(too_large(limit()));
         }
@@ -84,7 +87,11 @@ pub fn is_utf16(bytes: &[u8]) -> bool {
     }
     let head = &bytes[..bytes.len().min(256)];
     let pairs = head.len() / 2;
-    let nul_at = |k: usize| head.chunks_exact(2).filter(|p| p[k] == 0 && p[1 - k] != 0).count();
+    let nul_at = |k: usize| {
+        head.chunks_exact(2)
+            .filter(|p| p[k] == 0 && p[1 - k] != 0)
+            .count()
+    };
     pairs >= 4 && (nul_at(1) * 10 >= pairs * 9 || nul_at(0) * 10 >= pairs * 9)
 }
 

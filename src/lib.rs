@@ -61,11 +61,6 @@ pub mod atomic_unit;
 mod atomic_unit;
 #[cfg(feature = "internals")]
 #[doc(hidden)]
-pub mod input;
-#[cfg(not(feature = "internals"))]
-mod input;
-#[cfg(feature = "internals")]
-#[doc(hidden)]
 pub mod calibration;
 #[cfg(not(feature = "internals"))]
 mod calibration;
@@ -94,6 +89,11 @@ mod diagnostic;
 pub mod identify;
 #[cfg(not(feature = "internals"))]
 mod identify;
+#[cfg(feature = "internals")]
+#[doc(hidden)]
+pub mod input;
+#[cfg(not(feature = "internals"))]
+mod input;
 #[cfg(feature = "internals")]
 #[doc(hidden)]
 pub mod kinematics;

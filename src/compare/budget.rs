@@ -139,7 +139,11 @@ fn campaign_lack_of_fit_mm2(
         .sum::<f64>()
         / n;
     let kept = (1.0 - parameters as f64 / (3.0 * n)).max(0.0);
-    [(measured - tracker * kept).max(0.0), measured, tracker * kept]
+    [
+        (measured - tracker * kept).max(0.0),
+        measured,
+        tracker * kept,
+    ]
 }
 
 fn signed_root(v: f64) -> f64 {
@@ -277,7 +281,11 @@ pub fn budget(
             pairs.iter().map(|&i| neighbours[i]).sum::<f64>() / pairs.len().max(1) as f64;
         let form = systematic - identification_shared;
         let explained = tracker + identification + form + time_ms;
-        let offset = chosen.iter().map(|&i| points[i].residual()).sum::<Vector3<f64>>() / n;
+        let offset = chosen
+            .iter()
+            .map(|&i| points[i].residual())
+            .sum::<Vector3<f64>>()
+            / n;
         Parts {
             points: chosen.len(),
             measured_um: measured.sqrt() * 1e3,

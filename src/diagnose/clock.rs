@@ -18,9 +18,11 @@ const MIN_SPREAD: f64 = 0.5;
 
 /// The most-repeated pose's visits spread over the data's time span (0..1), and its visits.
 pub fn repeated_pose_spread(rows: &[Row]) -> (f64, usize) {
-    let (lo, hi) = rows.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
-        (lo.min(r.state.time_s), hi.max(r.state.time_s))
-    });
+    let (lo, hi) = rows
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r.state.time_s), hi.max(r.state.time_s))
+        });
     if !(hi > lo) {
         return (0.0, 0);
     }
@@ -79,7 +81,12 @@ mod tests {
         let home = [0.0, -60.0, 100.0, 0.0, 45.0, 0.0];
         // A1 swept 1..100° (never the home pose's 0°), one pose every 10 s.
         let mut rows: Vec<Row> = (0..100)
-            .map(|k| row([k as f64 + 1.0, -60.0, 100.0, 0.0, 45.0, 0.0], 10.0 * k as f64))
+            .map(|k| {
+                row(
+                    [k as f64 + 1.0, -60.0, 100.0, 0.0, 45.0, 0.0],
+                    10.0 * k as f64,
+                )
+            })
             .collect();
         // Every pose once: the clock and the A1 angle are the same driver.
         assert!(!tells_time_from_pose(&rows));

@@ -74,7 +74,11 @@ pub struct Score {
 impl Score {
     /// Scores held-out predictions `after` (`None`: not predicted) against `before`.
     #[cfg_attr(feature = "internals", visibility::make(pub))]
-    pub(crate) fn new(plan: &Plan, before: &[Vector3<f64>], after: &[Option<Vector3<f64>>]) -> Score {
+    pub(crate) fn new(
+        plan: &Plan,
+        before: &[Vector3<f64>],
+        after: &[Option<Vector3<f64>>],
+    ) -> Score {
         let mut gains = Vec::new();
         let (mut ss_before, mut ss_after) = (0.0, 0.0);
         let mut fold_gain = Vec::new();

@@ -363,12 +363,7 @@ struct Normal {
 }
 
 impl Normal {
-    fn new(
-        model: &Model,
-        points: &[Point],
-        spec: &Spec,
-        blocks: &Blocks,
-    ) -> Normal {
+    fn new(model: &Model, points: &[Point], spec: &Spec, blocks: &Blocks) -> Normal {
         let outputs: Vec<Vec<(usize, f64)>> = spec
             .action
             .outputs(&model.robot)
@@ -451,7 +446,12 @@ impl Normal {
     fn accumulate(&mut self, points: &[Point], blocks: &Blocks) {
         let p = self.size();
         let (mut a, mut g, mut c, mut xts) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for ((members, m), r) in blocks.members.iter().zip(&blocks.model).zip(&blocks.residual) {
+        for ((members, m), r) in blocks
+            .members
+            .iter()
+            .zip(&blocks.model)
+            .zip(&blocks.residual)
+        {
             // Xᵀ, one column per coordinate of every point of the cell.
             let mut xt = DMatrix::zeros(p, 3 * members.len());
             for (row, &i) in members.iter().enumerate() {
@@ -582,7 +582,13 @@ fn model_part(pt: &Point, a: &DVector<f64>) -> Vector3<f64> {
 
 /// The partialled correction X̃·w = X·w − M·(B·w) at point `i`.
 /// `bw` is B·w ([`b_times`]), the same for every point.
-fn partial_predict(normal: &Normal, bw: &DVector<f64>, pt: &Point, i: usize, w: &[f64]) -> Vector3<f64> {
+fn partial_predict(
+    normal: &Normal,
+    bw: &DVector<f64>,
+    pt: &Point,
+    i: usize,
+    w: &[f64],
+) -> Vector3<f64> {
     normal.predict(pt, i, w) - model_part(pt, bw)
 }
 

@@ -629,7 +629,11 @@ pub fn diagnose(
             let name = evaluations[i].name;
             let mut e = replace::evaluate(model, &stops, &name, &plans.tests, &grid)?;
             // Judged on the latest file as its printed command identifies it.
-            if let Some(plan) = plans.files.as_ref().filter(|_| passes_within(&e, screen_rms)) {
+            if let Some(plan) = plans
+                .files
+                .as_ref()
+                .filter(|_| passes_within(&e, screen_rms))
+            {
                 e.checks
                     .extend(replace::on_plan(model, &stops, &name, plan, &grid));
             }
@@ -641,7 +645,14 @@ pub fn diagnose(
             evaluations[i] = e;
         }
     }
-    partialled(model, &screen, &plans, screen_rms, &mut evaluations, options);
+    partialled(
+        model,
+        &screen,
+        &plans,
+        screen_rms,
+        &mut evaluations,
+        options,
+    );
     evaluations.sort_by(|a, b| b.explained.total_cmp(&a.explained));
 
     // Checks of those that pass on the stretches (a re-identified replacement has been

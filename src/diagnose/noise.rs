@@ -56,7 +56,9 @@ impl NoiseSource {
     /// In words, for the verdict.
     pub fn describe(&self) -> String {
         match self {
-            NoiseSource::Repeats { dof } => format!("from repeated points, {dof} degrees of freedom"),
+            NoiseSource::Repeats { dof } => {
+                format!("from repeated points, {dof} degrees of freedom")
+            }
             NoiseSource::TrackerSpec {
                 mean_distance_m,
                 station_assumed,

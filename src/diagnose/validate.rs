@@ -78,9 +78,11 @@ pub fn extrapolation(campaign: &[Row], validation: &[Row]) -> Vec<String> {
     drivers.push(("the reach".into(), " mm", |r| r.measured.xy().norm()));
     drivers.push(("the time".into(), " h", |r| r.state.time_s / 3600.0));
     let range = |rows: &[Row], f: fn(&Row) -> f64| {
-        rows.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-            (lo.min(x), hi.max(x))
-        })
+        rows.iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            })
     };
     let mut out = Vec::new();
     if campaign.is_empty() || validation.is_empty() {

@@ -27,8 +27,8 @@ use super::verdict::{judge, Clues, TestResidual, Verdict};
 use crate::calibration::{Calibration, ExcludedPoint, MeasurementFrame, Provenance};
 use crate::compare::Row;
 use crate::diagnose::noise::{self, NoiseFloor, ASSUMED_STATION_MM};
-use crate::measure::tracker::Tracker;
 use crate::kinematics::{Frame, Payload, RobotDescription};
+use crate::measure::tracker::Tracker;
 use crate::measure::Stop;
 use crate::model::{EffectName, Model};
 use crate::stats::{error_stats, ErrorStats};
@@ -76,7 +76,8 @@ impl Effects {
             return Err(EffectsListError::Mixed);
         }
         let stripped: Vec<&str> = items.iter().map(|s| s.trim_start_matches('+')).collect();
-        let names = crate::model::expand_list(&stripped.join(",")).map_err(EffectsListError::Name)?;
+        let names =
+            crate::model::expand_list(&stripped.join(",")).map_err(EffectsListError::Name)?;
         Ok(if adds > 0 {
             Effects::Add(names)
         } else {
@@ -467,7 +468,11 @@ pub fn identify(stops: &[Stop], request: &Request) -> Result<Identified, Identif
             let s = &stops[i];
             let m = (frames[g] * Point3::from(s.measured_mm.unwrap_or_default())).coords;
             let r = m - model.target_position(&s.state);
-            (m, r, tracker_sigma_mm(&m, &station(g, &frames), &request.tracker))
+            (
+                m,
+                r,
+                tracker_sigma_mm(&m, &station(g, &frames), &request.tracker),
+            )
         })
         .collect();
     // Their residuals less their neighbours' (as in the rounds), over all measured points.
@@ -828,7 +833,10 @@ fn noise_floor(
             (MeasurementFrame::Tracker(frame.to_pose()), frame.position)
         } else {
             let at = instrument.station_mm;
-            (MeasurementFrame::Base, at.unwrap_or(ASSUMED_STATION_MM.into()))
+            (
+                MeasurementFrame::Base,
+                at.unwrap_or(ASSUMED_STATION_MM.into()),
+            )
         };
         let mut floor = noise::estimate(&rows, &f, instrument);
         // "Repeats" scattering far beyond what a tracker does are not repeats of one pose

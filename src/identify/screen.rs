@@ -434,7 +434,11 @@ pub fn systematic(
         }
     }
     // Structures: the systematic suspects of one axis, grouped where their angles chain.
-    kept.sort_by(|a, b| (a.axis, a.angle_deg).partial_cmp(&(b.axis, b.angle_deg)).unwrap_or(std::cmp::Ordering::Equal));
+    kept.sort_by(|a, b| {
+        (a.axis, a.angle_deg)
+            .partial_cmp(&(b.axis, b.angle_deg))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
     let mut structures: Vec<Structure> = Vec::new();
     let mut group: Vec<&Located> = Vec::new();
     let flush = |group: &mut Vec<&Located>, structures: &mut Vec<Structure>| {
@@ -460,7 +464,8 @@ pub fn systematic(
     for l in &kept {
         let chained = group.last().is_some_and(|g: &&Located| {
             g.axis == l.axis
-                && l.angle_deg - g.angle_deg <= ONE_JUMP_DEG.max(2.01 * g.pitch_deg.max(l.pitch_deg))
+                && l.angle_deg - g.angle_deg
+                    <= ONE_JUMP_DEG.max(2.01 * g.pitch_deg.max(l.pitch_deg))
         });
         if !chained {
             flush(&mut group, &mut structures);

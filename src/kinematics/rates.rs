@@ -71,9 +71,7 @@ impl ArmState {
             flange_position,
             wrist,
             arm_axis: [axis[0], axis[1], axis[2]],
-            arm: Cramer::new(std::array::from_fn(|n| {
-                axis[n].cross(&(wrist - origin[n]))
-            })),
+            arm: Cramer::new(std::array::from_fn(|n| axis[n].cross(&(wrist - origin[n])))),
             wrist_axes: Cramer::new([axis[3], axis[4], axis[5]]),
         }
     }
@@ -177,8 +175,7 @@ mod tests {
             })
         };
         let at_wrist = v - w.cross(&(p - f.wrist));
-        let arm: [Vector3<f64>; 3] =
-            std::array::from_fn(|n| axis[n].cross(&(f.wrist - origin[n])));
+        let arm: [Vector3<f64>; 3] = std::array::from_fn(|n| axis[n].cross(&(f.wrist - origin[n])));
         let [q1, q2, q3] = cramer(&arm, &at_wrist)?;
         let rest = w - axis[0] * q1 - axis[1] * q2 - axis[2] * q3;
         let [q4, q5, q6] = cramer(&[axis[3], axis[4], axis[5]], &rest)?;

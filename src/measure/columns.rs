@@ -110,9 +110,7 @@ impl Measurements {
                         return Err(error(
                             row,
                             T_COLUMN,
-                            format!(
-                                "time runs backwards: t = {t} s, after {before} s on row {at}"
-                            ),
+                            format!("time runs backwards: t = {t} s, after {before} s on row {at}"),
                         ));
                     }
                     last_time = Some((t, row));
@@ -174,7 +172,10 @@ mod tests {
         assert_eq!(built.stops.len(), file.stops.len());
         assert!(built.stops.iter().any(|s| s.measured_mm.is_none()));
         for (b, f) in built.stops.iter().zip(&file.stops) {
-            assert_eq!((&b.test, &b.state, b.measured_mm), (&f.test, &f.state, f.measured_mm));
+            assert_eq!(
+                (&b.test, &b.state, b.measured_mm),
+                (&f.test, &f.state, f.measured_mm)
+            );
         }
     }
 
@@ -202,7 +203,10 @@ mod tests {
         assert_eq!((e.line, e.col), (2, 9), "{e}");
         let e = one([0.0; 6], [1.0; 3], [1.0, 0.5]).unwrap_err();
         assert_eq!((e.line, e.col), (2, 11), "{e}");
-        assert!(e.to_string().starts_with("mem:2:11: time runs backwards"), "{e}");
+        assert!(
+            e.to_string().starts_with("mem:2:11: time runs backwards"),
+            "{e}"
+        );
         let test = vec!["A1".to_string()];
         let e = Measurements::from_columns(
             "mem",

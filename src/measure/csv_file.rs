@@ -439,7 +439,11 @@ fn seen(bytes: &[u8]) -> String {
     let shown: String = header.chars().take(60).collect();
     format!(
         "the file reads as {encoding}; its header row is {separator}{}: {shown}",
-        if separator.starts_with('n') { "" } else { "-separated" }
+        if separator.starts_with('n') {
+            ""
+        } else {
+            "-separated"
+        }
     )
 }
 

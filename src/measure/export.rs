@@ -32,9 +32,8 @@ impl Unit {
     /// The unit a word names (`mm`, `millimeters`, `m`, `metre`, `in`, `inch`, `"`, `zoll`).
     pub fn parse(word: &str) -> Option<Unit> {
         match word.trim().to_lowercase().as_str() {
-            "mm" | "millimeter" | "millimeters" | "millimetre" | "millimetres" | "millimeter(s)" => {
-                Some(Unit::Mm)
-            }
+            "mm" | "millimeter" | "millimeters" | "millimetre" | "millimetres"
+            | "millimeter(s)" => Some(Unit::Mm),
             "m" | "meter" | "meters" | "metre" | "metres" | "meter(s)" => Some(Unit::M),
             "in" | "inch" | "inches" | "\"" | "zoll" => Some(Unit::Inch),
             _ => None,
@@ -85,7 +84,13 @@ pub struct Export {
 
 impl Export {
     /// A located error at `line:col` of this export.
-    pub fn error(&self, line: usize, col: usize, message: String, help: Option<&str>) -> MeasureError {
+    pub fn error(
+        &self,
+        line: usize,
+        col: usize,
+        message: String,
+        help: Option<&str>,
+    ) -> MeasureError {
         MeasureError::in_lines(&self.source, &self.lines, (line, col), message, help)
     }
 
@@ -95,7 +100,11 @@ impl Export {
             "{}, {}-separated{}, {} ({})",
             self.encoding,
             self.separator,
-            if self.decimal_comma { ", decimal comma" } else { "" },
+            if self.decimal_comma {
+                ", decimal comma"
+            } else {
+                ""
+            },
             self.unit,
             self.unit_from
         )
@@ -113,17 +122,43 @@ enum Role {
 
 /// Words that mark a column as not the measured coordinate (nominal, deviation, tolerance).
 const NOT_MEASURED: [&str; 12] = [
-    "nominal", "nom", "soll", "dev", "deviation", "delta", "d", "tol", "tolerance", "error",
-    "abw", "abweichung",
+    "nominal",
+    "nom",
+    "soll",
+    "dev",
+    "deviation",
+    "delta",
+    "d",
+    "tol",
+    "tolerance",
+    "error",
+    "abw",
+    "abweichung",
 ];
 /// Words that mark a column as the measured coordinate.
 const MEASURED: [&str; 6] = ["actual", "meas", "measured", "ist", "gemessen", "act"];
 const NAME_WORDS: [&str; 11] = [
-    "name", "point", "pointname", "punkt", "punktname", "id", "label", "target", "feature",
-    "bezeichnung", "object",
+    "name",
+    "point",
+    "pointname",
+    "punkt",
+    "punktname",
+    "id",
+    "label",
+    "target",
+    "feature",
+    "bezeichnung",
+    "object",
 ];
 const TIME_WORDS: [&str; 8] = [
-    "time", "timestamp", "date", "datetime", "zeit", "zeitstempel", "datum", "t",
+    "time",
+    "timestamp",
+    "date",
+    "datetime",
+    "zeit",
+    "zeitstempel",
+    "datum",
+    "t",
 ];
 
 /// The role of a header field, its unit (`[mm]`, `(m)`) and whether it is marked measured.
@@ -330,13 +365,19 @@ pub fn parse_export(
                 line,
                 e.col,
                 e.message,
-                Some("every row after the header must be a point; comment lines start with // or #"),
+                Some(
+                    "every row after the header must be a point; comment lines start with // or #",
+                ),
             )
         })?;
         if row.decimal_comma {
             export.decimal_comma = true;
         }
-        if row.xyz.iter().any(|v| (v * scale).abs() > super::POSITION_RANGE_MM) {
+        if row
+            .xyz
+            .iter()
+            .any(|v| (v * scale).abs() > super::POSITION_RANGE_MM)
+        {
             return Err(export.error(
                 line,
                 f.get(row.xyz_col).map_or(1, |f| f.col),
@@ -461,7 +502,9 @@ fn header_row(f: &[Field], h: &Header, sep: Separator, stream: bool) -> Result<R
 /// three numbers: Spatial Analyzer writes `collection group target X Y Z`), or for a stream
 /// `time X Y Z`.
 fn headerless_row(f: &[Field], sep: Separator, stream: bool) -> Option<Row> {
-    let decimal_comma = f.iter().any(|x| x.text.contains(',') && sep != Separator::Comma);
+    let decimal_comma = f
+        .iter()
+        .any(|x| x.text.contains(',') && sep != Separator::Comma);
     if stream {
         if f.len() < 4 {
             return None;
@@ -606,9 +649,18 @@ mod tests {
         assert_eq!(parse_time("10:15:30.25"), Some(36_930.25));
         // 1970-01-02 is day 1; 2000-03-01 is day 11,017.
         assert_eq!(parse_time("1970-01-02 00:00:01"), Some(86_401.0));
-        assert_eq!(parse_time("01.03.2000 00:00:00,5"), Some(11_017.0 * 86_400.0 + 0.5));
-        assert_eq!(parse_time("2000-03-01T00:01:00"), parse_time("03/01/2000 12:01:00 AM"));
-        assert_eq!(parse_time("03/01/2000 1:00:00 PM"), Some(11_017.0 * 86_400.0 + 46_800.0));
+        assert_eq!(
+            parse_time("01.03.2000 00:00:00,5"),
+            Some(11_017.0 * 86_400.0 + 0.5)
+        );
+        assert_eq!(
+            parse_time("2000-03-01T00:01:00"),
+            parse_time("03/01/2000 12:01:00 AM")
+        );
+        assert_eq!(
+            parse_time("03/01/2000 1:00:00 PM"),
+            Some(11_017.0 * 86_400.0 + 46_800.0)
+        );
         assert_eq!(parse_time("25:00:00"), None);
         assert_eq!(parse_time("P1"), None);
     }
@@ -619,11 +671,21 @@ mod tests {
         assert_eq!((e.unit, e.unit_from), (Unit::M, "file header"));
         assert_eq!(e.points[0].mm, Vector3::new(1500.0, 2000.0, 3000.0));
         assert_eq!(e.skipped_lines, 1);
-        let e = parse_export(b"Name,X [in],Y [in],Z [in]\nP1,1,2,3\n", "a.csv", None, false)
-            .unwrap();
+        let e = parse_export(
+            b"Name,X [in],Y [in],Z [in]\nP1,1,2,3\n",
+            "a.csv",
+            None,
+            false,
+        )
+        .unwrap();
         assert!((e.points[0].mm - Vector3::new(25.4, 50.8, 76.2)).norm() < 1e-12);
-        let e = parse_export(b"Name,X [in],Y,Z\nP1,1,2,3\n", "a.csv", Some(Unit::Mm), false)
-            .unwrap_err();
+        let e = parse_export(
+            b"Name,X [in],Y,Z\nP1,1,2,3\n",
+            "a.csv",
+            Some(Unit::Mm),
+            false,
+        )
+        .unwrap_err();
         assert!(e.message.contains("inch"), "{}", e.message);
     }
 
@@ -632,7 +694,11 @@ mod tests {
         let src = "Name;X;Y;Z\nP1;1,5;2;3\nP2;1,5;zwei;3\n";
         let e = parse_export(src.as_bytes(), "g.csv", None, false).unwrap_err();
         assert_eq!((e.line, e.col), (3, 8));
-        assert!(e.message.contains("`zwei` is not a number (Y)"), "{}", e.message);
+        assert!(
+            e.message.contains("`zwei` is not a number (Y)"),
+            "{}",
+            e.message
+        );
         let e = parse_export(b"Name;X;Y;Z\nP1;1;2\n", "g.csv", None, false).unwrap_err();
         assert_eq!(e.line, 2);
     }

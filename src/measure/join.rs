@@ -164,7 +164,11 @@ pub fn dwells(export: &Export, rule: DwellRule) -> Result<Vec<Dwell>, MeasureErr
 
 /// Joins the dwells of a stream to the plan's measured stops, in order; a count that differs
 /// is an error at the first dwell or planned stop left over.
-pub fn join_in_order(plan: &Plan, stream: &Export, found: &[Dwell]) -> Result<Joined, Vec<MeasureError>> {
+pub fn join_in_order(
+    plan: &Plan,
+    stream: &Export,
+    found: &[Dwell],
+) -> Result<Joined, Vec<MeasureError>> {
     let stops: Vec<usize> = (0..plan.stops.len())
         .filter(|&i| !plan.stops[i].point.is_empty())
         .collect();
@@ -209,14 +213,10 @@ pub fn join_in_order(plan: &Plan, stream: &Export, found: &[Dwell]) -> Result<Jo
 /// The measurement rows of `plan` with `measured[i]` at stop i; times from the export's clock
 /// shifted so that the first measured stop has its planned time (0 without one).
 fn rows(plan: &Plan, measured: &[Option<&Point>]) -> Joined {
-    let offset = plan
-        .stops
-        .iter()
-        .zip(measured)
-        .find_map(|(s, p)| {
-            p.and_then(|p| p.time_s)
-                .map(|t| s.time_s.unwrap_or(0.0) - t)
-        });
+    let offset = plan.stops.iter().zip(measured).find_map(|(s, p)| {
+        p.and_then(|p| p.time_s)
+            .map(|t| s.time_s.unwrap_or(0.0) - t)
+    });
     let mut stops = Vec::with_capacity(plan.stops.len());
     let mut last_t = 0.0;
     let (mut matched, mut approach) = (0, 0);
@@ -258,8 +258,8 @@ fn rows(plan: &Plan, measured: &[Option<&Point>]) -> Joined {
 mod tests {
     use super::*;
     use crate::measure::export::parse_export;
-    use nalgebra::Vector3;
     use crate::measure::plan::parse_plan;
+    use nalgebra::Vector3;
 
     const PLAN: &str = "test,point,a1,a2,a3,a4,a5,a6,t\n\
         A1,,-2,-60,100,0,45,0,0\n\
@@ -289,12 +289,22 @@ mod tests {
     #[test]
     fn unknown_doubled_and_missing_points_are_located() {
         let plan = parse_plan(PLAN.as_bytes(), "plan.csv").unwrap();
-        let export = parse_export(b"Name,X,Y,Z\nP1,1,2,3\nP9,1,2,3\nP1,1,2,3.1\n", "e.csv", None, false)
-            .unwrap();
+        let export = parse_export(
+            b"Name,X,Y,Z\nP1,1,2,3\nP9,1,2,3\nP1,1,2,3.1\n",
+            "e.csv",
+            None,
+            false,
+        )
+        .unwrap();
         let errors = join_by_name(&plan, &[export.clone()], false).unwrap_err();
-        let at: Vec<_> = errors.iter().map(|e| (e.file.as_str(), e.line, e.col)).collect();
+        let at: Vec<_> = errors
+            .iter()
+            .map(|e| (e.file.as_str(), e.line, e.col))
+            .collect();
         assert_eq!(at, [("e.csv", 3, 1), ("e.csv", 4, 1), ("plan.csv", 4, 4)]);
-        assert!(errors[1].message.contains("measured twice (first at e.csv:2)"));
+        assert!(errors[1]
+            .message
+            .contains("measured twice (first at e.csv:2)"));
         assert!(errors[2].message.contains("`P2` is in no export"));
         let only_p1 = parse_export(b"Name,X,Y,Z\nP1,1,2,3\n", "e.csv", None, false).unwrap();
         let j = join_by_name(&plan, &[only_p1], true).unwrap();

@@ -20,9 +20,9 @@ pub use csv_file::{
     TIME_RANGE_S,
 };
 // What only robopost's own tests, benches and fuzz targets name through this path.
+pub use columns::Columns;
 #[cfg(any(test, feature = "internals"))]
 pub use csv_file::{parse_csv, parse_csv_within};
-pub use columns::Columns;
 pub use directions::infer_histories;
 
 use crate::model::AxisState;

@@ -35,7 +35,13 @@ pub struct Plan {
 
 impl Plan {
     /// A located error at `line:col` of the plan.
-    pub fn error(&self, line: usize, col: usize, message: String, help: Option<&str>) -> MeasureError {
+    pub fn error(
+        &self,
+        line: usize,
+        col: usize,
+        message: String,
+        help: Option<&str>,
+    ) -> MeasureError {
         MeasureError::in_lines(&self.source, &self.lines, (line, col), message, help)
     }
 
@@ -53,7 +59,10 @@ pub fn parse_plan(bytes: &[u8], file: &str) -> Result<Plan, MeasureError> {
     let mut plan = Plan {
         source: file.to_string(),
         stops: Vec::new(),
-        lines: super::text::lines(&text).iter().map(|l| l.to_string()).collect(),
+        lines: super::text::lines(&text)
+            .iter()
+            .map(|l| l.to_string())
+            .collect(),
     };
     let mut rows = plan
         .lines
@@ -73,7 +82,9 @@ pub fn parse_plan(bytes: &[u8], file: &str) -> Result<Plan, MeasureError> {
             h + 1,
             1,
             format!("required column `{n}` is missing from the plan"),
-            Some("a plan's columns: test, point, a1..a6 [, t] (as `robopost campaign` writes them)"),
+            Some(
+                "a plan's columns: test, point, a1..a6 [, t] (as `robopost campaign` writes them)",
+            ),
         )
     };
     let test = find(&["test"]).ok_or_else(|| missing("test"))?;
@@ -102,7 +113,12 @@ pub fn parse_plan(bytes: &[u8], file: &str) -> Result<Plan, MeasureError> {
                 .ok()
                 .filter(|v| v.abs() <= super::TIME_RANGE_S)
                 .ok_or_else(|| {
-                    plan.error(line, f[i].col, format!("`{}` is not a number ({what})", f[i].text), None)
+                    plan.error(
+                        line,
+                        f[i].col,
+                        format!("`{}` is not a number ({what})", f[i].text),
+                        None,
+                    )
                 })
         };
         let mut axes_deg = [0.0; 6];

@@ -174,7 +174,10 @@ pub fn fields(line: &str, sep: Separator) -> Vec<Field<'_>> {
     let mut out = Vec::new();
     if sep == Separator::Spaces {
         let mut start = None;
-        for (i, c) in line.char_indices().chain(std::iter::once((line.len(), ' '))) {
+        for (i, c) in line
+            .char_indices()
+            .chain(std::iter::once((line.len(), ' ')))
+        {
             match (c.is_whitespace(), start) {
                 (false, None) => start = Some(i),
                 (true, Some(s)) => {

@@ -145,7 +145,10 @@ impl Tracker {
         if self.name.starts_with("MPE") {
             format!("stated {}", self.name)
         } else {
-            format!("{short} MPE ±({} µm + {} µm/m)", self.mpe_um, self.mpe_um_per_m)
+            format!(
+                "{short} MPE ±({} µm + {} µm/m)",
+                self.mpe_um, self.mpe_um_per_m
+            )
         }
     }
 

@@ -334,4 +334,3 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
         false
     }
 }
-

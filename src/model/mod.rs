@@ -32,6 +32,7 @@ pub use model::{JacobianScratch, Model};
 pub use record::{EffectRecord, RecordError};
 pub use registry::{expand_list, EffectName, NameError};
 // What only robopost's own tests, benches and fuzz targets name through this path.
+pub use state::{AxisState, Direction};
 #[cfg(any(test, feature = "internals"))]
 pub use {
     effect::{Context, Parameter, Partial, JOINT_SLOTS},
@@ -39,4 +40,3 @@ pub use {
     record::TableRecord,
     registry::RegisterError,
 };
-pub use state::{AxisState, Direction};

@@ -48,7 +48,11 @@ impl Clone for Model {
             robot: self.robot,
             payload: self.payload,
             target_mm: self.target_mm,
-            effects: self.effects.iter().map(|e| e.clone_model_effect()).collect(),
+            effects: self
+                .effects
+                .iter()
+                .map(|e| e.clone_model_effect())
+                .collect(),
             starts: self.starts.clone(),
             varying: self.varying.clone(),
             merged: self.merged.clone(),

@@ -164,7 +164,10 @@ pub struct Stop<H> {
 /// axes with each axis's history as the simulated motion leaves it (rotation direction on
 /// arrival, the turning points inside the interpolated motions; see `model::AxisHistory`).
 /// Histories start unmoved, and again after a position the simulation could not follow.
-pub fn program_states<H>(stops: &[Stop<H>], arcs: &[CircularAngle]) -> Vec<crate::model::AxisState> {
+pub fn program_states<H>(
+    stops: &[Stop<H>],
+    arcs: &[CircularAngle],
+) -> Vec<crate::model::AxisState> {
     let mut previous: Option<crate::model::AxisState> = None;
     stops
         .iter()

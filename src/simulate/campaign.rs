@@ -498,8 +498,17 @@ mod tests {
             assert_eq!(stops[i - 1].axes_deg, reference.map(|a| a - 2.0));
         }
         // The paper's own stops are unchanged, in order.
-        let own: Vec<_> = stops.iter().filter(|s| s.test != REFERENCE_TEST).map(|s| s.axes_deg).collect();
-        let paper: Vec<_> = Campaign::paper().plan().unwrap().into_iter().map(|s| s.axes_deg).collect();
+        let own: Vec<_> = stops
+            .iter()
+            .filter(|s| s.test != REFERENCE_TEST)
+            .map(|s| s.axes_deg)
+            .collect();
+        let paper: Vec<_> = Campaign::paper()
+            .plan()
+            .unwrap()
+            .into_iter()
+            .map(|s| s.axes_deg)
+            .collect();
         assert_eq!(own, paper);
     }
 

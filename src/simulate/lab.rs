@@ -102,7 +102,11 @@ pub struct LabCampaign {
 
 impl Cell {
     /// The reflector's position and opening direction (base frame) at `axes`.
-    fn reflector(&self, axes: &[f64; 6], axis: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+    fn reflector(
+        &self,
+        axes: &[f64; 6],
+        axis: &Vector3<f64>,
+    ) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
         let (r, p): (Matrix3<f64>, Vector3<f64>) = flange_frame(&self.robot, axes);
         (p + r * self.tool_mm, r * axis, p)
     }
@@ -246,7 +250,9 @@ pub fn fit(cell: &Cell, choices: &Choices) -> Result<LabCampaign, String> {
             }
         }
         if kept.is_empty() {
-            notes.push(format!("A{axis} is not repeated at other A{other} angles: none is allowed"));
+            notes.push(format!(
+                "A{axis} is not repeated at other A{other} angles: none is allowed"
+            ));
             continue;
         }
         let repeat = Repeat {
@@ -305,7 +311,10 @@ pub fn fit(cell: &Cell, choices: &Choices) -> Result<LabCampaign, String> {
             dwell_s: 0.0,
             axis_speed_deg_s: 1.0,
         });
-        if let Some((_, axes, _)) = planned.iter().find(|(_, a, _)| cell.check(a, &reflector).is_err()) {
+        if let Some((_, axes, _)) = planned
+            .iter()
+            .find(|(_, a, _)| cell.check(a, &reflector).is_err())
+        {
             notes.push(format!(
                 "A{} reversal test left out: a stop at {:?} is refused",
                 r.axis, axes
@@ -402,7 +411,11 @@ pub fn program(
 /// not a campaign program.
 pub fn markers(source: &str) -> Option<std::collections::HashMap<u32, (String, Option<String>)>> {
     let mut lines = source.lines();
-    if !lines.by_ref().take(3).any(|l| l.starts_with(PROGRAM_VERSION)) {
+    if !lines
+        .by_ref()
+        .take(3)
+        .any(|l| l.starts_with(PROGRAM_VERSION))
+    {
         return None;
     }
     let mut out = std::collections::HashMap::new();
@@ -411,9 +424,7 @@ pub fn markers(source: &str) -> Option<std::collections::HashMap<u32, (String, O
         if let Some(t) = l.strip_prefix(TEST_MARK) {
             test = t.trim().to_string();
         } else if l.starts_with("PTP ") {
-            let point = l
-                .split_once(POINT_MARK)
-                .map(|(_, p)| p.trim().to_string());
+            let point = l.split_once(POINT_MARK).map(|(_, p)| p.trim().to_string());
             out.insert(i as u32 + 1, (test.clone(), point));
         }
     }
@@ -445,7 +456,11 @@ mod tests {
         for s in &lab.stops {
             assert_eq!(c.check(&s.axes_deg, &axis), Ok(()), "{s:?}");
         }
-        let refs = lab.stops.iter().filter(|s| s.test == "REF" && s.measured).count();
+        let refs = lab
+            .stops
+            .iter()
+            .filter(|s| s.test == "REF" && s.measured)
+            .count();
         // Start, after each of the 8 tests (6 axes + 2 crosstalk), end.
         assert_eq!(refs, 1 + 8 + 1, "{:?}", lab.notes);
         // Each sweep is the widest allowed: one step more on either side (its approach move
@@ -453,17 +468,32 @@ mod tests {
         let reference = Choices::default().reference_deg;
         for k in 0..6 {
             let label = format!("A{}", k + 1);
-            let angles: Vec<f64> = lab.stops.iter().filter(|s| s.test == label && s.measured).map(|s| s.axes_deg[k]).collect();
-            let (lo, hi) = angles.iter().fold((f64::MAX, f64::MIN), |(l, h), a| (l.min(*a), h.max(*a)));
+            let angles: Vec<f64> = lab
+                .stops
+                .iter()
+                .filter(|s| s.test == label && s.measured)
+                .map(|s| s.axes_deg[k])
+                .collect();
+            let (lo, hi) = angles
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(l, h), a| (l.min(*a), h.max(*a)));
             for beyond in [lo - 2.0 - 1.0, hi + 2.0 + 1.0] {
                 let mut axes = reference;
                 axes[k] = beyond;
                 let half_turn = (beyond - reference[k]).abs() > 180.0;
-                assert!(half_turn || c.check(&axes, &axis).is_err(), "{label}: {lo}..{hi}");
+                assert!(
+                    half_turn || c.check(&axes, &axis).is_err(),
+                    "{label}: {lo}..{hi}"
+                );
             }
         }
         // A1 turns the reflector away from the tracker: its sweep is far shorter than its limits.
-        let a1: Vec<f64> = lab.stops.iter().filter(|s| s.test == "A1").map(|s| s.axes_deg[0]).collect();
+        let a1: Vec<f64> = lab
+            .stops
+            .iter()
+            .filter(|s| s.test == "A1")
+            .map(|s| s.axes_deg[0])
+            .collect();
         assert!(a1.iter().all(|a| a.abs() < 60.0));
     }
 
@@ -474,13 +504,21 @@ mod tests {
         let reference = Choices::default().reference_deg;
         let (r, p) = flange_frame(&c.robot, &reference);
         let smr = p + r * c.tool_mm;
-        c.boxes.push([smr.x - 400.0, smr.y - 400.0, 0.0, smr.x + 400.0, smr.y + 400.0, smr.z - 80.0]);
+        c.boxes.push([
+            smr.x - 400.0,
+            smr.y - 400.0,
+            0.0,
+            smr.x + 400.0,
+            smr.y + 400.0,
+            smr.z - 80.0,
+        ]);
         let lab = fit(&c, &Choices::default()).unwrap();
         let b = c.boxes[0];
         for s in &lab.stops {
             let (r, p) = flange_frame(&c.robot, &s.axes_deg);
             for q in [p, p + r * c.tool_mm] {
-                let inside = (0..3).all(|k| q[k] >= b[k].min(b[k + 3]) && q[k] <= b[k].max(b[k + 3]));
+                let inside =
+                    (0..3).all(|k| q[k] >= b[k].min(b[k + 3]) && q[k] <= b[k].max(b[k + 3]));
                 assert!(!inside, "{s:?}");
             }
         }
@@ -488,7 +526,10 @@ mod tests {
         assert!(dat.starts_with("DEFDAT cal"));
         let m = markers(&src).unwrap();
         let measured = m.values().filter(|(_, p)| p.is_some()).count();
-        assert_eq!(measured, lab.points.iter().filter(|p| !p.is_empty()).count());
+        assert_eq!(
+            measured,
+            lab.points.iter().filter(|p| !p.is_empty()).count()
+        );
         assert_eq!(m.len(), lab.stops.len());
         assert!(src.contains("PULSE($OUT[17], TRUE, 0.1)"));
         assert!(markers("DEF x ( )\nEND\n").is_none());

@@ -16,9 +16,9 @@ use nalgebra::Vector3;
 
 use super::campaign::{paced, PlannedStop};
 use crate::diagnostic::{Diagnostic, Severity};
+use crate::krl::interpret::{Simulation, Workspace};
 use crate::model::AxisState;
 use crate::motion::{program_states, Role};
-use crate::krl::interpret::{Simulation, Workspace};
 
 /// Tools within this distance of the measurement target (mm) are taken as the target: the
 /// rounding of a `$TOOL` written to the micrometre.

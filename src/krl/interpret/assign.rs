@@ -5,9 +5,9 @@ use crate::krl::{Access, Expr, SourceFile, Stmt};
 
 use super::eval::reason;
 use super::*;
-use crate::motion::frame::Frame;
 use crate::krl::interpret::value::{self, Declared, Value, VarRef};
 use crate::krl::interpret::workspace::FileId;
+use crate::motion::frame::Frame;
 
 /// An assignable place: a variable or array element, and the members under it
 /// (`P[3].X`: root `P`, index `[3]`, fields `X`).
@@ -447,9 +447,10 @@ impl<'f> Simulator<'f> {
     /// frames of it the program's files name (`TOOL_DATA[n]`, `BASE_DATA[n]`, an `FDAT`'s
     /// `TOOL_NO`/`BASE_NO`), none given on the command line, and how to give them.
     pub(super) fn frames_without_config(&self) -> Option<String> {
-        let has = self.config.as_ref().is_some_and(|c| {
-            c.get(b"TOOL_DATA").is_some() || c.get(b"BASE_DATA").is_some()
-        });
+        let has = self
+            .config
+            .as_ref()
+            .is_some_and(|c| c.get(b"TOOL_DATA").is_some() || c.get(b"BASE_DATA").is_some());
         if has {
             return None;
         }
@@ -462,7 +463,9 @@ impl<'f> Simulator<'f> {
         {
             config_frames_named(f.file.source(), &mut named);
         }
-        named.retain(|&(base, n)| n != 0 && !self.given.iter().any(|g| g.base == base && g.index == n));
+        named.retain(|&(base, n)| {
+            n != 0 && !self.given.iter().any(|g| g.base == base && g.index == n)
+        });
         if named.is_empty() {
             return None;
         }

@@ -75,7 +75,9 @@ impl std::str::FromStr for Assumption {
                     .split(',')
                     .map(|i| i.trim().parse::<i64>())
                     .collect::<Result<Vec<_>, _>>()
-                    .map_err(|_| format!("`{lhs}`: an index must be whole numbers (NAME[5], NAME[1,2])"))?;
+                    .map_err(|_| {
+                        format!("`{lhs}`: an index must be whole numbers (NAME[5], NAME[1,2])")
+                    })?;
                 (n.trim(), index)
             }
             None => (lhs, Vec::new()),
@@ -147,14 +149,22 @@ mod tests {
         assert_eq!((a.name.as_slice(), a.index.len()), (&b"LNUSEDBASE"[..], 0));
         assert_eq!(a.value, Assumed::Int(2));
         let a: Assumption = "$in[5] = true".parse().unwrap();
-        assert_eq!((a.name.as_slice(), a.index.as_slice()), (&b"$IN"[..], &[5][..]));
+        assert_eq!(
+            (a.name.as_slice(), a.index.as_slice()),
+            (&b"$IN"[..], &[5][..])
+        );
         assert_eq!(a.value, Assumed::Bool(true));
         assert_eq!(a.written, "$in[5]=true");
         let a: Assumption = "P[1, 2]=-0.5".parse().unwrap();
-        assert_eq!((a.index.as_slice(), a.value.clone()), (&[1, 2][..], Assumed::Real(-0.5)));
+        assert_eq!(
+            (a.index.as_slice(), a.value.clone()),
+            (&[1, 2][..], Assumed::Real(-0.5))
+        );
         let a: Assumption = "side=#left".parse().unwrap();
         assert_eq!(a.value, Assumed::Enum(b"LEFT".to_vec()));
-        for bad in ["x", "=1", "1a=2", "x[a]=1", "x[1=1", "x=", "x=maybe", "x=#", "x=inf"] {
+        for bad in [
+            "x", "=1", "1a=2", "x[a]=1", "x[1=1", "x=", "x=maybe", "x=#", "x=inf",
+        ] {
             assert!(bad.parse::<Assumption>().is_err(), "{bad}");
         }
     }

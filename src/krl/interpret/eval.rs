@@ -5,10 +5,10 @@ use crate::kinematics::status_turn;
 use crate::krl::{self, Access, BinOp, Call, Expr, UnOp};
 
 use super::*;
-use crate::motion::frame::Frame;
-use crate::motion::nominal::Nominal;
 use crate::krl::interpret::value::{self, Components, Pos, Value, VarRef};
 use crate::krl::interpret::workspace::FileId;
+use crate::motion::frame::Frame;
+use crate::motion::nominal::Nominal;
 
 impl<'f> Simulator<'f> {
     // ---- expressions -----------------------------------------------------------------------

@@ -44,9 +44,9 @@ mod target;
 pub use crate::motion::form::{
     CircularAngle, Interpolation, Programmed, Rel, Role, SplineEnds, CARRIED_STOPS,
 };
-pub use stream::{simulate_streaming, RunSink, Walked};
 pub use assume::Assumption;
 pub use cell::Cell;
+pub use stream::{simulate_streaming, RunSink, Walked};
 
 /// Calls nested deeper than this are not followed (recursion).
 const MAX_CALL_DEPTH: usize = 64;
@@ -499,7 +499,8 @@ impl<'f> Simulator<'f> {
             assumptions: ws.assumptions.clone(),
             used: std::cell::RefCell::new(crate::krl::interpret::assume::Used(vec![
                 0;
-                ws.assumptions.len()
+                ws.assumptions
+                    .len()
             ])),
         }
     }

@@ -242,9 +242,8 @@ impl<'f> Simulator<'f> {
         };
         // Taken on a thread of the pool, each step's `rayon::join` starts where it is called
         // instead of being handed over and waited for from outside.
-        let walked_all = rayon::scope(|_| {
-            self.walk_windows(&windows, parse, (&mut history, &mut moved), sink)
-        });
+        let walked_all =
+            rayon::scope(|_| self.walk_windows(&windows, parse, (&mut history, &mut moved), sink));
         if !walked_all {
             return;
         }

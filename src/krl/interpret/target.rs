@@ -7,11 +7,11 @@ use crate::krl::{Expr, Motion, RelFrameKind, Stmt};
 
 use super::eval::reason;
 use super::*;
+use crate::krl::interpret::value::{Components, Pos, Value};
+use crate::krl::interpret::workspace::FileId;
 use crate::motion::frame::Frame;
 use crate::motion::interpolate::{self, Cartesian, Path};
 use crate::motion::nominal::Nominal;
-use crate::krl::interpret::value::{Components, Pos, Value};
-use crate::krl::interpret::workspace::FileId;
 
 impl<'f> Simulator<'f> {
     // ---- motions ---------------------------------------------------------------------------
@@ -408,18 +408,16 @@ impl<'f> Simulator<'f> {
             }
             _ => None,
         };
-        let in_config = pos
-            .origin
-            .is_some_and(|o| self.ws.get(o.file).role == crate::krl::interpret::workspace::Role::Config);
+        let in_config = pos.origin.is_some_and(|o| {
+            self.ws.get(o.file).role == crate::krl::interpret::workspace::Role::Config
+        });
         // A point of `$config.dat` is shared by every program of the cell: its compensated
         // copy goes into this module's data list under a new name (see `crate::krl::rewrite`),
         // which needs a data list and a point named here.
         let localizable = in_config
-            && self
-                .ws
-                .get(file)
-                .partner
-                .is_some_and(|d| self.ws.get(d).role != crate::krl::interpret::workspace::Role::Config)
+            && self.ws.get(file).partner.is_some_and(|d| {
+                self.ws.get(d).role != crate::krl::interpret::workspace::Role::Config
+            })
             && reference.is_some()
             && pos.origin.and_then(|o| o.var).is_some_and(|v| !v.element);
         let compensable = pos.origin.is_some() && (!in_config || localizable);
@@ -568,7 +566,13 @@ impl<'f> Simulator<'f> {
         &mut self,
         (file, s, m): (FileId, &'f Stmt, &'f Motion),
         scope: &Scope<'f>,
-        (angle_expr, cart, start_tcp, cur, aux_i): (&'f Expr, &Cartesian, Option<Frame>, Current, u32),
+        (angle_expr, cart, start_tcp, cur, aux_i): (
+            &'f Expr,
+            &Cartesian,
+            Option<Frame>,
+            Current,
+            u32,
+        ),
         (goal, programmed, pos, reference): (&Frame, Programmed, &Pos<'f>, Option<Span>),
         rel: Option<Rel>,
         (base, tool): (&Frame, &Frame),
@@ -669,11 +673,7 @@ impl<'f> Simulator<'f> {
                     target_deg: turn.to_degrees(),
                     normal,
                     sense,
-                    from_points: interpolate::plane_well_defined(
-                        &start,
-                        &aux_at,
-                        &end.position,
-                    ),
+                    from_points: interpolate::plane_well_defined(&start, &aux_at, &end.position),
                 });
                 if let (None, Programmed::Pose(p)) = (rel, programmed) {
                     self.state.last_abc = [p.a, p.b, p.c];

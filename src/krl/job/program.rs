@@ -5,24 +5,24 @@
 //! the report and the diagnostics. Writing files is the caller's business.
 
 use crate::diagnostic::{Diagnostic, Severity};
+use crate::krl::interpret::workspace::Role as FileRole;
+use crate::krl::interpret::{FileId, GivenFrame, Simulation, Workspace};
 use crate::krl::{self, StmtKind};
 use crate::model::Model;
-use crate::krl::interpret::workspace::Role as FileRole;
 use crate::motion::{Interpolation, Programmed, Role};
-use crate::krl::interpret::{FileId, GivenFrame, Simulation, Workspace};
 
-use crate::krl::rewrite::output::Chunk;
-use super::taken::Taken;
-pub use crate::krl::rewrite::output::Output;
 pub(super) use super::report::Tally;
 pub use super::report::{CalibrationRef, Report};
+use super::taken::Taken;
+use crate::krl::rewrite::output::Chunk;
+pub use crate::krl::rewrite::output::Output;
 // What only robopost's own tests, benches and fuzz targets name through this path.
 #[cfg(any(test, feature = "internals"))]
 pub use super::report::{MaxMean, PointReport, PoseStats, SplitReport};
-use crate::krl::rewrite;
 use super::segments::Segments;
 use crate::compensate::sequence::{ArcAngle, Interp, Keep, Target};
 use crate::compensate::solve::Method;
+use crate::krl::rewrite;
 
 /// The first words of the header comment robopost writes; a file carrying it was compensated.
 pub const HEADER_MARK: &str = "; robopost: compensated with ";
@@ -126,13 +126,17 @@ pub fn targets(
             interp: match (s.interpolation, s.role) {
                 (Interpolation::Joint, _) => Interp::Joint,
                 // A `CA` circle written by construction (see `Writer::circular_angle` in `rewrite/target.rs`).
-                (Interpolation::Circular, Role::Aux) if sim.arc_ending_at(from + i + 1).is_some() => {
+                (Interpolation::Circular, Role::Aux)
+                    if sim.arc_ending_at(from + i + 1).is_some() =>
+                {
                     Interp::CircAngleAux
                 }
-                (Interpolation::Circular, Role::Target | Role::End) => match sim.arc_ending_at(from + i) {
-                    Some(a) => Interp::CircAngle(ArcAngle::new(a)),
-                    None => Interp::CircEnd,
-                },
+                (Interpolation::Circular, Role::Target | Role::End) => {
+                    match sim.arc_ending_at(from + i) {
+                        Some(a) => Interp::CircAngle(ArcAngle::new(a)),
+                        None => Interp::CircEnd,
+                    }
+                }
                 (Interpolation::Circular, Role::Aux) => Interp::CircAux,
                 (Interpolation::Linear, _) => match s.spline {
                     Some(e) => Interp::Curve {
@@ -277,7 +281,12 @@ pub fn compensate_program_from(
     }
     let mut seg = Segments::new(ws, model, options, &taking);
     let sim = tracing::info_span!("simulate and compensate").in_scope(|| {
-        crate::krl::interpret::simulate_streaming(ws, &model.robot, &options.frames, &mut (ws, &mut seg))
+        crate::krl::interpret::simulate_streaming(
+            ws,
+            &model.robot,
+            &options.frames,
+            &mut (ws, &mut seg),
+        )
     });
     if sim.needs_whole_tree {
         drop((sim, seg));

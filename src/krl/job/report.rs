@@ -6,13 +6,13 @@ use serde::Serialize;
 
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::identify::covariance::{sigma_um, Covariance};
+use crate::krl::interpret::{Simulation, Workspace};
 use crate::model::{AxisState, Direction, Model};
 use crate::motion::frame;
 use crate::motion::Role;
-use crate::krl::interpret::{Simulation, Workspace};
 
-use crate::krl::rewrite::Rewrite;
 use crate::compensate::sequence::{Command, Outcome, Resolution};
+use crate::krl::rewrite::Rewrite;
 
 /// Statistics of one quantity over the targets.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
@@ -407,7 +407,12 @@ impl Tally {
                         values[0] / 1000.0,
                         values[1] / 1000.0
                     );
-                    let d = ws.diagnostic(Severity::Warning, s.handle.file, s.handle.stmt.head, message);
+                    let d = ws.diagnostic(
+                        Severity::Warning,
+                        s.handle.file,
+                        s.handle.stmt.head,
+                        message,
+                    );
                     self.large_shown.push(d);
                 }
             }

@@ -12,15 +12,17 @@
 
 use crate::diagnostic::{Diagnostic, Severity};
 use crate::kinematics::Singularity;
+use crate::krl::interpret::{RunSink, Simulation, Walked, Workspace};
 use crate::krl::Span;
 use crate::model::{Direction, Model};
-use crate::krl::interpret::{RunSink, Simulation, Walked, Workspace};
 
 use super::program::{targets, Options, Tally};
 use super::report::Listing;
 use super::taken::{self, Taking};
+use crate::compensate::sequence::{
+    self, Carried, Command, Compensated, Outcome, Target, LOOK_BACK,
+};
 use crate::krl::rewrite;
-use crate::compensate::sequence::{self, Carried, Command, Compensated, Outcome, Target, LOOK_BACK};
 
 /// One compensated segment: the outcomes of its stops are `done.outcomes[skip..]` (the
 /// ghosts' first, carried from the history).
@@ -138,7 +140,8 @@ pub(super) struct Segments<'a> {
     pub singular: Vec<Diagnostic>,
     pub target_errors: Vec<Diagnostic>,
     /// The line of each target error said so far: (its diagnostic, repeats).
-    errors_at: std::collections::HashMap<(crate::krl::interpret::workspace::FileId, u32), (usize, usize)>,
+    errors_at:
+        std::collections::HashMap<(crate::krl::interpret::workspace::FileId, u32), (usize, usize)>,
     /// What rewriting the windows said.
     pub rewrite_diagnostics: Vec<Diagnostic>,
     /// The windows' targets written continuous near B = ±90°.
@@ -314,9 +317,9 @@ impl<'a> Segments<'a> {
     pub fn skeleton_from(&mut self, ws: &Workspace, sim: &Simulation, from: usize) {
         debug_assert_eq!(from, self.skeleton.len());
         self.flush();
-        let prepared = self
-            .preparer()
-            .prepare(ws, sim, from, &mut self.nominal_end, &mut self.chains);
+        let prepared =
+            self.preparer()
+                .prepare(ws, sim, from, &mut self.nominal_end, &mut self.chains);
         let seg = self.settle(ws, sim, from, prepared);
         let first = from + seg.ghosts;
         let stops = &sim.stops[first..first + seg.done.targets().len()];

@@ -9,9 +9,9 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::motion::frame::Frame;
 use crate::krl::interpret::provenance::{self, Evidence, Facts};
 use crate::krl::interpret::{Stop, Workspace};
+use crate::motion::frame::Frame;
 
 /// `--points`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -96,7 +96,11 @@ impl Taking {
 
     /// The generator header of a file of `ws`, for the report's wording.
     pub fn header_of(&self, ws: &Workspace, stop: &Stop) -> Option<String> {
-        let file = stop.handle.origin.and_then(|o| o.var).map_or(stop.handle.file, |v| v.file);
+        let file = stop
+            .handle
+            .origin
+            .and_then(|o| o.var)
+            .map_or(stop.handle.file, |v| v.file);
         let (f, h) = self
             .facts
             .header(ws, file)
@@ -153,9 +157,14 @@ impl Tally {
                 m => m == Taken::Taught,
             };
             let entry = self.by.entry((taught, evidence)).or_insert_with(|| {
-                let header =
-                    (evidence == Evidence::Generator).then(|| taking.header_of(ws, s)).flatten();
-                (0, format!("{}:{}", ws.get(s.handle.file).name, s.handle.stmt.line), header)
+                let header = (evidence == Evidence::Generator)
+                    .then(|| taking.header_of(ws, s))
+                    .flatten();
+                (
+                    0,
+                    format!("{}:{}", ws.get(s.handle.file).name, s.handle.stmt.line),
+                    header,
+                )
             });
             entry.0 += 1;
             if taught {

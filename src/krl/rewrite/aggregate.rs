@@ -2,8 +2,8 @@
 //! with, the separators its members use, and the edits that write new values into it —
 //! replacing the literals that change, inserting the components it lacks.
 
-use crate::krl::{self, number, Aggregate, Expr, RawMember, SourceFile, Span};
 use crate::krl::interpret::value::{self, Naming};
+use crate::krl::{self, number, Aggregate, Expr, RawMember, SourceFile, Span};
 
 use super::edits::{append_range, EditList};
 

@@ -31,20 +31,20 @@ use std::sync::atomic::{AtomicU64, AtomicUsize};
 use rayon::prelude::*;
 
 use crate::diagnostic::{Diagnostic, Severity};
+use crate::krl::interpret::value::Origin;
+use crate::krl::interpret::{FileId, Simulation, Stop, Workspace};
 use crate::krl::{Edit, Span};
 use crate::motion::frame::Frame;
 use crate::motion::nominal::{Arm, Nominal};
-use crate::krl::interpret::value::Origin;
-use crate::motion::{Role};
-use crate::krl::interpret::{FileId, Simulation, Stop, Workspace};
+use crate::motion::Role;
 
 use self::edits::EditList;
 // What only robopost's own tests name through this path.
 #[cfg(any(test, feature = "internals"))]
 pub use crate::compensate::sequence::correction;
 use crate::compensate::sequence::{Command, Outcome};
-use aggregate::{aggregate_edits, components, AggregateTarget};
 pub use aggregate::file_separator;
+use aggregate::{aggregate_edits, components, AggregateTarget};
 // What only robopost's own tests, benches and fuzz targets name through this path.
 #[cfg(any(test, feature = "internals"))]
 pub use aggregate::{MIN_DECIMALS_DEG, MIN_DECIMALS_MM};
@@ -312,7 +312,12 @@ impl EulerTally {
         Some(EulerLeft {
             count,
             max_rad: f64::from_bits(self.max_left_bits.into_inner()),
-            first: ws.diagnostic(Severity::Warning, stop.handle.file, stop.handle.stmt.head, String::new()),
+            first: ws.diagnostic(
+                Severity::Warning,
+                stop.handle.file,
+                stop.handle.stmt.head,
+                String::new(),
+            ),
         })
     }
 }
@@ -453,7 +458,12 @@ impl<'a> Writer<'a> {
     /// Appends to `list` the edits writing target `i`'s command into its aggregate.
     fn target_edits(&self, i: usize, list: &mut EditList) -> TargetWrite {
         let (sim, stop) = (self.sim, &self.sim.stops[i]);
-        let Some(origin) = stop.handle.origin.as_ref().filter(|_| written(sim, self.outcomes, i)) else {
+        let Some(origin) = stop
+            .handle
+            .origin
+            .as_ref()
+            .filter(|_| written(sim, self.outcomes, i))
+        else {
             return TargetWrite::Unwritten;
         };
         let commanded = match self.circular_angle(i) {
@@ -468,7 +478,12 @@ impl<'a> Writer<'a> {
         // An absolute target's programmed values are its position's (`crate::krl::interpret::simulate`).
         let programmed = stop.programmed.components();
         let read = stop.rel.is_none().then_some((&programmed, origin.literals));
-        let present = components(file, origin.agg, crate::krl::interpret::value::Naming::of(&stop.programmed), read);
+        let present = components(
+            file,
+            origin.agg,
+            crate::krl::interpret::value::Naming::of(&stop.programmed),
+            read,
+        );
         let original = present.map(|c| c.and_then(|c| c.value));
         let axes = &self.outcomes[i].axes_deg;
         let Some((values, left)) = self.new_values(stop, axes, &commanded, &original) else {

@@ -7,9 +7,9 @@
 use std::collections::HashSet;
 
 use crate::diagnostic::Severity;
-use crate::krl::{self, Edit, Expr, SourceFile, Span};
 use crate::krl::interpret::value::{Declared, VarRef};
 use crate::krl::interpret::{FileId, Simulation, Workspace};
+use crate::krl::{self, Edit, Expr, SourceFile, Span};
 
 use super::{Rewrite, SharedOrigin, Site, TargetEdits, Use};
 
@@ -628,8 +628,8 @@ pub(super) fn copy_frame_data(
         for (_, d) in loaded.file.declarations() {
             for v in &d.vars {
                 if loaded.file.text(v.name).eq_ignore_ascii_case(old) {
-                    let into =
-                        into.filter(|_| loaded.role == crate::krl::interpret::workspace::Role::Config);
+                    let into = into
+                        .filter(|_| loaded.role == crate::krl::interpret::workspace::Role::Config);
                     let (id, stmt) = (id as FileId, v.span);
                     copy_declaration(ws, id, v.name, stmt, new, &[], into, out);
                     return;

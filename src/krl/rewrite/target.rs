@@ -3,13 +3,13 @@
 //! the auxiliary point and end of a `CA` circle written by construction.
 
 use crate::kinematics::{AxisAngles, Pose};
+use crate::krl::interpret::{Simulation, Stop};
 use crate::motion::frame::{abc_continuous, abc_jumps, kuka_near, Frame};
 use crate::motion::nominal::{Arm, Nominal};
 use crate::motion::{Programmed, Rel, Role};
-use crate::krl::interpret::{Simulation, Stop};
 
-use crate::compensate::sequence::Outcome;
 use super::{Commanded, Writer};
+use crate::compensate::sequence::Outcome;
 
 /// The most orientation an Euler triple kept continuous near B = ±90° may leave out: what the
 /// written decimals (1e-4° in A, B and C) leave anyway.
@@ -90,7 +90,8 @@ impl Writer<'_> {
             original[5].unwrap_or(programmed.c),
         ];
         let operators = stop
-            .handle.origin
+            .handle
+            .origin
             .as_ref()
             .map_or((None, None), |o| (o.prefix, o.suffix));
         let mut v = match (operators, &command.unchosen) {

@@ -89,7 +89,6 @@ impl ParseError {
     pub fn partial(&self) -> &SourceFile {
         &self.file
     }
-
 }
 
 impl fmt::Display for ParseError {

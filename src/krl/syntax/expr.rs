@@ -742,7 +742,10 @@ pub(crate) fn aggregate<'a>(cx: Cx<'a>, d: u32, i: &'a [u8]) -> PResult<'a, Expr
                 "give each member once: of `{X 1200, X 1300}` a reader keeps one value, and which one was meant is not known",
             );
         }
-        Ok((k, close_aggregate(cx, cx.span(i, k), type_name, nested, mark)))
+        Ok((
+            k,
+            close_aggregate(cx, cx.span(i, k), type_name, nested, mark),
+        ))
     };
     if let Ok((k, _)) = punct(b'}')(j) {
         return close(k);

@@ -88,7 +88,6 @@ impl MotionKind {
             PtpRel | LinRel | CircRel | SptpRel | SlinRel | ScircRel
         )
     }
-
 }
 
 /// A motion statement. Packed into 40 bytes (a CAM program holds a million): the keyword and

@@ -297,7 +297,10 @@ impl Packed {
     #[inline]
     pub fn plain_name(self) -> Span {
         debug_assert!(self.name_len != 0);
-        Span::new(self.at as usize, self.at as usize + usize::from(self.name_len))
+        Span::new(
+            self.at as usize,
+            self.at as usize + usize::from(self.name_len),
+        )
     }
 
     /// A plain member's record, if its lengths fit.

@@ -91,11 +91,18 @@ fn look_into(
     let end = ident_end(code, 0)?;
     let word = &code[..end];
     if word.eq_ignore_ascii_case(b"WAIT") {
-        return Scan { b: code, p: end }.wait_sec().then_some(Shape::Setting);
+        return Scan { b: code, p: end }
+            .wait_sec()
+            .then_some(Shape::Setting);
     }
     let kind = motion_keyword(word)?;
     let (n, v) = (packed.len(), values.len());
-    let seen = Reader { b: code, p: end, base }.motion(kind, keep, packed, values);
+    let seen = Reader {
+        b: code,
+        p: end,
+        base,
+    }
+    .motion(kind, keep, packed, values);
     if seen.is_none() {
         packed.truncate(n);
         values.truncate(v);
@@ -151,7 +158,12 @@ fn build(nodes: &mut Nodes, seen: &Seen) -> Line {
     let mut exprs = [None, None];
     for (a, e) in seen.aggregates[..seen.count].iter().zip(&mut exprs) {
         let id = AggregateId(nodes.aggregates.len() as u32);
-        nodes.push_aggregate(Aggregate::outermost(a.span, a.type_name, a.first, a.members));
+        nodes.push_aggregate(Aggregate::outermost(
+            a.span,
+            a.type_name,
+            a.first,
+            a.members,
+        ));
         *e = Some(Expr::Aggregate(a.span, id));
     }
     let motion = match exprs {
@@ -558,7 +570,10 @@ mod tests {
         if shape.is_some() {
             let plain = matches!(&parsed, Some(Line::Simple(k))
                 if is_plain_kind(k, &parser_nodes.borrow(), src.as_bytes()));
-            assert!(plain, "the look took a line the parser does not judge plain: {code}");
+            assert!(
+                plain,
+                "the look took a line the parser does not judge plain: {code}"
+            );
         }
         let Some(Shape::Motion(_)) = shape else {
             return None;
@@ -721,14 +736,35 @@ mod tests {
         for line in src.split(|&b| b == b'\n').filter(|l| !l.is_empty()) {
             let code = Span::new(at, at + line.len());
             at += line.len() + 1;
-            verdicts.push(streams(src, FileKind::Src, code, None, &scratch, &mut members));
+            verdicts.push(streams(
+                src,
+                FileKind::Src,
+                code,
+                None,
+                &scratch,
+                &mut members,
+            ));
             assert!(scratch.borrow().motions.is_empty() && scratch.borrow().members.is_empty());
         }
         assert_eq!(verdicts, [true, false, false, true, true]);
         // A verdict already taken is not taken again: `Some(true)` is the look's yes.
         let code = Span::new(12, 18);
-        assert!(streams(src, FileKind::Src, code, Some(true), &scratch, &mut members));
-        assert!(!streams(src, FileKind::Src, code, Some(false), &scratch, &mut members));
+        assert!(streams(
+            src,
+            FileKind::Src,
+            code,
+            Some(true),
+            &scratch,
+            &mut members
+        ));
+        assert!(!streams(
+            src,
+            FileKind::Src,
+            code,
+            Some(false),
+            &scratch,
+            &mut members
+        ));
     }
 
     proptest! {

@@ -14,14 +14,14 @@ use super::lex::{
     backtrack, expecting, first_word, ident, is_ident_char, keyword, list, only_backtracks, punct,
     sep, tok, ws, Cx, PErr, PResult,
 };
-use nom::branch::alt;
-use nom::combinator::{all_consuming, eof, map, not, opt, value};
-use nom::multi::{fold_many0, many0};
-use nom::sequence::{pair, preceded, separated_pair, terminated, tuple};
 use super::motion::{motion, with_clause, MotionKind, WithItem};
 use super::nodes::MotionId;
 use super::span::Span;
 use super::tree::FileKind;
+use nom::branch::alt;
+use nom::combinator::{all_consuming, eof, map, not, opt, value};
+use nom::multi::{fold_many0, many0};
+use nom::sequence::{pair, preceded, separated_pair, terminated, tuple};
 
 /// One statement: a line of code, or a block (opener line, nested statements, closer line).
 #[derive(Clone, Debug, PartialEq)]
@@ -570,7 +570,10 @@ fn global_line<'a>(cx: Cx<'a>, file: FileKind, i: &'a [u8]) -> PResult<'a, Line>
     match first_word(j, &mut buf) {
         b"DEF" | b"DEFFCT" => routine_line(cx, i),
         b"STRUC" => map(|x| struc(cx, x), |s| simple(StmtKind::Struc(Box::new(s))))(i),
-        b"ENUM" => map(|x| enum_decl(cx, x), |e| simple(StmtKind::Enum(Box::new(e))))(i),
+        b"ENUM" => map(
+            |x| enum_decl(cx, x),
+            |e| simple(StmtKind::Enum(Box::new(e))),
+        )(i),
         b"SIGNAL" => map(|x| signal(cx, x), |s| simple(StmtKind::Signal(Box::new(s))))(i),
         b"INTERRUPT" => interrupt_line(cx, Some(cx.span_of(g)), j),
         _ => decl_line(cx, file, i),
@@ -743,9 +746,10 @@ fn interrupt_line<'a>(cx: Cx<'a>, global: Option<Span>, i: &'a [u8]) -> PResult<
         op: cx.span_of(op),
         number,
     });
-    map(preceded(keyword("INTERRUPT"), tok(alt((decl, control)))), |it| {
-        Line::Simple(StmtKind::Interrupt(Box::new(it)))
-    })(i)
+    map(
+        preceded(keyword("INTERRUPT"), tok(alt((decl, control)))),
+        |it| Line::Simple(StmtKind::Interrupt(Box::new(it))),
+    )(i)
 }
 
 /// trigger_line: `TRIGGER WHEN (DISTANCE|PATH) = v [ONSTART] [DELAY = d] DO action

@@ -28,9 +28,9 @@ use crate::kinematics::RobotDescription;
 use crate::model::effect::{
     AxisSlopes, ChainErrors, Context, Effect, Observed, Parameter, Partial, Slot,
 };
+use crate::model::history::PlayAt;
 use crate::model::history::MAX_PLAY_DEG;
 use crate::model::record::{self, EffectRecord, RecordError};
-use crate::model::history::PlayAt;
 use crate::model::{AxisState, Direction};
 
 /// The axis whose net torque has a counterbalance spring (A2 on a KUKA arm).
@@ -250,12 +250,10 @@ impl LoadPlay {
             }
             normal[(1, 1)] += ridge;
             normal[(2, 2)] += ridge;
-            let start = normal
-                .try_inverse()
-                .map_or([0.0; 3], |inv| {
-                    let x = inv * rhs;
-                    [x[0], x[1], x[2]]
-                });
+            let start = normal.try_inverse().map_or([0.0; 3], |inv| {
+                let x = inv * rhs;
+                [x[0], x[1], x[2]]
+            });
             let found = band(start);
             if found.sse < best.0.sse {
                 best = (found, start);
@@ -385,7 +383,11 @@ struct Band {
 /// `Σ (d_i − b·[|τ_i| < τ_f])²` over the net torques `net` and differences `diffs`: thresholds
 /// half-way between sorted |τ|, and none (every point loaded).
 fn best_band(net: &[f64], diffs: &[f64]) -> Band {
-    let mut order: Vec<(f64, f64)> = net.iter().map(|t| t.abs()).zip(diffs.iter().copied()).collect();
+    let mut order: Vec<(f64, f64)> = net
+        .iter()
+        .map(|t| t.abs())
+        .zip(diffs.iter().copied())
+        .collect();
     order.sort_by(|a, b| a.0.total_cmp(&b.0));
     let total: f64 = diffs.iter().map(|d| d * d).sum();
     let mut best = Band {

@@ -86,7 +86,6 @@ impl<T: Effect + ToRecord + Clone + 'static> ModelEffect for T {
     }
 }
 
-
 /// Grid choices for a table effect created for identification (all tables start at zero).
 ///
 /// Defaults: the range is the axis's joint limits; the pitch is 1° for `map` and `backlash`

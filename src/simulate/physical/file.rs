@@ -123,7 +123,10 @@ impl Counterbalance {
             return 0.0;
         }
         let tension = self.tension_n + self.rate_n_per_mm * (length - self.length_mm);
-        let force = [tension * to_anchor[0] / length, tension * to_anchor[1] / length];
+        let force = [
+            tension * to_anchor[0] / length,
+            tension * to_anchor[1] / length,
+        ];
         // (r × F)·ŷ = r_z·F_x − r_x·F_z, N·mm.
         (pin[1] * force[0] - pin[0] * force[1]) / 1e6
     }

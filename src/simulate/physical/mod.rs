@@ -236,7 +236,13 @@ impl PhysicalRobot {
 
     /// Where an axis's net torque beats the friction of its train, the output rests on the
     /// flank the torque pushes it to (leading the command when the torque is positive).
-    fn press_flanks(&self, command_deg: &[f64; 6], time_s: f64, widths: &[f64; 6], play: &mut Play) {
+    fn press_flanks(
+        &self,
+        command_deg: &[f64; 6],
+        time_s: f64,
+        widths: &[f64; 6],
+        play: &mut Play,
+    ) {
         let frictions = self.file.gears.each_ref().map(|g| g.flank_friction_knm);
         if frictions.iter().all(Option::is_none) || self.robot().gravity.is_none() {
             return;

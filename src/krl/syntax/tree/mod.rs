@@ -29,9 +29,9 @@ mod queries;
 #[cfg(test)]
 mod tests;
 
-use lines::LineParse;
 #[cfg(any(test, feature = "internals"))]
 pub use emit::TileKind;
+use lines::LineParse;
 // What only robopost's own tests name through this path.
 #[cfg(any(test, feature = "internals"))]
 pub use queries::Statements;
