@@ -128,6 +128,14 @@ fn identify_and_compare_through_the_api() {
     assert_eq!(fitted.points, 3232);
     assert!(fitted.rms_um < 20.0, "{fitted:?}");
     assert!(nominal.rms_um > 100.0, "{nominal:?}");
+    // The calibration's parameters come in the fit's order (what the Python binding pairs
+    // with the standard errors), identified away from zero; the zero calibration's are zero.
+    let names = identified.calibration.parameter_names();
+    let values = identified.calibration.parameter_values();
+    assert_eq!(names, identified.fit.parameter_names);
+    assert_eq!(values.len(), names.len());
+    assert!(values.iter().any(|v| *v != 0.0));
+    assert!(zero.parameter_values().iter().all(|v| *v == 0.0));
     // The typed error names what was found, and its message says what was expected.
     match identify(&files, "map:A1,no-such-effect") {
         Err(Error::Effects(e)) => {

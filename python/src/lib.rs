@@ -168,7 +168,7 @@ fn identify(
         .to_json(std::path::Path::new("identified"))
         .map_err(value_error)?;
     let fit = &r.fit;
-    let values = r.calibration.model_ref().values();
+    let values = r.calibration.parameter_values();
     let parameters: Vec<Value> = fit
         .parameter_names
         .iter()

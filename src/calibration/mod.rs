@@ -108,6 +108,18 @@ impl Calibration {
         &self.model
     }
 
+    /// The error model's parameter names (`effect:parameter`), in the order of
+    /// [`Self::parameter_values`] and of an identification's `Fit::parameter_names`.
+    pub fn parameter_names(&self) -> Vec<String> {
+        self.model.parameter_names()
+    }
+
+    /// The error model's parameter values (units as the effects give them), in the order of
+    /// [`Self::parameter_names`].
+    pub fn parameter_values(&self) -> Vec<f64> {
+        self.model.values()
+    }
+
     /// The robot's software limits replaced (by those of the robot's machine data).
     pub fn set_limits(&mut self, limits_deg: [[f64; 2]; 6]) {
         self.model.robot.limits_deg = limits_deg;
