@@ -14,7 +14,11 @@
 //! [`Effect::role`]: robopost::model::Effect::role
 //! [`Kind`]: robopost::model::registry::Kind
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
+
+#[path = "support/sources.rs"]
+mod sources;
+use sources::{has_word, root, rust_files};
 
 use robopost::model::registry::KINDS;
 
@@ -32,24 +36,6 @@ const EXCEPT_FILES: [&str; 0] = [];
 const EXCEPT_KINDS: [&str; 1] = ["learned"];
 /// Files of `src/model/effects/` that are shared machinery, not an effect.
 const SHARED: [&str; 2] = ["mod.rs", "axis_table.rs"];
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn rust_files(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            out.extend(rust_files(&path));
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
-    out.sort();
-    out
-}
 
 /// The code of a source file: without its unit tests (`#[cfg(test)]` to the end, where this
 /// crate keeps them) and without comments.
@@ -75,16 +61,6 @@ fn code(text: &str) -> Vec<(usize, String)> {
             (i + 1, line[..end].to_string())
         })
         .collect()
-}
-
-/// Whether `word` occurs in `line` as a whole identifier.
-fn has_word(line: &str, word: &str) -> bool {
-    let ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
-    line.match_indices(word).any(|(i, _)| {
-        let before = line[..i].chars().next_back();
-        let after = line[i + word.len()..].chars().next();
-        !before.is_some_and(ident) && !after.is_some_and(ident)
-    })
 }
 
 /// The spellings that give an effect away: each kind's name as a string (`"tilt"`,

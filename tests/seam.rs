@@ -10,6 +10,10 @@
 
 use std::path::{Path, PathBuf};
 
+#[path = "support/sources.rs"]
+mod sources;
+use sources::{has_word, root, rust_files};
+
 /// The language-neutral rooms: whatever a second robot language would share.
 const NEUTRAL: [&str; 7] = [
     "src/motion",
@@ -24,24 +28,6 @@ const NEUTRAL: [&str; 7] = [
 const SYNTAX: &str = "src/krl/syntax";
 /// What the reader may name with `crate::`.
 const SYNTAX_MAY_USE: [&str; 3] = ["crate::krl::syntax", "crate::diagnostic", "crate::input"];
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn rust_files(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            out.extend(rust_files(&path));
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
-    out.sort();
-    out
-}
 
 /// The code of a source text, line by line (numbered from 1): comments removed and the
 /// contents of string literals blanked (a message may say "KRL"; code that names the front
@@ -96,16 +82,6 @@ fn code(text: &str) -> Vec<(usize, String)> {
             (i + 1, out)
         })
         .collect()
-}
-
-/// Whether `word` occurs in `line` as a whole identifier.
-fn has_word(line: &str, word: &str) -> bool {
-    let ident = |c: char| c.is_ascii_alphanumeric() || c == '_';
-    line.match_indices(word).any(|(i, _)| {
-        let before = line[..i].chars().next_back();
-        let after = line[i + word.len()..].chars().next();
-        !before.is_some_and(ident) && !after.is_some_and(ident)
-    })
 }
 
 /// Every line of `text` (shown as `shown`) that names the KRL front end.
