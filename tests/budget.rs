@@ -245,6 +245,29 @@ fn truth_side(truth: &Truth, cal: &Calibration, plan: &[PlannedStop]) -> (Vector
     (drift, systematic)
 }
 
+/// The budget's parts against the truth itself: the measured drift at the reference pose is
+/// the truth's own there (`drift`, mm) within 10 µm, and the systematic parts (identification,
+/// model form) are the truth's noise-free residual at the validation poses (`systematic`, its
+/// mean square in mm², drift taken off) within a sixth.
+fn checked_against_truth(name: &str, b: &Budget, drift: &Vector3<f64>, systematic: f64) {
+    let t = b
+        .time_reference
+        .as_ref()
+        .expect("the reference pose is found");
+    let measured_drift = Vector3::from(t.drift_um) * 1e-3;
+    assert!(
+        (measured_drift - drift).norm() < 0.010,
+        "{name}: {measured_drift:?} vs {drift:?}"
+    );
+    let p = &b.all;
+    let parts = (p.identification_um.powi(2) + p.model_form_um.powi(2)).sqrt();
+    let truth = systematic.sqrt() * 1e3;
+    assert!(
+        (parts / truth - 1.0).abs() < 1.0 / 6.0,
+        "{name}: parts {parts} vs truth {truth}"
+    );
+}
+
 #[test]
 fn budget_parts_account_for_the_measured_error_on_three_truths() {
     let load =
@@ -322,19 +345,7 @@ fn budget_parts_account_for_the_measured_error_on_three_truths() {
             15
         };
         assert_eq!((t.campaign_repeats, t.validation_repeats), (expected, 10));
-        let measured_drift = Vector3::from(t.drift_um) * 1e-3;
-        assert!(
-            (measured_drift - drift).norm() < 0.010,
-            "{name}: {measured_drift:?} vs {drift:?}"
-        );
-        // The systematic parts (identification, model form) are the truth's noise-free
-        // residual at the validation poses, drift taken off, within a sixth.
-        let parts = (p.identification_um.powi(2) + p.model_form_um.powi(2)).sqrt();
-        let truth = systematic.sqrt() * 1e3;
-        assert!(
-            (parts / truth - 1.0).abs() < 1.0 / 6.0,
-            "{name}: parts {parts} vs truth {truth}"
-        );
+        checked_against_truth(name, b, drift, *systematic);
     }
     let [clean, hidden, physical_budget] = [&results[0].1, &results[1].1, &results[2].1];
     // No drift in the model truths: the time part is the noise of the means, taken off.
@@ -417,21 +428,7 @@ fn budget_after_the_fine_campaign() {
         1,
     );
     assert!(p.model_form_um < p.tracker_um, "{p:?}");
-    let t = b
-        .time_reference
-        .as_ref()
-        .expect("the reference pose is found");
-    let measured_drift = Vector3::from(t.drift_um) * 1e-3;
-    assert!(
-        (measured_drift - drift).norm() < 0.010,
-        "{measured_drift:?} vs {drift:?}"
-    );
-    let parts = (p.identification_um.powi(2) + p.model_form_um.powi(2)).sqrt();
-    let truth = systematic.sqrt() * 1e3;
-    assert!(
-        (parts / truth - 1.0).abs() < 1.0 / 6.0,
-        "parts {parts} vs truth {truth}"
-    );
+    checked_against_truth("fine campaign", &b, &drift, systematic);
 }
 
 /// `robopost compare -c CAL.json VALIDATION.csv --budget CAMPAIGN.csv [--json]`: the budget
